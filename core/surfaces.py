@@ -1,0 +1,327 @@
+"""Closed boundary surfaces of a geozone from its horizontal sections.
+
+The paper (section "Results: Visualization") triangulates the stacked contours
+of each geozone into a surface. Joining contours directly is fragile when a
+region splits, merges, gains a hole or vanishes between two benches, so this
+module uses an implicit route that handles all of those the same way:
+
+1. every section ``(z, region)`` is rasterised on one common :class:`Grid` and
+   turned into a signed distance function (positive inside; exact polygon
+   distances in a band of a few cells around the boundary, so the surface is
+   not stair-stepped by the raster);
+2. between two consecutive sections the SDF is interpolated linearly in z on
+   a number of intermediate slices (about one cell apart), which is the
+   classic "shape-based interpolation" of contours;
+3. the volume is padded with an *outside* layer all round; the padding layers
+   above the top section and below the bottom section sit a hair
+   (``1e-3`` of a slice) beyond them, so the solid is capped flat at the top
+   and bottom sections;
+4. :func:`skimage.measure.marching_cubes` extracts the zero level set, whose
+   vertices are mapped back to metres (z through the piecewise-linear map of
+   slice index to elevation, so irregular bench spacing is honoured exactly);
+5. the mesh is oriented outward (positive volume) and checked to be
+   watertight and consistently wound.
+
+A region that is empty at some elevation ends between that section and its
+neighbour: the empty section is given a uniform SDF of minus the largest
+inside depth of its neighbours, so the thickest part of the body reaches about
+halfway to the empty section and the rest closes before it (a rounded
+pinch-out rather than a flat cut).
+
+Precision: all arithmetic is float64. Meshes are built in a local metric frame
+(small numbers); :func:`to_input_frame` moves them back to mine-grid or
+projected coordinates (x ~ 650 000, y ~ 7 400 000), where float32 would only
+resolve about 0.5 m. Keep float64 on export: ``core.export`` writes float64 in
+PLY, VTP, OBJ (text), DXF and OMF; STL is float32 by definition.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+import shapely
+import trimesh
+from shapely.geometry import MultiPolygon, Polygon
+from skimage import measure
+
+from .errors import BGMInputError
+from .grid import Grid, as_multipolygon
+from .sdf import signed_distance
+
+#: Default number of cells along the longer horizontal side of the sections.
+DEFAULT_CELLS_ACROSS = 300
+#: Margin of outside cells around the sections' bounding box.
+MARGIN_CELLS = 3
+#: Width (in cells) of the band where the raster SDF is replaced by exact polygon distances.
+EXACT_BAND_CELLS = 2.5
+#: At most this many slices are interpolated in z (the spacing grows beyond it).
+MAX_Z_SLICES = 400
+#: Refuse volumes larger than this many voxels (about 0.5 GB of float64).
+MAX_VOXELS = 60_000_000
+
+__all__ = [
+    "DEFAULT_CELLS_ACROSS",
+    "mesh_summary",
+    "surface_from_sections",
+    "to_input_frame",
+]
+
+
+def surface_from_sections(
+    sections: Sequence[tuple[float, Polygon | MultiPolygon]],
+    *,
+    cell_size_m: float | None = None,
+    z_spacing_m: float | None = None,
+) -> trimesh.Trimesh:
+    """Closed, outward-oriented triangle mesh of the solid stacked from ``sections``.
+
+    Parameters
+    ----------
+    sections : sequence of ``(z, region)``
+        Elevation in metres and the region at that elevation as a shapely
+        Polygon or MultiPolygon (holes allowed; empty allowed) in a local
+        metric frame. Any order; at least two distinct elevations; at least
+        one non-empty region. Regions given twice at one elevation are united.
+    cell_size_m : float, optional
+        Horizontal cell size of the working grid. Default: the longer side of
+        the sections' bounding box divided by about
+        :data:`DEFAULT_CELLS_ACROSS` (300), i.e. the grid is capped near 300
+        cells across; the surface is then accurate to a small fraction of a
+        cell (the boundary band uses exact polygon distances).
+    z_spacing_m : float, optional
+        Target spacing of the interpolated slices between sections. Default:
+        ``cell_size_m`` (near-cubic voxels), coarsened so that no more than
+        :data:`MAX_Z_SLICES` slices are used. Section elevations are always
+        slices themselves.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Watertight, consistently wound, positive-volume mesh; vertices in the
+        same local frame (x, y, z in metres, float64). The solid is capped at
+        the lowest and highest sections.
+
+    Raises
+    ------
+    BGMInputError
+        Fewer than two elevations, non-finite elevations, all regions empty,
+        a non-positive cell size, or a grid too large for memory.
+    """
+    levels = _normalise_sections(sections)
+    zs = np.array([z for z, _ in levels], dtype=float)
+    regions = [r for _, r in levels]
+
+    bounds = _union_bounds(regions)
+    span = max(bounds[2] - bounds[0], bounds[3] - bounds[1])
+    if cell_size_m is None:
+        cell_size_m = max(span, 1e-6) / (DEFAULT_CELLS_ACROSS - 2 * MARGIN_CELLS - 1)
+    cell_size_m = float(cell_size_m)
+    if not (math.isfinite(cell_size_m) and cell_size_m > 0):
+        raise BGMInputError(f"cell size must be a positive number of metres, got {cell_size_m!r}")
+    grid = Grid.covering(bounds, cell_size_m, margin_cells=MARGIN_CELLS)
+
+    z_levels, src = _z_slices(zs, z_spacing_m if z_spacing_m is not None else cell_size_m)
+    n_vox = (len(z_levels) + 2) * (grid.shape[0] + 2) * (grid.shape[1] + 2)
+    if n_vox > MAX_VOXELS:
+        raise BGMInputError(
+            f"the surface grid would have {n_vox:,} voxels (more than {MAX_VOXELS:,}); "
+            f"use a larger cell size than {cell_size_m:g} m or a larger z spacing"
+        )
+
+    sdfs = [_section_sdf(grid, r) for r in regions]
+    _fill_empty_sections(sdfs, regions, cell_size_m)
+
+    # Volume axes: (slice, row, col), padded by one outside layer all round.
+    outside = -(max(float(np.max(s)) for s in sdfs) + 2.0 * cell_size_m)
+    vol = np.full((len(z_levels) + 2, grid.shape[0] + 2, grid.shape[1] + 2), outside)
+    for k, (i, t) in enumerate(src):
+        sl = sdfs[i] if t == 0.0 else (1.0 - t) * sdfs[i] + t * sdfs[i + 1]
+        vol[k + 1, 1:-1, 1:-1] = sl
+    # An exact zero at a voxel makes marching cubes emit zero-area triangles.
+    tiny = 1e-9 * cell_size_m
+    vol[vol == 0.0] = tiny
+
+    verts, faces, _normals, _values = measure.marching_cubes(vol, level=0.0, allow_degenerate=False)
+    verts = verts.astype(np.float64)
+
+    # Slice index -> elevation: the pads sit 1e-3 of a slice beyond the end sections.
+    dz_end_lo = (z_levels[1] - z_levels[0]) if len(z_levels) > 1 else 1.0
+    dz_end_hi = (z_levels[-1] - z_levels[-2]) if len(z_levels) > 1 else 1.0
+    z_of_index = np.concatenate(
+        [[z_levels[0] - 1e-3 * dz_end_lo], z_levels, [z_levels[-1] + 1e-3 * dz_end_hi]]
+    )
+    index = np.arange(len(z_of_index), dtype=float)
+    xyz = np.column_stack(
+        [
+            grid.x0 + (verts[:, 2] - 1.0) * cell_size_m,
+            grid.y0 + (verts[:, 1] - 1.0) * cell_size_m,
+            np.interp(verts[:, 0], index, z_of_index),
+        ]
+    )
+
+    mesh = trimesh.Trimesh(vertices=xyz, faces=faces, process=True)
+    mesh.remove_unreferenced_vertices()
+    if len(mesh.faces) == 0:
+        raise BGMInputError("the sections enclose no volume at this cell size")
+    if mesh.volume < 0:
+        mesh.invert()
+    if not mesh.is_winding_consistent:
+        mesh.fix_normals(multibody=False)
+        if mesh.volume < 0:
+            mesh.invert()
+    _check(mesh)
+    return mesh
+
+
+def mesh_summary(mesh: trimesh.Trimesh) -> dict:
+    """Plain-number summary of a mesh: volume, area, counts and closedness checks."""
+    watertight = bool(mesh.is_watertight)
+    return {
+        "volume_m3": float(mesh.volume) if watertight else float("nan"),
+        "area_m2": float(mesh.area),
+        "faces": int(len(mesh.faces)),
+        "vertices": int(len(mesh.vertices)),
+        "watertight": watertight,
+        "winding_consistent": bool(mesh.is_winding_consistent),
+    }
+
+
+def to_input_frame(
+    mesh: trimesh.Trimesh, origin_xy: tuple[float, float], metres_per_unit: float
+) -> trimesh.Trimesh:
+    """Copy of ``mesh`` moved from the local metric frame back to input coordinates.
+
+    ``x = x_local / metres_per_unit + origin_x``, ``y`` likewise,
+    ``z = z_local / metres_per_unit``. Computed in float64; the vertices are
+    not merged or reordered, so faces are unchanged. A non-positive scale
+    would mirror the mesh and is refused.
+
+    Note the result's volume and area are in input units (cubed / squared).
+    """
+    mpu = float(metres_per_unit)
+    if not (math.isfinite(mpu) and mpu > 0):
+        raise BGMInputError(f"metres per unit must be a positive number, got {metres_per_unit!r}")
+    ox, oy = (float(v) for v in origin_xy)
+    if not (math.isfinite(ox) and math.isfinite(oy)):
+        raise BGMInputError(f"origin must be finite, got {origin_xy!r}")
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    out = np.empty_like(v)
+    out[:, 0] = v[:, 0] / mpu + ox
+    out[:, 1] = v[:, 1] / mpu + oy
+    out[:, 2] = v[:, 2] / mpu
+    return trimesh.Trimesh(vertices=out, faces=np.array(mesh.faces), process=False)
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _normalise_sections(sections: Iterable) -> list[tuple[float, MultiPolygon]]:
+    by_z: dict[float, list] = {}
+    for item in sections:
+        try:
+            z, region = item
+        except (TypeError, ValueError):
+            raise BGMInputError("each section must be a pair (elevation, polygon)") from None
+        z = float(z)
+        if not math.isfinite(z):
+            raise BGMInputError(f"section elevation must be finite, got {z!r}")
+        if region is not None and not isinstance(region, shapely.Geometry):
+            raise BGMInputError(f"section at z={z:g} is not a shapely geometry: {type(region).__name__}")
+        by_z.setdefault(z, []).append(region)
+    if len(by_z) < 2:
+        raise BGMInputError(
+            f"a surface needs sections at two or more elevations, got {len(by_z)}"
+        )
+    out = []
+    for z in sorted(by_z):
+        parts = [as_multipolygon(r) for r in by_z[z]]
+        region = parts[0] if len(parts) == 1 else as_multipolygon(shapely.union_all(parts))
+        if not region.is_empty and not np.all(np.isfinite(region.bounds)):
+            raise BGMInputError(f"section at z={z:g} has non-finite coordinates")
+        out.append((z, region))
+    if all(r.is_empty for _, r in out):
+        raise BGMInputError("every section is empty: there is no solid to mesh")
+    return out
+
+
+def _union_bounds(regions: list[MultiPolygon]) -> tuple[float, float, float, float]:
+    b = np.array([r.bounds for r in regions if not r.is_empty], dtype=float)
+    return (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
+
+
+def _z_slices(zs: np.ndarray, dz_target: float) -> tuple[np.ndarray, list[tuple[int, float]]]:
+    """Slice elevations and, for each, ``(section i, weight t of section i+1)``."""
+    span = float(zs[-1] - zs[0])
+    dz = max(float(dz_target), span / MAX_Z_SLICES)
+    if not (math.isfinite(dz) and dz > 0):
+        raise BGMInputError(f"z spacing must be a positive number of metres, got {dz_target!r}")
+    levels: list[float] = []
+    src: list[tuple[int, float]] = []
+    for i in range(len(zs) - 1):
+        gap = zs[i + 1] - zs[i]
+        n = max(1, int(math.ceil(gap / dz - 1e-9)))
+        for k in range(n):
+            t = k / n
+            levels.append(zs[i] + t * gap)
+            src.append((i, t))
+    levels.append(float(zs[-1]))
+    src.append((len(zs) - 1, 0.0))
+    return np.array(levels, dtype=float), src
+
+
+def _section_sdf(grid: Grid, region: MultiPolygon) -> np.ndarray | None:
+    """Signed distance (m, positive inside) of ``region`` on ``grid``; None if empty.
+
+    The raster EDT is replaced by exact distances to the polygon boundary in a
+    band of :data:`EXACT_BAND_CELLS` cells around it (sign from exact point in
+    polygon), so the zero level follows the polygon, not its pixels.
+    """
+    if region.is_empty:
+        return None
+    # Same rule as Grid.rasterize (cells whose centres lie inside, holes
+    # honoured) but through prepared shapely geometry, which is much faster
+    # for finely digitised contours and agrees with the exact sign below.
+    X, Y = grid.cell_centres()
+    shapely.prepare(region)
+    mask = shapely.contains_xy(region, X, Y)
+    sdf = signed_distance(mask, grid.cell_size_m)
+    band = np.abs(sdf) <= EXACT_BAND_CELLS * grid.cell_size_m
+    if not mask.any():
+        # Region thinner than a cell: place it by exact distances near its location.
+        rc = np.rint(grid.xy_to_rc(np.array(region.representative_point().coords))).astype(int)[0]
+        r0, c0 = np.clip(rc, 0, np.array(grid.shape) - 1)
+        band = np.zeros(grid.shape, dtype=bool)
+        band[max(r0 - 3, 0) : r0 + 4, max(c0 - 3, 0) : c0 + 4] = True
+        sdf = np.full(grid.shape, -3.0 * grid.cell_size_m)
+    xs, ys = X[band], Y[band]
+    inside = shapely.contains_xy(region, xs, ys)
+    dist = shapely.distance(region.boundary, shapely.points(xs, ys))
+    sdf = sdf.copy()
+    sdf[band] = np.where(inside, dist, -dist)
+    return sdf
+
+
+def _fill_empty_sections(sdfs: list, regions: list, cell_size_m: float) -> None:
+    """Give empty sections a uniform outside value so bodies pinch out about halfway."""
+    shape = next(s.shape for s in sdfs if s is not None)
+    depth = [float(np.max(s)) if s is not None else None for s in sdfs]
+    for i, s in enumerate(sdfs):
+        if s is not None:
+            continue
+        near = [depth[j] for j in (i - 1, i + 1) if 0 <= j < len(sdfs) and depth[j] is not None]
+        m = max(near) if near else cell_size_m
+        sdfs[i] = np.full(shape, -(max(m, 0.0) + 0.5 * cell_size_m))
+
+
+def _check(mesh: trimesh.Trimesh) -> None:
+    problems = []
+    if not mesh.is_watertight:
+        problems.append("not watertight")
+    if not mesh.is_winding_consistent:
+        problems.append("inconsistent winding")
+    if not mesh.volume > 0:
+        problems.append(f"non-positive volume {mesh.volume:g}")
+    if problems:
+        raise RuntimeError("surface extraction produced a bad mesh: " + ", ".join(problems))

@@ -1,0 +1,420 @@
+"""Particle trajectories of a contour morph and wave-speed adjustment.
+
+Paper section 4 ("Contour metamorphosis", subsections "Iso-contours and wave
+speed adjustment" and "Challenges") and ``ALGORITHMS.md`` ("Particle
+advection"). Particles start evenly along the source contour and ride the
+level-set front of :mod:`core.morph` along its normal,
+
+    x_{k+1} = x_k - dt * F(x_k) * grad(phi) / |grad(phi)|,   F = clip(gamma_t, -c, c),
+
+(``phi`` positive inside, so ``grad(phi)`` points inward and a particle where
+the target lies outside the front, ``gamma_t > 0``, moves outward). ``F`` is
+the same clamped speed that moves the front, so a particle stays on the zero
+set. A particle ends once it reaches the target contour, ``|gamma_t| < h/2``.
+
+Everything here works in the local metric frame (metres); times are the
+dimensionless morph time of :func:`core.morph.morph_regions`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+from shapely.geometry import MultiPolygon, Polygon
+
+from core.grid import Grid, _polygons
+
+
+@dataclass
+class Trajectory:
+    """Path of one particle from the source contour to the target contour.
+
+    Attributes
+    ----------
+    xy : (n, 2) float array
+        Positions in the local frame (metres); ``xy[0]`` lies on the source
+        contour, ``xy[-1]`` on the target contour.
+    t : (n,) float array
+        Morph time of each position, non-decreasing.
+    backtracked : bool
+        True for trajectories recovered by curvelet backtracking
+        (:mod:`core.backtracking`) rather than by particle advection.
+    """
+
+    xy: np.ndarray
+    t: np.ndarray
+    backtracked: bool = False
+
+
+@dataclass
+class ParticleState:
+    """Mutable state of the particles during one morph (internal bookkeeping).
+
+    Attributes
+    ----------
+    xy : (n, 2) float array
+        Current positions (metres).
+    status : (n,) int array
+        0 active, 1 reached the target, 2 lost the front (discarded).
+    end_step : (n,) int array
+        Step index of the last position of finished particles (-1 while active).
+    history : list of (n, 2) arrays
+        Positions after every step (``history[0]`` = seeds).
+    """
+
+    xy: np.ndarray
+    status: np.ndarray
+    end_step: np.ndarray
+    history: list = field(default_factory=list)
+
+
+# ---------------------------------------------------------------------------
+# sampling helpers
+# ---------------------------------------------------------------------------
+
+
+def bilinear(field_: np.ndarray, rc: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation of ``field_`` at fractional ``(row, col)`` points.
+
+    Points outside the grid are clamped to its edge (like
+    ``Grid.sample(..., mode="nearest")``), but this is several times faster
+    than ``scipy.ndimage.map_coordinates`` for a few hundred points.
+
+    Parameters
+    ----------
+    field_ : (rows, cols) array
+    rc : (n, 2) array of fractional row, col
+
+    Returns
+    -------
+    (n,) float array
+    """
+    rows, cols = field_.shape
+    r = np.clip(rc[:, 0], 0.0, rows - 1.000001)
+    c = np.clip(rc[:, 1], 0.0, cols - 1.000001)
+    r0 = r.astype(np.intp)
+    c0 = c.astype(np.intp)
+    fr = r - r0
+    fc = c - c0
+    flat = field_.ravel()
+    i = r0 * cols + c0
+    a = flat[i]
+    b = flat[i + 1]
+    d = flat[i + cols]
+    e = flat[i + cols + 1]
+    return (a * (1 - fc) + b * fc) * (1 - fr) + (d * (1 - fc) + e * fc) * fr
+
+
+def ring_samples(region: Polygon | MultiPolygon, spacing_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Evenly spaced points along every ring (exterior and holes) of ``region``.
+
+    Parameters
+    ----------
+    region : Polygon or MultiPolygon
+    spacing_m : float
+        Wanted spacing; each ring gets ``ceil(length / spacing_m)`` points, so
+        the actual spacing is at most ``spacing_m``.
+
+    Returns
+    -------
+    xy : (n, 2) float array
+    ring : (n,) int array
+        Ring number of each point.
+    arc_m : (n,) float array
+        Arc-length position of each point along its ring.
+    weight_m : (n,) float array
+        Boundary length represented by each point (sums to the perimeter).
+    """
+    xs, rings, arcs, weights = [], [], [], []
+    k = 0
+    for poly in _polygons(region):
+        for ring in [poly.exterior, *poly.interiors]:
+            length = ring.length
+            if length <= 0:
+                continue
+            n = max(int(np.ceil(length / spacing_m)), 3)
+            d = np.arange(n) * (length / n)
+            pts = shapely.get_coordinates(shapely.line_interpolate_point(ring, d))
+            xs.append(pts)
+            rings.append(np.full(n, k))
+            arcs.append(d)
+            weights.append(np.full(n, length / n))
+            k += 1
+    if not xs:
+        empty = np.zeros(0)
+        return np.zeros((0, 2)), empty.astype(int), empty, empty
+    return np.vstack(xs), np.concatenate(rings), np.concatenate(arcs), np.concatenate(weights)
+
+
+# ---------------------------------------------------------------------------
+# particle advection (ALGORITHMS.md "Particle advection"; paper Appendix B eq. 26)
+# ---------------------------------------------------------------------------
+
+
+def seed_particles(source: Polygon | MultiPolygon, spacing_m: float) -> ParticleState:
+    """Particles evenly along the source contour(s), about ``spacing_m`` apart."""
+    xy, _, _, _ = ring_samples(source, spacing_m)
+    n = len(xy)
+    return ParticleState(
+        xy=xy.copy(),
+        status=np.zeros(n, dtype=np.int8),
+        end_step=np.full(n, -1, dtype=np.intp),
+        history=[xy.copy()],
+    )
+
+
+def advect_particles(
+    state: ParticleState,
+    grid: Grid,
+    phi: np.ndarray,
+    gamma_t: np.ndarray,
+    dt: float,
+    speed_clamp_m: float,
+    step: int,
+) -> np.ndarray:
+    """Move the active particles one level-set step along the front normal.
+
+    ``x <- x - dt * clip(gamma_t, -c, c) * grad(phi)/|grad(phi)|`` with
+    ``phi`` (the level set *before* this step's update) and ``gamma_t``
+    sampled bilinearly; ``grad(phi)`` is a central difference of bilinear
+    samples one cell apart. Particles reaching ``|gamma_t| < h/2`` are marked
+    finished at ``step + 1``. Appends the new positions to the history.
+
+    Returns
+    -------
+    (n,) float array
+        ``|grad phi|`` at the particles (nan for inactive ones), used by
+        :func:`drop_lost_particles`.
+    """
+    h = grid.cell_size_m
+    act = np.flatnonzero(state.status == 0)
+    gnorm = np.full(len(state.xy), np.nan)
+    if act.size:
+        rc = grid.xy_to_rc(state.xy[act])
+        m = len(act)
+        off = np.array([[0.0, 1.0], [0.0, -1.0], [1.0, 0.0], [-1.0, 0.0]])
+        pts = (rc[None, :, :] + off[:, None, :]).reshape(-1, 2)
+        v = bilinear(phi, pts).reshape(4, m)
+        gx = (v[0] - v[1]) / (2 * h)
+        gy = (v[2] - v[3]) / (2 * h)
+        norm = np.hypot(gx, gy)
+        speed = np.clip(bilinear(gamma_t, rc), -speed_clamp_m, speed_clamp_m)
+        ok = norm > 1e-9
+        scale = np.where(ok, -dt * speed / np.where(ok, norm, 1.0), 0.0)
+        new = state.xy[act] + np.column_stack([scale * gx, scale * gy])
+        state.xy[act] = new
+        gnorm[act] = norm
+        g_new = bilinear(gamma_t, grid.xy_to_rc(new))
+        done = np.abs(g_new) < 0.5 * h
+        state.status[act[done]] = 1
+        state.end_step[act[done]] = step + 1
+    state.history.append(state.xy.copy())
+    return gnorm
+
+
+def drop_lost_particles(
+    state: ParticleState, grid: Grid, phi: np.ndarray, grad_norm: np.ndarray, max_offset_cells: float = 1.5
+) -> None:
+    """Discard active particles that are no longer on the front.
+
+    After fronts collide (regions merging, or a shock where a front folds
+    onto itself) a particle ends up inside or outside the region, away from
+    the zero set; such a particle describes interior material, not the
+    boundary, and is dropped. The distance to the front is estimated as
+    ``|phi| / |grad phi|``.
+    """
+    act = np.flatnonzero(state.status == 0)
+    if not act.size:
+        return
+    val = bilinear(phi, grid.xy_to_rc(state.xy[act]))
+    gn = np.maximum(np.nan_to_num(grad_norm[act], nan=1.0), 0.2)
+    lost = np.abs(val) / gn > max_offset_cells * grid.cell_size_m
+    state.status[act[lost]] = 2
+
+
+def finished_trajectories(state: ParticleState, dt: float, min_spacing_m: float) -> list[Trajectory]:
+    """Trajectories of the particles that reached the target, in seed order.
+
+    Consecutive positions closer than ``min_spacing_m`` along the path are
+    thinned out (the front slows down exponentially near the target, giving
+    many tiny steps); the first and last positions are always kept.
+    """
+    hist = np.stack(state.history)  # (steps + 1, n, 2)
+    out = []
+    steps = np.diff(hist, axis=0)
+    seg = np.hypot(steps[..., 0], steps[..., 1])
+    cum = np.vstack([np.zeros((1, hist.shape[1])), np.cumsum(seg, axis=0)])
+    for i in np.flatnonzero(state.status == 1):
+        end = int(state.end_step[i])
+        c = cum[: end + 1, i]
+        bucket = np.floor(c / min_spacing_m)
+        keep = np.ones(end + 1, dtype=bool)
+        keep[1:] = bucket[1:] != bucket[:-1]
+        keep[0] = keep[-1] = True
+        idx = np.flatnonzero(keep)
+        if idx.size == 1:
+            idx = np.array([0, 0])
+        xy = hist[idx, i, :]
+        out.append(Trajectory(xy=xy, t=idx * dt, backtracked=False))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# wave-speed adjustment (paper section 4.1)
+# ---------------------------------------------------------------------------
+
+
+def normalised_arc_length(traj: Trajectory) -> np.ndarray:
+    """Arc-length parameter ``s`` of each point, 0 on the source, 1 on the target.
+
+    This is the wave-speed adjustment of paper section 4.1: re-parameterising
+    every trajectory by its own normalised arc length makes all particles
+    leave the source at ``s = 0`` and reach the target together at
+    ``s = 1``, so points of equal ``s`` form an iso-contour. A trajectory of
+    zero length (source and target contours coincide there) is parameterised
+    by point index.
+    """
+    xy = np.asarray(traj.xy, dtype=float)
+    if len(xy) < 2:
+        return np.zeros(len(xy))
+    seg = np.hypot(*np.diff(xy, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    if cum[-1] <= 0:
+        return np.linspace(0.0, 1.0, len(xy))
+    return cum / cum[-1]
+
+
+def trajectory_xyz(traj: Trajectory, z_source: float, z_target: float) -> np.ndarray:
+    """``(n, 3)`` points of ``traj`` with elevation linear in normalised arc length.
+
+    ``z = z_source + s * (z_target - z_source)``; see :func:`normalised_arc_length`.
+    """
+    s = normalised_arc_length(traj)
+    z = z_source + s * (z_target - z_source)
+    return np.column_stack([np.asarray(traj.xy, dtype=float), z])
+
+
+def positions_at(trajectories: list[Trajectory], fraction: float) -> np.ndarray:
+    """Point of each trajectory at normalised arc length ``fraction`` (0..1).
+
+    Gives the iso-contour points at the intermediate elevation
+    ``z_source + fraction * (z_target - z_source)``, in the order of
+    ``trajectories`` (which :func:`core.morph.morph_regions` returns ordered
+    along the source contour).
+    """
+    f = float(np.clip(fraction, 0.0, 1.0))
+    out = np.empty((len(trajectories), 2))
+    for k, tr in enumerate(trajectories):
+        s = normalised_arc_length(tr)
+        out[k, 0] = np.interp(f, s, tr.xy[:, 0])
+        out[k, 1] = np.interp(f, s, tr.xy[:, 1])
+    return out
+
+
+# ---------------------------------------------------------------------------
+# crossing checks and coverage
+# ---------------------------------------------------------------------------
+
+
+def _segments(trajectories: list[Trajectory]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    a, b, owner = [], [], []
+    for k, tr in enumerate(trajectories):
+        xy = np.asarray(tr.xy, dtype=float)
+        if len(xy) < 2:
+            continue
+        p, q = xy[:-1], xy[1:]
+        nz = np.any(p != q, axis=1)
+        a.append(p[nz])
+        b.append(q[nz])
+        owner.append(np.full(int(nz.sum()), k))
+    if not a:
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=int)
+    return np.vstack(a), np.vstack(b), np.concatenate(owner)
+
+
+def crossing_pairs(trajectories: list[Trajectory]) -> np.ndarray:
+    """Pairs ``(i, j)``, ``i < j``, of trajectories whose paths properly cross.
+
+    Segments are paired by an STR-tree on their bounding boxes, then tested
+    exactly with orientation signs: a crossing needs each segment's end points
+    strictly on opposite sides of the other. Touching (a shared vertex, e.g.
+    a backtracked trajectory leaving its trunk) and collinear overlap (the
+    shared trunk part) are not crossings.
+
+    Returns
+    -------
+    (k, 2) int array of unique pairs.
+    """
+    a, b, owner = _segments(trajectories)
+    if len(a) < 2:
+        return np.zeros((0, 2), dtype=int)
+    lo = np.minimum(a, b)
+    hi = np.maximum(a, b)
+    boxes = shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1])
+    tree = shapely.STRtree(boxes)
+    i, j = tree.query(boxes)
+    sel = (i < j) & (owner[i] != owner[j])
+    i, j = i[sel], j[sel]
+    if not i.size:
+        return np.zeros((0, 2), dtype=int)
+    p1, p2, p3, p4 = a[i], b[i], a[j], b[j]
+
+    def orient(p, q, r):
+        return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+
+    scale = np.maximum(np.hypot(*(p2 - p1).T) * np.hypot(*(p4 - p3).T), 1e-300)
+    tol = 1e-9 * scale
+    o1, o2 = orient(p1, p2, p3), orient(p1, p2, p4)
+    o3, o4 = orient(p3, p4, p1), orient(p3, p4, p2)
+    cross = (o1 * o2 < -tol * tol) & (o3 * o4 < -tol * tol)
+    cross &= (np.abs(o1) > tol) & (np.abs(o2) > tol) & (np.abs(o3) > tol) & (np.abs(o4) > tol)
+    pairs = np.column_stack([owner[i[cross]], owner[j[cross]]])
+    pairs.sort(axis=1)
+    return np.unique(pairs, axis=0) if len(pairs) else np.zeros((0, 2), dtype=int)
+
+
+def remove_crossings(trajectories: list[Trajectory]) -> list[Trajectory]:
+    """Drop as few trajectories as needed so that no two cross.
+
+    Greedy: repeatedly remove the trajectory in the most crossings (ties:
+    backtracked before advected, then the shorter one). Order is preserved.
+    """
+    pairs = crossing_pairs(trajectories)
+    if not len(pairs):
+        return list(trajectories)
+    removed: set[int] = set()
+    live = pairs
+    while len(live):
+        counts = np.bincount(live.ravel(), minlength=len(trajectories))
+        cand = np.flatnonzero(counts == counts.max())
+        key = [(not trajectories[c].backtracked, len(trajectories[c].xy)) for c in cand]
+        worst = int(cand[min(range(len(cand)), key=lambda k: key[k])])
+        removed.add(worst)
+        live = live[(live[:, 0] != worst) & (live[:, 1] != worst)]
+    return [tr for k, tr in enumerate(trajectories) if k not in removed]
+
+
+def boundary_coverage(
+    trajectories: list[Trajectory],
+    target: Polygon | MultiPolygon,
+    cell_size_m: float,
+    radius_cells: float = 1.0,
+) -> float:
+    """Fraction of the target boundary length near a trajectory end point.
+
+    The boundary is sampled every quarter cell; a sample is covered when a
+    trajectory end point lies within ``radius_cells`` cells of it (cKDTree).
+    This is the success measure of curvelet backtracking (paper section 4.3;
+    ``ALGORITHMS.md``). An empty target boundary counts as fully covered.
+    """
+    xy, _, _, w = ring_samples(target, 0.25 * cell_size_m)
+    if not len(xy):
+        return 1.0
+    if not trajectories:
+        return 0.0
+    ends = np.array([tr.xy[-1] for tr in trajectories])
+    d, _ = cKDTree(ends).query(xy)
+    return float(np.sum(w[d <= radius_cells * cell_size_m]) / np.sum(w))
