@@ -83,6 +83,10 @@ class LocalFrame:
         """Input elevation to local metres."""
         return np.asarray(z, float) * self.metres_per_unit
 
+    def length_to_local(self, length):
+        """A length or vector in input units to metres."""
+        return np.asarray(length, float) * self.metres_per_unit
+
     def length_to_input(self, length_m):
         """A length or vector in metres to input units (no origin shift)."""
         return np.asarray(length_m, float) / self.metres_per_unit

@@ -122,7 +122,8 @@ def gap_boundary(
     # Gaps between successive directions, plus the wrap-around gap.
     first = angle[:, 0]
     last = np.take_along_axis(angle, np.maximum(count - 1, 0)[:, None], axis=1)[:, 0]
-    inner = np.diff(angle, axis=1)
+    with np.errstate(invalid="ignore"):
+        inner = np.diff(angle, axis=1)
     inner[~np.isfinite(inner)] = -np.inf
     wrap = first + 2 * np.pi - last
     gaps = np.column_stack([inner, wrap])

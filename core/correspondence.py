@@ -4,7 +4,7 @@ Given the component boundaries of one geozone on an upper bench ("sources")
 and on the bench below ("targets"), this stage
 
 1. decides which sources may interact with which targets (region association,
-   paper section 3.1, eqs. (1)-(8)), and
+   paper section 3.1, eqs. (1)-(9)), and
 2. estimates a rigid translation per source that best aligns it with its
    targets, subject to spatial constraints (component alignment, section 3.2,
    Algorithms 4-7), decomposing complex relations into subtrees (3.2.4).
@@ -34,7 +34,7 @@ from core.grid import Grid, as_multipolygon
 from core.sdf import signed_distance
 
 #: Default lower limit of the association radius, as a multiple of the hole
-#: spacing (``mu_lower`` in eqs. (6)-(8)). Lateral drift of a boundary between
+#: spacing (``mu_lower`` in eqs. (6)-(7)). Lateral drift of a boundary between
 #: benches is typically of the order of one or two hole spacings.
 MU_LOWER_PER_HOLE_SPACING = 1.5
 #: Default cells per hole spacing for the alignment grid.
@@ -172,7 +172,7 @@ class PairCorrespondence:
     instances : list of MorphInstance
         Connected sets of ``association`` (plus lone sources / lone targets).
     initial_association : (ns, nt) bool array
-        Association before alignment (eq. (7) plus safeguard plus overrides).
+        Association before alignment (eq. (8) plus safeguard plus overrides).
     cell_size_m : float
         Cell size of the alignment grid.
     mu_lower_m : float
@@ -248,6 +248,7 @@ def association_matrix(
     *,
     mu_lower_m: float,
     grid: Grid | None = None,
+    target_masks: dict[int, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Tentative source-target association matrix (paper section 3.1).
 
@@ -257,11 +258,14 @@ def association_matrix(
         Components of the upper ("source") and lower ("target") bench, local
         frame, metres.
     mu_lower_m : float
-        Lower limit ``mu_lower`` of the association scale (eq. (7)), metres;
-        it also normalises the standard error in ``nu`` (eq. (8)).
+        Lower limit ``mu_lower`` of the association scale (eq. (6)), metres;
+        it also normalises the standard error in ``nu`` (eq. (7)).
     grid : Grid, optional
         Grid on which the likelihood is evaluated over each target's cells.
         Default: about 256 cells across the union of all components.
+    target_masks : dict, optional
+        Cache ``{target: rasterised mask on grid}``; missing entries are
+        rasterised and stored (lets the caller reuse them).
 
     Returns
     -------
@@ -278,12 +282,12 @@ def association_matrix(
       ``sigma`` its mean and (population) standard deviation (eq. (2)), and
       ``s = sigma / sqrt(ns)`` the standard error.
     * ``lambda_s = max(min(mu, phi_s), mu_lower)`` with ``phi_s =
-      sqrt(a_s / pi)`` (eq. (7)); ``nu = 4 / (1 + exp(-s / mu_lower))``
-      (eq. (8)); ``p_s(x) = exp(-(|x - c_s| / lambda_s)^2 / (2 nu^2))``
-      (eq. (6)) with ``c_s`` the source centroid.
+      sqrt(a_s / pi)`` (eq. (6)); ``nu = 4 / (1 + exp(-s / mu_lower))``
+      (eq. (7)); ``p_s(x) = exp(-(|x - c_s| / lambda_s)^2 / (2 nu^2))``
+      (eq. (5)) with ``c_s`` the source centroid.
     * ``A(s, t) = 1`` iff the ``K``-th percentile of ``p_s`` over the cells of
       target ``t`` is at least 0.5, ``K = 50 (1 + (1 - min(a_s / a_t, 1)))``
-      (eqs. (9)-(10)). A target too small to contain a cell centre is
+      (eqs. (8)-(9)). A target too small to contain a cell centre is
       represented by one interior point.
     * Safeguard (not in the paper): a source and a target that overlap or
       touch (``d_{s,t} = 0``) are always associated. With a large target and a
@@ -328,10 +332,14 @@ def association_matrix(
 
     if grid is None:
         grid = Grid.for_extent(_union_bounds(src + tgt), cells_across=256, margin_cells=2)
+    if target_masks is None:
+        target_masks = {}
 
     ok_src = np.nonzero(s_ok)[0]
     for t in np.nonzero(t_ok)[0]:
-        xy = _cell_xy(grid, grid.rasterize(tgt[t]), tgt[t])
+        if t not in target_masks:
+            target_masks[t] = grid.rasterize(tgt[t])
+        xy = _cell_xy(grid, target_masks[t], tgt[t])
         diff = xy[None, :, :] - c_s[ok_src, None, :]
         r2 = np.einsum("sck,sck->sc", diff, diff) / lam[ok_src, None] ** 2
         p = np.exp(-r2 / (2.0 * nu**2))
@@ -357,10 +365,11 @@ def fft_translation(
 ) -> tuple[float, float]:
     """Lag maximising the cross-correlation of a source mask with a value function.
 
-    Implements eqs. (11)-(13) (Algorithm 4): ``r[m] = sum_i v[i] u[i - m]``
+    Implements eqs. (10)-(12) (Algorithm 4): ``r[m] = sum_i v[i] u[i - m]``
     computed as ``F^-1(V U*)``, returning ``argmax_m r[m]`` as ``(d_row,
     d_col)``: moving the source by ``+d_row`` rows and ``+d_col`` columns puts
-    it where it best matches ``v``.
+    it where it best matches ``v``. (Eq. (11) writes ``u[i + m]``; the lag
+    returned here is the shift to apply to the source, i.e. ``-m``.)
 
     Parameters
     ----------
@@ -621,7 +630,7 @@ def correspond_pair(
     hole_spacing_m : float
         Typical blasthole spacing; sets the defaults below.
     mu_lower_m : float, optional
-        Minimum association scale ``mu_lower`` (eq. (7)). Default
+        Minimum association scale ``mu_lower`` (eq. (6)). Default
         ``1.5 * hole_spacing_m``.
     cell_size_m : float, optional
         Alignment grid cell. Default ``hole_spacing_m / 4``, enlarged so the
@@ -684,7 +693,7 @@ def correspond_pair(
     bounds = _union_bounds(src + tgt)
     span = 0.0 if bounds is None else max(bounds[2] - bounds[0], bounds[3] - bounds[1])
     mu_default, cell = default_parameters(
-        hole_spacing_m, span + 2 * max_extent + 8 * hole_spacing_m / CELLS_PER_HOLE_SPACING, cell_size_m
+        hole_spacing_m, span + max_extent + 8 * hole_spacing_m / CELLS_PER_HOLE_SPACING, cell_size_m
     )
     mu_lower = mu_default if mu_lower_m is None else mu_lower_m
 
@@ -695,7 +704,9 @@ def correspond_pair(
             A0, translations, _instances(A0), A0.copy(), cell, mu_lower, None, {}
         )
 
-    pad = max_extent + 4 * cell
+    # Frame: all components plus half the largest source extent (a source
+    # aligned over a target rarely sticks out further than that) and 4 cells.
+    pad = 0.5 * max_extent + 4 * cell
     grid = _frame_for(src + tgt, cell, pad)
     if max(grid.shape) > HARD_MAX_CELLS_ACROSS:
         raise BGMInputError(
@@ -703,20 +714,21 @@ def correspond_pair(
             f"use a cell size of at least {span / MAX_CELLS_ACROSS:.3g} m."
         )
 
-    A = association_matrix(src, tgt, mu_lower_m=mu_lower, grid=grid)
+    t_masks: dict[int, np.ndarray] = {}
+    A = association_matrix(src, tgt, mu_lower_m=mu_lower, grid=grid, target_masks=t_masks)
     for s, t in forced:
         A[s, t] = True
     for s, t in forbidden:
         A[s, t] = False
     A_initial = A.copy()
 
-    # Per-target rasters and SDFs (computed lazily: only associated targets need them).
-    t_masks: dict[int, np.ndarray] = {}
+    # Per-target SDFs (computed lazily: only associated targets need them).
     t_sdfs: dict[int, np.ndarray] = {}
 
     def target_sdf(t: int) -> np.ndarray:
-        if t not in t_sdfs:
+        if t not in t_masks:
             t_masks[t] = grid.rasterize(tgt[t])
+        if t not in t_sdfs:
             t_sdfs[t] = signed_distance(t_masks[t], cell)
         return t_sdfs[t]
 
@@ -736,11 +748,15 @@ def correspond_pair(
     fields: dict[int, SourceField] = {}
     placed_mask = np.zeros(grid.shape, dtype=bool)
 
-    def place(s: int, d_xy) -> None:
+    def place(s: int, d_xy, mask: np.ndarray | None = None) -> None:
+        # Obstacle for later sources: the placed source, dilated by one cell
+        # (which also covers the sub-cell rounding of ``mask``).
         translations[s] = d_xy
-        if not src[s].is_empty:
-            moved = affinity.translate(src[s], float(d_xy[0]), float(d_xy[1]))
-            placed_mask[:] |= ndimage.binary_dilation(grid.rasterize(moved))
+        if src[s].is_empty:
+            return
+        if mask is None:
+            mask = grid.rasterize(affinity.translate(src[s], float(d_xy[0]), float(d_xy[1])))
+        placed_mask[:] |= ndimage.binary_dilation(mask)
 
     fixed = [s for s in range(ns) if s in locked or not trees[s].targets or src[s].is_empty]
     for s in fixed:
@@ -767,10 +783,9 @@ def correspond_pair(
                         continue
                     banned = t_masks[t] & port.contains_angle(ang)
                     v[banned] = -PORT_PENALTY_FACTOR * deepest
-        d_row, d_col = fft_translation(
-            grid.rasterize(src[s]), v, obstacle_mask=placed_mask, subpixel=True
-        )
-        place(s, (d_col * cell, d_row * cell))
+        u = grid.rasterize(src[s])
+        d_row, d_col = fft_translation(u, v, obstacle_mask=placed_mask, subpixel=True)
+        place(s, (d_col * cell, d_row * cell), _shift_mask(u, round(d_row), round(d_col)))
         if keep_fields:
             fields[s] = SourceField(s, tree.targets, v, used_ports)
 
@@ -793,6 +808,19 @@ def correspond_pair(
         grid=grid,
         fields=fields if keep_fields else {},
     )
+
+
+def _shift_mask(mask: np.ndarray, d_row: int, d_col: int) -> np.ndarray:
+    """``mask`` moved by whole cells, zero filled (no wrap-around)."""
+    out = np.zeros_like(mask)
+    rows, cols = mask.shape
+    r_src = slice(max(0, -d_row), min(rows, rows - d_row))
+    c_src = slice(max(0, -d_col), min(cols, cols - d_col))
+    r_dst = slice(max(0, d_row), min(rows, rows + d_row))
+    c_dst = slice(max(0, d_col), min(cols, cols + d_col))
+    if r_src.start < r_src.stop and c_src.start < c_src.stop:
+        out[r_dst, c_dst] = mask[r_src, c_src]
+    return out
 
 
 def _split_value_function(

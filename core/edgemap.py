@@ -105,7 +105,7 @@ def synthesize_edge_map(
     if margin_cells >= 1:
         hit = ndimage.binary_dilation(hit, morphology.disk(max(int(round(margin_cells)), 1)))
     if closing_cells > 0:
-        hit = morphology.binary_closing(hit, morphology.disk(closing_cells))
+        hit = ndimage.binary_closing(hit, morphology.disk(closing_cells))
     if interior_m is not None and len(interior_m):
         radius = max(int(np.ceil(interior_radius_m / grid.cell_size_m)), 1)
         rc = np.rint(grid.xy_to_rc(interior_m)).astype(int)

@@ -63,7 +63,7 @@ def gvf_steady_state(edge_map: np.ndarray, mu: float = 0.2) -> np.ndarray:
     if not np.any(b > 0):
         return np.zeros((2, *f.shape))
     system = (sparse.diags(b) - mu * laplacian_matrix(f.shape)).tocsc()
-    lu = splu(system, permc_spec="COLAMD")
+    lu = splu(system, permc_spec="MMD_AT_PLUS_A")
     u = lu.solve(b * f_x.ravel())
     w = lu.solve(b * f_y.ravel())
     return np.stack([u.reshape(f.shape), w.reshape(f.shape)])

@@ -33,9 +33,11 @@ from core.sdf import signed_distance
 from core.trajectories import (
     Trajectory,
     advect_particles,
+    bilinear,
     boundary_coverage,
     drop_lost_particles,
     finished_trajectories,
+    merge_close_particles,
     remove_crossings,
     ring_samples,
     seed_particles,
@@ -130,7 +132,7 @@ def region_sdf(grid: Grid, region: Polygon | MultiPolygon, band_cells: float = 2
     return sdf
 
 
-def reinitialise(phi: np.ndarray, cell_size_m: float) -> np.ndarray:
+def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = None) -> np.ndarray:
     """Re-initialise a level set to a signed distance, keeping its zero set.
 
     Closest-point method: every cell with a 4-neighbour of opposite sign is
@@ -139,6 +141,10 @@ def reinitialise(phi: np.ndarray, cell_size_m: float) -> np.ndarray:
     Euclidean distance transform then gives each cell its nearest interface
     cell, and the new value is the distance to that cell's foot point, signed
     like ``phi``. Cost: one EDT (a few ms on 256 x 256).
+
+    With ``band_m`` only the bounding box of the cells within ``band_m`` of
+    the interface is recomputed; cells outside it get ``+-(band_m + 2 h)``
+    (narrow-band use: only the sign matters there).
     """
     h = cell_size_m
     inside = phi > 0
@@ -150,16 +156,22 @@ def reinitialise(phi: np.ndarray, cell_size_m: float) -> np.ndarray:
     edge[1:, :] |= dv
     edge[:-1, :] |= dv
     if not edge.any():
-        big = float(np.hypot(*phi.shape)) * h
+        big = float(np.hypot(*phi.shape)) * h if band_m is None else band_m + 2 * h
         return np.where(inside, big, -big)
     rows, cols = phi.shape
     r, c = np.nonzero(edge)
-    gy = (phi[np.minimum(r + 1, rows - 1), c] - phi[np.maximum(r - 1, 0), c]) / (
-        (np.minimum(r + 1, rows - 1) - np.maximum(r - 1, 0)) * h
-    )
-    gx = (phi[r, np.minimum(c + 1, cols - 1)] - phi[r, np.maximum(c - 1, 0)]) / (
-        (np.minimum(c + 1, cols - 1) - np.maximum(c - 1, 0)) * h
-    )
+    if band_m is None:
+        r0, r1, c0, c1 = 0, rows, 0, cols
+        out = np.empty(phi.shape)
+    else:
+        pad = int(np.ceil(band_m / h)) + 2
+        r0, r1 = max(int(r.min()) - pad, 0), min(int(r.max()) + pad + 1, rows)
+        c0, c1 = max(int(c.min()) - pad, 0), min(int(c.max()) + pad + 1, cols)
+        out = np.where(inside, band_m + 2 * h, -(band_m + 2 * h))
+    up, dn = np.minimum(r + 1, rows - 1), np.maximum(r - 1, 0)
+    rt, lt = np.minimum(c + 1, cols - 1), np.maximum(c - 1, 0)
+    gy = (phi[up, c] - phi[dn, c]) / ((up - dn) * h)
+    gx = (phi[r, rt] - phi[r, lt]) / ((rt - lt) * h)
     g2 = np.maximum(gx * gx + gy * gy, 1e-12)
     v = phi[r, c]
     # Newton step in cells, limited to one cell
@@ -167,14 +179,49 @@ def reinitialise(phi: np.ndarray, cell_size_m: float) -> np.ndarray:
     dc = -v * gx / g2 / h
     n = np.hypot(dr, dc)
     lim = np.where(n > 1.0, 1.0 / np.maximum(n, 1e-12), 1.0)
-    foot_r = np.zeros(phi.shape)
-    foot_c = np.zeros(phi.shape)
-    foot_r[r, c] = r + dr * lim
-    foot_c[r, c] = c + dc * lim
-    _, (ir, ic) = ndimage.distance_transform_edt(~edge, return_indices=True)
-    rr, cc = np.indices(phi.shape)
+    shape = (r1 - r0, c1 - c0)
+    foot_r = np.zeros(shape)
+    foot_c = np.zeros(shape)
+    foot_r[r - r0, c - c0] = r - r0 + dr * lim
+    foot_c[r - r0, c - c0] = c - c0 + dc * lim
+    ir, ic = ndimage.distance_transform_edt(~edge[r0:r1, c0:c1], return_distances=False, return_indices=True)
+    rr, cc = np.indices(shape)
     d = np.hypot(rr - foot_r[ir, ic], cc - foot_c[ir, ic]) * h
-    return np.where(inside, d, -d)
+    out[r0:r1, c0:c1] = np.where(inside[r0:r1, c0:c1], d, -d)
+    return out
+
+
+class _NarrowBand:
+    """Flat indices of the cells within ``width_m`` of the front and of their 4 neighbours.
+
+    Neighbours across the grid edge are the cell itself (zero-flux boundary).
+    """
+
+    def __init__(self, phi: np.ndarray, width_m: float):
+        rows, cols = phi.shape
+        idx = np.flatnonzero(np.abs(phi).ravel() < width_m)
+        r, c = np.divmod(idx, cols)
+        self.idx = idx
+        self.left = np.where(c > 0, idx - 1, idx)
+        self.right = np.where(c < cols - 1, idx + 1, idx)
+        self.down = np.where(r > 0, idx - cols, idx)
+        self.up = np.where(r < rows - 1, idx + cols, idx)
+
+
+def _band_step(flat: np.ndarray, band: _NarrowBand, speed_b: np.ndarray, pos_b: np.ndarray, dt: float, h: float) -> np.ndarray:
+    """New values of the band cells after one Godunov upwind step (see :func:`upwind_gradient_norm`)."""
+    v = flat[band.idx]
+    dmx = v - flat[band.left]
+    dpx = flat[band.right] - v
+    dmy = v - flat[band.down]
+    dpy = flat[band.up] - v
+    mnx, mxx = np.minimum(dmx, 0.0), np.maximum(dmx, 0.0)
+    mnpx, mxpx = np.minimum(dpx, 0.0), np.maximum(dpx, 0.0)
+    mny, mxy = np.minimum(dmy, 0.0), np.maximum(dmy, 0.0)
+    mnpy, mxpy = np.minimum(dpy, 0.0), np.maximum(dpy, 0.0)
+    pos = mnx * mnx + mxpx * mxpx + mny * mny + mxpy * mxpy
+    neg = mxx * mxx + mnpx * mnpx + mxy * mxy + mnpy * mnpy
+    return v + (dt / h) * speed_b * np.sqrt(np.where(pos_b, pos, neg))
 
 
 def upwind_gradient_norm(phi: np.ndarray, speed_positive: np.ndarray, cell_size_m: float) -> np.ndarray:
@@ -307,14 +354,15 @@ def morph_regions(
         max_steps = int(np.ceil(2 * (diag / max(c, 1e-12) + 2 * np.log(max(c / (0.05 * h), 2.0)) + 4) / dt))
 
     phi0 = phi.copy()
-    inside0 = phi0 > 0
+    inside0 = (phi0 > 0).ravel()
     target_mask = gamma > 0
     check = np.abs(gamma) > 0.1 * h
     arrival = np.full(grid.shape, np.nan)
-    particles = seed_particles(src, h)
-    # particles already on the target contour are done at once
-    from core.trajectories import bilinear
-
+    arrival_flat = arrival.ravel()
+    src_len = sum(p.length for p in src.geoms)
+    tgt_len = sum(p.length for p in tgt.geoms)
+    spacing = h * float(np.clip(src_len / max(tgt_len, 1e-12), 0.25, 1.0))
+    particles = seed_particles(src, spacing)
     if len(particles.xy):
         g0 = bilinear(gamma, grid.xy_to_rc(particles.xy))
         done0 = np.abs(g0) < 0.5 * h
@@ -325,30 +373,41 @@ def morph_regions(
     times = [0.0]
     fronts = [grid.polygons_from_field(phi, 0.0)] if keep_fronts else []
     patience = int(np.ceil((2 * np.log(max(c / (0.05 * h), 2.0)) + 4) / dt))
+    # the front moves at most max|F| dt = h/2 per step
+    band_m = (0.5 * reinit_every_steps + 2.0) * h
+    phi = reinitialise(phi, h, band_m)
+    flat = phi.ravel()
+    band = _NarrowBand(phi, band_m)
+    speed_flat, pos_flat = speed.ravel(), speed_pos.ravel()
+    speed_b, pos_b, inside0_b = speed_flat[band.idx], pos_flat[band.idx], inside0[band.idx]
     last_change = 0
     t = 0.0
     step = 0
     for step in range(1, max_steps + 1):
         gnorm = advect_particles(particles, grid, phi, gamma, dt, c, step - 1)
-        new = phi + dt * speed * upwind_gradient_norm(phi, speed_pos, h)
-        crossed = ((new > 0) != inside0) & np.isnan(arrival)
+        old_b = flat[band.idx]
+        new_b = _band_step(flat, band, speed_b, pos_b, dt, h)
+        crossed = ((new_b > 0) != inside0_b) & np.isnan(arrival_flat[band.idx])
         if crossed.any():
-            frac = np.clip(phi[crossed] / (phi[crossed] - new[crossed]), 0.0, 1.0)
-            arrival[crossed] = t + frac * dt
+            o, n_ = old_b[crossed], new_b[crossed]
+            arrival_flat[band.idx[crossed]] = t + np.clip(o / (o - n_), 0.0, 1.0) * dt
             last_change = step
+        flat[band.idx] = new_b
         t += dt
-        phi = new
         drop_lost_particles(particles, grid, phi, gnorm)
-        if step % reinit_every_steps == 0:
-            phi = reinitialise(phi, h)
+        if step % 2 == 0:
+            merge_close_particles(particles, 0.2 * h)
         if step % record_every == 0:
             times.append(t)
             if keep_fronts:
                 fronts.append(grid.polygons_from_field(phi, 0.0))
-        moving = bool(np.any(particles.status == 0))
-        if not moving and step % 2 == 0:
-            if not np.any(((phi > 0) != target_mask) & check):
+        if step % reinit_every_steps == 0:
+            if not np.any(particles.status == 0) and not np.any(((phi > 0) != target_mask) & check):
                 break
+            phi = reinitialise(phi, h, band_m)
+            flat = phi.ravel()
+            band = _NarrowBand(phi, band_m)
+            speed_b, pos_b, inside0_b = speed_flat[band.idx], pos_flat[band.idx], inside0[band.idx]
         if step - last_change > patience:
             break
     n_steps = step
@@ -356,11 +415,12 @@ def morph_regions(
         times.append(t)
         if keep_fronts:
             fronts.append(grid.polygons_from_field(phi, 0.0))
+    phi = reinitialise(phi, h)
     region = phi > 0
     union = np.count_nonzero(region | target_mask)
     iou = float(np.count_nonzero(region & target_mask) / union) if union else 1.0
 
-    trajs = remove_crossings(finished_trajectories(particles, dt, 0.25 * h))
+    trajs = remove_crossings(finished_trajectories(particles, dt, 0.5 * h))
     cov0 = boundary_coverage(trajs, tgt, h)
     cov = cov0
     if backtrack and cov0 < 1.0:

@@ -93,8 +93,8 @@ def bilinear(field_: np.ndarray, rc: np.ndarray) -> np.ndarray:
     (n,) float array
     """
     rows, cols = field_.shape
-    r = np.clip(rc[:, 0], 0.0, rows - 1.000001)
-    c = np.clip(rc[:, 1], 0.0, cols - 1.000001)
+    r = np.minimum(np.maximum(rc[:, 0], 0.0), rows - 1.000001)
+    c = np.minimum(np.maximum(rc[:, 1], 0.0), cols - 1.000001)
     r0 = r.astype(np.intp)
     c0 = c.astype(np.intp)
     fr = r - r0
@@ -235,6 +235,28 @@ def drop_lost_particles(
     state.status[act[lost]] = 2
 
 
+def merge_close_particles(state: ParticleState, min_distance_m: float) -> None:
+    """Discard active particles closer than ``min_distance_m`` to another active one.
+
+    Where the front converges (a region shrinking, a concave target) the
+    particles bunch up; once two are this close they follow the same path,
+    so only the first (in seed order) is kept. This bounds the particle
+    density and keeps converging trajectories from crossing numerically.
+    """
+    act = np.flatnonzero(state.status == 0)
+    if act.size < 2:
+        return
+    pairs = cKDTree(state.xy[act]).query_pairs(min_distance_m, output_type="ndarray")
+    if not len(pairs):
+        return
+    # keep the lower index of each pair unless it is itself discarded
+    drop = np.zeros(act.size, dtype=bool)
+    for i, j in pairs[np.argsort(pairs[:, 0], kind="stable")]:
+        if not drop[i]:
+            drop[j] = True
+    state.status[act[drop]] = 2
+
+
 def finished_trajectories(state: ParticleState, dt: float, min_spacing_m: float) -> list[Trajectory]:
     """Trajectories of the particles that reached the target, in seed order.
 
@@ -338,11 +360,14 @@ def _segments(trajectories: list[Trajectory]) -> tuple[np.ndarray, np.ndarray, n
 def crossing_pairs(trajectories: list[Trajectory]) -> np.ndarray:
     """Pairs ``(i, j)``, ``i < j``, of trajectories whose paths properly cross.
 
-    Segments are paired by an STR-tree on their bounding boxes, then tested
-    exactly with orientation signs: a crossing needs each segment's end points
-    strictly on opposite sides of the other. Touching (a shared vertex, e.g.
-    a backtracked trajectory leaving its trunk) and collinear overlap (the
-    shared trunk part) are not crossings.
+    Identical segments (the trunk part a backtracked trajectory shares with
+    its trunk) are tested once. Segments longer than the median length
+    are split into collinear pieces, candidate pairs are pieces whose
+    midpoints lie within one piece length (cKDTree), and candidates are
+    tested exactly with orientation signs: a crossing
+    needs each segment's end points strictly on opposite sides of the other.
+    Touching (a shared vertex, e.g. a backtracked trajectory leaving its
+    trunk) and collinear overlap are not crossings.
 
     Returns
     -------
@@ -351,13 +376,31 @@ def crossing_pairs(trajectories: list[Trajectory]) -> np.ndarray:
     a, b, owner = _segments(trajectories)
     if len(a) < 2:
         return np.zeros((0, 2), dtype=int)
-    lo = np.minimum(a, b)
-    hi = np.maximum(a, b)
-    boxes = shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1])
-    tree = shapely.STRtree(boxes)
-    i, j = tree.query(boxes)
-    sel = (i < j) & (owner[i] != owner[j])
+    rows = np.ascontiguousarray(np.hstack([a, b]))
+    key = rows.view(np.dtype((np.void, rows.dtype.itemsize * 4))).ravel()
+    _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    a, b = a[first], b[first]
+    order = np.argsort(inv, kind="stable")
+    owner_sorted = owner[order]
+    bounds = np.searchsorted(inv[order], np.arange(len(first) + 1))
+    # split long segments so every piece is short: then two pieces can only
+    # intersect if their midpoints are within one piece length
+    length = np.hypot(*(b - a).T)
+    piece = max(float(np.median(length)), 1e-12)
+    k = np.maximum(np.ceil(length / piece).astype(int), 1)
+    parent = np.repeat(np.arange(len(a)), k)
+    sub = np.arange(len(parent)) - np.repeat(np.cumsum(k) - k, k)
+    f0 = (sub / k[parent])[:, None]
+    f1 = ((sub + 1) / k[parent])[:, None]
+    d = b[parent] - a[parent]
+    pa, pb = a[parent] + f0 * d, a[parent] + f1 * d
+    pairs_ = cKDTree(0.5 * (pa + pb)).query_pairs(piece, output_type="ndarray")
+    if not len(pairs_):
+        return np.zeros((0, 2), dtype=int)
+    i, j = pairs_[:, 0], pairs_[:, 1]
+    sel = parent[i] != parent[j]
     i, j = i[sel], j[sel]
+    a, b = pa, pb
     if not i.size:
         return np.zeros((0, 2), dtype=int)
     p1, p2, p3, p4 = a[i], b[i], a[j], b[j]
@@ -365,15 +408,20 @@ def crossing_pairs(trajectories: list[Trajectory]) -> np.ndarray:
     def orient(p, q, r):
         return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
 
-    scale = np.maximum(np.hypot(*(p2 - p1).T) * np.hypot(*(p4 - p3).T), 1e-300)
-    tol = 1e-9 * scale
+    tol = 1e-9 * np.hypot(*(p2 - p1).T) * np.hypot(*(p4 - p3).T)
     o1, o2 = orient(p1, p2, p3), orient(p1, p2, p4)
     o3, o4 = orient(p3, p4, p1), orient(p3, p4, p2)
-    cross = (o1 * o2 < -tol * tol) & (o3 * o4 < -tol * tol)
-    cross &= (np.abs(o1) > tol) & (np.abs(o2) > tol) & (np.abs(o3) > tol) & (np.abs(o4) > tol)
-    pairs = np.column_stack([owner[i[cross]], owner[j[cross]]])
-    pairs.sort(axis=1)
-    return np.unique(pairs, axis=0) if len(pairs) else np.zeros((0, 2), dtype=int)
+    cross = ((o1 > tol) & (o2 < -tol)) | ((o1 < -tol) & (o2 > tol))
+    cross &= ((o3 > tol) & (o4 < -tol)) | ((o3 < -tol) & (o4 > tol))
+    pairs = set()
+    for u, v in zip(parent[i[cross]], parent[j[cross]]):
+        for x in owner_sorted[bounds[u] : bounds[u + 1]]:
+            for y in owner_sorted[bounds[v] : bounds[v + 1]]:
+                if x != y:
+                    pairs.add((int(min(x, y)), int(max(x, y))))
+    if not pairs:
+        return np.zeros((0, 2), dtype=int)
+    return np.array(sorted(pairs), dtype=int)
 
 
 def remove_crossings(trajectories: list[Trajectory]) -> list[Trajectory]:

@@ -1,0 +1,210 @@
+"""A list of layers drawn into a PyVista plotter (off-screen or in a Qt widget).
+
+:class:`Scene` owns the layers, the vertical exaggeration and the legend;
+:class:`SceneRenderer` keeps the plotter's actors in step with them: a change
+of visibility or opacity touches only the actor properties, a change of data,
+frame or colour rebuilds that layer's meshes. No Qt here; the Qt window uses
+the same renderer with a ``pyvistaqt.QtInteractor`` as the plotter.
+"""
+
+from __future__ import annotations
+
+from . import _vtkenv  # noqa: F401
+
+from collections.abc import Callable, Iterable
+
+import numpy as np
+
+from .layers import Layer, ViewTransform
+from .palette import BACKGROUND, to_float
+
+CAMERAS = ("iso", "top", "front", "side")
+
+
+class Scene:
+    """Ordered layers plus view settings; observers hear ``(layer_or_None, what)``."""
+
+    def __init__(self, layers: Iterable[Layer] = (), *, vertical_exaggeration: float = 2.0, z_ref: float = 0.0):
+        self.layers: list[Layer] = []
+        self._listeners: list[Callable] = []
+        self._view = ViewTransform(vertical_exaggeration, z_ref)
+        for layer in layers:
+            self.add(layer)
+
+    def connect(self, cb: Callable) -> None:
+        self._listeners.append(cb)
+
+    def _emit(self, layer, what: str) -> None:
+        for cb in list(self._listeners):
+            cb(layer, what)
+
+    def add(self, layer: Layer) -> Layer:
+        if layer.name in self.names():
+            raise ValueError(f"a layer named {layer.name!r} is already in the scene")
+        self.layers.append(layer)
+        layer.connect(self._emit)
+        self._emit(layer, "added")
+        return layer
+
+    def replace(self, layer: Layer) -> Layer:
+        """Put ``layer`` in place of the layer of the same name (keeping its visibility and opacity)."""
+        old = self.get(layer.name)
+        if old is None:
+            return self.add(layer)
+        layer._visible, layer._opacity = old.visible, old.opacity
+        old.disconnect(self._emit)
+        self.layers[self.layers.index(old)] = layer
+        layer.connect(self._emit)
+        self._emit(layer, "data")
+        return layer
+
+    def get(self, name: str) -> Layer | None:
+        return next((lay for lay in self.layers if lay.name == name), None)
+
+    def __getitem__(self, name: str) -> Layer:
+        layer = self.get(name)
+        if layer is None:
+            raise KeyError(name)
+        return layer
+
+    def names(self) -> list[str]:
+        return [lay.name for lay in self.layers]
+
+    @property
+    def view(self) -> ViewTransform:
+        return self._view
+
+    @property
+    def vertical_exaggeration(self) -> float:
+        return self._view.vertical_exaggeration
+
+    @vertical_exaggeration.setter
+    def vertical_exaggeration(self, value: float) -> None:
+        value = float(value)
+        if value <= 0:
+            raise ValueError("vertical exaggeration must be positive")
+        if value != self._view.vertical_exaggeration:
+            self._view = ViewTransform(value, self._view.z_ref)
+            self._emit(None, "view")
+
+    def set_visible_only(self, names: Iterable[str]) -> None:
+        """Show exactly the named layers (unknown names raise ``KeyError``)."""
+        names = list(names)
+        for n in names:
+            self[n]
+        for layer in self.layers:
+            layer.visible = layer.name in names
+
+    def legend_entries(self) -> list[tuple[str, tuple[int, int, int]]]:
+        """Legend of the visible layers: geozones first, then layer colours (no duplicates)."""
+        out, seen = [], set()
+        for layer in self.layers:
+            if not layer.visible or layer.is_empty:
+                continue
+            for label, rgb in layer.legend():
+                if rgb is not None and label not in seen:
+                    seen.add(label)
+                    out.append((label, rgb))
+        return out
+
+
+class SceneRenderer:
+    """Draw a :class:`Scene` into ``plotter`` and keep it up to date.
+
+    ``plotter`` is a ``pyvista.Plotter`` (off-screen) or a ``pyvistaqt.QtInteractor``.
+    ``auto_render``: call ``plotter.render()`` after each change (the Qt window does).
+    """
+
+    def __init__(self, plotter, scene: Scene, *, legend: bool = True, auto_render: bool = False):
+        self.plotter = plotter
+        self.scene = scene
+        self.show_legend = legend
+        self.auto_render = auto_render
+        self.actors: dict[str, list] = {}
+        try:
+            plotter.disable_anti_aliasing()
+        except Exception:  # noqa: BLE001 - older pyvista or no render window yet
+            pass
+        plotter.set_background(to_float(BACKGROUND))
+        for layer in scene.layers:
+            self._rebuild(layer)
+        self._update_legend()
+        scene.connect(self._on_change)
+
+    # -- updates -----------------------------------------------------------
+    def _on_change(self, layer: Layer | None, what: str) -> None:
+        if layer is None:  # view change: everything moves
+            for lay in self.scene.layers:
+                self._rebuild(lay)
+        elif what in ("visible", "opacity"):
+            for actor in self.actors.get(layer.name, []):
+                actor.SetVisibility(layer.visible)
+                actor.GetProperty().SetOpacity(layer.opacity)
+        else:
+            self._rebuild(layer)
+        if what in ("visible", "added", "data", "color") or layer is None:
+            self._update_legend()
+        if self.auto_render:
+            self.plotter.render()
+
+    def _rebuild(self, layer: Layer) -> None:
+        for actor in self.actors.pop(layer.name, []):
+            self.plotter.remove_actor(actor, render=False)
+        actors = []
+        for k, item in enumerate(layer.build(self.scene.view)):
+            actor = self.plotter.add_mesh(item.mesh, name=f"{layer.name}#{k}", reset_camera=False,
+                                          render=False, **item.style)
+            actor.SetVisibility(layer.visible)
+            actors.append(actor)
+        self.actors[layer.name] = actors
+
+    def _update_legend(self) -> None:
+        try:
+            self.plotter.remove_legend(render=False)
+        except Exception:  # noqa: BLE001
+            pass
+        if not self.show_legend:
+            return
+        entries = self.scene.legend_entries()
+        if entries:
+            self.plotter.add_legend([[label, to_float(rgb)] for label, rgb in entries], bcolor=(0.1, 0.1, 0.12),
+                                    border=False, size=(0.22, min(0.04 * len(entries), 0.6)), loc="upper right",
+                                    face="rectangle")
+
+    # -- camera ------------------------------------------------------------
+    def set_camera(self, camera: str | None = "iso") -> None:
+        """``iso``, ``top``, ``front``, ``side``, or ``"x,y,z"`` for a view direction."""
+        p = self.plotter
+        camera = camera or "iso"
+        p.reset_camera()
+        if camera == "top":
+            p.view_xy()
+            p.enable_parallel_projection()
+        elif camera == "front":
+            p.view_xz()
+        elif camera == "side":
+            p.view_yz()
+        elif camera == "iso":
+            p.view_vector((-1.0, -1.6, 1.1), viewup=(0, 0, 1))
+        else:
+            try:
+                vec = [float(v) for v in camera.split(",")]
+            except ValueError:
+                raise ValueError(f"unknown camera {camera!r}: use one of {', '.join(CAMERAS)} or 'x,y,z'") from None
+            if len(vec) != 3:
+                raise ValueError(f"camera direction needs three numbers, got {camera!r}")
+            p.view_vector(vec, viewup=(0, 0, 1))
+        p.reset_camera()
+
+
+def world_to_pixels(plotter, xyz: np.ndarray) -> np.ndarray:
+    """Image ``(col, row)`` (row 0 at the top, like a screenshot array) of world points."""
+    ren = plotter.renderer
+    h = plotter.window_size[1]
+    out = np.empty((len(xyz), 2))
+    for i, p in enumerate(np.asarray(xyz, float)):
+        ren.SetWorldPoint(p[0], p[1], p[2], 1.0)
+        ren.WorldToDisplay()
+        x, y, _ = ren.GetDisplayPoint()
+        out[i] = (x, h - 1 - y)
+    return out

@@ -1,0 +1,304 @@
+"""Curvelet backtracking: recover trajectories lost at branching points.
+
+Paper section 4.2-4.3 (Fig. "branching point phenomenon", Algorithms 10-12)
+and ``ALGORITHMS.md`` ("Curvelet backtracking"). Where the source and target
+contours differ strongly in curvature (a thin arm, a star point), the
+particles of :mod:`core.trajectories` diverge and leave target-boundary
+segments without any trajectory, although the wavefront did reach them.
+
+Formulation used here
+---------------------
+The paper archives, per time step, the front pixels that no particle head
+follows (curvelets, step (a)-(b)), smooths and resamples them (c), associates
+curvelets of successive time steps by nearest neighbours (d)-(e) and chains
+the correspondences backwards from the target to the branching point (f),
+where the new track is fused with the trunk trajectory (Algorithms 11-12).
+
+The curvelets at time ``t`` are exactly the pieces of the iso-line
+``{T = t}`` of the time-of-arrival map ``T`` that lie away from the particle
+heads (:func:`curvelet_pixels` extracts them), and the point-to-point
+correspondence between curvelets at ``t`` and ``t - dt`` that the paper
+regularises is the motion of the front along its normal, i.e. along
+``-grad T`` (for an isotropic speed the rays of the eikonal equation
+``F |grad T| = 1`` are the gradient lines of ``T``). We therefore chain the
+correspondences in the continuum limit: from each uncovered target-boundary
+point we step down an upwind gradient of ``T`` (the regularised curvelet
+track, sampled every half cell) until the track comes within about half a
+cell of an existing trajectory -- the branching point on the trunk -- or
+reaches the source contour. The new trajectory is the trunk up to its
+nearest vertex followed by the new track reversed (source -> target), with
+times taken from ``T`` and made non-decreasing. Tracks are built one after
+the other, longest (latest arrival) first, and each finished one becomes a
+possible trunk for the next, so tracks join rather than run side by side;
+gradient lines do not cross, and any residual numerical crossing is
+removed by :func:`core.trajectories.remove_crossings`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+from shapely.geometry import MultiPolygon, Polygon
+
+from core.grid import Grid
+from core.trajectories import Trajectory, bilinear, remove_crossings, ring_samples
+
+
+def arrival_descent_field(arrival_time: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit downhill direction of the time-of-arrival map, upwind.
+
+    Cells the front never crossed (nan) are given the latest arrival time, so
+    tracks never descend into them. Along each axis the direction points to
+    the smaller neighbour when it is smaller than the cell itself (the
+    upwind choice of the eikonal equation), which keeps the jump between
+    crossed and never-crossed cells from spoiling the direction.
+
+    Returns
+    -------
+    t_filled : (rows, cols) float array
+    v_row, v_col : (rows, cols) float arrays
+        Unit vectors (zero where no neighbour is lower).
+    """
+    t_end = float(np.nanmax(arrival_time)) if np.isfinite(arrival_time).any() else 0.0
+    T = np.where(np.isnan(arrival_time), t_end, arrival_time)
+    P = np.pad(T, 1, constant_values=np.inf)
+    left, right = P[1:-1, :-2], P[1:-1, 2:]
+    low, high = P[:-2, 1:-1], P[2:, 1:-1]
+    vc = np.where(np.minimum(left, right) < T, np.where(left < right, -(T - left), T - right), 0.0)
+    vr = np.where(np.minimum(low, high) < T, np.where(low < high, -(T - low), T - high), 0.0)
+    n = np.hypot(vr, vc)
+    ok = n > 0
+    vr = np.where(ok, vr / np.where(ok, n, 1.0), 0.0)
+    vc = np.where(ok, vc / np.where(ok, n, 1.0), 0.0)
+    return T, vr, vc
+
+
+def curvelet_pixels(
+    arrival_time: np.ndarray,
+    grid: Grid,
+    trajectories: list[Trajectory],
+    t0: float,
+    t1: float,
+    radius_cells: float = 1.5,
+) -> np.ndarray:
+    """Front pixels crossed in ``(t0, t1]`` farther than ``radius_cells`` from every particle head.
+
+    Paper section 4.3 step (a): the set ``P^t`` of wavefront pixels which have
+    drifted away from the particle trajectories. Heads at ``t1`` are the
+    trajectory positions interpolated at that time (a finished trajectory's
+    head stays at its end point). Diagnostic: :func:`backtrack_trajectories`
+    follows these pixels implicitly through the arrival-time gradient.
+
+    Returns
+    -------
+    (k, 2) float array of pixel centres (metres).
+    """
+    sel = (arrival_time > t0) & (arrival_time <= t1)
+    r, c = np.nonzero(sel)
+    xy = grid.rc_to_xy(np.column_stack([r, c]).astype(float))
+    if not len(xy) or not trajectories:
+        return xy
+    heads = np.array(
+        [
+            [np.interp(t1, tr.t, tr.xy[:, 0]), np.interp(t1, tr.t, tr.xy[:, 1])]
+            for tr in trajectories
+        ]
+    )
+    d, _ = cKDTree(heads).query(xy)
+    return xy[d > radius_cells * grid.cell_size_m]
+
+
+class _OwnerRaster:
+    """Half-cell raster of which trajectory (and vertex) passes near each point."""
+
+    def __init__(self, grid: Grid, factor: int = 2):
+        self.grid = grid
+        self.f = factor
+        self.shape = (grid.shape[0] * factor + 2, grid.shape[1] * factor + 2)
+        self.owner = np.full(self.shape, -1, dtype=np.int64)
+        self.vertex = np.zeros(self.shape, dtype=np.int64)
+        self._off = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)])
+
+    def cells(self, xy: np.ndarray) -> np.ndarray:
+        rc = np.rint(self.grid.xy_to_rc(xy) * self.f).astype(np.int64) + 1
+        np.clip(rc[:, 0], 1, self.shape[0] - 2, out=rc[:, 0])
+        np.clip(rc[:, 1], 1, self.shape[1] - 2, out=rc[:, 1])
+        return rc
+
+    def mark(self, xy: np.ndarray, owner: np.ndarray, vertex: np.ndarray) -> None:
+        """Mark the half-cells within about half a cell of the given vertices.
+
+        Vertices of trajectories are at most half a cell apart, so the marked
+        band of a path is connected and at least three half-cells wide: a
+        track stepping half a cell cannot jump over it.
+        """
+        rc = self.cells(xy)
+        for dr, dc in self._off:
+            rr = rc[:, 0] + dr
+            cc = rc[:, 1] + dc
+            self.owner[rr, cc] = owner
+            self.vertex[rr, cc] = vertex
+
+    def mark_path(self, xy: np.ndarray, owner: int, first_vertex: int) -> None:
+        n = len(xy)
+        self.mark(xy, np.full(n, owner), first_vertex + np.arange(n))
+
+    def lookup(self, xy: np.ndarray) -> np.ndarray:
+        rc = self.cells(xy)
+        return self.owner[rc[:, 0], rc[:, 1]]
+
+
+def _descend(
+    seeds_xy: np.ndarray,
+    grid: Grid,
+    t_filled: np.ndarray,
+    v_row: np.ndarray,
+    v_col: np.ndarray,
+    source_sdf: np.ndarray,
+    step_cells: float,
+    max_steps: int,
+    stall_steps: int = 8,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """March all seeds down the arrival time at once.
+
+    A seed stops when it reaches the source contour (``|gamma_s| <= h/2``),
+    when the downhill direction vanishes, or when its arrival time has not
+    decreased over ``stall_steps`` steps (caught in a never-crossed area or
+    zig-zagging on a ridge); only the first kind is usable.
+
+    Returns the ``(steps + 1, m, 2)`` positions (fractional row, col), the
+    last step index of each seed, and whether it reached the source contour.
+    """
+    h = grid.cell_size_m
+    pos = grid.xy_to_rc(seeds_xy)
+    m = len(pos)
+    hist = [pos.copy()]
+    t_hist = [bilinear(t_filled, pos)]
+    last = np.zeros(m, dtype=np.intp)
+    reached = np.abs(bilinear(source_sdf, pos)) <= 0.5 * h
+    active = ~reached
+    for k in range(1, max_steps + 1):
+        idx = np.flatnonzero(active)
+        if not idx.size:
+            break
+        p = pos[idx]
+        vr = bilinear(v_row, p)
+        vc = bilinear(v_col, p)
+        n = np.hypot(vr, vc)
+        ok = n > 0.05
+        p = p + step_cells * np.column_stack([vr, vc]) / np.where(ok, n, 1.0)[:, None] * ok[:, None]
+        pos[idx] = p
+        last[idx] = k
+        tk = t_hist[-1].copy()
+        tk[idx] = bilinear(t_filled, p)
+        t_hist.append(tk)
+        hit = np.abs(bilinear(source_sdf, p)) <= 0.5 * h
+        reached[idx[hit]] = True
+        stall = np.zeros(idx.size, dtype=bool)
+        if k >= stall_steps:
+            stall = tk[idx] >= t_hist[-1 - stall_steps][idx]
+        active[idx[hit | ~ok | stall]] = False
+        hist.append(pos.copy())
+    return np.stack(hist), last, reached
+
+
+def backtrack_trajectories(
+    trajectories: list[Trajectory],
+    arrival_time: np.ndarray,
+    grid: Grid,
+    source_sdf: np.ndarray,
+    source: Polygon | MultiPolygon,
+    target: Polygon | MultiPolygon,
+    *,
+    cover_radius_cells: float = 0.9,
+    seed_spacing_cells: float = 0.75,
+    step_cells: float = 0.5,
+) -> list[Trajectory]:
+    """Add backtracked trajectories so that the whole target boundary is reached.
+
+    Parameters
+    ----------
+    trajectories : list of Trajectory
+        Advected (trunk) trajectories; returned first, unchanged.
+    arrival_time : (rows, cols) float array
+        Time-of-arrival map of the morph (nan where never crossed).
+    grid : Grid
+    source_sdf : (rows, cols) float array
+        Signed distance of the source (``phi`` at time 0).
+    source, target : Polygon or MultiPolygon
+        The morphed regions.
+    cover_radius_cells : float
+        Target boundary points farther than this from every trajectory end
+        are uncovered and seed new tracks.
+    seed_spacing_cells : float
+        Spacing of the seeds along uncovered boundary stretches.
+    step_cells : float
+        Track step length.
+
+    Returns
+    -------
+    list of Trajectory
+        Input trajectories followed by the new ones (``backtracked=True``),
+        every one running source -> target, none crossing another.
+
+    Notes
+    -----
+    See the module docstring for how this realises steps (a)-(f) of paper
+    section 4.3 and Algorithms 10-12.
+    """
+    h = grid.cell_size_m
+    xy, ring, _, _ = ring_samples(target, 0.25 * h)
+    if not len(xy) or not np.isfinite(arrival_time).any():
+        return list(trajectories)
+    if trajectories:
+        ends = np.array([tr.xy[-1] for tr in trajectories])
+        d, _ = cKDTree(ends).query(xy)
+    else:
+        d = np.full(len(xy), np.inf)
+    first = np.searchsorted(ring, ring, side="left")
+    local = np.arange(len(xy)) - first
+    every = max(int(round(seed_spacing_cells / 0.25)), 1)
+    seeds = np.flatnonzero((d > cover_radius_cells * h) & (local % every == 0))
+    if not seeds.size:
+        return list(trajectories)
+
+    T, v_row, v_col = arrival_descent_field(arrival_time)
+    max_steps = int(2 * (grid.shape[0] + grid.shape[1]) / step_cells)
+    hist, last, reached = _descend(xy[seeds], grid, T, v_row, v_col, source_sdf, step_cells, max_steps)
+
+    # existing trajectories as possible trunks
+    all_trajs = list(trajectories)
+    raster = _OwnerRaster(grid)
+    if all_trajs:
+        pts = np.vstack([tr.xy for tr in all_trajs])
+        own = np.concatenate([np.full(len(tr.xy), k) for k, tr in enumerate(all_trajs)])
+        ver = np.concatenate([np.arange(len(tr.xy)) for tr in all_trajs])
+        raster.mark(pts, own, ver)
+
+    boundary = source.boundary
+    seed_time = bilinear(T, grid.xy_to_rc(xy[seeds]))
+    for s in np.argsort(-seed_time, kind="stable"):
+        path_rc = hist[: last[s] + 1, s, :]
+        path_xy = grid.rc_to_xy(path_rc)
+        path_t = bilinear(T, path_rc)
+        owners = raster.lookup(path_xy)
+        hits = np.flatnonzero(owners >= 0)
+        if hits.size:
+            j = int(hits[0])
+            trunk = all_trajs[int(owners[j])]
+            v = int(np.argmin(np.hypot(*(trunk.xy - path_xy[j]).T)))
+            new_xy = np.vstack([trunk.xy[: v + 1], path_xy[j::-1]])
+            new_t = np.concatenate([trunk.t[: v + 1], path_t[j::-1]])
+            start = v
+        elif reached[s]:
+            foot = shapely.get_coordinates(shapely.shortest_line(boundary, shapely.points(path_xy[-1])))[0]
+            new_xy = np.vstack([foot, path_xy[::-1]])
+            new_t = np.concatenate([[0.0], path_t[::-1]])
+            start = 0
+        else:
+            continue
+        new_t = np.maximum.accumulate(np.maximum(new_t, 0.0))
+        all_trajs.append(Trajectory(xy=new_xy, t=new_t, backtracked=True))
+        raster.mark_path(new_xy[start:], len(all_trajs) - 1, start)
+    return remove_crossings(all_trajs)

@@ -1,0 +1,267 @@
+"""The ``bgm`` command line: the engine for batch use.
+
+Every command reads a blasthole table (CSV or Parquet), finds its columns and
+benches, and writes results in the input's own coordinates. Bad input ends in
+one line naming the problem and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+from typing import Annotated, Optional
+
+import numpy as np
+import typer
+
+from .errors import BGMInputError
+
+app = typer.Typer(
+    name="bgm",
+    help="Boundary Geometry Modeler: geozone boundaries, surfaces and slope predictions from labelled blastholes.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+
+ASSETS = Path(__file__).resolve().parent.parent / "assets"
+DEMO_CSV = ASSETS / "demo_blastholes.csv"
+
+# Options shared by every command that reads blastholes.
+XOpt = Annotated[Optional[str], typer.Option("--x", help="Column holding x (default: x/east/easting, any case).")]
+YOpt = Annotated[Optional[str], typer.Option("--y", help="Column holding y (default: y/north/northing).")]
+ZOpt = Annotated[Optional[str], typer.Option("--z", help="Column holding elevation (default: z/rl/elevation/elev/mid_z).")]
+GeozoneColOpt = Annotated[
+    Optional[str],
+    typer.Option("--geozone-column", help="Column holding the geozone label (default: geozone/domain/lookup_domain/label/zone)."),
+]
+BenchHeightOpt = Annotated[
+    Optional[float], typer.Option("--bench-height", help="Bench height in input units (default: detected from z).")
+]
+UnitsOpt = Annotated[
+    Optional[str], typer.Option("--units", help="Length unit of the input, m or ft (default: guessed from the bench height).")
+]
+InputArg = Annotated[Path, typer.Argument(help="Blasthole table (CSV or Parquet).", show_default=False)]
+
+
+def _say(message: str) -> None:
+    typer.echo(message, err=True)
+
+
+def _load(input: Path, x, y, z, geozone_column, bench_height, units):
+    from .blastholes import read_blastholes
+
+    holes = read_blastholes(
+        input, x=x, y=y, z=z, geozone=geozone_column, bench_height=bench_height, length_unit=units
+    )
+    unit = holes.frame.length_unit
+    height = holes.frame.length_to_input(holes.bench_height_m) if holes.n_benches > 1 else float("nan")
+    _say(
+        f"{input}: {len(holes.xy)} holes, {len(holes.geozones)} geozones, {holes.n_benches} benches "
+        f"({holes.bench_z_input(0)} to {holes.bench_z_input(holes.n_benches - 1)} {unit}, "
+        f"bench height {height:.1f} {unit}), hole spacing {holes.frame.length_to_input(holes.hole_spacing_m):.2f} {unit}"
+    )
+    return holes
+
+
+def _progress(description: str, total: int):
+    """A rich progress bar on stderr; returns (callback, context manager)."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    progress = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=False,
+        disable=not sys.stderr.isatty() and os.environ.get("BGM_PROGRESS") != "1",
+    )
+    task = progress.add_task(description, total=total)
+
+    def advance(done: int, total_: int) -> None:
+        progress.update(task, completed=done, total=total_)
+
+    return advance, progress
+
+
+@app.command()
+def contours(
+    input: InputArg,
+    out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("contours.geojson"),
+    geozone: Annotated[
+        Optional[list[str]], typer.Option("--geozone", help="Geozone to extract (repeat for several; default all).")
+    ] = None,
+    search_radius: Annotated[
+        Optional[float], typer.Option(help="Region-growing radius r in input units (default 1.6 x hole spacing).")
+    ] = None,
+    x: XOpt = None,
+    y: YOpt = None,
+    z: ZOpt = None,
+    geozone_column: GeozoneColOpt = None,
+    bench_height: BenchHeightOpt = None,
+    units: UnitsOpt = None,
+) -> None:
+    """Extract closed geozone contours on every bench (paper section 2).
+
+    Writes one Polygon feature per bench, geozone and component with
+    properties geozone, bench (elevation), component and containment figures.
+    """
+    from .export import write_geojson
+    from .extraction import ExtractionParameters, extract_contours
+    from .reporting import containment_summary, contour_feature
+
+    holes = _load(input, x, y, z, geozone_column, bench_height, units)
+    wanted = holes.check_geozones(geozone)
+    params = ExtractionParameters(
+        search_radius_m=None if search_radius is None else float(holes.frame.length_to_local(search_radius))
+    )
+    start = time.perf_counter()
+    advance, bar = _progress("extracting contours", holes.n_benches)
+    with bar:
+        result = extract_contours(holes, wanted, params=params, progress=advance)
+    elapsed = time.perf_counter() - start
+    features = [contour_feature(c, holes) for c in result]
+    write_geojson(features, out)
+    summary = containment_summary(result, holes)
+    summary.update({"features": len(features), "seconds": round(elapsed, 2), "out": str(out)})
+    typer.echo(json.dumps(summary, indent=2))
+
+
+GeozoneOpt = Annotated[str, typer.Option("--geozone", help="Geozone to model (as written in the input, e.g. 3310).")]
+ProjectOpt = Annotated[
+    Optional[Path], typer.Option("--project", help="Project file with manual alignment overrides (JSON).")
+]
+
+
+def _model(input, geozone, project, stages, x, y, z, geozone_column, bench_height, units):
+    from .pipeline import model_geozone
+    from .project import load_project
+
+    holes = _load(input, x, y, z, geozone_column, bench_height, units)
+    holes.check_geozones([geozone])
+    if holes.n_benches < 2:
+        raise BGMInputError(
+            f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
+        )
+    proj = load_project(project) if project is not None else None
+    start = time.perf_counter()
+    advance, bar = _progress(f"{stages[-1]} {geozone}", holes.n_benches - 1)
+    with bar:
+        model = model_geozone(holes, geozone, project=proj, stages=stages, progress=advance)
+    return holes, model, time.perf_counter() - start
+
+
+@app.command()
+def correspond(
+    input: InputArg,
+    geozone: GeozoneOpt,
+    out: Annotated[Path, typer.Option("--out", help="JSON file to write.")] = Path("correspondence.json"),
+    project: ProjectOpt = None,
+    x: XOpt = None,
+    y: YOpt = None,
+    z: ZOpt = None,
+    geozone_column: GeozoneColOpt = None,
+    bench_height: BenchHeightOpt = None,
+    units: UnitsOpt = None,
+) -> None:
+    """Associate components between successive benches and estimate their translations (paper section 3)."""
+    from .atomic import atomic_write_text
+    from .pipeline import correspondence_json
+
+    holes, model, elapsed = _model(input, geozone, project, ("correspond",), x, y, z, geozone_column, bench_height, units)
+    data = correspondence_json(model, holes)
+    atomic_write_text(out, json.dumps(data, indent=1))
+    typer.echo(json.dumps({"geozone": geozone, "pairs": len(data["pairs"]), "seconds": round(elapsed, 2), "out": str(out)}))
+
+
+@app.command()
+def morph(
+    input: InputArg,
+    geozone: GeozoneOpt,
+    out: Annotated[Path, typer.Option("--out", help="JSON file to write.")] = Path("morph.json"),
+    project: ProjectOpt = None,
+    x: XOpt = None,
+    y: YOpt = None,
+    z: ZOpt = None,
+    geozone_column: GeozoneColOpt = None,
+    bench_height: BenchHeightOpt = None,
+    units: UnitsOpt = None,
+) -> None:
+    """Morph each bench's regions into the next bench's and trace the boundary's trajectories (paper section 4)."""
+    from .atomic import atomic_write_text
+    from .pipeline import morph_json
+
+    holes, model, elapsed = _model(input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units)
+    data = morph_json(model, holes)
+    atomic_write_text(out, json.dumps(data))
+    cov = [p["target_boundary_coverage"] for p in data["pairs"] if p["target_boundary_coverage"] is not None]
+    before = [p["coverage_before_backtracking"] for p in data["pairs"] if p["coverage_before_backtracking"] is not None]
+    typer.echo(
+        json.dumps(
+            {
+                "geozone": geozone,
+                "pairs": len(data["pairs"]),
+                "coverage_min": min(cov) if cov else None,
+                "coverage_median": float(np.median(cov)) if cov else None,
+                "coverage_before_backtracking_median": float(np.median(before)) if before else None,
+                "trajectories": sum(len(p["trajectories"]) for p in data["pairs"]),
+                "seconds": round(elapsed, 2),
+                "out": str(out),
+            }
+        )
+    )
+
+
+@app.command("make-demo-data")
+def make_demo_data(
+    out: Annotated[Path, typer.Option("--out", help="CSV to write.")] = DEMO_CSV,
+    seed: Annotated[int, typer.Option(help="Random seed of the synthetic mine.")] = 2019,
+) -> None:
+    """Regenerate the bundled synthetic demo blastholes (assets/demo_blastholes.csv)."""
+    from .atomic import atomic_path
+    from .synthetic import demo_dataset
+
+    _, table = demo_dataset(seed)
+    with atomic_path(out) as tmp:
+        table.to_csv(tmp, index=False)
+    _say(f"wrote {len(table)} holes to {out}")
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    _say(f"bgm: warning: {message}")
+
+
+def main() -> None:
+    """Entry point of the ``bgm`` console script."""
+    from .blastholes import BGMWarning
+
+    # Users see the engine's own warnings (repairs to their data), not library chatter.
+    warnings.showwarning = _show_warning
+    warnings.filterwarnings("ignore")
+    warnings.filterwarnings("always", category=BGMWarning)
+    try:
+        app(prog_name="bgm")
+    except BGMInputError as exc:
+        _say(f"bgm: error: {exc}")
+        sys.exit(2)
+    except KeyboardInterrupt:
+        _say("bgm: interrupted; files being written were left as they were")
+        sys.exit(130)
+    except MemoryError:
+        _say("bgm: error: out of memory; try fewer geozones or benches at a time")
+        sys.exit(3)
+    except Exception as exc:  # a bug: say so plainly, traceback only on request
+        if os.environ.get("BGM_DEBUG"):
+            raise
+        _say(f"bgm: internal error: {type(exc).__name__}: {exc} (set BGM_DEBUG=1 for the traceback)")
+        sys.exit(3)
+
+
+if __name__ == "__main__":
+    main()

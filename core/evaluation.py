@@ -1,0 +1,616 @@
+"""Predictive value: precision and recall of boundaries predicted below the deepest bench.
+
+The paper ("Results: Predictive Value") processes benches top-down, withholds
+everything below the current bench floor, predicts the geozone's section at
+depths ``d = 1.25, 2.5, ..., 10 m`` below it and scores the prediction against
+the ground truth with area-weighted precision and recall. This module is that
+protocol, plus the reference predictors a geologist would otherwise use:
+
+* ``nil`` -- zero-order hold: the deepest known bench's region (the paper's
+  "no slope information" baseline);
+* ``linear`` -- linear extrapolation of the signed distance function from the
+  last two benches;
+* ``implicit`` -- a Leapfrog-style implicit model: a 3D radial basis function
+  interpolant of signed distances at the holes, evaluated at the target depth.
+
+The model being evaluated is supplied by the caller as a function
+``model_predictor(known_holes, geozone, z_targets_m) -> {z: MultiPolygon}``.
+
+Scoring (paper's definitions). For predicted components ``P_i`` and truth
+components ``G_j``: ``p(i) = |P_i ∩ G| / |P_i|`` and ``r(j) = |G_j ∩ P| / |G_j|``;
+the overall rates are their area-weighted averages, which are
+``sum_i |P_i ∩ G| / sum_i |P_i| = |P ∩ G| / |P|`` and ``|P ∩ G| / |G|``
+(components of a valid MultiPolygon are disjoint).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import shapely
+from scipy import ndimage
+from scipy.interpolate import RBFInterpolator
+from scipy.spatial import cKDTree
+from shapely.geometry import MultiPoint, MultiPolygon, Polygon
+
+from .atomic import atomic_path
+from .blastholes import Blastholes
+from .grid import Grid, as_multipolygon
+from .sdf import signed_distance
+
+#: The paper's prediction depths, as fractions of the bench height (1.25 m steps of a 10 m bench).
+DEFAULT_FRACTIONS: tuple[float, ...] = tuple(i / 8 for i in range(1, 9))
+#: Methods in the order tables and plots show them.
+METHODS: tuple[str, ...] = ("model", "nil", "linear", "implicit")
+#: Radius of the disc around each hole of the next bench that counts as drilled, in hole spacings.
+DRILLED_RADIUS_SPACINGS = 0.75
+
+ModelPredictor = Callable[[Blastholes, str, list], Mapping[float, MultiPolygon]]
+Truth = Callable[[str, float], MultiPolygon]
+
+
+# ---------------------------------------------------------------------------
+# Scoring
+
+
+def _region(geometry) -> MultiPolygon:
+    """A valid MultiPolygon with disjoint parts (overlapping parts are merged)."""
+    if geometry is None or geometry.is_empty:
+        return MultiPolygon()
+    return as_multipolygon(shapely.union_all(list(as_multipolygon(geometry).geoms)))
+
+
+def precision_recall(
+    predicted, truth, within: Polygon | MultiPolygon | None = None
+) -> tuple[float, float, float, float]:
+    """Area-weighted precision and recall of a predicted region against the truth.
+
+    Parameters
+    ----------
+    predicted, truth : Polygon or MultiPolygon
+        Predicted and true regions (local metres). Overlapping parts of either
+        are merged first.
+    within : Polygon or MultiPolygon, optional
+        Evaluation area (e.g. the drilled area of the withheld bench); both
+        regions are clipped to it.
+
+    Returns
+    -------
+    (precision, recall, p_area, g_area)
+        ``precision = |P ∩ G| / |P|``, ``recall = |P ∩ G| / |G|`` (the
+        area-weighted averages of the per-component rates of the paper) and the
+        areas ``|P|``, ``|G|`` after clipping. Empty sets: precision is nan when
+        nothing is predicted (``|P| = 0``) and recall is nan when there is no
+        truth (``|G| = 0``); the other rate is then 0 (or nan when both are
+        empty). The intersection area is ``precision * p_area`` (0 when nan).
+    """
+    p = _region(predicted)
+    g = _region(truth)
+    if within is not None:
+        w = _region(within)
+        p = as_multipolygon(p.intersection(w))
+        g = as_multipolygon(g.intersection(w))
+    p_area, g_area = float(p.area), float(g.area)
+    inter = float(p.intersection(g).area) if p_area > 0 and g_area > 0 else 0.0
+    precision = min(inter / p_area, 1.0) if p_area > 0 else float("nan")
+    recall = min(inter / g_area, 1.0) if g_area > 0 else float("nan")
+    return precision, recall, p_area, g_area
+
+
+def f1_score(precision: float, recall: float) -> float:
+    """Harmonic mean of precision and recall (nan if either is nan, 0 if both are 0)."""
+    if not (np.isfinite(precision) and np.isfinite(recall)):
+        return float("nan")
+    if precision + recall == 0:
+        return 0.0
+    return 2 * precision * recall / (precision + recall)
+
+
+def iou(a, b) -> float:
+    """Intersection over union of two regions (nan if both are empty)."""
+    a, b = _region(a), _region(b)
+    union = a.union(b).area
+    return float(a.intersection(b).area / union) if union > 0 else float("nan")
+
+
+# ---------------------------------------------------------------------------
+# Reference predictors
+
+
+def _deepest(regions: Mapping[float, MultiPolygon], n: int) -> list[tuple[float, MultiPolygon]]:
+    if not regions:
+        raise ValueError("no known bench regions to predict from")
+    levels = sorted(regions, reverse=True)  # top first
+    return [(float(z), _region(regions[z])) for z in levels[-n:]]
+
+
+def predict_nil(regions: Mapping[float, MultiPolygon], z_m: float) -> MultiPolygon:
+    """Zero-order hold: the region of the deepest known bench, whatever ``z_m``.
+
+    ``regions`` maps bench elevation (metres) to the geozone's region there.
+    """
+    return _deepest(regions, 1)[-1][1]
+
+
+def default_grid(regions: Iterable, cell_size_m: float | None = None, cells_across: int = 240) -> Grid:
+    """A grid covering the given geometries (or ``(n, 2)`` point arrays) with the standard margin."""
+    bounds = []
+    for r in regions:
+        if isinstance(r, np.ndarray):
+            if len(r):
+                bounds.append((*r.min(axis=0), *r.max(axis=0)))
+        elif r is not None and not r.is_empty:
+            bounds.append(r.bounds)
+    if not bounds:
+        raise ValueError("nothing to cover with a grid")
+    b = np.array(bounds, float)
+    box = (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
+    if cell_size_m:
+        return Grid.covering(box, cell_size_m)
+    return Grid.for_extent(box, cells_across)
+
+
+class LinearSDF:
+    """Signed distance extrapolated linearly from the last two known benches.
+
+    ``phi(z) = phi_k + (z - z_k) / (z_k - z_{k-1}) * (phi_k - phi_{k-1})``,
+    region ``phi > 0``. With a single known bench, or when either of the last
+    two regions is empty (the SDF of an empty region is a constant, so its
+    "trend" means nothing), it falls back to the zero-order hold.
+    """
+
+    def __init__(self, regions: Mapping[float, MultiPolygon], grid: Grid):
+        last = _deepest(regions, 2)
+        self.grid = grid
+        (self.z_k, self.region_k) = last[-1]
+        self.phi_k = signed_distance(grid.rasterize(self.region_k), grid.cell_size_m)
+        self.slope = None  # d phi / d z
+        if len(last) == 2 and not last[0][1].is_empty and not self.region_k.is_empty:
+            z_prev, region_prev = last[0]
+            phi_prev = signed_distance(grid.rasterize(region_prev), grid.cell_size_m)
+            self.slope = (self.phi_k - phi_prev) / (self.z_k - z_prev)
+
+    def field(self, z_m: float) -> np.ndarray:
+        if self.slope is None:
+            return self.phi_k
+        return self.phi_k + (z_m - self.z_k) * self.slope
+
+    def region(self, z_m: float) -> MultiPolygon:
+        if self.slope is None:
+            return self.region_k
+        return self.grid.polygons_from_field(self.field(z_m), 0.0)
+
+
+def predict_linear_sdf(regions: Mapping[float, MultiPolygon], z_m: float, grid: Grid | None = None) -> MultiPolygon:
+    """Linear extrapolation of the signed distance from the last two benches (see :class:`LinearSDF`).
+
+    ``grid`` defaults to a 240-cell grid over the known regions.
+    """
+    if grid is None:
+        grid = default_grid(regions.values())
+    return LinearSDF(regions, grid).region(z_m)
+
+
+def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float) -> np.ndarray:
+    """Bench index of each hole: given, or by splitting sorted elevations at gaps over half a bench."""
+    if bench is not None:
+        return np.asarray(bench)
+    order = np.argsort(-z)
+    gaps = np.diff(z[order]) < -0.5 * bench_height_m
+    out = np.empty(len(z), int)
+    out[order] = np.concatenate([[0], np.cumsum(gaps)])
+    return out
+
+
+def hole_signed_distance(
+    xy: np.ndarray, inside: np.ndarray, groups: np.ndarray, cap_m: float
+) -> np.ndarray:
+    """Signed distance of each hole to its bench's boundary, estimated from the labels alone.
+
+    The boundary lies midway between holes of different labels, so a hole's
+    distance to it is half the distance to the nearest hole of the other label
+    on the same bench (positive inside). Values are capped at ``±cap_m``, which
+    is also the value of benches where the label is absent or everywhere.
+    """
+    d = np.empty(len(xy))
+    for g in np.unique(groups):
+        sel = np.flatnonzero(groups == g)
+        ins, out = sel[inside[sel]], sel[~inside[sel]]
+        if len(ins) == 0 or len(out) == 0:
+            d[sel] = cap_m if len(out) == 0 else -cap_m
+            continue
+        d[ins] = 0.5 * cKDTree(xy[out]).query(xy[ins])[0]
+        d[out] = -0.5 * cKDTree(xy[ins]).query(xy[out])[0]
+    return np.clip(d, -cap_m, cap_m)
+
+
+@dataclass
+class ImplicitRBF:
+    """A fitted Leapfrog-style implicit model of one geozone (see :func:`fit_implicit_rbf`)."""
+
+    interpolator: RBFInterpolator | None
+    z_scale: float  #: z is multiplied by this before interpolation
+    spacing_m: float
+    constant: float = 0.0  #: value everywhere when there is nothing to interpolate
+    n_points: int = 0
+
+    def field(self, z_m: float, grid: Grid) -> np.ndarray:
+        """The implicit function on ``grid`` at elevation ``z_m`` (positive inside).
+
+        Evaluated on a grid of half a hole spacing (the data cannot resolve
+        finer) and interpolated bilinearly onto ``grid``.
+        """
+        if self.interpolator is None:
+            return np.full(grid.shape, self.constant)
+        step = max(1, int(np.floor(0.5 * self.spacing_m / grid.cell_size_m)))
+        rows, cols = grid.shape
+        coarse = Grid(grid.x0, grid.y0, grid.cell_size_m * step, ((rows - 1) // step + 2, (cols - 1) // step + 2))
+        X, Y = coarse.cell_centres()
+        pts = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z_m * self.z_scale)])
+        values = self.interpolator(pts).reshape(coarse.shape)
+        if step == 1:
+            return values[:rows, :cols]
+        rr, cc = np.mgrid[0:rows, 0:cols] / step
+        return ndimage.map_coordinates(values, [rr, cc], order=1, mode="nearest")
+
+    def region(self, z_m: float, grid: Grid) -> MultiPolygon:
+        f = self.field(z_m, grid)
+        if not (f > 0).any():
+            return MultiPolygon()
+        return grid.polygons_from_field(f, 0.0)
+
+
+def fit_implicit_rbf(
+    holes_xy: np.ndarray,
+    holes_z: np.ndarray,
+    inside: np.ndarray,
+    *,
+    bench: np.ndarray | None = None,
+    spacing_m: float | None = None,
+    bench_height_m: float | None = None,
+    z_spacings: float = 2.5,
+    kernel: str = "linear",
+    neighbors: int = 64,
+    smoothing: float = 1.0,
+    band_spacings: float = 3.0,
+    far_fraction: float = 0.1,
+    seed: int = 0,
+) -> ImplicitRBF:
+    """Fit a 3D RBF interpolant of signed distances at the holes (Leapfrog-style implicit model).
+
+    Parameters
+    ----------
+    holes_xy : (n, 2) local metres; holes_z : (n,) metres
+        Known holes (all geozones).
+    inside : (n,) bool
+        Whether each hole belongs to the geozone.
+    bench : (n,) int, optional
+        Bench of each hole; found from ``holes_z`` when omitted.
+    spacing_m, bench_height_m : float, optional
+        Hole spacing (median nearest-neighbour distance on a bench by default)
+        and bench height (median gap between benches by default).
+    z_spacings : float
+        Anisotropy: z is scaled so one bench height counts like this many hole
+        spacings horizontally. Labels are dense along a bench and sparse across
+        benches, so without it the interpolant would see neighbouring holes of
+        one bench as much closer than the bench above; 2-3 spacings keeps the
+        vertical trend without letting one bench dominate.
+    kernel, neighbors, smoothing
+        Passed to :class:`scipy.interpolate.RBFInterpolator` (degree 1
+        polynomial, so the field extrapolates its local linear trend in depth).
+        ``smoothing`` absorbs label noise.
+    band_spacings, far_fraction, seed
+        Speed: all holes within ``band_spacings`` spacings of the boundary are
+        used, and a random ``far_fraction`` of the others (they only fix the
+        sign far away).
+
+    Notes
+    -----
+    Distances are estimated from the labels (:func:`hole_signed_distance`),
+    capped at 6 spacings.
+    """
+    xy = np.asarray(holes_xy, float)
+    z = np.asarray(holes_z, float)
+    inside = np.asarray(inside, bool)
+    if len(xy) == 0:
+        raise ValueError("no holes to fit an implicit model to")
+    if bench_height_m is None or not np.isfinite(bench_height_m):
+        levels = np.unique(np.round(z, 1))
+        bench_height_m = float(np.median(np.diff(levels))) if len(levels) > 1 else 10.0
+    groups = _bench_groups(z, bench, bench_height_m)
+    if spacing_m is None or not np.isfinite(spacing_m):
+        d = [cKDTree(xy[groups == g]).query(xy[groups == g], k=2)[0][:, 1] for g in np.unique(groups) if (groups == g).sum() > 1]
+        spacing_m = float(np.median(np.concatenate(d))) if d else 5.0
+    z_scale = z_spacings * spacing_m / bench_height_m
+    if inside.all() or not inside.any():
+        cap = 6 * spacing_m
+        return ImplicitRBF(None, z_scale, spacing_m, constant=cap if inside.all() else -cap)
+    sd = hole_signed_distance(xy, inside, groups, 6 * spacing_m)
+    rng = np.random.default_rng(seed)
+    keep = (np.abs(sd) <= band_spacings * spacing_m) | (rng.random(len(sd)) < far_fraction)
+    pts = np.column_stack([xy[keep], z[keep] * z_scale])
+    # Holes of one bench share z; the degree-1 polynomial needs the points to span 3D.
+    interp = RBFInterpolator(
+        pts, sd[keep], kernel=kernel, neighbors=min(neighbors, int(keep.sum())), smoothing=smoothing, degree=1
+    )
+    return ImplicitRBF(interp, z_scale, spacing_m, n_points=int(keep.sum()))
+
+
+def predict_implicit_rbf(
+    holes_xy: np.ndarray,
+    holes_z: np.ndarray,
+    inside: np.ndarray,
+    z_m: float,
+    grid: Grid | None = None,
+    **kwargs,
+) -> MultiPolygon:
+    """Region ``> 0`` of the implicit model (:func:`fit_implicit_rbf`) at elevation ``z_m``.
+
+    ``grid`` defaults to a 240-cell grid over the holes; ``kwargs`` go to
+    :func:`fit_implicit_rbf`.
+    """
+    if grid is None:
+        grid = default_grid([np.asarray(holes_xy, float)])
+    return fit_implicit_rbf(holes_xy, holes_z, inside, **kwargs).region(z_m, grid)
+
+
+# ---------------------------------------------------------------------------
+# Protocol
+
+
+def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = DRILLED_RADIUS_SPACINGS) -> MultiPolygon:
+    """Area drilled by holes ``xy``: union of discs of ``radius_spacings`` spacings, closed over one spacing."""
+    if len(xy) == 0:
+        return MultiPolygon()
+    discs = shapely.buffer(MultiPoint(np.asarray(xy, float)), radius_spacings * spacing_m, quad_segs=6)
+    closed = discs.buffer(spacing_m, quad_segs=6).buffer(-spacing_m, quad_segs=6)
+    return as_multipolygon(closed)
+
+
+def truth_from_mine(mine, frame) -> Truth:
+    """Truth function ``(geozone, z_m) -> MultiPolygon`` in the Blastholes local frame for a synthetic mine.
+
+    ``mine`` is a :class:`core.synthetic.SyntheticMine`, ``frame`` the
+    :class:`core.blastholes.LocalFrame` of the holes read from its table
+    (``local = (mine_local + mine.origin - frame.origin) * metres_per_unit``).
+    """
+    from shapely import affinity
+
+    dx = (mine.origin[0] - frame.origin_x) * frame.metres_per_unit
+    dy = (mine.origin[1] - frame.origin_y) * frame.metres_per_unit
+    s = frame.metres_per_unit
+
+    def truth(geozone: str, z_m: float) -> MultiPolygon:
+        region = mine.section(geozone, z_m / s)
+        if s != 1.0:
+            region = affinity.scale(region, s, s, origin=(0, 0))
+        return as_multipolygon(affinity.translate(region, dx, dy))
+
+    return truth
+
+
+def _lookup(predictions: Mapping[float, MultiPolygon], z: float) -> MultiPolygon:
+    if z in predictions:
+        return predictions[z]
+    keys = list(predictions)
+    if keys:
+        near = min(keys, key=lambda k: abs(float(k) - z))
+        if abs(float(near) - z) < 1e-6:
+            return predictions[near]
+    raise KeyError(f"model_predictor returned no prediction for z = {z} m")
+
+
+def bench_regions(holes: Blastholes, geozone: str, contours=None) -> dict[int, MultiPolygon]:
+    """Region of ``geozone`` on every bench (union of its extracted contours), keyed by bench index."""
+    if contours is None:
+        from .extraction import extract_contours
+
+        contours = extract_contours(holes, [geozone])
+    out = {k: [] for k in range(holes.n_benches)}
+    for c in contours:
+        if c.geozone == geozone and not c.polygon.is_empty:
+            out[c.bench].append(c.polygon)
+    return {k: _region(shapely.union_all(v)) if v else MultiPolygon() for k, v in out.items()}
+
+
+def evaluate_geozone(
+    holes: Blastholes,
+    geozone: str,
+    model_predictor: ModelPredictor | None,
+    *,
+    truth: Truth | None = None,
+    fractions: Sequence[float] = DEFAULT_FRACTIONS,
+    progress: Callable[[int, int], None] | None = None,
+    contours=None,
+    grid: Grid | None = None,
+    references: Sequence[str] = ("nil", "linear", "implicit"),
+) -> pd.DataFrame:
+    """The paper's predictive-value protocol for one geozone.
+
+    For every bench ``k >= 1`` that has a bench below it, benches ``0..k`` are
+    known (two of them, ``k-1`` and ``k``, for the linear reference) and all
+    below is withheld. Predictions are made at ``z_k - f * bench_height`` for
+    each ``f`` in ``fractions`` and scored inside the evaluation area, the
+    drilled area of bench ``k+1`` (:func:`drilled_area` of its holes).
+
+    Parameters
+    ----------
+    holes : Blastholes
+    geozone : str
+    model_predictor : callable or None
+        ``model_predictor(known_holes, geozone, z_targets_m) -> {z: MultiPolygon}``
+        with ``known_holes`` the holes of benches ``0..k`` only. ``None`` scores
+        the references alone.
+    truth : callable, optional
+        ``truth(geozone, z_m) -> MultiPolygon`` in the local frame (synthetic
+        data, e.g. :func:`truth_from_mine`). Without it (real data) only the
+        next bench (``f = 1``, at its actual elevation) can be scored, against
+        the region extracted from its holes; other fractions are skipped.
+    fractions : sequence of float
+        Prediction depths as fractions of the bench height (paper: 1/8..8/8).
+    progress : callable, optional
+        ``progress(done, total)`` after each withheld bench.
+    contours : list of Contour, optional
+        Contours of ``geozone`` already extracted on all benches (extracted
+        here otherwise). Each bench's contours depend only on that bench's
+        holes, so extracting once does not leak withheld data.
+    grid : Grid, optional
+        Grid for the SDF and implicit references (240 cells over the holes).
+    references : sequence of str
+        Reference predictors to run (subset of nil, linear, implicit).
+
+    Returns
+    -------
+    DataFrame
+        One row per bench, depth and method: ``bench`` (index of the last known
+        bench), ``bench_z`` (its elevation), ``z_m`` (predicted elevation),
+        ``depth_m``, ``fraction``, ``method``, ``precision``, ``recall``,
+        ``f1``, ``p_area``, ``g_area``, ``i_area`` (intersection area, for
+        area-weighted aggregation by :func:`summary_table`).
+    """
+    levels = np.asarray(holes.bench_levels_m, float)
+    n = len(levels)
+    if grid is None:
+        grid = default_grid([holes.xy])
+    regions_by_bench = bench_regions(holes, geozone, contours)
+    spacing = holes.hole_spacing_m
+    height = holes.bench_height_m
+    if not np.isfinite(height):
+        height = float(np.median(-np.diff(levels))) if n > 1 else np.nan
+    inside_all = holes.geozone == geozone
+    rows = []
+    ks = list(range(1, n - 1))
+    for done, k in enumerate(ks, start=1):
+        z_k = float(levels[k])
+        nxt = holes.on_bench(k + 1)
+        within = drilled_area(holes.xy[nxt], spacing)
+        if truth is not None:
+            targets = [(float(f), float(f * height), z_k - float(f * height)) for f in fractions]
+        else:
+            d = z_k - float(levels[k + 1])
+            targets = [(1.0, d, float(levels[k + 1]))] if any(np.isclose(f, 1.0) for f in fractions) else []
+        if not targets:
+            continue
+        z_targets = [t[2] for t in targets]
+        known_mask = holes.bench <= k
+        known = holes.subset(known_mask)
+        regions = {float(levels[j]): regions_by_bench[j] for j in range(k + 1)}
+        methods: dict[str, Callable[[float], MultiPolygon]] = {}
+        if model_predictor is not None:
+            preds = model_predictor(known, geozone, list(z_targets))
+            methods["model"] = lambda z, preds=preds: _lookup(preds, z)
+        if "nil" in references:
+            methods["nil"] = lambda z, r=regions: predict_nil(r, z)
+        if "linear" in references:
+            methods["linear"] = LinearSDF(regions, grid).region
+        if "implicit" in references:
+            model = fit_implicit_rbf(
+                known.xy, known.z, inside_all[known_mask], bench=known.bench,
+                spacing_m=spacing, bench_height_m=height,
+            )
+            methods["implicit"] = lambda z, m=model: m.region(z, grid)
+        for f, depth, z in targets:
+            g = truth(geozone, z) if truth is not None else regions_by_bench[k + 1]
+            for name, predict in methods.items():
+                p, r, pa, ga = precision_recall(predict(z), g, within)
+                rows.append(
+                    dict(
+                        bench=k, bench_z=z_k, z_m=z, depth_m=depth, fraction=f, method=name,
+                        precision=p, recall=r, f1=f1_score(p, r), p_area=pa, g_area=ga,
+                        i_area=0.0 if not np.isfinite(p) else p * pa,
+                    )
+                )
+        if progress:
+            progress(done, len(ks))
+    columns = ["bench", "bench_z", "z_m", "depth_m", "fraction", "method", "precision", "recall",
+               "f1", "p_area", "g_area", "i_area"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def summary_table(df: pd.DataFrame) -> pd.DataFrame:
+    """Area-weighted precision and recall per depth and method, like the paper's Table.
+
+    Precision at a depth is ``sum |P ∩ G| / sum |P|`` over all benches (and
+    geozones, if ``df`` concatenates several), recall ``sum |P ∩ G| / sum |G|``.
+
+    Returns
+    -------
+    DataFrame
+        One row per fraction: ``fraction``, ``depth_m`` (mean), ``n`` (benches
+        scored), then ``precision_<method>`` and ``recall_<method>`` for each
+        method present (in :data:`METHODS` order), and, when both ``model`` and
+        ``nil`` are present, ``precision_gain`` and ``recall_gain`` (model minus
+        nil). Rates are fractions in [0, 1] (nan when nothing was predicted or
+        there was no truth at that depth).
+    """
+    if df.empty:
+        return pd.DataFrame(columns=["fraction", "depth_m", "n"])
+    present = [m for m in METHODS if m in set(df["method"])] + sorted(set(df["method"]) - set(METHODS))
+    out = []
+    for f, part in df.groupby("fraction", sort=True):
+        row = {"fraction": float(f), "depth_m": float(part["depth_m"].mean()), "n": int(part["bench"].nunique())}
+        for m in present:
+            sub = part[part["method"] == m]
+            i, pa, ga = sub["i_area"].sum(), sub["p_area"].sum(), sub["g_area"].sum()
+            row[f"precision_{m}"] = i / pa if pa > 0 else np.nan
+            row[f"recall_{m}"] = i / ga if ga > 0 else np.nan
+        if "model" in present and "nil" in present:
+            row["precision_gain"] = row["precision_model"] - row["precision_nil"]
+            row["recall_gain"] = row["recall_model"] - row["recall_nil"]
+        out.append(row)
+    table = pd.DataFrame(out)
+    order = ["fraction", "depth_m", "n"]
+    order += [f"precision_{m}" for m in present] + (["precision_gain"] if "precision_gain" in table else [])
+    order += [f"recall_{m}" for m in present] + (["recall_gain"] if "recall_gain" in table else [])
+    return table[order]
+
+
+def format_table(summary: pd.DataFrame) -> str:
+    """The summary as text in percent, like the paper's Table."""
+    cols = [c for c in summary.columns if c.startswith(("precision_", "recall_"))]
+    shown = summary[["depth_m", *cols]].copy()
+    for c in cols:
+        shown[c] = (100 * shown[c]).round(1)
+    shown["depth_m"] = shown["depth_m"].round(2)
+    return shown.to_string(index=False)
+
+
+_STYLE = {
+    "model": dict(color="0.55", marker="o", lw=2.0),
+    "nil": dict(color="black", marker="s", lw=1.5),
+    "linear": dict(color="tab:blue", marker="^", lw=1.0, ls="--"),
+    "implicit": dict(color="tab:orange", marker="v", lw=1.0, ls="--"),
+}
+
+
+def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | None = None) -> Path:
+    """Precision and recall (percent) vs prediction depth, one line per method, saved as PNG.
+
+    Like the paper's Figure (gray: model, black: nil), with the other
+    references dashed. The file is written atomically.
+    """
+    # A bare Figure renders with the Agg canvas without touching pyplot's global backend.
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 4), dpi=120)
+    axes = fig.subplots(1, 2, sharex=True)
+    methods = [c[len("precision_"):] for c in summary.columns if c.startswith("precision_") and c != "precision_gain"]
+    for ax, what in zip(axes, ("precision", "recall")):
+        for m in methods:
+            ax.plot(summary["depth_m"], 100 * summary[f"{what}_{m}"], label=m, **_STYLE.get(m, {}))
+        ax.set_xlabel("prediction depth (m)")
+        ax.set_ylabel(f"{what} (%)")
+        ax.set_title(what.capitalize())
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(loc="lower left")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png")
+    return path

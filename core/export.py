@@ -1,0 +1,426 @@
+"""Writing geozone surfaces and boundary polygons to files mining software reads.
+
+Every file goes through :func:`core.atomic.atomic_path`: an interrupted or
+failed export leaves any previous file untouched.
+
+Formats (chosen by suffix, or by ``fmt``):
+
+===== ======================================= ===============================
+fmt   writer                                  vertex precision
+===== ======================================= ===============================
+obj   trimesh (text, 10 decimals)             float64 (to 1e-10 units)
+ply   own binary little-endian writer         float64 (``property double``)
+stl   trimesh (binary)                        float32 by the STL standard:
+                                              ~0.5 m at y ~ 7 400 000!
+vtp   own VTK XML PolyData writer (raw        float64 (``Float64`` points)
+      appended data, UInt64 headers)
+dxf   own ASCII DXF R12 writer, one 3DFACE    float64 (shortest round-trip
+      per triangle on the geozone's layer     repr)
+omf   optional ``omf`` package (OMF v1,       float64
+      ``SurfaceElement``)
+===== ======================================= ===============================
+
+trimesh's own PLY exporter stores float32 vertices, which is why PLY is
+written here. The VTP writer does not need VTK (no vtk/pyvista import in
+core). OMF: the only Open Mining Format writer on PyPI that installs on
+Python 3.11 with numpy 2 is ``omf`` 1.0.1 (2019, unmaintained, OMF v1); it is
+used when installed and otherwise ``.omf`` raises :class:`BGMInputError` with
+the install hint.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import warnings
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+import shapely
+import trimesh
+from shapely.geometry import mapping, shape
+
+from .atomic import atomic_path
+from .errors import BGMInputError
+
+#: Formats :func:`export_surface` writes, by canonical name.
+SURFACE_FORMATS = ("obj", "ply", "stl", "vtp", "dxf", "omf")
+#: Formats :func:`export_all` writes unless told otherwise (OMF needs an extra package).
+DEFAULT_FORMATS = ("obj", "ply", "stl", "vtp", "dxf")
+
+_ALIASES = {"vtkpolydata": "vtp", "vtk-polydata": "vtp"}
+
+__all__ = [
+    "DEFAULT_FORMATS",
+    "SURFACE_FORMATS",
+    "export_all",
+    "export_surface",
+    "omf_available",
+    "write_geojson",
+]
+
+
+def export_surface(
+    mesh: trimesh.Trimesh,
+    path: str | Path,
+    fmt: str | None = None,
+    *,
+    name: str | None = None,
+) -> Path:
+    """Write ``mesh`` to ``path`` atomically and return the path.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The surface (any frame; vertices are written in float64 where the
+        format allows).
+    path : path-like
+        Destination. Its suffix picks the format unless ``fmt`` is given.
+    fmt : str, optional
+        One of :data:`SURFACE_FORMATS` (case-insensitive, leading dot allowed).
+    name : str, optional
+        Geozone name: the DXF layer, the OMF element and the VTP/PLY comment.
+        Defaults to the file stem.
+
+    Raises
+    ------
+    BGMInputError
+        Unknown format, an empty mesh, non-finite vertices, or OMF without the
+        ``omf`` package.
+    """
+    path = Path(path)
+    fmt = _resolve_format(path, fmt)
+    name = name if name is not None else path.stem
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if len(faces) == 0:
+        raise BGMInputError(f"cannot export an empty surface to {path}")
+    if not np.all(np.isfinite(vertices)):
+        raise BGMInputError(f"surface has non-finite vertex coordinates; not writing {path}")
+
+    if fmt == "omf":
+        _require_omf()
+    if fmt == "stl" and np.abs(vertices).max(initial=0.0) > 1e5:
+        warnings.warn(
+            f"STL stores float32 coordinates: at magnitudes near {np.abs(vertices).max():.0f} "
+            "they are only resolved to about "
+            f"{np.spacing(np.float32(np.abs(vertices).max())):.2g} units; prefer ply, vtp, obj or dxf",
+            stacklevel=2,
+        )
+
+    with atomic_path(path) as tmp:
+        _WRITERS[fmt](tmp, vertices, faces, name, mesh)
+    return path
+
+
+def export_all(
+    mesh: trimesh.Trimesh,
+    out_dir: str | Path,
+    stem: str,
+    formats: Iterable[str] = DEFAULT_FORMATS,
+) -> dict[str, Path]:
+    """Write ``mesh`` as ``out_dir/stem.<fmt>`` for every format; returns ``{fmt: path}``.
+
+    ``stem`` is also the geozone name (DXF layer, OMF element). All formats
+    are validated before anything is written.
+    """
+    fmts = [_canonical(f) for f in formats]
+    if "omf" in fmts:
+        _require_omf()
+    out_dir = Path(out_dir)
+    return {f: export_surface(mesh, out_dir / f"{stem}.{f}", f, name=stem) for f in fmts}
+
+
+def write_geojson(
+    features: Iterable[Mapping],
+    path: str | Path,
+    *,
+    name: str | None = None,
+) -> Path:
+    """Write Polygon/MultiPolygon features as a GeoJSON FeatureCollection, atomically.
+
+    Each feature is a mapping with ``"geometry"`` (a shapely Polygon or
+    MultiPolygon, or a GeoJSON-like geometry mapping) and optional
+    ``"properties"`` (JSON-serialisable; numpy scalars are converted). Already
+    complete GeoJSON Feature dicts are accepted as well.
+
+    Coordinates are written with Python's shortest round-trip float repr, so
+    float64 values (e.g. y ~ 7 400 000.123456) read back bit-identical.
+    Coordinates are whatever frame they are in (usually the input mine grid);
+    note RFC 7946 strictly expects WGS84, so no ``crs`` member is written.
+    """
+    out = []
+    for k, feat in enumerate(features):
+        if not isinstance(feat, Mapping) or "geometry" not in feat:
+            raise BGMInputError(f"feature {k} must be a mapping with a 'geometry'")
+        geom = feat["geometry"]
+        if not isinstance(geom, shapely.Geometry):
+            try:
+                geom = shape(geom)
+            except Exception as exc:  # noqa: BLE001 - report any malformed mapping
+                raise BGMInputError(f"feature {k} has an unreadable geometry: {exc}") from None
+        if geom.geom_type not in ("Polygon", "MultiPolygon"):
+            raise BGMInputError(
+                f"feature {k} is a {geom.geom_type}; only Polygon and MultiPolygon are written"
+            )
+        if not geom.is_empty and not np.all(np.isfinite(shapely.get_coordinates(geom))):
+            raise BGMInputError(f"feature {k} has non-finite coordinates")
+        props = dict(feat.get("properties") or {})
+        entry = {"type": "Feature", "properties": props, "geometry": _plain(mapping(geom))}
+        if "id" in feat:
+            entry["id"] = feat["id"]
+        out.append(entry)
+    collection: dict = {"type": "FeatureCollection"}
+    if name is not None:
+        collection["name"] = name
+    collection["features"] = out
+    try:
+        text = json.dumps(collection, default=_json_default, allow_nan=False, indent=None)
+    except (TypeError, ValueError) as exc:
+        raise BGMInputError(f"GeoJSON properties must be finite JSON values: {exc}") from None
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
+    return path
+
+
+def omf_available() -> bool:
+    """True when the optional ``omf`` package is importable."""
+    try:
+        import omf  # noqa: F401
+    except Exception:  # noqa: BLE001 - any import failure means unavailable
+        return False
+    return True
+
+
+# --------------------------------------------------------------------------- formats
+
+
+def _resolve_format(path: Path, fmt: str | None) -> str:
+    if fmt is None:
+        if not path.suffix:
+            raise BGMInputError(
+                f"cannot tell the surface format of {path} (no suffix); "
+                f"use one of: {', '.join(SURFACE_FORMATS)}"
+            )
+        return _canonical(path.suffix)
+    return _canonical(fmt)
+
+
+def _canonical(fmt: str) -> str:
+    f = str(fmt).strip().lower().lstrip(".")
+    f = _ALIASES.get(f, f)
+    if f not in SURFACE_FORMATS:
+        raise BGMInputError(
+            f"unknown surface format {fmt!r}; supported: {', '.join(SURFACE_FORMATS)}"
+        )
+    return f
+
+
+def _write_obj(tmp: Path, vertices, faces, name, mesh) -> None:
+    m = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    text = trimesh.exchange.obj.export_obj(
+        m, include_normals=False, include_color=False, include_texture=False, digits=10
+    )
+    tmp.write_text(text, encoding="utf-8")
+
+
+def _write_stl(tmp: Path, vertices, faces, name, mesh) -> None:
+    m = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    tmp.write_bytes(trimesh.exchange.stl.export_stl(m))
+
+
+def _write_ply(tmp: Path, vertices, faces, name, mesh) -> None:
+    """Binary little-endian PLY with double vertices and int32 triangle indices."""
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"comment BGM geozone surface {_one_line(name)}\n"
+        f"element vertex {len(vertices)}\n"
+        "property double x\nproperty double y\nproperty double z\n"
+        f"element face {len(faces)}\n"
+        "property list uchar int vertex_indices\n"
+        "end_header\n"
+    ).encode("ascii")
+    if len(vertices) >= 2**31:
+        raise BGMInputError("too many vertices for PLY int indices")
+    face_rec = np.empty(len(faces), dtype=[("n", "u1"), ("v", "<i4", (3,))])
+    face_rec["n"] = 3
+    face_rec["v"] = faces
+    with open(tmp, "wb") as fh:
+        fh.write(header)
+        fh.write(np.ascontiguousarray(vertices, dtype="<f8").tobytes())
+        fh.write(face_rec.tobytes())
+
+
+def _write_vtp(tmp: Path, vertices, faces, name, mesh) -> None:
+    """VTK XML PolyData, raw appended binary, Float64 points, Int64 connectivity."""
+    blocks = [
+        np.ascontiguousarray(vertices, dtype="<f8").tobytes(),
+        np.ascontiguousarray(faces, dtype="<i8").ravel().tobytes(),
+        (np.arange(1, len(faces) + 1, dtype="<i8") * 3).tobytes(),
+    ]
+    offsets = []
+    pos = 0
+    for b in blocks:
+        offsets.append(pos)
+        pos += 8 + len(b)
+    name_xml = _xml_escape(_one_line(name))
+    head = (
+        '<?xml version="1.0"?>\n'
+        '<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n'
+        "  <PolyData>\n"
+        f"    <!-- BGM geozone surface: {name_xml.replace('--', '- -')} -->\n"
+        f'    <Piece NumberOfPoints="{len(vertices)}" NumberOfVerts="0" NumberOfLines="0" '
+        f'NumberOfStrips="0" NumberOfPolys="{len(faces)}">\n'
+        "      <Points>\n"
+        '        <DataArray type="Float64" Name="Points" NumberOfComponents="3" '
+        f'format="appended" offset="{offsets[0]}"/>\n'
+        "      </Points>\n"
+        "      <Polys>\n"
+        '        <DataArray type="Int64" Name="connectivity" '
+        f'format="appended" offset="{offsets[1]}"/>\n'
+        '        <DataArray type="Int64" Name="offsets" '
+        f'format="appended" offset="{offsets[2]}"/>\n'
+        "      </Polys>\n"
+        "    </Piece>\n"
+        "  </PolyData>\n"
+        '  <AppendedData encoding="raw">\n   _'
+    ).encode("utf-8")
+    with open(tmp, "wb") as fh:
+        fh.write(head)
+        for b in blocks:
+            fh.write(np.array([len(b)], dtype="<u8").tobytes())
+            fh.write(b)
+        fh.write(b"\n  </AppendedData>\n</VTKFile>\n")
+
+
+def _write_dxf(tmp: Path, vertices, faces, name, mesh) -> None:
+    """ASCII DXF R12 (AC1009): one 3DFACE per triangle on the geozone's layer.
+
+    Written directly rather than through ezdxf's object model, which takes
+    about a minute for 300 000 faces; ezdxf reads the result back (and its
+    auditor finds nothing to fix). R12 3DFACEs are read by every mining and
+    CAD package. Coordinates use Python's shortest round-trip float repr, so
+    float64 vertices read back exactly. The fourth corner repeats the third
+    (a triangle, as the DXF reference specifies).
+    """
+    layer = _dxf_layer_name(name)
+    lo = vertices.min(axis=0)
+    hi = vertices.max(axis=0)
+    head = [
+        "0", "SECTION", "2", "HEADER",
+        "9", "$ACADVER", "1", "AC1009",
+        "9", "$EXTMIN", "10", repr(float(lo[0])), "20", repr(float(lo[1])), "30", repr(float(lo[2])),
+        "9", "$EXTMAX", "10", repr(float(hi[0])), "20", repr(float(hi[1])), "30", repr(float(hi[2])),
+        "0", "ENDSEC",
+        "0", "SECTION", "2", "TABLES",
+        "0", "TABLE", "2", "LTYPE", "70", "1",
+        "0", "LTYPE", "2", "CONTINUOUS", "70", "0", "3", "Solid line", "72", "65", "73", "0",
+        "40", "0.0",
+        "0", "ENDTAB",
+        "0", "TABLE", "2", "LAYER", "70", "1",
+        "0", "LAYER", "2", layer, "70", "0", "62", "7", "6", "CONTINUOUS",
+        "0", "ENDTAB",
+        "0", "ENDSEC",
+        "0", "SECTION", "2", "ENTITIES",
+    ]
+    template = (
+        "0\n3DFACE\n8\n" + layer.replace("%", "%%") + "\n"
+        "10\n%r\n20\n%r\n30\n%r\n"
+        "11\n%r\n21\n%r\n31\n%r\n"
+        "12\n%r\n22\n%r\n32\n%r\n"
+        "13\n%r\n23\n%r\n33\n%r\n"
+    )
+    tri = vertices[faces]  # (n, 3, 3) float64
+    quad = np.concatenate([tri, tri[:, 2:3, :]], axis=1).reshape(len(faces), 12)
+    with open(tmp, "w", encoding="ascii", newline="\n") as fh:
+        fh.write("\n".join(head) + "\n")
+        rows = quad.tolist()
+        for i in range(0, len(rows), 20000):
+            fh.write("".join([template % tuple(r) for r in rows[i : i + 20000]]))
+        fh.write("0\nENDSEC\n0\nEOF\n")
+
+
+def _write_omf(tmp: Path, vertices, faces, name, mesh) -> None:
+    omf = _require_omf()
+    with warnings.catch_warnings():
+        # omf 1.0.1 / vectormath predate numpy 2 and emit DeprecationWarnings.
+        warnings.simplefilter("ignore", DeprecationWarning)
+        element = omf.SurfaceElement(
+            name=str(name),
+            description="BGM geozone boundary surface",
+            geometry=omf.SurfaceGeometry(
+                vertices=np.asarray(vertices, dtype=np.float64),
+                triangles=np.asarray(faces, dtype=np.int64),
+            ),
+        )
+        project = omf.Project(name=str(name), elements=[element])
+        project.validate()
+        omf.OMFWriter(project, str(tmp))
+
+
+_WRITERS = {
+    "obj": _write_obj,
+    "ply": _write_ply,
+    "stl": _write_stl,
+    "vtp": _write_vtp,
+    "dxf": _write_dxf,
+    "omf": _write_omf,
+}
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _require_omf():
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            import omf
+    except Exception as exc:  # noqa: BLE001
+        raise BGMInputError(
+            "OMF export needs the optional 'omf' package (pip install omf); "
+            f"it could not be imported ({exc.__class__.__name__}: {exc})"
+        ) from None
+    return omf
+
+
+_DXF_BAD = re.compile(r"[^A-Za-z0-9_$-]")
+
+
+def _dxf_layer_name(name: str) -> str:
+    """R12-safe layer name: letters, digits, ``_ $ -`` only, at most 31 characters."""
+    layer = _DXF_BAD.sub("_", str(name).strip())
+    return layer[:31] or "BGM_SURFACE"
+
+
+def _one_line(text) -> str:
+    return " ".join(str(text).split())
+
+
+def _xml_escape(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+def _plain(obj):
+    """shapely mapping (tuples) -> lists, for stable JSON."""
+    if isinstance(obj, dict):
+        return {k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    return obj
+
+
+def _json_default(obj):
+    if isinstance(obj, np.generic):
+        value = obj.item()
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(f"non-finite value {value}")
+        return value
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")

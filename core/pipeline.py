@@ -1,0 +1,298 @@
+"""The per-geozone pipeline: contours -> bench pairs -> correspondence -> metamorphosis.
+
+Each stage lives in its own module; this one chains them for one geozone and
+converts results to the input's coordinates for the command line. For every
+pair of successive benches the upper bench's components are the *sources* and
+the lower bench's the *targets* (paper section 3).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from shapely import affinity
+
+from .blastholes import Blastholes
+from .correspondence import MorphInstance, PairCorrespondence, correspond_pair
+from .extraction import Contour, ExtractionParameters, extract_contours
+from .morph import MorphResult, morph_regions
+from .trajectories import trajectory_xyz
+
+
+@dataclass(frozen=True)
+class ModelParameters:
+    """Parameters of the whole model; ``None`` lengths scale with the hole spacing."""
+
+    extraction: ExtractionParameters = field(default_factory=ExtractionParameters)
+    mu_lower_m: float | None = None  #: lower limit of the association radius (eq. 8)
+    correspondence_cell_size_m: float | None = None
+    morph_max_cells: int = 256  #: level-set grid size along the longer side
+    #: Components with fewer holes are left out between benches: on real
+    #: benches a lone hole of another domain is far more often a mislabelled
+    #: assay than a body, and it would drag alignments around.
+    min_component_holes: int = 3
+    speed_clamp_m: float | None = None  #: |gamma_t| clamp of the morph speed
+
+
+@dataclass
+class MorphStep:
+    """One morph instance of a bench pair: a target group and the sources that become it."""
+
+    instance: MorphInstance
+    result: MorphResult
+
+
+@dataclass
+class BenchPair:
+    """Two successive benches of one geozone and what links them."""
+
+    geozone: str
+    upper: int
+    lower: int
+    source_z_m: float
+    target_z_m: float
+    sources: list[Contour]
+    targets: list[Contour]
+    correspondence: PairCorrespondence | None = None
+    morphs: list[MorphStep] = field(default_factory=list)
+
+    def aligned_source(self, i: int):
+        """Source ``i`` moved by its estimated translation (local metres)."""
+        dx, dy = self.correspondence.translations[i]
+        return affinity.translate(self.sources[i].polygon, dx, dy)
+
+
+@dataclass
+class GeozoneModel:
+    """Everything the model knows about one geozone."""
+
+    geozone: str
+    contours: list[Contour]
+    pairs: list[BenchPair]
+
+    def region_at_bench(self, bench: int):
+        """Union of the geozone's contours on a bench (local metres)."""
+        polys = [c.polygon for c in self.contours if c.bench == bench and not c.polygon.is_empty]
+        return shapely.union_all(polys) if polys else shapely.Polygon()
+
+
+def bench_pairs(
+    holes: Blastholes, contours: list[Contour], geozone: str, min_component_holes: int = 1
+) -> list[BenchPair]:
+    """Successive bench pairs where the geozone is on at least one of the two benches."""
+    own = [c for c in contours if c.geozone == geozone and len(c.holes) >= min_component_holes]
+    pairs = []
+    for k in range(holes.n_benches - 1):
+        sources = sorted((c for c in own if c.bench == k), key=lambda c: c.component)
+        targets = sorted((c for c in own if c.bench == k + 1), key=lambda c: c.component)
+        if not sources and not targets:
+            continue
+        pairs.append(
+            BenchPair(
+                geozone=geozone,
+                upper=k,
+                lower=k + 1,
+                source_z_m=float(holes.bench_levels_m[k]),
+                target_z_m=float(holes.bench_levels_m[k + 1]),
+                sources=sources,
+                targets=targets,
+            )
+        )
+    return pairs
+
+
+def correspond(
+    pair: BenchPair,
+    holes: Blastholes,
+    params: ModelParameters | None = None,
+    overrides: tuple[dict, set, set] | None = None,
+    keep_fields: bool = False,
+) -> PairCorrespondence:
+    """Associate and align the pair's sources with its targets (paper section 3).
+
+    ``overrides`` is ``(locked_translations_in_input_units, forced, forbidden)``
+    as :func:`core.project.overrides_for` returns it.
+    """
+    params = params or ModelParameters()
+    locked, forced, forbidden = overrides or ({}, set(), set())
+    locked_m = {int(i): tuple(holes.frame.length_to_local(np.asarray(v, float))) for i, v in locked.items()}
+    pair.correspondence = correspond_pair(
+        [c.polygon for c in pair.sources],
+        [c.polygon for c in pair.targets],
+        hole_spacing_m=holes.hole_spacing_m,
+        mu_lower_m=params.mu_lower_m,
+        cell_size_m=params.correspondence_cell_size_m,
+        locked_translations=locked_m,
+        forced=set(forced),
+        forbidden=set(forbidden),
+        keep_fields=keep_fields,
+    )
+    return pair.correspondence
+
+
+def morph(pair: BenchPair, params: ModelParameters | None = None, keep_fronts: bool = False) -> list[MorphStep]:
+    """Morph every instance of a corresponded pair (paper section 4)."""
+    params = params or ModelParameters()
+    if pair.correspondence is None:
+        raise ValueError("morph needs the pair's correspondence first")
+    steps = []
+    for inst in pair.correspondence.instances:
+        sources = [pair.aligned_source(i) for i in inst.source_ids]
+        targets = [pair.targets[j].polygon for j in inst.target_ids]
+        result = morph_regions(
+            sources,
+            targets,
+            speed_clamp_m=params.speed_clamp_m,
+            keep_fronts=keep_fronts,
+            max_cells=params.morph_max_cells,
+        )
+        steps.append(MorphStep(inst, result))
+    pair.morphs = steps
+    return steps
+
+
+def model_geozone(
+    holes: Blastholes,
+    geozone: str,
+    *,
+    contours: list[Contour] | None = None,
+    params: ModelParameters | None = None,
+    project=None,
+    stages: tuple[str, ...] = ("correspond", "morph"),
+    keep_fields: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+) -> GeozoneModel:
+    """Run the pipeline for one geozone up to the requested stages.
+
+    Parameters
+    ----------
+    holes : Blastholes
+    geozone : str
+    contours : list of Contour, optional
+        Contours already extracted (any geozones); extracted when omitted.
+    params : ModelParameters, optional
+    project : core.project.Project, optional
+        Manual overrides (locked translations, forced/forbidden associations)
+        applied on every run.
+    stages : tuple of str
+        ``"correspond"`` and/or ``"morph"``.
+    keep_fields : bool
+        Keep intermediate fields for the viewer.
+    progress : callable, optional
+        ``progress(done, total)`` over bench pairs.
+    """
+    from .project import overrides_for
+
+    params = params or ModelParameters()
+    if contours is None:
+        contours = extract_contours(holes, [geozone], params=params.extraction, keep_fields=keep_fields)
+    pairs = bench_pairs(holes, contours, geozone, params.min_component_holes)
+    for done, pair in enumerate(pairs, start=1):
+        if "correspond" in stages or "morph" in stages:
+            overrides = None
+            if project is not None:
+                overrides = overrides_for(project, geozone, holes.bench_z_input(pair.upper))
+            correspond(pair, holes, params, overrides, keep_fields)
+        if "morph" in stages:
+            morph(pair, params, keep_fronts=keep_fields)
+        if progress:
+            progress(done, len(pairs))
+    own = [c for c in contours if c.geozone == geozone and len(c.holes) >= params.min_component_holes]
+    return GeozoneModel(geozone, own, pairs)
+
+
+# ---------------------------------------------------------------------------
+# JSON in the input's coordinates
+
+
+def _component_dict(i: int, contour: Contour, holes: Blastholes) -> dict:
+    poly = contour.polygon
+    c = holes.frame.to_input(np.array([[poly.centroid.x, poly.centroid.y]]))[0]
+    mpu = holes.frame.metres_per_unit
+    return {
+        "id": i,
+        "component": int(contour.component),
+        "centroid": [float(c[0]), float(c[1])],
+        "area": float(poly.area / mpu**2),
+        "holes": int(len(contour.holes)),
+    }
+
+
+def correspondence_json(model: GeozoneModel, holes: Blastholes) -> dict:
+    """``bgm correspond`` output: association matrix and translations per bench pair."""
+    pairs = []
+    for p in model.pairs:
+        corr = p.correspondence
+        pairs.append(
+            {
+                "source_z": holes.bench_z_input(p.upper),
+                "target_z": holes.bench_z_input(p.lower),
+                "sources": [_component_dict(i, c, holes) for i, c in enumerate(p.sources)],
+                "targets": [_component_dict(j, c, holes) for j, c in enumerate(p.targets)],
+                "association": corr.association.astype(int).tolist(),
+                "translations": holes.frame.length_to_input(corr.translations).reshape(-1, 2).tolist(),
+                "instances": [
+                    {"sources": list(map(int, m.source_ids)), "targets": list(map(int, m.target_ids))}
+                    for m in corr.instances
+                ],
+            }
+        )
+    return {"geozone": model.geozone, "units": holes.frame.length_unit, "pairs": pairs}
+
+
+def pair_coverage(pair: BenchPair) -> tuple[float, float]:
+    """Target-boundary coverage of a pair (after, before backtracking), weighted by boundary length."""
+    weights, after, before = [], [], []
+    for step in pair.morphs:
+        length = step.result.target.length
+        if length <= 0:
+            continue
+        weights.append(length)
+        after.append(step.result.target_boundary_coverage)
+        before.append(step.result.coverage_before_backtracking)
+    if not weights:
+        return float("nan"), float("nan")
+    w = np.asarray(weights)
+    return float(np.dot(w, after) / w.sum()), float(np.dot(w, before) / w.sum())
+
+
+def morph_json(model: GeozoneModel, holes: Blastholes, decimals: int = 3) -> dict:
+    """``bgm morph`` output: coverage and 3D trajectories per bench pair, input coordinates."""
+    pairs = []
+    for p in model.pairs:
+        after, before = pair_coverage(p)
+        trajectories, backtracked = [], []
+        for step in p.morphs:
+            for traj in step.result.trajectories:
+                xyz = trajectory_xyz(traj, p.source_z_m, p.target_z_m)
+                xy = holes.frame.to_input(xyz[:, :2])
+                z = holes.frame.z_to_input(xyz[:, 2])
+                trajectories.append(np.round(np.column_stack([xy, z]), decimals).tolist())
+                backtracked.append(bool(traj.backtracked))
+        pairs.append(
+            {
+                "source_z": holes.bench_z_input(p.upper),
+                "target_z": holes.bench_z_input(p.lower),
+                "target_boundary_coverage": _finite(after),
+                "coverage_before_backtracking": _finite(before),
+                "instances": [
+                    {
+                        "sources": list(map(int, s.instance.source_ids)),
+                        "targets": list(map(int, s.instance.target_ids)),
+                        "iou": _finite(s.result.iou),
+                        "trajectories": len(s.result.trajectories),
+                    }
+                    for s in p.morphs
+                ],
+                "backtracked": backtracked,
+                "trajectories": trajectories,
+            }
+        )
+    return {"geozone": model.geozone, "units": holes.frame.length_unit, "pairs": pairs}
+
+
+def _finite(v: float) -> float | None:
+    return None if v is None or not np.isfinite(v) else round(float(v), 4)

@@ -1,0 +1,225 @@
+"""Project files: viewer parameters and manual alignment overrides.
+
+A project file is JSON::
+
+    {
+      "format": "bgm-project",
+      "version": 1,
+      "input_path": "blastholes.csv",
+      "parameters": {"hole_spacing_m": 6.0},
+      "overrides": [
+        {"geozone": "ore", "source_z": 1210.0, "source": 2,
+         "translation": [3.5, -1.0], "associate": {"0": true, "4": false}}
+      ]
+    }
+
+An override concerns one source component (index ``source``) of one
+geozone on the bench at elevation ``source_z`` (the upper bench of a bench
+pair, paper section 3 "source"): ``translation`` locks its translation
+(input units; translations do not depend on the local frame's origin) and
+``associate`` forces (``true``) or forbids (``false``) its association with
+target components by index. Files are written atomically (core.atomic).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from core.atomic import atomic_write_text
+from core.errors import BGMInputError
+
+FORMAT = "bgm-project"
+VERSION = 1
+#: Relative tolerance when matching bench elevations (with a floor of 1 unit,
+#: so elevation 0 still matches within 1e-6).
+Z_RELATIVE_TOLERANCE = 1e-6
+
+
+@dataclass
+class AlignmentOverride:
+    """Manual correction of one source component's correspondence.
+
+    Attributes
+    ----------
+    geozone : str
+        Geozone label.
+    source_z : float
+        Elevation of the source (upper) bench, input units.
+    source : int
+        Source component index on that bench.
+    translation : (float, float) or None
+        Locked translation ``(dx, dy)`` in input units; ``None`` = automatic.
+    associate : dict of int to bool
+        Target index -> ``True`` (force association) / ``False`` (forbid).
+    """
+
+    geozone: str
+    source_z: float
+    source: int
+    translation: tuple[float, float] | None = None
+    associate: dict[int, bool] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        out: dict = {"geozone": self.geozone, "source_z": self.source_z, "source": self.source}
+        if self.translation is not None:
+            out["translation"] = [float(self.translation[0]), float(self.translation[1])]
+        if self.associate:
+            out["associate"] = {str(k): bool(v) for k, v in sorted(self.associate.items())}
+        return out
+
+
+@dataclass
+class Project:
+    """Parameters, overrides and the input path of one modelling project."""
+
+    parameters: dict = field(default_factory=dict)
+    overrides: list[AlignmentOverride] = field(default_factory=list)
+    input_path: str | None = None
+
+    def to_dict(self) -> dict:
+        return {
+            "format": FORMAT,
+            "version": VERSION,
+            "input_path": self.input_path,
+            "parameters": self.parameters,
+            "overrides": [o.to_dict() for o in self.overrides],
+        }
+
+
+def save_project(project: Project, path: str | os.PathLike) -> None:
+    """Write ``project`` to ``path`` as JSON, atomically (old file kept on failure)."""
+    try:
+        text = json.dumps(project.to_dict(), indent=2, allow_nan=False) + "\n"
+    except (TypeError, ValueError) as exc:
+        raise BGMInputError(f"project cannot be saved as JSON: {exc}.") from None
+    atomic_write_text(path, text)
+
+
+def load_project(path: str | os.PathLike) -> Project:
+    """Read a project file.
+
+    Raises
+    ------
+    BGMInputError
+        If the file is missing or unreadable, is not valid JSON ("corrupt"),
+        is not a BGM project, comes from a newer BGM version, or holds a
+        malformed override.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise BGMInputError(f"project file {path} does not exist.")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BGMInputError(f"project file {path} cannot be read: {exc}.") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise BGMInputError(
+            f"project file {path} is corrupt (not valid JSON: {exc.msg} at line {exc.lineno})."
+        ) from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise BGMInputError(f'{path} is not a BGM project file (expected "format": "{FORMAT}").')
+    version = data.get("version")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise BGMInputError(f"project file {path} has an invalid version {version!r}.")
+    if version > VERSION:
+        raise BGMInputError(
+            f"project file {path} has version {version}, newer than version {VERSION} "
+            "supported by this BGM; please upgrade BGM."
+        )
+    parameters = data.get("parameters", {})
+    if not isinstance(parameters, dict):
+        raise BGMInputError(f'project file {path}: "parameters" must be an object.')
+    input_path = data.get("input_path")
+    if input_path is not None and not isinstance(input_path, str):
+        raise BGMInputError(f'project file {path}: "input_path" must be a string.')
+    raw = data.get("overrides", [])
+    if not isinstance(raw, list):
+        raise BGMInputError(f'project file {path}: "overrides" must be a list.')
+    overrides = [_parse_override(path, i, o) for i, o in enumerate(raw)]
+    return Project(parameters=parameters, overrides=overrides, input_path=input_path)
+
+
+def _parse_override(path: Path, i: int, o) -> AlignmentOverride:
+    where = f"project file {path}, override {i}"
+    if not isinstance(o, dict):
+        raise BGMInputError(f"{where} must be an object.")
+    try:
+        geozone = o["geozone"]
+        source_z = o["source_z"]
+        source = o["source"]
+    except KeyError as exc:
+        raise BGMInputError(f"{where} lacks the field {exc.args[0]!r}.") from None
+    if not isinstance(geozone, str):
+        raise BGMInputError(f"{where}: geozone must be a string.")
+    if not _is_number(source_z):
+        raise BGMInputError(f"{where}: source_z must be a finite number.")
+    if not isinstance(source, int) or isinstance(source, bool) or source < 0:
+        raise BGMInputError(f"{where}: source must be a non-negative integer.")
+    translation = o.get("translation")
+    if translation is not None:
+        if not (
+            isinstance(translation, list) and len(translation) == 2 and all(map(_is_number, translation))
+        ):
+            raise BGMInputError(f"{where}: translation must be two finite numbers or null.")
+        translation = (float(translation[0]), float(translation[1]))
+    raw_assoc = o.get("associate", {})
+    if not isinstance(raw_assoc, dict):
+        raise BGMInputError(f"{where}: associate must be an object of target index -> true/false.")
+    associate: dict[int, bool] = {}
+    for k, v in raw_assoc.items():
+        try:
+            t = int(k)
+        except ValueError:
+            raise BGMInputError(f"{where}: associate key {k!r} is not a target index.") from None
+        if t < 0 or not isinstance(v, bool):
+            raise BGMInputError(f"{where}: associate must map target indices to true/false.")
+        associate[t] = v
+    return AlignmentOverride(geozone, float(source_z), source, translation, associate)
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _same_z(a: float, b: float) -> bool:
+    return abs(a - b) <= Z_RELATIVE_TOLERANCE * max(1.0, abs(a), abs(b))
+
+
+def overrides_for(
+    project: Project, geozone: str, source_z: float
+) -> tuple[dict[int, tuple[float, float]], set[tuple[int, int]], set[tuple[int, int]]]:
+    """Overrides of one bench pair in the form :func:`core.correspondence.correspond_pair` takes.
+
+    Parameters
+    ----------
+    project : Project
+    geozone : str
+    source_z : float
+        Elevation of the source bench; matched with relative tolerance
+        ``1e-6`` (floor of one unit).
+
+    Returns
+    -------
+    locked_translations : dict
+        ``{source: (dx, dy)}`` (input units).
+    forced, forbidden : set of (source, target)
+        Later overrides win over earlier ones for the same pair.
+    """
+    locked: dict[int, tuple[float, float]] = {}
+    assoc: dict[tuple[int, int], bool] = {}
+    for o in project.overrides:
+        if o.geozone != geozone or not _same_z(o.source_z, source_z):
+            continue
+        if o.translation is not None:
+            locked[o.source] = (float(o.translation[0]), float(o.translation[1]))
+        for t, flag in o.associate.items():
+            assoc[(o.source, int(t))] = bool(flag)
+    forced = {k for k, v in assoc.items() if v}
+    forbidden = {k for k, v in assoc.items() if not v}
+    return locked, forced, forbidden

@@ -1,0 +1,89 @@
+"""Turning engine results into the input's coordinates and into summary figures.
+
+The engine works in a local metric frame; everything a user reads (GeoJSON,
+JSON, tables) is in the input's own coordinates and units. This module holds
+the conversions and the containment figures that the ``contours`` command and
+the tests report.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+from shapely.geometry import mapping
+
+from .blastholes import Blastholes
+from .extraction import Contour
+
+
+def to_input_geometry(geometry, holes: Blastholes):
+    """A local-metre shapely geometry in the input's coordinates."""
+    return shapely.transform(geometry, holes.frame.to_input)
+
+
+def contour_feature(contour: Contour, holes: Blastholes) -> dict:
+    """GeoJSON Feature of one contour, in the input's coordinates."""
+    stats = containment(contour, holes)
+    geometry = to_input_geometry(contour.polygon, holes)
+    unit = holes.frame.length_unit
+    return {
+        "type": "Feature",
+        "geometry": mapping(geometry),
+        "properties": {
+            "geozone": contour.geozone,
+            "bench": holes.bench_z_input(contour.bench),
+            "component": int(contour.component),
+            "holes": int(len(contour.holes)),
+            "boundary_holes": int(len(contour.boundary_holes)),
+            "method": contour.method,
+            f"area_{unit}2": round(float(geometry.area), 3),
+            "holes_inside": round(stats["holes_inside"], 4),
+            "other_holes_inside": round(stats["other_holes_inside"], 4),
+        },
+    }
+
+
+def containment(contour: Contour, holes: Blastholes) -> dict:
+    """How well a contour separates its geozone on its bench.
+
+    Returns
+    -------
+    dict
+        ``holes_inside``: fraction of the component's holes inside the contour;
+        ``other_holes_inside``: holes of other geozones inside the contour, as a
+        fraction of the component's hole count.
+    """
+    poly = contour.polygon
+    own = holes.xy[contour.holes]
+    bench = holes.on_bench(contour.bench)
+    others = bench[holes.geozone[bench] != contour.geozone]
+    if poly.is_empty:
+        return {"holes_inside": 0.0, "other_holes_inside": 0.0}
+    inside = shapely.contains_xy(poly, own[:, 0], own[:, 1]).mean() if len(own) else 1.0
+    if len(others):
+        lo = np.array(poly.bounds[:2])
+        hi = np.array(poly.bounds[2:])
+        near = others[np.all((holes.xy[others] >= lo) & (holes.xy[others] <= hi), axis=1)]
+        n_other = shapely.contains_xy(poly, holes.xy[near, 0], holes.xy[near, 1]).sum()
+    else:
+        n_other = 0
+    return {"holes_inside": float(inside), "other_holes_inside": float(n_other / max(len(own), 1))}
+
+
+def containment_summary(contours: list[Contour], holes: Blastholes, min_holes: int = 15) -> dict:
+    """Containment figures over the contours of at least ``min_holes`` holes."""
+    rows = [containment(c, holes) for c in contours if len(c.holes) >= min_holes]
+    if not rows:
+        return {"contours": 0}
+    inside = np.array([r["holes_inside"] for r in rows])
+    other = np.array([r["other_holes_inside"] for r in rows])
+    return {
+        "contours": len(rows),
+        "min_holes": min_holes,
+        "holes_inside_median": float(np.median(inside)),
+        "holes_inside_min": float(inside.min()),
+        "contours_with_95pct_inside": float(np.mean(inside >= 0.95)),
+        "other_holes_inside_median": float(np.median(other)),
+        "other_holes_inside_max": float(other.max()),
+        "contours_with_at_most_5pct_other": float(np.mean(other <= 0.05)),
+    }

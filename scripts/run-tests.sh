@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Set up everything the tests need (idempotent) and run the whole suite.
+# Window tests need an X server: on Debian as root, xvfb and the xcb libraries
+# Qt wants are installed when missing; elsewhere those tests skip.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+[ -x .venv/bin/python ] || "$PY" -m venv .venv
+.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[test]"
+if ! command -v xvfb-run >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+     xvfb xauth libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-render-util0 libxcb-cursor0 \
+     libxkbcommon-x11-0 libxcb-xinerama0 libxcb-shape0 libgl1 libegl1 >/dev/null) \
+  || echo "could not install xvfb; window tests will be skipped"
+fi
+export QT_API=pyside6
+if command -v xvfb-run >/dev/null 2>&1; then
+  exec xvfb-run -a -s "-screen 0 1280x1024x24" .venv/bin/python -m pytest -q "$@"
+else
+  exec .venv/bin/python -m pytest -q "$@"
+fi

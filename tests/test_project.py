@@ -1,0 +1,141 @@
+"""Tests of core.project: project file round trip, errors, atomic saving."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from core.errors import BGMInputError
+from core.project import (
+    VERSION,
+    AlignmentOverride,
+    Project,
+    load_project,
+    overrides_for,
+    save_project,
+)
+
+
+def sample_project() -> Project:
+    return Project(
+        parameters={"hole_spacing_m": 6.0, "cells_across": 240},
+        overrides=[
+            AlignmentOverride("ore", 1210.0, 2, translation=(3.5, -1.25), associate={0: True, 4: False}),
+            AlignmentOverride("ore", 1195.0, 0, associate={1: True}),
+            AlignmentOverride("waste", 1210.0, 1, translation=(0.0, 2.0)),
+        ],
+        input_path="data/blastholes.csv",
+    )
+
+
+def test_round_trip(tmp_path: Path):
+    p = tmp_path / "a.bgm.json"
+    project = sample_project()
+    save_project(project, p)
+    data = json.loads(p.read_text())
+    assert data["format"] == "bgm-project" and data["version"] == VERSION
+    assert load_project(p) == project
+
+
+def test_overrides_for_matches_geozone_and_z_with_tolerance():
+    project = sample_project()
+    locked, forced, forbidden = overrides_for(project, "ore", 1210.0 * (1 + 1e-9))
+    assert locked == {2: (3.5, -1.25)}
+    assert forced == {(2, 0)} and forbidden == {(2, 4)}
+    assert overrides_for(project, "ore", 1210.1) == ({}, set(), set())
+    assert overrides_for(project, "ore", 1195.0) == ({}, {(0, 1)}, set())
+    assert overrides_for(project, "waste", 1210.0)[0] == {1: (0.0, 2.0)}
+
+
+def test_later_override_wins():
+    project = Project(
+        overrides=[
+            AlignmentOverride("ore", 10.0, 0, associate={3: True}),
+            AlignmentOverride("ore", 10.0, 0, associate={3: False}),
+        ]
+    )
+    assert overrides_for(project, "ore", 10.0) == ({}, set(), {(0, 3)})
+
+
+def test_overrides_feed_correspond_pair():
+    from shapely.geometry import Point
+
+    from core.correspondence import correspond_pair
+
+    project = Project(overrides=[AlignmentOverride("ore", 100.0, 0, translation=(1.0, 2.0), associate={1: True})])
+    locked, forced, forbidden = overrides_for(project, "ore", 100.0)
+    res = correspond_pair(
+        [Point(0, 0).buffer(20)],
+        [Point(5, 0).buffer(20), Point(200, 0).buffer(5)],
+        hole_spacing_m=6.0,
+        locked_translations=locked,
+        forced=forced,
+        forbidden=forbidden,
+    )
+    assert res.translations[0].tolist() == [1.0, 2.0]
+    assert res.association.tolist() == [[True, True]]
+
+
+def test_missing_file(tmp_path: Path):
+    with pytest.raises(BGMInputError, match="does not exist"):
+        load_project(tmp_path / "nope.json")
+
+
+def test_corrupt_file(tmp_path: Path):
+    p = tmp_path / "bad.json"
+    p.write_text('{"format": "bgm-project", "version": 1, ')
+    with pytest.raises(BGMInputError, match="corrupt"):
+        load_project(p)
+
+
+def test_wrong_format(tmp_path: Path):
+    p = tmp_path / "other.json"
+    p.write_text('{"format": "something-else", "version": 1}')
+    with pytest.raises(BGMInputError, match="not a BGM project"):
+        load_project(p)
+
+
+def test_newer_version(tmp_path: Path):
+    p = tmp_path / "future.json"
+    p.write_text(json.dumps({"format": "bgm-project", "version": VERSION + 1}))
+    with pytest.raises(BGMInputError, match=rf"version {VERSION + 1}, newer.*upgrade"):
+        load_project(p)
+
+
+def test_malformed_override(tmp_path: Path):
+    p = tmp_path / "x.json"
+    p.write_text(json.dumps({"format": "bgm-project", "version": 1, "overrides": [{"geozone": "ore", "source": 1}]}))
+    with pytest.raises(BGMInputError, match="source_z"):
+        load_project(p)
+    p.write_text(
+        json.dumps(
+            {
+                "format": "bgm-project",
+                "version": 1,
+                "overrides": [{"geozone": "ore", "source_z": 1, "source": 1, "translation": [1]}],
+            }
+        )
+    )
+    with pytest.raises(BGMInputError, match="translation"):
+        load_project(p)
+
+
+def test_failed_write_leaves_old_file(tmp_path: Path, monkeypatch):
+    p = tmp_path / "proj.json"
+    save_project(sample_project(), p)
+    before = p.read_text()
+
+    def boom(self, *args, **kwargs):  # fails after the temp file exists
+        with open(self, "w") as fh:
+            fh.write('{"format": "bgm-pro')
+        raise OSError("disk full")
+
+    monkeypatch.setattr(Path, "write_text", boom)
+    with pytest.raises(OSError, match="disk full"):
+        save_project(Project(parameters={"changed": True}), p)
+    monkeypatch.undo()
+    assert p.read_text() == before
+    assert load_project(p) == sample_project()
+    assert [f.name for f in tmp_path.iterdir()] == ["proj.json"]  # temp file cleaned up

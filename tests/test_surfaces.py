@@ -1,0 +1,363 @@
+"""Closed geozone surfaces from stacked sections, and their export (core.surfaces, core.export)."""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+
+import ezdxf
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from shapely import affinity
+from shapely.geometry import MultiPolygon, Point, Polygon, box, shape
+
+from core import export as export_mod
+from core.errors import BGMInputError
+from core.export import (
+    DEFAULT_FORMATS,
+    SURFACE_FORMATS,
+    export_all,
+    export_surface,
+    omf_available,
+    write_geojson,
+)
+from core.surfaces import mesh_summary, surface_from_sections, to_input_frame
+
+MINE_ORIGIN = (650000.0, 7400000.0)
+
+
+def disc(cx, cy, r, n=128):
+    return Point(cx, cy).buffer(r, n)
+
+
+def ellipse(cx, cy, a, b, n=128):
+    return affinity.translate(affinity.scale(Point(0, 0).buffer(1.0, n), a, b), cx, cy)
+
+
+def assert_closed(mesh):
+    s = mesh_summary(mesh)
+    assert s["watertight"], s
+    assert s["winding_consistent"], s
+    assert s["volume_m3"] > 0, s
+    assert s["area_m2"] > 0, s
+    assert s["faces"] == len(mesh.faces) and s["vertices"] == len(mesh.vertices)
+    return s
+
+
+@pytest.fixture(scope="module")
+def small_mesh():
+    """A drifting, shrinking ellipse body, coarse enough for quick exports."""
+    secs = [(-10.0 * k, ellipse(3.0 * k, 2.0 * k, 40 - 3 * k, 25 - 2 * k)) for k in range(4)]
+    return surface_from_sections(secs, cell_size_m=3.0)
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def test_cylinder_volume_and_caps_irregular_spacing():
+    r, zs = 30.0, [40.0, 0.0, 7.0, 20.0]  # unsorted, irregular
+    mesh = surface_from_sections([(z, disc(5.0, -3.0, r)) for z in zs], cell_size_m=1.5)
+    s = assert_closed(mesh)
+    expected = math.pi * r**2 * 40.0
+    assert s["volume_m3"] == pytest.approx(expected, rel=0.02)
+    # capped flat at the lowest and highest sections
+    assert mesh.bounds[0, 2] == pytest.approx(0.0, abs=0.05)
+    assert mesh.bounds[1, 2] == pytest.approx(40.0, abs=0.05)
+    # the wall follows the polygon, not its pixels
+    radial = np.hypot(mesh.vertices[:, 0] - 5.0, mesh.vertices[:, 1] + 3.0)
+    wall = (mesh.vertices[:, 2] > 1.0) & (mesh.vertices[:, 2] < 39.0)
+    assert np.abs(radial[wall] - r).max() < 0.3 * 1.5
+
+
+def test_drifting_shrinking_ellipses_volume():
+    """Sections of an inclined elliptic frustum: volume = integral of pi a(z) b(z) dz."""
+
+    def params(depth):
+        return 4.0 * depth / 10, 1.5 * depth / 10, 60.0 - 2.0 * depth / 10, 35.0 - 1.5 * depth / 10
+
+    depths = np.arange(0.0, 71.0, 10.0)  # 8 sections
+    secs = [(-d, ellipse(*params(d))) for d in depths]
+    mesh = surface_from_sections(secs, cell_size_m=2.0)
+    s = assert_closed(mesh)
+    zz = np.linspace(0.0, 70.0, 2001)
+    area = np.array([math.pi * params(d)[2] * params(d)[3] for d in zz])
+    expected = float(np.sum((area[1:] + area[:-1]) / 2 * np.diff(zz)))
+    assert s["volume_m3"] == pytest.approx(expected, rel=0.05)
+    assert mesh.bounds[0, 2] == pytest.approx(-70.0, abs=0.05)
+    assert mesh.bounds[1, 2] == pytest.approx(0.0, abs=0.05)
+    # the body drifts with depth: its bottom is displaced from its top by about (28, 10.5)
+    top = mesh.vertices[mesh.vertices[:, 2] > -0.01]
+    bot = mesh.vertices[mesh.vertices[:, 2] < -69.99]
+    shift = bot[:, :2].mean(axis=0) - top[:, :2].mean(axis=0)
+    assert shift == pytest.approx([28.0, 10.5], abs=1.5)
+
+
+def test_default_cell_size_caps_grid_near_300_cells():
+    secs = [(-10.0 * k, ellipse(0, 0, 150 - 5 * k, 100 - 4 * k)) for k in range(3)]
+    mesh = surface_from_sections(secs)
+    assert_closed(mesh)
+    # ~1 m cells over 300 m: edges are about a cell long
+    edges = mesh.edges_unique_length
+    assert 0.3 < float(np.median(edges)) < 1.5
+
+
+def test_region_that_splits_and_one_with_a_hole():
+    one = disc(0, 0, 40)
+    two = MultiPolygon([disc(-35, 0, 20), disc(35, 0, 20)])
+    splitting = surface_from_sections([(0.0, one), (-10.0, one), (-20.0, two), (-30.0, two)], cell_size_m=2.0)
+    s = assert_closed(splitting)
+    assert len(splitting.split(only_watertight=False)) == 1  # one body, forking with depth
+    assert splitting.euler_number == 2
+
+    ring = disc(0, 0, 40).difference(disc(0, 0, 15))
+    holed = surface_from_sections([(z, ring) for z in (0.0, -10.0, -20.0)], cell_size_m=2.0)
+    s = assert_closed(holed)
+    assert holed.euler_number == 0  # a through-hole: genus 1
+    assert s["volume_m3"] == pytest.approx(ring.area * 20.0, rel=0.03)
+
+    # a hole that exists on one bench only, and a region split in two at once
+    secs = [(0.0, disc(0, 0, 40)), (-10.0, ring), (-20.0, two), (-30.0, disc(0, 0, 30))]
+    mixed = surface_from_sections(secs, cell_size_m=2.0)
+    assert_closed(mixed)
+
+
+def test_empty_sections_end_the_body_between_benches():
+    secs = [(0.0, Polygon()), (-10.0, disc(0, 0, 30)), (-20.0, disc(0, 0, 30)), (-30.0, MultiPolygon())]
+    mesh = surface_from_sections(secs, cell_size_m=2.0)
+    s = assert_closed(mesh)
+    # the thickest part reaches about halfway towards the empty benches
+    assert -7.0 < mesh.bounds[1, 2] < -4.0
+    assert -26.0 < mesh.bounds[0, 2] < -23.0
+    assert s["volume_m3"] > math.pi * 30**2 * 10.0
+
+    # an empty bench in the middle splits the body in two
+    secs = [(0.0, disc(0, 0, 30)), (-10.0, None), (-20.0, disc(0, 0, 30))]
+    mesh = surface_from_sections(secs, cell_size_m=2.0)
+    assert_closed(mesh)
+    assert len(mesh.split(only_watertight=False)) == 2
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(-20, 20), st.floats(-20, 20), st.floats(8, 30), st.floats(8, 30), st.floats(0, 3.1)
+        ),
+        min_size=2,
+        max_size=4,
+    ),
+    st.lists(st.floats(3.0, 15.0), min_size=3, max_size=3),
+)
+def test_random_stacks_are_always_closed(blobs, gaps):
+    z = 0.0
+    secs = []
+    for k, (cx, cy, a, b, rot) in enumerate(blobs):
+        secs.append((z, affinity.rotate(ellipse(cx, cy, a, b, 32), rot, use_radians=True)))
+        z -= gaps[k % len(gaps)]
+    assert_closed(surface_from_sections(secs, cell_size_m=2.5))
+
+
+def test_bad_sections_are_refused():
+    with pytest.raises(BGMInputError, match="two or more elevations"):
+        surface_from_sections([(0.0, disc(0, 0, 5)), (0.0, disc(1, 0, 5))])
+    with pytest.raises(BGMInputError, match="empty"):
+        surface_from_sections([(0.0, Polygon()), (-5.0, MultiPolygon())])
+    with pytest.raises(BGMInputError, match="finite"):
+        surface_from_sections([(float("nan"), disc(0, 0, 5)), (-5.0, disc(0, 0, 5))])
+    with pytest.raises(BGMInputError, match="cell size"):
+        surface_from_sections([(0.0, disc(0, 0, 5)), (-5.0, disc(0, 0, 5))], cell_size_m=-1)
+    with pytest.raises(BGMInputError, match="voxels"):
+        surface_from_sections([(0.0, disc(0, 0, 500)), (-500.0, disc(0, 0, 500))], cell_size_m=0.5)
+
+
+def test_to_input_frame_formula(small_mesh):
+    mpu = 0.3048  # a survey in feet
+    out = to_input_frame(small_mesh, MINE_ORIGIN, mpu)
+    v = small_mesh.vertices
+    assert out.vertices.dtype == np.float64
+    np.testing.assert_array_equal(out.faces, small_mesh.faces)
+    np.testing.assert_allclose(out.vertices[:, 0], v[:, 0] / mpu + MINE_ORIGIN[0], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(out.vertices[:, 1], v[:, 1] / mpu + MINE_ORIGIN[1], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(out.vertices[:, 2], v[:, 2] / mpu, rtol=0, atol=1e-8)
+    assert out.volume == pytest.approx(small_mesh.volume / mpu**3, rel=1e-9)
+    with pytest.raises(BGMInputError):
+        to_input_frame(small_mesh, MINE_ORIGIN, 0.0)
+
+
+# --------------------------------------------------------------------------- export
+
+
+def read_back(path: Path):
+    """(vertices, faces count) of an exported surface, read by an independent reader."""
+    suffix = path.suffix.lower()
+    if suffix in (".obj", ".ply", ".stl"):
+        m = trimesh.load(path, process=False, force="mesh")
+        return np.asarray(m.vertices), len(m.faces)
+    if suffix == ".vtp":
+        pv = pytest.importorskip("pyvista")
+        poly = pv.read(path)
+        assert poly.is_all_triangles
+        return np.asarray(poly.points), poly.n_cells
+    if suffix == ".dxf":
+        doc = ezdxf.readfile(path)
+        faces = doc.modelspace().query("3DFACE")
+        pts = np.array([[f.dxf.vtx0, f.dxf.vtx1, f.dxf.vtx2] for f in faces], dtype=float)
+        return pts.reshape(-1, 3), len(faces)
+    if suffix == ".omf":
+        import omf
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            project = omf.OMFReader(str(path)).get_project()
+        geom = project.elements[0].geometry
+        return np.asarray(geom.vertices.array), len(np.asarray(geom.triangles.array))
+    raise AssertionError(suffix)
+
+
+def test_every_format_reopens_with_the_same_faces(small_mesh, tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        paths = export_all(small_mesh, tmp_path / "out", "g1", formats=DEFAULT_FORMATS)
+    assert set(paths) == set(DEFAULT_FORMATS)
+    for fmt, path in paths.items():
+        assert path == tmp_path / "out" / f"g1.{fmt}" and path.is_file()
+        _, n_faces = read_back(path)
+        assert n_faces == len(small_mesh.faces), fmt
+    doc = ezdxf.readfile(paths["dxf"])
+    assert {f.dxf.layer for f in doc.modelspace().query("3DFACE")} == {"g1"}
+    assert not doc.audit().has_errors
+    # the re-read meshes are still closed solids of the same volume
+    for fmt in ("obj", "ply", "stl"):
+        m = trimesh.load(paths[fmt], force="mesh")
+        assert m.is_watertight and m.volume == pytest.approx(small_mesh.volume, rel=1e-6)
+    # no temporary files left behind
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(f"g1.{f}" for f in DEFAULT_FORMATS)
+
+
+def test_omf_export(small_mesh, tmp_path):
+    if not omf_available():
+        with pytest.raises(BGMInputError, match="omf"):
+            export_surface(small_mesh, tmp_path / "g1.omf")
+        assert not (tmp_path / "g1.omf").exists()
+        pytest.skip("optional 'omf' package not installed")
+    path = export_surface(to_input_frame(small_mesh, MINE_ORIGIN, 1.0), tmp_path / "g1.omf")
+    verts, n_faces = read_back(path)
+    assert n_faces == len(small_mesh.faces)
+    assert verts.dtype == np.float64
+    assert np.abs(verts - (small_mesh.vertices + [*MINE_ORIGIN, 0.0])).max() < 1e-6
+
+
+@pytest.mark.parametrize("fmt", ["vtp", "dxf", "ply", "obj"])
+def test_mine_grid_coordinates_keep_sub_millimetre_precision(small_mesh, tmp_path, fmt):
+    world = to_input_frame(small_mesh, MINE_ORIGIN, 1.0)
+    assert world.vertices[:, 1].min() > 7.39e6
+    path = export_surface(world, tmp_path / f"g1.{fmt}")
+    verts, _ = read_back(path)
+    if fmt == "dxf":
+        expected = world.vertices[world.faces].reshape(-1, 3)
+    else:
+        expected = world.vertices
+    assert verts.shape == expected.shape
+    err = np.abs(verts - expected).max()
+    assert err < 1e-3, f"{fmt}: {err} units"
+    if fmt in ("vtp", "dxf", "ply"):
+        assert err == 0.0  # float64 end to end
+
+
+def test_stl_is_float32_and_warns_at_mine_grid_magnitudes(small_mesh, tmp_path):
+    world = to_input_frame(small_mesh, MINE_ORIGIN, 1.0)
+    with pytest.warns(UserWarning, match="float32"):
+        path = export_surface(world, tmp_path / "g1.stl")
+    verts, n = read_back(path)
+    assert n == len(world.faces)
+    # STL repeats vertices per face; the coordinates are quantised to float32
+    err = np.abs(verts.reshape(-1, 3, 3) - world.vertices[world.faces]).max()
+    assert 0.0 < err <= 0.5
+
+
+def test_unknown_format_names_the_supported_ones(small_mesh, tmp_path):
+    with pytest.raises(BGMInputError) as info:
+        export_surface(small_mesh, tmp_path / "g1.xyz")
+    for f in SURFACE_FORMATS:
+        assert f in str(info.value)
+    with pytest.raises(BGMInputError, match="supported"):
+        export_all(small_mesh, tmp_path, "g1", formats=("obj", "gltfx"))
+    assert not any(tmp_path.iterdir())  # nothing written when one format is bad
+    # fmt overrides the suffix
+    p = export_surface(small_mesh, tmp_path / "surface.dat", fmt=".PLY")
+    assert read_back(p.rename(tmp_path / "surface.ply"))[1] == len(small_mesh.faces)
+
+
+@pytest.mark.parametrize("fmt", ["vtp", "dxf", "ply"])
+def test_failed_export_leaves_previous_file_intact(small_mesh, tmp_path, monkeypatch, fmt):
+    path = export_surface(small_mesh, tmp_path / f"g1.{fmt}")
+    before = path.read_bytes()
+
+    real = export_mod._WRITERS[fmt]
+
+    def crashing(tmp, *args):
+        real(tmp, *args)  # a full write to the temporary file...
+        with open(tmp, "ab") as fh:
+            fh.write(b"garbage")
+        raise OSError("disk full")  # ...then a failure before the rename
+
+    monkeypatch.setitem(export_mod._WRITERS, fmt, crashing)
+    bigger = surface_from_sections([(0.0, disc(0, 0, 10)), (-5.0, disc(0, 0, 10))], cell_size_m=2.0)
+    with pytest.raises(OSError, match="disk full"):
+        export_surface(bigger, path)
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]
+
+
+# --------------------------------------------------------------------------- GeoJSON
+
+
+def test_write_geojson_round_trips_float64(tmp_path):
+    x0, y0 = 650123.123456789, 7401234.987654321
+    holed = box(x0, y0, x0 + 50.5, y0 + 30.25).difference(box(x0 + 10, y0 + 10, x0 + 20.000001, y0 + 20))
+    multi = MultiPolygon([box(x0 - 100, y0, x0 - 90, y0 + 10), box(x0 - 80, y0, x0 - 70, y0 + 10)])
+    features = [
+        {"geometry": holed, "properties": {"geozone": "g1", "z": np.float64(-12.5), "bench": np.int64(3)}},
+        {
+            "geometry": {"type": "MultiPolygon", "coordinates": [[list(p.exterior.coords)] for p in multi.geoms]},
+            "properties": {"geozone": "g2"},
+            "id": 7,
+        },
+    ]
+    path = write_geojson(features, tmp_path / "sub" / "zones.geojson", name="bench 3")
+    data = json.loads(path.read_text())
+    assert data["type"] == "FeatureCollection" and data["name"] == "bench 3"
+    assert [f["properties"]["geozone"] for f in data["features"]] == ["g1", "g2"]
+    assert data["features"][0]["properties"] == {"geozone": "g1", "z": -12.5, "bench": 3}
+    assert data["features"][1]["id"] == 7
+    back = shape(data["features"][0]["geometry"])
+    assert back.equals_exact(holed, 0.0) and len(back.interiors) == 1
+    assert shape(data["features"][1]["geometry"]).equals_exact(multi, 0.0)
+
+    with pytest.raises(BGMInputError, match="Point"):
+        write_geojson([{"geometry": Point(0, 0)}], tmp_path / "bad.geojson")
+    with pytest.raises(BGMInputError):
+        write_geojson([{"geometry": holed, "properties": {"v": float("nan")}}], tmp_path / "bad.geojson")
+    assert not (tmp_path / "bad.geojson").exists()
+
+
+def test_write_geojson_is_atomic(tmp_path, monkeypatch):
+    path = write_geojson([{"geometry": box(0, 0, 1, 1)}], tmp_path / "zones.geojson")
+    before = path.read_bytes()
+
+    def crashing(self, text, *args, **kwargs):
+        with open(self, "w") as fh:
+            fh.write(text[: len(text) // 2])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Path, "write_text", crashing)
+    with pytest.raises(KeyboardInterrupt):
+        write_geojson([{"geometry": box(0, 0, 2, 2)}], path)
+    monkeypatch.undo()
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["zones.geojson"]
