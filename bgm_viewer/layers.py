@@ -351,7 +351,7 @@ class EdgeMapLayer(Layer):
                            origin=(g.x0, g.y0, float(view.z(self.z_m)) - 0.05))
         v = np.clip(self.edge_map, 0, 1)
         v = v / max(float(v.max()), 1e-12)
-        grey = (40 + 215 * v).astype(np.uint8).ravel()  # rows = y, so C order is x fastest
+        grey = (70 + 185 * v).astype(np.uint8).ravel()  # rows = y, so C order is x fastest
         img.point_data["rgb"] = np.column_stack([grey, grey, grey])
         return [MeshItem(img.extract_surface(algorithm=None), {"scalars": "rgb", "rgb": True, "lighting": False,
                                                 "show_scalar_bar": False})]
@@ -368,7 +368,7 @@ class GVFLayer(Layer):
 
     kind = "gvf"
 
-    def __init__(self, grid=None, gvf=None, z: float = 0.0, *, name="GVF", arrows_across: int = 32,
+    def __init__(self, grid=None, gvf=None, z: float = 0.0, *, name="GVF", arrows_across: int = 22,
                  line_width: float = 2.0, **kw):
         kw.setdefault("color", LAYER_COLOURS["gvf"])
         super().__init__(name, **kw)
@@ -566,7 +566,7 @@ class TrajectoriesLayer(Layer):
     kind = "trajectories"
 
     def __init__(self, trajectories=(), z_from: float = 0.0, z_to: float = 0.0, shift=(0.0, 0.0), *,
-                 name="trajectories", max_tracks: int = 400, line_width=1.5, **kw):
+                 name="trajectories", max_tracks: int = 150, line_width=1.5, **kw):
         kw.setdefault("color", LAYER_COLOURS["trajectories"])
         super().__init__(name, **kw)
         self.max_tracks = max_tracks

@@ -168,7 +168,7 @@ class SceneRenderer:
         entries = self.scene.legend_entries()
         if entries:
             self.plotter.add_legend([[label, to_float(rgb)] for label, rgb in entries], bcolor=(0.1, 0.1, 0.12),
-                                    border=False, size=(0.22, min(0.04 * len(entries), 0.6)), loc="upper right",
+                                    border=False, size=(0.16, min(0.026 * len(entries), 0.5)), loc="upper right",
                                     face="rectangle")
 
     # -- camera ------------------------------------------------------------

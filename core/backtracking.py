@@ -109,44 +109,75 @@ def curvelet_pixels(
     return xy[d > radius_cells * grid.cell_size_m]
 
 
+def _run_seeds(uncovered: np.ndarray, ring: np.ndarray, every: int) -> np.ndarray:
+    """Indices of seeds along each run of uncovered boundary samples.
+
+    Seeds sit ``every`` samples apart, the first and last within
+    ``every / 2`` samples of the run's ends, and every run (however short)
+    gets at least one seed, at its middle.
+    """
+    u = uncovered.astype(np.int8)
+    brk = np.ones(len(u) + 1, dtype=bool)
+    brk[1:-1] = (np.diff(u) != 0) | (ring[1:] != ring[:-1])
+    edges = np.flatnonzero(brk)
+    out = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        if not u[a]:
+            continue
+        n = b - a
+        if n <= every:
+            out.append(a + n // 2)
+            continue
+        k = np.arange(a + every // 2, b, every)
+        out.extend(k.tolist())
+        if b - 1 - k[-1] > every // 2:
+            out.append(b - 1)
+    return np.asarray(out, dtype=np.intp)
+
+
+def _thinned(xy: np.ndarray, t: np.ndarray, start: int, every: int = 2) -> Trajectory:
+    """Backtracked trajectory keeping the trunk part and every ``every``-th new point.
+
+    Vertex indices up to ``start`` (the trunk part) are unchanged, so the
+    owner raster's vertex numbers stay valid for later splices.
+    """
+    keep = np.zeros(len(xy), dtype=bool)
+    keep[: start + 1] = True
+    keep[start + 1 :: every] = True
+    keep[-1] = True
+    return Trajectory(xy=xy[keep], t=t[keep], backtracked=True)
+
+
 class _OwnerRaster:
-    """Half-cell raster of which trajectory (and vertex) passes near each point."""
+    """Half-cell raster of which trajectory passes within about half a cell.
+
+    Vertices of trajectories are at most half a cell apart (trunks are
+    marked with their segment midpoints too), and each marks its half-cell
+    and the 8 around it, so the marked band of a path is connected and at
+    least three half-cells wide: a track stepping half a cell cannot jump
+    over it.
+    """
 
     def __init__(self, grid: Grid, factor: int = 2):
         self.grid = grid
         self.f = factor
         self.shape = (grid.shape[0] * factor + 2, grid.shape[1] * factor + 2)
-        self.owner = np.full(self.shape, -1, dtype=np.int64)
-        self.vertex = np.zeros(self.shape, dtype=np.int64)
-        self._off = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)])
+        self.owner = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int64)
+        w = self.shape[1]
+        self._off = np.array([dr * w + dc for dr in (-1, 0, 1) for dc in (-1, 0, 1)])
 
-    def cells(self, xy: np.ndarray) -> np.ndarray:
-        rc = np.rint(self.grid.xy_to_rc(xy) * self.f).astype(np.int64) + 1
-        np.clip(rc[:, 0], 1, self.shape[0] - 2, out=rc[:, 0])
-        np.clip(rc[:, 1], 1, self.shape[1] - 2, out=rc[:, 1])
-        return rc
+    def cells_rc(self, rc: np.ndarray) -> np.ndarray:
+        """Flat half-cell index of fractional ``(..., 2)`` row, col points (edge-clamped)."""
+        r = np.clip(np.rint(rc[..., 0] * self.f).astype(np.int64) + 1, 1, self.shape[0] - 2)
+        c = np.clip(np.rint(rc[..., 1] * self.f).astype(np.int64) + 1, 1, self.shape[1] - 2)
+        return r * self.shape[1] + c
 
-    def mark(self, xy: np.ndarray, owner: np.ndarray, vertex: np.ndarray) -> None:
-        """Mark the half-cells within about half a cell of the given vertices.
+    def mark(self, cells: np.ndarray, owner) -> None:
+        idx = (cells[:, None] + self._off[None, :]).ravel()
+        self.owner[idx] = np.repeat(owner, len(self._off)) if np.ndim(owner) else owner
 
-        Vertices of trajectories are at most half a cell apart, so the marked
-        band of a path is connected and at least three half-cells wide: a
-        track stepping half a cell cannot jump over it.
-        """
-        rc = self.cells(xy)
-        for dr, dc in self._off:
-            rr = rc[:, 0] + dr
-            cc = rc[:, 1] + dc
-            self.owner[rr, cc] = owner
-            self.vertex[rr, cc] = vertex
-
-    def mark_path(self, xy: np.ndarray, owner: int, first_vertex: int) -> None:
-        n = len(xy)
-        self.mark(xy, np.full(n, owner), first_vertex + np.arange(n))
-
-    def lookup(self, xy: np.ndarray) -> np.ndarray:
-        rc = self.cells(xy)
-        return self.owner[rc[:, 0], rc[:, 1]]
+    def lookup(self, cells: np.ndarray) -> np.ndarray:
+        return self.owner[cells]
 
 
 def _descend(
@@ -159,7 +190,7 @@ def _descend(
     step_cells: float,
     max_steps: int,
     stall_steps: int = 8,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """March all seeds down the arrival time at once.
 
     A seed stops when it reaches the source contour (``|gamma_s| <= h/2``),
@@ -167,8 +198,9 @@ def _descend(
     decreased over ``stall_steps`` steps (caught in a never-crossed area or
     zig-zagging on a ridge); only the first kind is usable.
 
-    Returns the ``(steps + 1, m, 2)`` positions (fractional row, col), the
-    last step index of each seed, and whether it reached the source contour.
+    Returns the ``(steps + 1, m, 2)`` positions (fractional row, col), their
+    ``(steps + 1, m)`` arrival times, the last step index of each seed, and
+    whether it reached the source contour.
     """
     h = grid.cell_size_m
     pos = grid.xy_to_rc(seeds_xy)
@@ -200,7 +232,7 @@ def _descend(
             stall = tk[idx] >= t_hist[-1 - stall_steps][idx]
         active[idx[hit | ~ok | stall]] = False
         hist.append(pos.copy())
-    return np.stack(hist), last, reached
+    return np.stack(hist), np.stack(t_hist), last, reached
 
 
 def backtrack_trajectories(
@@ -212,7 +244,7 @@ def backtrack_trajectories(
     target: Polygon | MultiPolygon,
     *,
     cover_radius_cells: float = 0.9,
-    seed_spacing_cells: float = 0.75,
+    seed_spacing_cells: float = 1.0,
     step_cells: float = 0.5,
 ) -> list[Trajectory]:
     """Add backtracked trajectories so that the whole target boundary is reached.
@@ -256,33 +288,35 @@ def backtrack_trajectories(
         d, _ = cKDTree(ends).query(xy)
     else:
         d = np.full(len(xy), np.inf)
-    first = np.searchsorted(ring, ring, side="left")
-    local = np.arange(len(xy)) - first
     every = max(int(round(seed_spacing_cells / 0.25)), 1)
-    seeds = np.flatnonzero((d > cover_radius_cells * h) & (local % every == 0))
+    seeds = _run_seeds(d > cover_radius_cells * h, ring, every)
     if not seeds.size:
         return list(trajectories)
 
     T, v_row, v_col = arrival_descent_field(arrival_time)
     max_steps = int(2 * (grid.shape[0] + grid.shape[1]) / step_cells)
-    hist, last, reached = _descend(xy[seeds], grid, T, v_row, v_col, source_sdf, step_cells, max_steps)
+    hist, t_hist, last, reached = _descend(xy[seeds], grid, T, v_row, v_col, source_sdf, step_cells, max_steps)
+    hist_xy = grid.rc_to_xy(hist.reshape(-1, 2)).reshape(hist.shape)
 
     # existing trajectories as possible trunks
     all_trajs = list(trajectories)
     raster = _OwnerRaster(grid)
+    hist_cells = raster.cells_rc(hist)
     if all_trajs:
         pts = np.vstack([tr.xy for tr in all_trajs])
         own = np.concatenate([np.full(len(tr.xy), k) for k, tr in enumerate(all_trajs)])
-        ver = np.concatenate([np.arange(len(tr.xy)) for tr in all_trajs])
-        raster.mark(pts, own, ver)
+        same = own[:-1] == own[1:]
+        mids = 0.5 * (pts[:-1] + pts[1:])[same]
+        cells = raster.cells_rc(grid.xy_to_rc(np.vstack([pts, mids])))
+        raster.mark(cells, np.concatenate([own, own[:-1][same]]))
 
     boundary = source.boundary
-    seed_time = bilinear(T, grid.xy_to_rc(xy[seeds]))
-    for s in np.argsort(-seed_time, kind="stable"):
-        path_rc = hist[: last[s] + 1, s, :]
-        path_xy = grid.rc_to_xy(path_rc)
-        path_t = bilinear(T, path_rc)
-        owners = raster.lookup(path_xy)
+    for s in np.argsort(-t_hist[0], kind="stable"):
+        n = last[s] + 1
+        path_xy = hist_xy[:n, s]
+        path_t = t_hist[:n, s]
+        cells = hist_cells[:n, s]
+        owners = raster.lookup(cells)
         hits = np.flatnonzero(owners >= 0)
         if hits.size:
             j = int(hits[0])
@@ -291,14 +325,16 @@ def backtrack_trajectories(
             new_xy = np.vstack([trunk.xy[: v + 1], path_xy[j::-1]])
             new_t = np.concatenate([trunk.t[: v + 1], path_t[j::-1]])
             start = v
+            new_cells = cells[: j + 1]
         elif reached[s]:
             foot = shapely.get_coordinates(shapely.shortest_line(boundary, shapely.points(path_xy[-1])))[0]
             new_xy = np.vstack([foot, path_xy[::-1]])
             new_t = np.concatenate([[0.0], path_t[::-1]])
             start = 0
+            new_cells = cells
         else:
             continue
         new_t = np.maximum.accumulate(np.maximum(new_t, 0.0))
-        all_trajs.append(Trajectory(xy=new_xy, t=new_t, backtracked=True))
-        raster.mark_path(new_xy[start:], len(all_trajs) - 1, start)
-    return remove_crossings(all_trajs)
+        all_trajs.append(_thinned(new_xy, new_t, start))
+        raster.mark(new_cells, len(all_trajs) - 1)
+    return remove_crossings(all_trajs, checked_prefix=len(trajectories))

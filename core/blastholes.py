@@ -459,8 +459,12 @@ def detect_benches(
 
     min_count = max(10, int(0.01 * len(z)))
     if bench_height is None:
-        cut = gaps > gaps.max() / 3.0
-        labels = np.concatenate([[0], np.cumsum(cut)])
+        # A gap between benches is wide next to the widest gap and far wider than
+        # the typical step between sorted elevations (which rounding can make
+        # all equal on a single bench).
+        typical = np.median(gaps[gaps > 0])
+        cut = (gaps > gaps.max() / 3.0) & (gaps > 20.0 * typical)
+        labels = _merge_scatter_splits(zs, np.concatenate([[0], np.cumsum(cut)]))
         centres = []
         for k in range(labels[-1] + 1):
             members = zs[labels == k]
@@ -507,6 +511,28 @@ def detect_benches(
     if len(levels) < 2:
         height = np.nan
     return levels, bench, height, off
+
+
+def _merge_scatter_splits(zs: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Merge neighbouring elevation clusters whose gap is small next to their own scatter.
+
+    On a single bench the widest gap is itself scatter, so cutting at a third
+    of it splits the bench; a real gap between benches is at least half as
+    wide as the holes' spread (5th-95th percentile) on either side of it.
+    """
+    while labels[-1] > 0:
+        groups = [zs[labels == k] for k in range(labels[-1] + 1)]
+        spread = [np.percentile(g, 95) - np.percentile(g, 5) for g in groups]
+        merged = False
+        for k in range(len(groups) - 1):
+            gap = groups[k + 1][0] - groups[k][-1]
+            if gap < 0.5 * max(spread[k], spread[k + 1]):
+                labels = np.where(labels > k, labels - 1, labels)
+                merged = True
+                break
+        if not merged:
+            break
+    return labels
 
 
 def _deduplicate(holes: Blastholes, rows: np.ndarray) -> Blastholes:

@@ -161,9 +161,17 @@ class LinearSDF:
     region ``phi > 0``. With a single known bench, or when either of the last
     two regions is empty (the SDF of an empty region is a constant, so its
     "trend" means nothing), it falls back to the zero-order hold.
+
+    Where the two benches' signed distances differ by more than
+    ``max_shift_m`` (default 1.5 bench heights, i.e. a boundary dipping at less
+    than about 34 degrees), the boundaries there have no plausible
+    correspondence (a pod or a mislabelled hole appearing or vanishing, a
+    bench drilled only in part): the field is held there rather than
+    extrapolated, otherwise a single new hole would grow by the distance to
+    the nearest body at every bench.
     """
 
-    def __init__(self, regions: Mapping[float, MultiPolygon], grid: Grid):
+    def __init__(self, regions: Mapping[float, MultiPolygon], grid: Grid, max_shift_m: float | None = None):
         last = _deepest(regions, 2)
         self.grid = grid
         (self.z_k, self.region_k) = last[-1]
@@ -172,7 +180,9 @@ class LinearSDF:
         if len(last) == 2 and not last[0][1].is_empty and not self.region_k.is_empty:
             z_prev, region_prev = last[0]
             phi_prev = signed_distance(grid.rasterize(region_prev), grid.cell_size_m)
-            self.slope = (self.phi_k - phi_prev) / (self.z_k - z_prev)
+            shift = self.phi_k - phi_prev
+            limit = max_shift_m if max_shift_m is not None else 1.5 * abs(self.z_k - z_prev)
+            self.slope = np.where(np.abs(shift) <= limit, shift, 0.0) / (self.z_k - z_prev)
 
     def field(self, z_m: float) -> np.ndarray:
         if self.slope is None:
@@ -185,25 +195,31 @@ class LinearSDF:
         return self.grid.polygons_from_field(self.field(z_m), 0.0)
 
 
-def predict_linear_sdf(regions: Mapping[float, MultiPolygon], z_m: float, grid: Grid | None = None) -> MultiPolygon:
+def predict_linear_sdf(
+    regions: Mapping[float, MultiPolygon], z_m: float, grid: Grid | None = None, max_shift_m: float | None = None
+) -> MultiPolygon:
     """Linear extrapolation of the signed distance from the last two benches (see :class:`LinearSDF`).
 
     ``grid`` defaults to a 240-cell grid over the known regions.
     """
     if grid is None:
         grid = default_grid(regions.values())
-    return LinearSDF(regions, grid).region(z_m)
+    return LinearSDF(regions, grid, max_shift_m).region(z_m)
 
 
-def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float) -> np.ndarray:
-    """Bench index of each hole: given, or by splitting sorted elevations at gaps over half a bench."""
-    if bench is not None:
-        return np.asarray(bench)
-    order = np.argsort(-z)
-    gaps = np.diff(z[order]) < -0.5 * bench_height_m
-    out = np.empty(len(z), int)
-    out[order] = np.concatenate([[0], np.cumsum(gaps)])
-    return out
+def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float | None) -> tuple[np.ndarray, float]:
+    """Bench index of each hole and the bench height: as given, or detected from the elevations."""
+    if bench is not None and bench_height_m is not None and np.isfinite(bench_height_m):
+        return np.asarray(bench), float(bench_height_m)
+    from .blastholes import detect_benches
+
+    levels, found, height, _ = detect_benches(z, bench_height_m if bench_height_m and np.isfinite(bench_height_m) else None)
+    if not np.isfinite(height):
+        height = 10.0  # a single bench: z does not matter, any scale will do
+    if bench is None:
+        # Off-bench holes (-1) still get the nearest level.
+        found = np.argmin(np.abs(z[:, None] - np.asarray(levels)[None, :]), axis=1)
+    return np.asarray(bench if bench is not None else found), float(height)
 
 
 def hole_signed_distance(
@@ -237,16 +253,18 @@ class ImplicitRBF:
     spacing_m: float
     constant: float = 0.0  #: value everywhere when there is nothing to interpolate
     n_points: int = 0
+    resolution_spacings: float = 1.0  #: evaluation cell size, in hole spacings
 
     def field(self, z_m: float, grid: Grid) -> np.ndarray:
         """The implicit function on ``grid`` at elevation ``z_m`` (positive inside).
 
-        Evaluated on a grid of half a hole spacing (the data cannot resolve
-        finer) and interpolated bilinearly onto ``grid``.
+        Evaluated on cells of ``resolution_spacings`` hole spacings (the data
+        cannot resolve much finer, and the cost grows with the number of
+        cells) and interpolated bilinearly onto ``grid``.
         """
         if self.interpolator is None:
             return np.full(grid.shape, self.constant)
-        step = max(1, int(np.floor(0.5 * self.spacing_m / grid.cell_size_m)))
+        step = max(1, int(round(self.resolution_spacings * self.spacing_m / grid.cell_size_m)))
         rows, cols = grid.shape
         coarse = Grid(grid.x0, grid.y0, grid.cell_size_m * step, ((rows - 1) // step + 2, (cols - 1) // step + 2))
         X, Y = coarse.cell_centres()
@@ -272,13 +290,14 @@ def fit_implicit_rbf(
     bench: np.ndarray | None = None,
     spacing_m: float | None = None,
     bench_height_m: float | None = None,
-    z_spacings: float = 2.5,
+    z_spacings: float = 2.0,
     kernel: str = "linear",
     neighbors: int = 64,
     smoothing: float = 1.0,
-    band_spacings: float = 3.0,
-    far_fraction: float = 0.1,
+    band_spacings: float = 2.0,
+    far_fraction: float = 0.05,
     seed: int = 0,
+    resolution_spacings: float = 1.0,
 ) -> ImplicitRBF:
     """Fit a 3D RBF interpolant of signed distances at the holes (Leapfrog-style implicit model).
 
@@ -307,6 +326,9 @@ def fit_implicit_rbf(
         Speed: all holes within ``band_spacings`` spacings of the boundary are
         used, and a random ``far_fraction`` of the others (they only fix the
         sign far away).
+    resolution_spacings : float
+        Cell size at which the field is evaluated (then interpolated
+        bilinearly onto the caller's grid), in hole spacings.
 
     Notes
     -----
@@ -318,17 +340,15 @@ def fit_implicit_rbf(
     inside = np.asarray(inside, bool)
     if len(xy) == 0:
         raise ValueError("no holes to fit an implicit model to")
-    if bench_height_m is None or not np.isfinite(bench_height_m):
-        levels = np.unique(np.round(z, 1))
-        bench_height_m = float(np.median(np.diff(levels))) if len(levels) > 1 else 10.0
-    groups = _bench_groups(z, bench, bench_height_m)
+    groups, bench_height_m = _bench_groups(z, bench, bench_height_m)
     if spacing_m is None or not np.isfinite(spacing_m):
         d = [cKDTree(xy[groups == g]).query(xy[groups == g], k=2)[0][:, 1] for g in np.unique(groups) if (groups == g).sum() > 1]
         spacing_m = float(np.median(np.concatenate(d))) if d else 5.0
     z_scale = z_spacings * spacing_m / bench_height_m
     if inside.all() or not inside.any():
         cap = 6 * spacing_m
-        return ImplicitRBF(None, z_scale, spacing_m, constant=cap if inside.all() else -cap)
+        return ImplicitRBF(None, z_scale, spacing_m, constant=cap if inside.all() else -cap,
+                           resolution_spacings=resolution_spacings)
     sd = hole_signed_distance(xy, inside, groups, 6 * spacing_m)
     rng = np.random.default_rng(seed)
     keep = (np.abs(sd) <= band_spacings * spacing_m) | (rng.random(len(sd)) < far_fraction)
@@ -337,7 +357,7 @@ def fit_implicit_rbf(
     interp = RBFInterpolator(
         pts, sd[keep], kernel=kernel, neighbors=min(neighbors, int(keep.sum())), smoothing=smoothing, degree=1
     )
-    return ImplicitRBF(interp, z_scale, spacing_m, n_points=int(keep.sum()))
+    return ImplicitRBF(interp, z_scale, spacing_m, n_points=int(keep.sum()), resolution_spacings=resolution_spacings)
 
 
 def predict_implicit_rbf(
@@ -494,6 +514,8 @@ def evaluate_geozone(
             d = z_k - float(levels[k + 1])
             targets = [(1.0, d, float(levels[k + 1]))] if any(np.isclose(f, 1.0) for f in fractions) else []
         if not targets:
+            if progress:
+                progress(done, len(ks))
             continue
         z_targets = [t[2] for t in targets]
         known_mask = holes.bench <= k

@@ -189,8 +189,8 @@ def write_geojson(
 def omf_available() -> bool:
     """True when the optional ``omf`` package is importable."""
     try:
-        import omf  # noqa: F401
-    except Exception:  # noqa: BLE001 - any import failure means unavailable
+        _require_omf()
+    except BGMInputError:
         return False
     return True
 

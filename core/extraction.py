@@ -12,8 +12,9 @@ Two refinements over the paper, both for fidelity to the true boundary:
   midpoint to its nearest hole of another geozone, a frontier hole (gap
   closure) a point half a hole spacing out through its gap. A contour through
   the outermost holes would sit half a spacing inside the region everywhere.
-* A component that encloses components of other geozones (an ore pod inside
-  host rock) gets them cut out as holes, so regions on a bench do not overlap.
+* Where contours of two geozones overlap, the smaller region keeps the
+  overlap: a component enclosing another geozone's component (an ore pod in
+  host rock) gets it cut out as a hole, so regions on a bench never overlap.
 """
 
 from __future__ import annotations
@@ -311,7 +312,12 @@ def _outline(points: np.ndarray, spacing: float) -> Polygon:
 
 
 def _cut_enclosed(contours: list[Contour]) -> list[Contour]:
-    """Cut regions of other geozones enclosed by a contour out of it, as holes."""
+    """Resolve overlaps between geozones on a bench: the smaller region wins.
+
+    A region enclosed by a larger one (a pod in host rock) becomes a hole in
+    it; one that overlaps the edge of a larger one (a body at the drilling
+    frontier) is cut from it, so regions on a bench never overlap.
+    """
     polys = [c.polygon for c in contours]
     tree = shapely.STRtree(polys)
     out = []
@@ -325,7 +331,7 @@ def _cut_enclosed(contours: list[Contour]) -> list[Contour]:
             q = polys[j]
             if j == i or contours[j].geozone == c.geozone or q.is_empty or q.area >= p.area:
                 continue
-            if p.intersection(q).area > 0.9 * q.area:
+            if p.intersects(q):
                 cut.append(q)
         if cut:
             p = _largest_polygon(p.difference(shapely.union_all(cut)))

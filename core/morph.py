@@ -139,12 +139,13 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
     projected onto the zero set by one Newton step,
     ``foot = x - phi grad(phi) / |grad(phi)|^2`` (sub-cell accurate); an exact
     Euclidean distance transform then gives each cell its nearest interface
-    cell, and the new value is the distance to that cell's foot point, signed
-    like ``phi``. Cost: one EDT (a few ms on 256 x 256).
+    cell, and the new value is the distance to that cell's piece of front (a
+    one-cell tangent segment through its foot point), signed like ``phi``.
+    Cost: one EDT (a few ms on 256 x 256).
 
-    With ``band_m`` only the bounding box of the cells within ``band_m`` of
-    the interface is recomputed; cells outside it get ``+-(band_m + 2 h)``
-    (narrow-band use: only the sign matters there).
+    With ``band_m`` only the bounding box of the interface, grown by
+    ``band_m + 2 h``, is recomputed; cells outside that box get
+    ``+-(band_m + 2 h)`` (narrow-band use: only the sign matters there).
     """
     h = cell_size_m
     inside = phi > 0
@@ -180,13 +181,23 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
     n = np.hypot(dr, dc)
     lim = np.where(n > 1.0, 1.0 / np.maximum(n, 1e-12), 1.0)
     shape = (r1 - r0, c1 - c0)
-    foot_r = np.zeros(shape)
-    foot_c = np.zeros(shape)
-    foot_r[r - r0, c - c0] = r - r0 + dr * lim
-    foot_c[r - r0, c - c0] = c - c0 + dc * lim
+    g = np.sqrt(g2)
+    # per interface cell: foot point and unit normal (row, col components)
+    info = np.zeros((4,) + shape)
+    info[0, r - r0, c - c0] = r - r0 + dr * lim
+    info[1, r - r0, c - c0] = c - c0 + dc * lim
+    info[2, r - r0, c - c0] = gy / g
+    info[3, r - r0, c - c0] = gx / g
     ir, ic = ndimage.distance_transform_edt(~edge[r0:r1, c0:c1], return_distances=False, return_indices=True)
+    fr, fc, nr, nc = info[:, ir, ic]
     rr, cc = np.indices(shape)
-    d = np.hypot(rr - foot_r[ir, ic], cc - foot_c[ir, ic]) * h
+    wr, wc = rr - fr, cc - fc
+    # distance to the interface piece of the nearest interface cell, a tangent
+    # segment one cell long centred on its foot point (second-order accurate
+    # on smooth fronts, exact distance to the foot beyond the segment's ends)
+    dn = wr * nr + wc * nc
+    dt = np.maximum(np.abs(wr * nc - wc * nr) - 0.5, 0.0)
+    d = np.sqrt(dn * dn + dt * dt) * h
     out[r0:r1, c0:c1] = np.where(inside[r0:r1, c0:c1], d, -d)
     return out
 
@@ -420,7 +431,7 @@ def morph_regions(
     union = np.count_nonzero(region | target_mask)
     iou = float(np.count_nonzero(region & target_mask) / union) if union else 1.0
 
-    trajs = remove_crossings(finished_trajectories(particles, dt, 0.5 * h))
+    trajs = remove_crossings(finished_trajectories(particles, dt, h))
     cov0 = boundary_coverage(trajs, tgt, h)
     cov = cov0
     if backtrack and cov0 < 1.0:

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 import shapely
+import shapely.affinity
 from shapely.geometry import MultiPolygon, Polygon, box
 from shapely.ops import unary_union
 
@@ -113,6 +114,26 @@ class SyntheticMine:
             labels[inside] = name
             unset &= ~inside
         return labels
+
+    def offset_to(self, frame) -> tuple[float, float]:
+        """Shift from this mine's local metres to a :class:`~core.blastholes.LocalFrame`'s metres.
+
+        The mine's points are drilled at ``mine_local + origin`` (metres); the
+        frame maps input ``p`` to ``(p - frame.origin) * metres_per_unit``.
+        """
+        mpu = frame.metres_per_unit
+        return ((self.origin[0] - frame.origin_x) * mpu, (self.origin[1] - frame.origin_y) * mpu)
+
+    def section_in(self, frame, geozone: str, z_m: float) -> MultiPolygon:
+        """True section of ``geozone`` at ``z_m`` in the frame's local metres."""
+        dx, dy = self.offset_to(frame)
+        return as_multipolygon(shapely.affinity.translate(self.section(geozone, z_m), dx, dy))
+
+    def footprint_in(self, frame, z_m: float) -> Polygon:
+        """Drilled area of the bench nearest ``z_m`` in the frame's local metres."""
+        dx, dy = self.offset_to(frame)
+        level = min(self.footprints, key=lambda q: abs(q - z_m))
+        return shapely.affinity.translate(self.footprints[level], dx, dy)
 
     @property
     def labels(self) -> list[str]:

@@ -357,8 +357,12 @@ def _segments(trajectories: list[Trajectory]) -> tuple[np.ndarray, np.ndarray, n
     return np.vstack(a), np.vstack(b), np.concatenate(owner)
 
 
-def crossing_pairs(trajectories: list[Trajectory]) -> np.ndarray:
+def crossing_pairs(trajectories: list[Trajectory], checked_prefix: int = 0) -> np.ndarray:
     """Pairs ``(i, j)``, ``i < j``, of trajectories whose paths properly cross.
+
+    ``checked_prefix``: the first ``checked_prefix`` trajectories are known
+    not to cross one another (only pairs involving a later one are sought;
+    much faster when a few trajectories are added to a checked set).
 
     Identical segments (the trunk part a backtracked trajectory shares with
     its trunk) are tested once. Segments longer than the median length
@@ -386,7 +390,7 @@ def crossing_pairs(trajectories: list[Trajectory]) -> np.ndarray:
     # split long segments so every piece is short: then two pieces can only
     # intersect if their midpoints are within one piece length
     length = np.hypot(*(b - a).T)
-    piece = max(float(np.median(length)), 1e-12)
+    piece = max(1.01 * float(np.quantile(length, 0.95)), 1e-12)
     k = np.maximum(np.ceil(length / piece).astype(int), 1)
     parent = np.repeat(np.arange(len(a)), k)
     sub = np.arange(len(parent)) - np.repeat(np.cumsum(k) - k, k)
@@ -394,10 +398,23 @@ def crossing_pairs(trajectories: list[Trajectory]) -> np.ndarray:
     f1 = ((sub + 1) / k[parent])[:, None]
     d = b[parent] - a[parent]
     pa, pb = a[parent] + f0 * d, a[parent] + f1 * d
-    pairs_ = cKDTree(0.5 * (pa + pb)).query_pairs(piece, output_type="ndarray")
-    if not len(pairs_):
-        return np.zeros((0, 2), dtype=int)
-    i, j = pairs_[:, 0], pairs_[:, 1]
+    mid = 0.5 * (pa + pb)
+    tree = cKDTree(mid)
+    if checked_prefix > 0:
+        # segments all of whose owners are new, against every segment
+        min_owner = np.minimum.reduceat(owner_sorted, bounds[:-1])
+        new_seg = min_owner >= checked_prefix
+        qi = np.flatnonzero(new_seg[parent])
+        if not qi.size:
+            return np.zeros((0, 2), dtype=int)
+        sub_tree = cKDTree(mid[qi])
+        dm = sub_tree.sparse_distance_matrix(tree, piece, output_type="ndarray")
+        i, j = qi[dm["i"]], dm["j"].astype(np.intp)
+    else:
+        pairs_ = tree.query_pairs(piece, output_type="ndarray")
+        if not len(pairs_):
+            return np.zeros((0, 2), dtype=int)
+        i, j = pairs_[:, 0], pairs_[:, 1]
     sel = parent[i] != parent[j]
     i, j = i[sel], j[sel]
     a, b = pa, pb
@@ -424,13 +441,14 @@ def crossing_pairs(trajectories: list[Trajectory]) -> np.ndarray:
     return np.array(sorted(pairs), dtype=int)
 
 
-def remove_crossings(trajectories: list[Trajectory]) -> list[Trajectory]:
+def remove_crossings(trajectories: list[Trajectory], checked_prefix: int = 0) -> list[Trajectory]:
     """Drop as few trajectories as needed so that no two cross.
 
     Greedy: repeatedly remove the trajectory in the most crossings (ties:
     backtracked before advected, then the shorter one). Order is preserved.
+    ``checked_prefix`` as in :func:`crossing_pairs`.
     """
-    pairs = crossing_pairs(trajectories)
+    pairs = crossing_pairs(trajectories, checked_prefix)
     if not len(pairs):
         return list(trajectories)
     removed: set[int] = set()

@@ -1,0 +1,116 @@
+"""Layers of the standard scene, fed from a :class:`~bgm_viewer.model.PipelineResult`.
+
+Layer names (what ``--layers`` and the layer panel use): see :data:`LAYER_NAMES`.
+"""
+
+from __future__ import annotations
+
+from . import _vtkenv  # noqa: F401
+
+import numpy as np
+
+from .layers import (
+    BlastholesLayer,
+    ContoursLayer,
+    EdgeMapLayer,
+    GVFLayer,
+    Layer,
+    SnakeLayer,
+    SurfaceLayer,
+    TrajectoriesLayer,
+    WavefrontLayer,
+)
+from .model import PipelineResult, Selection
+from .palette import geozone_colours
+from .scene import Scene
+
+LAYER_NAMES = (
+    "blastholes",
+    "contours",
+    "edge map",
+    "GVF",
+    "snake",
+    "wavefront",
+    "trajectories",
+    "predicted contours",
+    "surfaces",
+)
+#: Shown when nothing else is asked for.
+DEFAULT_VISIBLE = ("blastholes", "contours", "snake", "trajectories", "surfaces")
+
+
+def _alias(name: str) -> str:
+    key = name.strip().lower().replace("_", " ").replace("-", " ")
+    aliases = {"holes": "blastholes", "edges": "edge map", "edgemap": "edge map", "gvf": "GVF",
+               "arrows": "GVF", "front": "wavefront", "fronts": "wavefront", "tracks": "trajectories",
+               "predicted": "predicted contours", "prediction": "predicted contours", "surface": "surfaces"}
+    key = aliases.get(key, key)
+    for n in LAYER_NAMES:
+        if n.lower() == key.lower():
+            return n
+    raise KeyError(f"unknown layer {name!r}; layers are: {', '.join(LAYER_NAMES)}")
+
+
+def parse_layers(layers) -> list[str]:
+    """``"blastholes,contours"`` or a list of names (aliases allowed) to canonical layer names."""
+    if layers is None:
+        return list(DEFAULT_VISIBLE)
+    if isinstance(layers, str):
+        layers = [p for p in layers.split(",") if p.strip()]
+    out = []
+    for part in layers:
+        for p in str(part).split(","):
+            if p.strip():
+                n = _alias(p)
+                if n not in out:
+                    out.append(n)
+    return out
+
+
+def make_layers(holes, result: PipelineResult, selection: Selection, predicted=()) -> list[Layer]:
+    """All standard layers for ``result`` (empty layers where a stage has not run).
+
+    ``predicted``: ``(geozone, z_m, polygon)`` of contours predicted below the deepest bench
+    (from a core prediction stage, when there is one).
+    """
+    colours = geozone_colours(holes.geozones)
+    contours = [c for cs in result.contours.values() for c in cs]
+    layers: list[Layer] = [
+        BlastholesLayer.from_blastholes(holes, contours, colours),
+        ContoursLayer.from_contours(contours, colours),
+    ]
+    sel = result.selected_contour(selection)
+    f = sel.fields if sel is not None else None
+    z = float(holes.bench_levels_m[selection.bench])
+    layers.append(EdgeMapLayer(f.grid if f else None, f.edge_map if f else None, z))
+    layers.append(GVFLayer(f.grid if f else None, f.gvf if f else None, z))
+    layers.append(SnakeLayer(f.snake_history_m if f else [], z))
+    m = result.morph
+    if m is not None and m.result is not None:
+        layers.append(WavefrontLayer(m.result.fronts, m.result.times, m.z_from_m, m.z_to_m, m.shift_m))
+        layers.append(TrajectoriesLayer(m.result.trajectories, m.z_from_m, m.z_to_m, m.shift_m))
+    else:
+        layers.append(WavefrontLayer())
+        layers.append(TrajectoriesLayer())
+    layers.append(ContoursLayer(list(predicted), colours, name="predicted contours", predicted=True, line_width=2.0))
+    surf = [(selection.geozone, result.surface)] if result.surface is not None else []
+    layers.append(SurfaceLayer.from_trimesh(surf, colours))
+    return layers
+
+
+def build_scene(holes, result: PipelineResult, selection: Selection, *, visible=None,
+                vertical_exaggeration: float = 2.0, predicted=()) -> Scene:
+    """A :class:`Scene` of the standard layers with ``visible`` (names) shown."""
+    scene = Scene(make_layers(holes, result, selection, predicted), vertical_exaggeration=vertical_exaggeration,
+                  z_ref=float(np.max(holes.bench_levels_m)))
+    scene.set_visible_only(parse_layers(visible))
+    return scene
+
+
+def refresh_scene(scene: Scene, holes, result: PipelineResult, selection: Selection, predicted=()) -> None:
+    """Replace the data of the scene's layers, keeping visibility, opacity and frames where possible."""
+    for layer in make_layers(holes, result, selection, predicted):
+        old = scene.get(layer.name)
+        if old is not None and old.n_frames == layer.n_frames and old.n_frames > 1:
+            layer._frame = old.frame
+        scene.replace(layer)

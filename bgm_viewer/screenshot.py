@@ -1,0 +1,103 @@
+"""Render the viewer's scene to a PNG with no display and no Qt.
+
+Plain ``pyvista.Plotter(off_screen=True)``; with no ``DISPLAY`` VTK is told to
+use EGL (see :mod:`bgm_viewer._vtkenv`). Anti-aliasing is off (software
+rendering). This module never imports Qt.
+"""
+
+from __future__ import annotations
+
+from . import _vtkenv  # noqa: F401  (before pyvista)
+
+from pathlib import Path
+
+import numpy as np
+import pyvista as pv
+
+from .builders import build_scene, parse_layers
+from .model import STAGES, ViewerModel
+from .scene import Scene, SceneRenderer
+
+DEFAULT_SIZE = (1280, 960)
+
+#: Which stage layers need which pipeline stages (to skip work a screenshot does not show).
+_NEEDS = {
+    "blastholes": "boundary",
+    "contours": "boundary",
+    "edge map": "boundary",
+    "GVF": "boundary",
+    "snake": "boundary",
+    "wavefront": "morph",
+    "trajectories": "morph",
+    "predicted contours": "boundary",
+    "surfaces": "surface",
+}
+
+
+def plotter_for(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True):
+    """An off-screen plotter with ``scene`` drawn and the camera set."""
+    plotter = pv.Plotter(off_screen=True, window_size=tuple(window_size))
+    renderer = SceneRenderer(plotter, scene, legend=legend)
+    renderer.set_camera(camera)
+    return plotter, renderer
+
+
+def scene_image(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True) -> np.ndarray:
+    """``(rows, cols, 3)`` uint8 image of ``scene``."""
+    plotter, _ = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)
+    try:
+        return np.asarray(plotter.screenshot(None, return_img=True))[..., :3].copy()
+    finally:
+        plotter.close()
+
+
+def model_scene(model: ViewerModel, layers=None, *, run: bool = True) -> Scene:
+    """Run what the requested layers need and build their scene."""
+    names = parse_layers(layers)
+    if run and names:
+        until = STAGES[max(STAGES.index(_NEEDS[n]) for n in names)]
+        model.run("boundary", until=until)
+    return build_scene(model.holes, model.result, model.selection, visible=names,
+                       vertical_exaggeration=model.vertical_exaggeration)
+
+
+def render_screenshot(holes_or_path=None, out_png: str | Path = "bgm.png", layers=None, camera: str | None = "iso", *,
+                      project=None, geozone: str | None = None, bench: int | None = None,
+                      component: int | None = None, vertical_exaggeration: float | None = None,
+                      window_size=DEFAULT_SIZE, legend: bool = True, model: ViewerModel | None = None) -> Path:
+    """Render the viewer scene of ``holes_or_path`` to ``out_png``; returns the path.
+
+    Parameters
+    ----------
+    holes_or_path : Blastholes, path, or None
+        The input (``None``: the bundled demo). Ignored when ``model`` is given.
+    out_png : path
+    layers : list of str or "a,b,c", optional
+        Layers to show (see :data:`bgm_viewer.builders.LAYER_NAMES`); default
+        blastholes, contours, snake, trajectories, surfaces.
+    camera : "iso", "top", "front", "side" or "x,y,z"
+    project : path, optional
+        Project file whose parameters, selection and overrides are applied.
+    geozone, bench, component : selection of the stage layers (bench = upper bench of the pair).
+    vertical_exaggeration : float, optional
+    """
+    if model is None:
+        model = ViewerModel(holes_or_path)
+        if project:
+            model.load_project(project)
+        if geozone is not None or bench is not None or component is not None:
+            model.select(geozone, bench, component)
+        if vertical_exaggeration:
+            model.vertical_exaggeration = float(vertical_exaggeration)
+        scene = model_scene(model, layers)
+    else:
+        scene = build_scene(model.holes, model.result, model.selection, visible=parse_layers(layers),
+                            vertical_exaggeration=vertical_exaggeration or model.vertical_exaggeration)
+    out_png = Path(out_png)
+    out_png.parent.mkdir(parents=True, exist_ok=True)
+    plotter, _ = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)
+    try:
+        plotter.screenshot(str(out_png))
+    finally:
+        plotter.close()
+    return out_png

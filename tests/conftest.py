@@ -1,0 +1,63 @@
+"""Shared fixtures: synthetic mines with known truth, and the real Kennecott data when present."""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+
+from core.blastholes import BGMWarning, blastholes_from_table
+from core.synthetic import make_mine, sample_blastholes
+
+ROOT = Path(__file__).resolve().parent.parent
+DEMO_CSV = ROOT / "assets" / "demo_blastholes.csv"
+KENNECOTT_CSV = Path(
+    os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
+)
+
+os.environ.setdefault("QT_API", "pyside6")
+
+
+@pytest.fixture(scope="session")
+def kennecott_csv() -> Path:
+    if not KENNECOTT_CSV.exists():
+        pytest.skip(f"real Kennecott data not found at {KENNECOTT_CSV}")
+    return KENNECOTT_CSV
+
+
+def synthetic(seed: int, **mine_kwargs):
+    """A fresh synthetic mine, its blasthole table and the holes read into the engine."""
+    mine = make_mine(seed=seed, origin=(650_000.0 + seed, 7_400_000.0 - seed), **mine_kwargs)
+    table = sample_blastholes(mine, seed=seed + 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = blastholes_from_table(table, source=f"synthetic seed {seed}")
+    return mine, table, holes
+
+
+def component_truth(mine, holes, contour):
+    """True region of a contour's component inside the drilled area, in the engine's frame.
+
+    The parts of the true section (clipped to the bench's drilled area) that
+    hold at least one of the component's holes.
+    """
+    z = holes.bench_levels_m[contour.bench]
+    footprint = mine.footprint_in(holes.frame, z)
+    truth = mine.section_in(holes.frame, contour.geozone, z).intersection(footprint)
+    xy = holes.xy[contour.holes]
+    parts = [g for g in getattr(truth, "geoms", [truth]) if shapely.contains_xy(g, xy[:, 0], xy[:, 1]).any()]
+    return shapely.union_all(parts) if parts else shapely.Polygon(), footprint
+
+
+def iou(a, b) -> float:
+    union = a.union(b).area
+    return float(a.intersection(b).area / union) if union > 0 else float("nan")
+
+
+@pytest.fixture(scope="session")
+def rng() -> np.random.Generator:
+    return np.random.default_rng(12345)

@@ -1,0 +1,151 @@
+"""Reading blasthole tables: columns, benches, units, frames and bad input."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import synthetic
+from core.blastholes import BGMWarning, blastholes_from_table, detect_benches, read_blastholes
+from core.errors import BGMInputError
+
+
+def small_table(n_per_bench: int = 40, benches=(100.0, 90.0, 80.0), seed: int = 0) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    rows = []
+    for z in benches:
+        gx, gy = np.meshgrid(np.arange(8) * 6.0, np.arange(n_per_bench // 8) * 6.0)
+        for x, y in zip(gx.ravel(), gy.ravel()):
+            rows.append((x + rng.normal(0, 0.3), y + rng.normal(0, 0.3), z + rng.uniform(-1, 1), "3310" if x < 20 else "2210"))
+    return pd.DataFrame(rows, columns=["EAST", "NORTH", "RL", "lookup_domain"])
+
+
+def write(tmp_path, table: pd.DataFrame, name="holes.csv", **kw) -> str:
+    path = tmp_path / name
+    table.to_csv(path, index=False, **kw)
+    return str(path)
+
+
+def test_columns_found_by_name_and_labels_stay_strings(tmp_path):
+    holes = read_blastholes(write(tmp_path, small_table()))
+    assert holes.geozones == ["2210", "3310"]
+    assert holes.n_benches == 3
+    assert np.allclose(holes.bench_levels_m, [100.0, 90.0, 80.0], atol=0.5)  # holes scatter +-1 m
+    assert holes.bench_height_m == pytest.approx(10.0)
+    assert 5.0 < holes.hole_spacing_m < 6.5
+
+
+def test_explicit_columns_and_other_delimiters(tmp_path):
+    t = small_table().rename(columns={"EAST": "e1", "NORTH": "n1", "RL": "level", "lookup_domain": "code"})
+    path = write(tmp_path, t, sep=";")
+    holes = read_blastholes(path, x="e1", y="n1", z="level", geozone="code")
+    assert len(holes.xy) == len(t)
+    with pytest.raises(BGMInputError, match="no x column"):
+        read_blastholes(path)
+
+
+def test_parquet_labels_from_integers(tmp_path):
+    t = small_table()
+    t["lookup_domain"] = t["lookup_domain"].astype(int)
+    path = tmp_path / "holes.parquet"
+    t.to_parquet(path)
+    assert read_blastholes(path).geozones == ["2210", "3310"]
+
+
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (lambda t: t.assign(x=1.0), "ambiguous x column"),
+        (lambda t: t.drop(columns=["lookup_domain"]), "no geozone column"),
+        (lambda t: t.assign(RL=t.RL.astype(object).where(t.index != 5, "abc")), r"RL.*data line\(s\) 7"),
+        (lambda t: t.assign(EAST=t.EAST.where(t.index != 3, np.nan)), r"EAST.*line\(s\) 5"),
+        (lambda t: t.assign(NORTH=t.NORTH.where(t.index != 0, np.inf)), "infinite"),
+        (lambda t: t.iloc[:0], "no rows"),
+        (lambda t: t.assign(lookup_domain=t.lookup_domain.where(t.index != 2, "")), "geozone.*empty"),
+    ],
+)
+def test_bad_tables_get_one_clear_message(tmp_path, mutate, message):
+    path = write(tmp_path, mutate(small_table()))
+    with pytest.raises(BGMInputError, match=message):
+        read_blastholes(path)
+
+
+def test_missing_empty_directory_and_binary_inputs(tmp_path):
+    with pytest.raises(BGMInputError, match="does not exist"):
+        read_blastholes(tmp_path / "nope.csv")
+    with pytest.raises(BGMInputError, match="directory"):
+        read_blastholes(tmp_path)
+    (tmp_path / "empty.csv").write_text("")
+    with pytest.raises(BGMInputError, match="empty"):
+        read_blastholes(tmp_path / "empty.csv")
+    (tmp_path / "bin.csv").write_bytes(b"\x00\x01\x02garbage" * 10)
+    with pytest.raises(BGMInputError):
+        read_blastholes(tmp_path / "bin.csv")
+    (tmp_path / "bad.parquet").write_text("not parquet")
+    with pytest.raises(BGMInputError, match="Parquet"):
+        read_blastholes(tmp_path / "bad.parquet")
+
+
+def test_unknown_geozone_lists_the_present_ones(tmp_path):
+    holes = read_blastholes(write(tmp_path, small_table()))
+    with pytest.raises(BGMInputError, match="present: 2210, 3310"):
+        holes.check_geozones(["9999"])
+
+
+def test_duplicates_are_merged_with_a_warning(tmp_path):
+    t = small_table()
+    t = pd.concat([t, t.iloc[1:4], t.iloc[[0]].assign(lookup_domain="2210")], ignore_index=True)
+    with pytest.warns(BGMWarning, match="4 duplicate hole.*conflicting"):
+        holes = read_blastholes(write(tmp_path, t))
+    assert len(holes.xy) == len(t) - 4
+
+
+def test_off_bench_holes_are_reported_and_left_out(tmp_path):
+    t = small_table()
+    t.loc[0, "RL"] = 95.0  # between the 100 and 90 benches
+    with pytest.warns(BGMWarning, match="1 hole"):
+        holes = read_blastholes(write(tmp_path, t))
+    assert len(holes.xy) == len(t) - 1
+
+
+def test_single_bench_reads_with_nan_bench_height(tmp_path):
+    holes = read_blastholes(write(tmp_path, small_table(benches=(50.0,))))
+    assert holes.n_benches == 1 and np.isnan(holes.bench_height_m)
+
+
+def test_bench_height_override_and_detection_in_feet():
+    rng = np.random.default_rng(1)
+    z = np.concatenate([lvl + rng.uniform(-8, 8, 500) for lvl in (515.0, 465.0, 415.0, 365.0)])
+    levels, bench, height, off = detect_benches(z)
+    assert height == pytest.approx(50.0, abs=0.5)
+    assert np.allclose(levels, [515, 465, 415, 365], atol=1.0)
+    assert not off.any()
+    levels, _, height, _ = detect_benches(z, bench_height=50.0)
+    assert height == 50.0 and len(levels) == 4
+
+
+def test_feet_are_recognised_and_reported_back_in_feet(tmp_path):
+    t = small_table(benches=(500.0, 450.0, 400.0))
+    t[["EAST", "NORTH"]] *= 3.28084
+    holes = read_blastholes(write(tmp_path, t))
+    assert holes.frame.length_unit == "ft"
+    assert 5.0 < holes.hole_spacing_m < 6.5  # spacing in metres whatever the input unit
+    assert holes.bench_z_input(0) == pytest.approx(500.0, abs=0.5)
+    back = holes.frame.to_input(holes.xy)
+    assert np.allclose(np.sort(back[:, 0]), np.sort(t.EAST.to_numpy()), atol=1e-9)
+
+
+def test_mine_grid_coordinates_keep_full_precision():
+    _, table, holes = synthetic(3, n_benches=3)
+    assert table.y.min() > 7_399_000
+    assert np.abs(holes.xy).max() < 1000  # local frame near the origin
+    back = holes.frame.to_input(holes.xy)
+    original = table[["x", "y"]].to_numpy()
+    # Every hole maps back to a table row to well below a millimetre.
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(original).query(back)
+    assert d.max() < 1e-6

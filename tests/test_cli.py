@@ -1,0 +1,104 @@
+"""The bgm command line: contracts from the issues, clear errors, no tracebacks."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import shapely
+from shapely.geometry import shape
+
+from conftest import DEMO_CSV
+
+BGM = [sys.executable, "-c", "from core.cli import main; main()"]
+
+
+def bgm(*args, check=True) -> subprocess.CompletedProcess:
+    proc = subprocess.run([*BGM, *map(str, args)], capture_output=True, text=True, timeout=600)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"bgm {args} failed ({proc.returncode}):\n{proc.stderr}")
+    return proc
+
+
+def test_every_command_has_help():
+    out = bgm("--help").stdout
+    for command in ("contours", "correspond", "morph"):
+        assert command in out
+        assert "Usage" in bgm(command, "--help").stdout
+
+
+def test_contours_on_the_demo_writes_valid_polygons_in_input_coordinates(tmp_path):
+    out = tmp_path / "contours.geojson"
+    proc = bgm("contours", DEMO_CSV, "--out", out, "--geozone", "g1", "--geozone", "g2")
+    summary = json.loads(proc.stdout)
+    assert summary["holes_inside_min"] >= 0.95
+    data = json.loads(out.read_text())
+    table = pd.read_csv(DEMO_CSV)
+    features = data["features"]
+    assert {f["properties"]["geozone"] for f in features} == {"g1", "g2"}
+    benches = {f["properties"]["bench"] for f in features}
+    assert 685.0 in benches and len(benches) >= 6
+    for f in features:
+        geom = shape(f["geometry"])
+        assert f["geometry"]["type"] == "Polygon" and geom.is_valid
+        assert {"geozone", "bench", "component"} <= set(f["properties"])
+        # In mine-grid coordinates, where the holes are.
+        assert table.x.min() - 50 < geom.centroid.x < table.x.max() + 50
+        assert table.y.min() - 50 < geom.centroid.y < table.y.max() + 50
+
+
+def test_correspond_and_morph_follow_their_json_contracts(tmp_path):
+    out = tmp_path / "c.json"
+    bgm("correspond", DEMO_CSV, "--geozone", "g1", "--out", out)
+    data = json.loads(out.read_text())
+    assert data["geozone"] == "g1" and len(data["pairs"]) == 6
+    for p in data["pairs"]:
+        ns, nt = len(p["sources"]), len(p["targets"])
+        assert np.array(p["association"]).shape == (ns, nt)
+        assert len(p["translations"]) == ns
+        assert {"id", "centroid", "area"} <= set(p["sources"][0])
+        assert p["source_z"] > p["target_z"]
+    out = tmp_path / "m.json"
+    bgm("morph", DEMO_CSV, "--geozone", "g1", "--out", out)
+    data = json.loads(out.read_text())
+    for p in data["pairs"]:
+        assert 0.0 <= p["target_boundary_coverage"] <= 1.0
+        assert p["coverage_before_backtracking"] <= p["target_boundary_coverage"] + 1e-9
+        t = np.array(p["trajectories"][0])
+        assert t.shape[1] == 3
+        assert t[0, 2] == pytest.approx(p["source_z"]) and t[-1, 2] == pytest.approx(p["target_z"])
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (None, "does not exist"),
+        ("", "is empty"),
+        ("a,b,c\n1,2,3\n", "no x column"),
+        ("x,y,z,geozone\n1,2,nan,a\n3,4,5,b\n5,6,7,a\n", "missing, non-numeric"),
+    ],
+)
+def test_bad_input_gives_one_line_and_exit_2(tmp_path, content, message):
+    path = tmp_path / "in.csv"
+    if content is not None:
+        path.write_text(content)
+    proc = bgm("contours", path, "--out", tmp_path / "o.geojson", check=False)
+    assert proc.returncode == 2
+    assert message in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "o.geojson").exists()
+
+
+def test_unknown_geozone_and_single_bench(tmp_path):
+    proc = bgm("correspond", DEMO_CSV, "--geozone", "nope", "--out", tmp_path / "c.json", check=False)
+    assert proc.returncode == 2 and "geozones present: g0, g1, g2, g3" in proc.stderr
+    t = pd.read_csv(DEMO_CSV)
+    one = tmp_path / "one.csv"
+    t[t.z > 680].to_csv(one, index=False)
+    proc = bgm("correspond", one, "--geozone", "g1", "--out", tmp_path / "c.json", check=False)
+    assert proc.returncode == 2 and "single bench" in proc.stderr and "Traceback" not in proc.stderr

@@ -1,0 +1,221 @@
+"""Tests of core.evaluation: scoring, reference predictors and the predictive-value protocol."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from shapely.geometry import MultiPolygon, Point, Polygon, box
+
+from core import evaluation as ev
+from core.blastholes import blastholes_from_table
+from core.extraction import extract_contours
+from core.grid import Grid
+from core.synthetic import make_mine, sample_blastholes
+
+# ---------------------------------------------------------------------------
+# precision_recall
+
+
+def test_offset_squares_exact():
+    p, r, pa, ga = ev.precision_recall(box(0, 0, 10, 10), box(3, 0, 13, 10))
+    assert (pa, ga) == pytest.approx((100.0, 100.0))
+    assert (p, r) == pytest.approx((0.7, 0.7))
+    # Different sizes: the prediction lies inside the truth.
+    p, r, pa, ga = ev.precision_recall(box(0, 0, 10, 10), box(0, 0, 10, 20))
+    assert (p, r, pa, ga) == pytest.approx((1.0, 0.5, 100.0, 200.0))
+
+
+def test_within_clips_both():
+    p, r, pa, ga = ev.precision_recall(box(0, 0, 10, 10), box(3, 0, 13, 10), within=box(5, 0, 20, 10))
+    assert (pa, ga) == pytest.approx((50.0, 80.0))
+    assert (p, r) == pytest.approx((1.0, 50.0 / 80.0))
+
+
+def test_area_weighted_over_components():
+    """Overall rates are the area-weighted averages of the per-component rates of the paper."""
+    pred = MultiPolygon([box(0, 0, 10, 10), box(20, 0, 24, 5)])  # areas 100, 20
+    truth = MultiPolygon([box(5, 0, 15, 10), box(22, 0, 30, 5)])  # areas 100, 40
+    p, r, pa, ga = ev.precision_recall(pred, truth)
+    per_p = [(50 / 100, 100), (10 / 20, 20)]
+    per_r = [(50 / 100, 100), (10 / 40, 40)]
+    assert p == pytest.approx(sum(a * w for a, w in per_p) / sum(w for _, w in per_p))
+    assert r == pytest.approx(sum(a * w for a, w in per_r) / sum(w for _, w in per_r))
+    assert (pa, ga) == pytest.approx((120.0, 140.0))
+
+
+def test_overlapping_parts_are_merged():
+    pred = MultiPolygon([box(0, 0, 10, 10), box(5, 0, 15, 10)])  # invalid: parts overlap
+    p, r, pa, ga = ev.precision_recall(pred, box(0, 0, 15, 10))
+    assert pa == pytest.approx(150.0)
+    assert (p, r) == pytest.approx((1.0, 1.0))
+
+
+def test_empty_cases():
+    square = box(0, 0, 10, 10)
+    p, r, pa, ga = ev.precision_recall(MultiPolygon(), square)
+    assert math.isnan(p) and r == 0.0 and pa == 0.0 and ga == pytest.approx(100.0)
+    p, r, pa, ga = ev.precision_recall(square, Polygon())
+    assert p == 0.0 and math.isnan(r) and ga == 0.0
+    p, r, pa, ga = ev.precision_recall(MultiPolygon(), MultiPolygon())
+    assert math.isnan(p) and math.isnan(r)
+    # Disjoint from the evaluation area: both empty after clipping.
+    p, r, _, _ = ev.precision_recall(square, square, within=box(50, 50, 60, 60))
+    assert math.isnan(p) and math.isnan(r)
+    assert math.isnan(ev.f1_score(float("nan"), 1.0)) and ev.f1_score(0.0, 0.0) == 0.0
+    assert ev.f1_score(0.5, 1.0) == pytest.approx(2 / 3)
+
+
+# ---------------------------------------------------------------------------
+# Reference predictors
+
+
+def test_nil_is_the_deepest_bench():
+    regions = {90.0: box(5, 5, 15, 15), 100.0: box(0, 0, 10, 10), 80.0: box(20, 20, 30, 30)}
+    got = ev.predict_nil(regions, 70.0)
+    assert isinstance(got, MultiPolygon)
+    assert got.symmetric_difference(box(20, 20, 30, 30)).area < 1e-9
+    with pytest.raises(ValueError):
+        ev.predict_nil({}, 0.0)
+
+
+def test_linear_sdf_follows_a_moving_disc():
+    step = np.array([4.0, 3.0])  # metres per 10 m bench
+    disc = lambda k: Point(*(k * step)).buffer(20.0, quad_segs=32)  # noqa: E731
+    regions = {100.0: disc(0), 90.0: disc(1)}
+    grid = Grid.covering((-40, -40, 60, 60), 0.5)
+    assert ev.iou(ev.predict_linear_sdf(regions, 80.0, grid), disc(2)) > 0.9
+    # Two benches down the SDF of a translated disc no longer extrapolates exactly
+    # (it squashes sideways), but still beats standing still; so does half a bench.
+    for k, z in ((3, 70.0), (1.5, 85.0)):
+        pred = ev.predict_linear_sdf(regions, z, grid)
+        assert ev.iou(pred, disc(k)) > ev.iou(ev.predict_nil(regions, z), disc(k)) + 0.05
+    # A single known bench (or an empty one) falls back to the zero-order hold.
+    assert ev.iou(ev.predict_linear_sdf({100.0: disc(0)}, 90.0, grid), disc(0)) == pytest.approx(1.0)
+    assert ev.iou(ev.predict_linear_sdf({100.0: MultiPolygon(), 90.0: disc(1)}, 80.0, grid), disc(1)) == pytest.approx(1.0)
+
+
+def test_linear_sdf_holds_a_new_speck():
+    """A region appearing from nothing (a mislabelled hole) is held, not grown by its distance to the body."""
+    body = lambda k: Point(4.0 * k, 0).buffer(20.0, quad_segs=32)  # noqa: E731
+    speck = Point(60, 0).buffer(3.0)
+    regions = {100.0: body(0), 90.0: body(1).union(speck)}
+    pred = ev.predict_linear_sdf(regions, 80.0, Grid.covering((-40, -40, 80, 40), 0.5))
+    assert pred.intersection(box(45, -40, 80, 40)).area < 2 * speck.area
+
+
+# ---------------------------------------------------------------------------
+# Synthetic mine: implicit reference and the protocol
+
+
+@pytest.fixture(scope="module")
+def small_mine():
+    mine = make_mine(seed=1, n_benches=4, extent_m=(160.0, 120.0), origin=(5000.0, 20000.0))
+    table = sample_blastholes(mine, seed=2)
+    holes = blastholes_from_table(table)
+    truth = ev.truth_from_mine(mine, holes.frame)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        contours = extract_contours(holes, ["g1"])
+    return mine, holes, truth, contours
+
+
+def test_truth_from_mine_matches_labels(small_mine):
+    mine, holes, truth, _ = small_mine
+    sel = holes.on_bench(1)
+    region = truth("g1", float(holes.bench_levels_m[1]))
+    import shapely
+
+    inside = shapely.contains_xy(region, holes.xy[sel, 0], holes.xy[sel, 1])
+    agree = np.mean(inside == (holes.geozone[sel] == "g1"))
+    assert agree > 0.97  # only label noise disagrees
+
+
+def test_implicit_rbf_predicts_the_next_bench(small_mine):
+    _, holes, truth, _ = small_mine
+    known = holes.bench <= 2
+    z = float(holes.bench_levels_m[3])
+    grid = ev.default_grid([holes.xy])
+    pred = ev.predict_implicit_rbf(
+        holes.xy[known], holes.z[known], holes.geozone[known] == "g1", z, grid,
+        bench=holes.bench[known], spacing_m=holes.hole_spacing_m, bench_height_m=holes.bench_height_m,
+    )
+    within = ev.drilled_area(holes.xy[holes.on_bench(3)], holes.hole_spacing_m)
+    p, r, _, _ = ev.precision_recall(pred, truth("g1", z), within)
+    assert p > 0.6 and r > 0.6
+    # Without the bench argument benches are found from the elevations.
+    pred2 = ev.predict_implicit_rbf(holes.xy[known], holes.z[known], holes.geozone[known] == "g1", z, grid)
+    assert ev.iou(pred, pred2) > 0.9
+
+
+def test_evaluate_geozone_with_truth(small_mine, tmp_path):
+    _, holes, truth, contours = small_mine
+    seen = []
+
+    def true_section(known, geozone, z_targets):
+        seen.append((int(known.bench.max()), list(z_targets)))
+        return {z: truth(geozone, z) for z in z_targets}
+
+    progress = []
+    df = ev.evaluate_geozone(
+        holes, "g1", true_section, truth=truth, contours=contours, progress=lambda d, n: progress.append((d, n))
+    )
+    fractions = ev.DEFAULT_FRACTIONS
+    n_eval = holes.n_benches - 2  # benches 1 .. n-2 have two known benches and one below
+    assert len(df) == n_eval * len(fractions) * 4
+    for col in ("bench_z", "depth_m", "fraction", "method", "precision", "recall", "f1", "p_area", "g_area"):
+        assert col in df.columns
+    assert set(df["method"]) == {"model", "nil", "linear", "implicit"}
+    assert progress[-1] == (n_eval, n_eval)
+    # The model only ever saw benches 0..k, and was asked for the depths below bench k.
+    for (kmax, zs), k in zip(seen, range(1, holes.n_benches - 1)):
+        assert kmax == k
+        expected = holes.bench_levels_m[k] - np.array(fractions) * holes.bench_height_m
+        assert np.allclose(zs, expected)
+    rates = df[["precision", "recall", "f1"]].to_numpy()
+    assert np.isfinite(rates).all() and (rates >= 0).all() and (rates <= 1).all()
+    assert np.allclose(sorted(set(df["depth_m"])), np.array(fractions) * holes.bench_height_m)
+    model = df[df["method"] == "model"]
+    assert (model["precision"] > 0.95).all() and (model["recall"] > 0.95).all()
+    # References are reasonable on a dipping body.
+    assert (df.loc[df["method"] != "model", "recall"] > 0.5).all()
+
+    summary = ev.summary_table(df)
+    assert len(summary) == len(fractions)
+    assert summary["precision_model"].min() > 0.95
+    assert np.allclose(summary["precision_gain"], summary["precision_model"] - summary["precision_nil"])
+    assert np.allclose(summary["recall_gain"], summary["recall_model"] - summary["recall_nil"])
+    # Area weighting: the summary is sum of intersections over sum of areas.
+    nil = df[(df["method"] == "nil") & (df["fraction"] == 1.0)]
+    expect = (nil["precision"] * nil["p_area"]).sum() / nil["p_area"].sum()
+    assert summary.loc[summary["fraction"] == 1.0, "precision_nil"].item() == pytest.approx(expect)
+    assert "depth_m" in ev.format_table(summary)
+
+    png = tmp_path / "pr.png"
+    ev.plot_precision_recall(summary, png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary left
+
+
+def test_evaluate_geozone_real_data_mode(small_mine):
+    """Without truth only the next bench is scored, against its extracted region."""
+    _, holes, _, contours = small_mine
+
+    def hold(known, geozone, z_targets):
+        regions = ev.bench_regions(known, geozone, [c for c in contours if c.bench <= known.bench.max()])
+        last = regions[int(known.bench.max())]
+        return {z: last for z in z_targets}
+
+    df = ev.evaluate_geozone(holes, "g1", hold, contours=contours, references=("nil", "linear"))
+    assert len(df) == (holes.n_benches - 2) * 3
+    assert set(df["fraction"]) == {1.0}
+    assert np.allclose(df["depth_m"], holes.bench_height_m, atol=0.5)
+    # The stand-in model is the zero-order hold, so it scores exactly like nil.
+    m = df[df["method"] == "model"].reset_index(drop=True)
+    n = df[df["method"] == "nil"].reset_index(drop=True)
+    assert np.allclose(m[["precision", "recall"]], n[["precision", "recall"]])
+    assert ((df["precision"] > 0.5) & (df["recall"] > 0.5)).all()
+    summary = ev.summary_table(df)
+    assert len(summary) == 1 and summary["precision_gain"].item() == pytest.approx(0.0)

@@ -1,0 +1,258 @@
+"""Viewer layers and model without a screen: meshes, colours, visibility, overrides."""
+
+from __future__ import annotations
+
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+
+from shapely.geometry import Polygon, box  # noqa: E402
+
+from bgm_viewer.builders import LAYER_NAMES, build_scene, parse_layers  # noqa: E402
+from bgm_viewer.layers import (  # noqa: E402
+    BlastholesLayer,
+    ContoursLayer,
+    EdgeMapLayer,
+    GVFLayer,
+    SnakeLayer,
+    SurfaceLayer,
+    TrajectoriesLayer,
+    ViewTransform,
+    WavefrontLayer,
+)
+from bgm_viewer.palette import GEOZONE_PALETTE, LAYER_COLOURS  # noqa: E402
+from bgm_viewer.scene import Scene  # noqa: E402
+from bgm_viewer.testing import small_model  # noqa: E402
+from core.grid import Grid  # noqa: E402
+
+warnings.filterwarnings("ignore", category=FutureWarning)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return small_model()
+
+
+def test_viewer_does_not_import_qt_for_layers():
+    assert "PySide6.QtWidgets" not in sys.modules or True  # other tests may import Qt; see the subprocess test
+    import subprocess
+
+    code = ("import sys, bgm_viewer.screenshot, bgm_viewer.layers, bgm_viewer.cli_hooks;"
+            "bad=[m for m in sys.modules if m.startswith(('PySide6','qtpy','pyvistaqt'))];"
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_core_does_not_import_viewer_stack():
+    import subprocess
+
+    code = ("import sys, core.extraction, core.blastholes, core.synthetic;"
+            "bad=[m for m in sys.modules if m.startswith(('PySide6','qtpy','pyvista','vtk','bgm_viewer'))];"
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_blastholes_layer_points_and_colours():
+    xy = np.array([[0, 0], [1, 0], [2, 0], [3, 0]], float)
+    layer = BlastholesLayer(xy, [10, 10, 0, 0], ["a", "b", "a", "c"], boundary=[False, True, False, False])
+    items = layer.build()
+    assert sum(it.mesh.n_points for it in items) == 4
+    assert [it.mesh.n_points for it in items] == [3, 1]  # ordinary holes, then boundary holes (larger)
+    assert items[1].style["point_size"] > items[0].style["point_size"]
+    rgb = layer.rgb()
+    assert tuple(rgb[0]) == GEOZONE_PALETTE[0] and tuple(rgb[1]) == GEOZONE_PALETTE[1]
+    assert tuple(rgb[3]) == GEOZONE_PALETTE[2]
+    np.testing.assert_array_equal(items[0].mesh.point_data["rgb"], rgb[[0, 2, 3]])
+    assert [label for label, _ in layer.legend()] == ["geozone a", "geozone b", "geozone c"]
+
+
+def test_vertical_exaggeration_scales_about_reference():
+    layer = BlastholesLayer([[0, 0], [1, 1]], [100.0, 90.0], ["a", "a"])
+    pts = layer.build(ViewTransform(3.0, 100.0))[0].mesh.points
+    np.testing.assert_allclose(pts[:, 2], [100.0, 70.0])
+
+
+def test_visibility_and_opacity_notify_observers():
+    layer = ContoursLayer([("a", 0.0, box(0, 0, 1, 1))])
+    seen = []
+    layer.connect(lambda lay, what: seen.append(what))
+    layer.visible = False
+    layer.visible = False  # no change, no event
+    layer.opacity = 0.3
+    layer.opacity = 7  # clipped
+    assert seen == ["visible", "opacity", "opacity"]
+    assert not layer.visible and layer.opacity == 1.0
+
+
+def test_contours_layer_rings_and_colours():
+    square = box(0, 0, 10, 10).difference(box(4, 4, 6, 6))  # one hole
+    layer = ContoursLayer([("a", 5.0, square), ("b", 0.0, box(20, 0, 30, 10))])
+    (item,) = layer.build()
+    assert item.mesh.n_cells == 3  # exterior + interior of a, exterior of b
+    assert item.mesh.n_points == 5 + 5 + 5
+    assert tuple(item.mesh.cell_data["rgb"][0]) == GEOZONE_PALETTE[0]
+    assert tuple(item.mesh.cell_data["rgb"][2]) == GEOZONE_PALETTE[1]
+    predicted = ContoursLayer([("a", 5.0, square)], name="predicted contours", predicted=True)
+    assert predicted.colour_of("a") != GEOZONE_PALETTE[0]
+
+
+def _radial_gvf(n=40):
+    grid = Grid(0.0, 0.0, 1.0, (n, n))
+    X, Y = grid.cell_centres()
+    u, v = (n / 2 - X), (n / 2 - Y)  # points to the centre
+    return grid, np.stack([u, v])
+
+
+def test_gvf_layer_builds_arrows():
+    grid, gvf = _radial_gvf()
+    layer = GVFLayer(grid, gvf, z=5.0, arrows_across=10)
+    centres, d, length = layer.arrows()
+    assert 80 <= len(centres) <= 100
+    np.testing.assert_allclose(np.hypot(d[:, 0], d[:, 1]), 1.0)
+    # arrows point to the centre
+    towards = (np.array([20.0, 20.0]) - centres)
+    assert np.all(np.einsum("ij,ij->i", towards, d) > 0)
+    (item,) = layer.build()
+    assert item.mesh.n_cells == 3 * len(centres)  # shaft + two head strokes each
+    assert item.style["color"] == LAYER_COLOURS["gvf"]
+    assert np.allclose(item.mesh.points[:, 2], 5.05)
+
+
+def test_edge_map_layer_is_an_image_plane():
+    grid, _ = _radial_gvf(20)
+    em = np.zeros((20, 20))
+    em[5, :] = 1.0
+    (item,) = EdgeMapLayer(grid, em, 0.0).build()
+    assert item.mesh.n_points == 400
+    assert item.mesh.point_data["rgb"].max() == 255
+
+
+def test_snake_layer_steps_through_iterations():
+    hist = [np.array([[0, 0], [s, 0], [s, s], [0, s]], float) for s in (10, 8, 6)]
+    layer = SnakeLayer(hist, 1.0)
+    assert layer.n_frames == 3 and layer.frame == 2
+    events = []
+    layer.connect(lambda lay, what: events.append(what))
+    layer.frame = 0
+    start, current = layer.build()
+    np.testing.assert_allclose(current.mesh.points[:4, :2], hist[0])
+    layer.frame = -1
+    assert layer.frame == 2 and events == ["frame", "frame"]
+    layer.frame = 99
+    assert layer.frame == 2
+
+
+def test_wavefront_and_trajectories_layers():
+    fronts = [box(0, 0, s, s) for s in (2, 4, 6, 8)]
+    w = WavefrontLayer(fronts, [0, 1, 2, 3], 10.0, 0.0, shift=(1.0, 0.0))
+    (item,) = w.build()
+    assert item.mesh.n_cells == 4
+    z = np.unique(item.mesh.points[:, 2])
+    np.testing.assert_allclose(sorted(z), [0.0, 10 / 3, 20 / 3, 10.0])
+    # the first front is moved back by the whole shift, the last one not at all
+    pts = item.mesh.points
+    assert pts[pts[:, 2] == 10.0][:, 0].min() == pytest.approx(-1.0)
+    w.frame = 1
+    assert w.build()[0].mesh.n_cells == 2
+
+    class T:
+        def __init__(self, xy, b):
+            self.xy, self.backtracked = np.asarray(xy, float), b
+
+    t = TrajectoriesLayer([T([[0, 0], [1, 0], [2, 0]], False), T([[0, 1], [1, 1]], True)], 10.0, 0.0)
+    (item,) = t.build()
+    assert item.mesh.n_cells == 2 and item.mesh.n_points == 5
+    assert tuple(item.mesh.cell_data["rgb"][0]) == LAYER_COLOURS["trajectories"]
+    assert tuple(item.mesh.cell_data["rgb"][1]) == LAYER_COLOURS["backtracked"]
+    np.testing.assert_allclose(item.mesh.points[:3, 2], [10.0, 5.0, 0.0])
+
+
+def test_surface_layer_from_triangles():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    layer = SurfaceLayer([("a", v, f)])
+    (item,) = layer.build(ViewTransform(2.0, 0.0))
+    assert item.mesh.n_cells == 4 and item.mesh.points[:, 2].max() == 2.0
+    assert item.style["opacity"] == pytest.approx(0.6)
+
+
+def test_scene_from_pipeline(model):
+    res = model.result
+    assert res.complete and not res.errors, res.errors
+    scene = build_scene(model.holes, res, model.selection, visible=LAYER_NAMES)
+    assert scene.names() == list(LAYER_NAMES)
+    n_holes = sum(it.mesh.n_points for it in scene["blastholes"].build())
+    assert n_holes == len(model.holes.xy)
+    n_rings = sum(len(list(getattr(c.polygon, "interiors", []))) + 1
+                  for cs in res.contours.values() for c in cs if not c.polygon.is_empty)
+    assert scene["contours"].build()[0].mesh.n_cells == n_rings
+    assert scene["GVF"].build()[0].mesh.n_cells > 100
+    assert scene["snake"].n_frames > 1
+    assert not scene["trajectories"].is_empty and not scene["wavefront"].is_empty
+    assert not scene["surfaces"].is_empty
+    assert scene["predicted contours"].is_empty  # no core prediction stage yet
+    labels = [label for label, _ in scene.legend_entries()]
+    assert "geozone g1" in labels and "GVF" in labels
+    scene["GVF"].visible = False
+    assert "GVF" not in [label for label, _ in scene.legend_entries()]
+
+
+def test_parse_layers_aliases():
+    assert parse_layers("holes, gvf,surface") == ["blastholes", "GVF", "surfaces"]
+    with pytest.raises(KeyError):
+        parse_layers("nonsense")
+
+
+def test_scene_replace_keeps_display_state():
+    scene = Scene([ContoursLayer([("a", 0.0, box(0, 0, 1, 1))])])
+    scene["contours"].visible = False
+    scene["contours"].opacity = 0.5
+    scene.replace(ContoursLayer([("a", 0.0, box(0, 0, 2, 2))]))
+    assert not scene["contours"].visible and scene["contours"].opacity == 0.5
+
+
+def test_snake_parameter_reruns_only_selected_snake_first(model):
+    from bgm_viewer.model import compute
+
+    before = model.result.selected_contour(model.selection).polygon
+    stage = model.set_param("gvf_mu", 0.05)
+    assert stage == "snake"
+    model.set_param("snake_max_iterations", 40)
+    steps = compute(model.inputs(), model.result, "snake")
+    msg, _, first = next(steps)
+    assert msg == "snake of the selected component"
+    after = first.selected_contour(model.selection).polygon
+    assert not after.equals(before)
+    steps.close()
+
+
+def test_manual_alignment_undo_and_project_roundtrip(model, tmp_path):
+    from bgm_viewer.model import ViewerModel
+
+    auto = model.current_translation_m()
+    assert auto is not None
+    model.set_translation(auto[0] + 5.0, auto[1] - 3.0)
+    model.run("correspondence", until="correspondence")
+    moved = model.current_translation_m()
+    np.testing.assert_allclose(moved, (auto[0] + 5.0, auto[1] - 3.0), atol=1e-9)
+    assert model.dirty
+    path = tmp_path / "p.bgmproj.json"
+    model.save_project(path)
+    assert not model.dirty
+
+    other = ViewerModel(model.holes)
+    other.load_project(path)
+    assert other.selection == model.selection
+    assert other.params == model.params
+    other.run(until="correspondence")
+    np.testing.assert_allclose(other.current_translation_m(), moved, atol=1e-9)
+
+    assert model.can_undo
+    model.undo()
+    model.run("correspondence", until="correspondence")
+    np.testing.assert_allclose(model.current_translation_m(), auto, atol=1e-9)
+    assert model.dirty and not model.overrides

@@ -1,0 +1,140 @@
+"""Off-screen screenshots: check pixels, not just that a file exists (no Qt, no display)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+
+from bgm_viewer.builders import build_scene  # noqa: E402
+from bgm_viewer.model import PipelineResult, Selection, load_holes  # noqa: E402
+from bgm_viewer.palette import BACKGROUND, LAYER_COLOURS, geozone_colours  # noqa: E402
+from bgm_viewer.scene import world_to_pixels  # noqa: E402
+from bgm_viewer.screenshot import plotter_for, render_screenshot, scene_image  # noqa: E402
+from bgm_viewer.testing import small_model  # noqa: E402
+
+warnings.filterwarnings("ignore", category=FutureWarning)
+SIZE = (800, 600)
+
+
+def _exact(img: np.ndarray, rgb) -> np.ndarray:
+    return np.all(img == np.asarray(rgb, np.uint8), axis=-1)
+
+
+def _not_background(img: np.ndarray) -> np.ndarray:
+    return np.any(np.abs(img.astype(int) - np.asarray(BACKGROUND)) > 8, axis=-1)
+
+
+@pytest.fixture(scope="module")
+def demo_holes():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_holes(None)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return small_model()
+
+
+def test_demo_scene_is_not_blank_and_geozone_colours_are_where_their_holes_are(demo_holes):
+    holes = demo_holes
+    scene = build_scene(holes, PipelineResult(), Selection("g1"), visible=["blastholes"])
+    plotter, renderer = plotter_for(scene, window_size=SIZE, camera="top", legend=False)
+    try:
+        img = np.asarray(plotter.screenshot(None, return_img=True))[..., :3]
+        drawn = _not_background(img).mean()
+        assert drawn > 0.05, f"only {drawn:.1%} of the image is drawn"
+        colours = geozone_colours(holes.geozones)
+        top = holes.on_bench(0)
+        z = renderer.scene.view.z(holes.bench_levels_m[0])
+        for g, rgb in colours.items():
+            idx = top[holes.geozone[top] == g]
+            if len(idx) == 0:
+                continue
+            assert _exact(img, rgb).sum() > 20, f"colour of {g} missing"
+            px = np.rint(world_to_pixels(plotter, np.column_stack([holes.xy[idx], np.full(len(idx), z)]))).astype(int)
+            inside = (px[:, 0] >= 0) & (px[:, 0] < SIZE[0]) & (px[:, 1] >= 0) & (px[:, 1] < SIZE[1])
+            px = px[inside]
+            hit = _exact(img[px[:, 1], px[:, 0]], rgb)
+            assert hit.mean() > 0.8, f"{g}: only {hit.mean():.0%} of its holes show its colour"
+    finally:
+        plotter.close()
+
+
+def test_toggling_a_layer_changes_the_image(model):
+    scene = build_scene(model.holes, model.result, model.selection, visible=["blastholes", "contours"])
+    plotter, renderer = plotter_for(scene, window_size=SIZE, camera="iso", legend=False)
+    try:
+        with_contours = np.asarray(plotter.screenshot(None, return_img=True))[..., :3].copy()
+        scene["contours"].visible = False
+        plotter.render()
+        without = np.asarray(plotter.screenshot(None, return_img=True))[..., :3].copy()
+        changed = np.any(with_contours != without, axis=-1).sum()
+        assert changed > 500, changed
+        scene["contours"].visible = True
+        plotter.render()
+        again = np.asarray(plotter.screenshot(None, return_img=True))[..., :3]
+        assert np.array_equal(again, with_contours)
+    finally:
+        plotter.close()
+
+
+def test_gvf_layer_draws_arrows(model):
+    sel = model.result.selected_contour(model.selection)
+    grid = sel.fields.grid
+    base = build_scene(model.holes, model.result, model.selection, visible=[])
+    img0 = scene_image(base, window_size=SIZE, camera="top", legend=False)
+    scene = build_scene(model.holes, model.result, model.selection, visible=["GVF"])
+    plotter, renderer = plotter_for(scene, window_size=SIZE, camera="top", legend=False)
+    try:
+        img = np.asarray(plotter.screenshot(None, return_img=True))[..., :3]
+        yellow = _exact(img, LAYER_COLOURS["gvf"])
+        assert not _exact(img0, LAYER_COLOURS["gvf"]).any()
+        assert yellow.sum() > 300, yellow.sum()
+        # the arrows are within the component's grid
+        _, _, length = scene["GVF"].arrows()
+        xmin, ymin, xmax, ymax = np.array(grid.bounds) + np.array([-1, -1, 1, 1]) * length
+        z = renderer.scene.view.z(model.holes.bench_levels_m[model.selection.bench])
+        corners = world_to_pixels(plotter, np.array([[xmin, ymin, z], [xmax, ymax, z]]))
+        c0, c1 = np.sort(corners[:, 0]), np.sort(corners[:, 1])
+        rr, cc = np.nonzero(yellow)
+        assert cc.min() >= c0[0] - 3 and cc.max() <= c0[1] + 3
+        assert rr.min() >= c1[0] - 3 and rr.max() <= c1[1] + 3
+        # many separate strokes, not one blob: yellow pixels are spread over the grid
+        assert len(np.unique(cc // 10)) > 10 and len(np.unique(rr // 10)) > 10
+    finally:
+        plotter.close()
+
+
+def test_stage_layers_render(model, tmp_path):
+    for layers, camera in [("snake,edge map", "top"), ("wavefront,trajectories", "iso"), ("surfaces", "iso")]:
+        out = render_screenshot(out_png=tmp_path / "x.png", layers=layers, camera=camera, model=model,
+                                window_size=SIZE, legend=False)
+        img = np.asarray(pv.read(str(out)).point_data.active_scalars)
+        assert _not_background(img[:, :3].reshape(-1, 1, 3)).mean() > 0.002, layers
+    # trajectories: cyan or magenta pixels drawn
+    scene = build_scene(model.holes, model.result, model.selection, visible=["trajectories"])
+    img = scene_image(scene, window_size=SIZE, camera="iso", legend=False)
+    assert (_exact(img, LAYER_COLOURS["trajectories"]) | _exact(img, LAYER_COLOURS["backtracked"])).sum() > 100
+
+
+def test_screenshot_command_without_qt(tmp_path):
+    """The CLI hook renders the small input with no Qt imported."""
+    code = f"""
+import sys, warnings
+warnings.simplefilter('ignore')
+from bgm_viewer.testing import small_holes
+from bgm_viewer.screenshot import render_screenshot
+p = render_screenshot(small_holes(), r'{tmp_path / "s.png"}', layers='blastholes,contours', camera='top',
+                      window_size=(400, 300))
+assert p.stat().st_size > 1000
+bad = [m for m in sys.modules if m.startswith(('PySide6', 'qtpy', 'pyvistaqt'))]
+assert not bad, bad
+"""
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)

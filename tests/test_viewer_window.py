@@ -1,0 +1,125 @@
+"""The Qt window, driven with pytest-qt. Needs a display: run under
+
+    xvfb-run -a -s "-screen 0 1280x1024x24" python -m pytest -m gui tests/test_viewer_window.py
+
+(Qt's ``offscreen`` platform cannot host the VTK OpenGL widget.)
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.gui
+
+if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    pytest.skip("no display: run the window tests under xvfb-run", allow_module_level=True)
+if os.environ.get("QT_QPA_PLATFORM") == "offscreen":
+    pytest.skip("Qt's offscreen platform cannot host the VTK widget", allow_module_level=True)
+
+pytest.importorskip("pytestqt")
+pytest.importorskip("pyvistaqt")
+
+from qtpy import QtWidgets  # noqa: E402
+
+from bgm_viewer.app import MainWindow  # noqa: E402
+from bgm_viewer.model import ViewerModel  # noqa: E402
+from bgm_viewer.testing import small_holes  # noqa: E402
+
+warnings.filterwarnings("ignore", category=FutureWarning)
+
+
+@pytest.fixture
+def window(qtbot):
+    model = ViewerModel(small_holes())
+    model.select("g1", 0, 0)
+    win = MainWindow(model, debounce_ms=10)
+    qtbot.addWidget(win)
+    win.show()
+    qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+    yield win
+    win.model.dirty = False  # no prompt at teardown
+    win.close()
+
+
+def _selected_polygon(win):
+    c = win.model.result.selected_contour(win.model.selection)
+    return c.polygon
+
+
+def test_window_shows_layers_and_results(window):
+    names = [window.layer_list.item(i).text() for i in range(window.layer_list.count())]
+    assert names == window.scene.names()
+    assert not window.scene["contours"].is_empty and not window.scene["surfaces"].is_empty
+    # toggling in the panel changes the layer (and nothing else)
+    window.set_layer_visible("contours", False)
+    assert not window.scene["contours"].visible
+    window.set_layer_visible("contours", True)
+    assert window.scene["contours"].visible
+    img = window.plotter.screenshot(None, return_img=True)
+    assert img.std() > 5  # something is drawn
+
+
+def test_slider_change_reruns_its_stage_and_changes_the_contour(window, qtbot):
+    before = _selected_polygon(window)
+    ctl = window.param_controls["snake_max_iterations"]
+    ctl.slider.setValue(ctl._to_slider(30))  # as a user drags it
+    assert window.model.params["snake_max_iterations"] == 30
+    assert window.model.dirty
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    after = _selected_polygon(window)
+    assert not after.equals(before)
+    assert window.model.result.timings.get("selected snake") is not None  # only its snake re-ran first
+    assert window.last_update_seconds < 5.0
+
+
+def test_manual_alignment_save_reload_and_undo(window, qtbot, tmp_path):
+    auto = window.model.current_translation_m()
+    window.dx_spin.setValue(auto[0] + 4.0)
+    window.dy_spin.setValue(auto[1] + 2.0)
+    window.apply_translation()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), (auto[0] + 4.0, auto[1] + 2.0), atol=1e-6)
+    assert "locked" in window.translation_label.text()
+
+    path = tmp_path / "proj.json"
+    window.model.project_path = str(path)
+    assert window.save_project()
+    assert not window.model.dirty
+
+    window.open_project(path)
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), (auto[0] + 4.0, auto[1] + 2.0), atol=1e-6)
+
+    window.nudge(1.0, 0.0)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m()[0], auto[0] + 5.0, atol=1e-6)
+    window.undo()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), (auto[0] + 4.0, auto[1] + 2.0), atol=1e-6)
+
+
+def test_closing_with_unsaved_changes_prompts(window, monkeypatch):
+    asked = []
+
+    def fake_question(*args, **kwargs):
+        asked.append(args)
+        return QtWidgets.QMessageBox.Cancel if len(asked) == 1 else QtWidgets.QMessageBox.Discard
+
+    monkeypatch.setattr(QtWidgets.QMessageBox, "question", fake_question)
+    window.model.set_param("gvf_mu", 0.1)
+    assert window.model.dirty
+    assert not window.close()  # cancelled: stays open
+    assert len(asked) == 1 and window.isVisible()
+    assert window.close()  # discard
+    assert len(asked) == 2
+
+
+def test_no_prompt_when_saved(window, monkeypatch):
+    monkeypatch.setattr(QtWidgets.QMessageBox, "question",
+                        lambda *a, **k: pytest.fail("should not ask when nothing changed"))
+    assert not window.model.dirty
+    assert window.close()
