@@ -1,0 +1,31 @@
+"""The real Kennecott blastholes, end to end (skipped where the data is absent)."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+
+from core.blastholes import BGMWarning, read_blastholes
+from core.extraction import extract_contours
+from core.reporting import containment_summary
+
+
+def test_kennecott_contours_for_every_geozone_and_bench(kennecott_csv):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = read_blastholes(kennecott_csv)
+    assert holes.frame.length_unit == "ft" and holes.n_benches == 7
+    contours = extract_contours(holes)
+    assert {c.geozone for c in contours} == set(holes.geozones)
+    for c in contours:
+        assert c.polygon.is_valid and not c.polygon.is_empty, (c.geozone, c.bench, c.component)
+    # Every hole belongs to exactly one component contour.
+    assert sum(len(c.holes) for c in contours) == len(holes.xy)
+    summary = containment_summary(contours, holes)
+    print("Kennecott containment:", json.dumps(summary))
+    # Real benches are messy (interleaved domains); the contour still holds its own holes.
+    assert summary["holes_inside_median"] >= 0.95
+    assert summary["contours_with_95pct_inside"] >= 0.9
+    assert summary["other_holes_inside_median"] <= 0.1
