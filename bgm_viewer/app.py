@@ -599,12 +599,15 @@ class MainWindow(QtWidgets.QMainWindow):
         return answer == QtWidgets.QMessageBox.Discard
 
     def closeEvent(self, event) -> None:  # noqa: N802 - Qt API
+        import sys; print("CLOSE", id(self.model), self.model.dirty, file=sys.stderr)
         if not self._confirm_discard():
             event.ignore()
             return
         self._job = next(self._jobs)  # let a running worker stop
         self._play.stop()
-        self.plotter.close()
+        if not getattr(self, "_closed", False):
+            self._closed = True
+            self.plotter.close()
         event.accept()
 
 

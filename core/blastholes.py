@@ -560,6 +560,19 @@ def _deduplicate(holes: Blastholes, rows: np.ndarray) -> Blastholes:
     return out
 
 
+def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = 0.75):
+    """Area drilled by holes ``xy``: union of discs of ``radius_spacings`` spacings, closed over one spacing."""
+    import shapely
+    from shapely.geometry import MultiPoint
+
+    from .grid import as_multipolygon
+
+    if len(xy) == 0:
+        return shapely.MultiPolygon()
+    discs = shapely.buffer(MultiPoint(np.asarray(xy, float)), radius_spacings * spacing_m, quad_segs=6)
+    return as_multipolygon(discs.buffer(spacing_m, quad_segs=6).buffer(-spacing_m, quad_segs=6))
+
+
 def median_hole_spacing(xy: np.ndarray, bench: np.ndarray) -> float:
     """Median nearest-neighbour distance between holes of the same bench (metres)."""
     distances = []

@@ -218,6 +218,160 @@ def morph(
     )
 
 
+@app.command()
+def predict(
+    input: InputArg,
+    geozone: GeozoneOpt,
+    elevations: Annotated[
+        str, typer.Option("--elevations", help="Comma-separated elevations in input units (above, between or below the benches).")
+    ],
+    out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("prediction.geojson"),
+    project: ProjectOpt = None,
+    x: XOpt = None,
+    y: YOpt = None,
+    z: ZOpt = None,
+    geozone_column: GeozoneColOpt = None,
+    bench_height: BenchHeightOpt = None,
+    units: UnitsOpt = None,
+) -> None:
+    """Predict the geozone's region at any elevation (paper: contour prediction)."""
+    from .export import write_geojson
+    from .prediction import predict_geozone
+    from .reporting import to_input_geometry
+
+    try:
+        levels = [float(v) for v in elevations.replace(";", ",").split(",") if v.strip()]
+    except ValueError:
+        raise BGMInputError(f"--elevations must be numbers separated by commas, got {elevations!r}") from None
+    if not levels or not all(np.isfinite(levels)):
+        raise BGMInputError(f"--elevations needs at least one finite number, got {elevations!r}")
+    holes, model, elapsed = _model(input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units)
+    z_m = [float(holes.frame.z_to_local(v)) for v in levels]
+    regions = predict_geozone(model, z_m, holes.hole_spacing_m)
+    features = []
+    for level, zm in zip(levels, z_m):
+        region = regions[zm]
+        geometry = to_input_geometry(region, holes)
+        if len(region.geoms) == 1:
+            geometry = geometry.geoms[0]
+        features.append(
+            {
+                "geometry": geometry,
+                "properties": {"geozone": geozone, "z": level, f"area_{holes.frame.length_unit}2": round(geometry.area, 3)},
+            }
+        )
+    write_geojson([f for f in features if not f["geometry"].is_empty], out)
+    empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
+    if empty:
+        _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
+    typer.echo(json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)}))
+
+
+@app.command()
+def evaluate(
+    input: InputArg,
+    geozone: GeozoneOpt,
+    out: Annotated[Path, typer.Option("--out", help="Folder for the table (CSV) and plot (PNG).")] = Path("evaluation"),
+    x: XOpt = None,
+    y: YOpt = None,
+    z: ZOpt = None,
+    geozone_column: GeozoneColOpt = None,
+    bench_height: BenchHeightOpt = None,
+    units: UnitsOpt = None,
+) -> None:
+    """Precision and recall of predictions below withheld benches, against nil, linear and implicit references."""
+    from .build import load_truth, predictor_from_model
+    from .evaluation import evaluate_geozone, format_table, plot_precision_recall, summary_table
+    from .extraction import extract_contours
+    from .pipeline import ModelParameters, model_geozone
+
+    holes = _load(input, x, y, z, geozone_column, bench_height, units)
+    holes.check_geozones([geozone])
+    if holes.n_benches < 3:
+        raise BGMInputError(f"{input} has {holes.n_benches} bench(es); evaluation needs at least three")
+    truth = load_truth(input, holes)
+    params = ModelParameters()
+    start = time.perf_counter()
+    contours = extract_contours(holes, params=params.extraction)
+    model = model_geozone(holes, geozone, contours=contours, params=params)
+    rows = evaluate_geozone(holes, geozone, predictor_from_model(model, holes, params), truth=truth, contours=contours)
+    if rows.empty:
+        raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
+    table = summary_table(rows)
+    out.mkdir(parents=True, exist_ok=True)
+    from .atomic import atomic_write_text
+
+    atomic_write_text(out / "evaluation_rows.csv", rows.to_csv(index=False))
+    atomic_write_text(out / "evaluation.csv", table.to_csv(index=False))
+    plot_precision_recall(table, out / "precision_recall.png", title=f"{geozone}: model vs references")
+    _say(f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s")
+    typer.echo(format_table(table))
+
+
+def _run_build(holes, out, geozone, project, truth) -> dict:
+    from .build import build
+    from .project import load_project
+
+    proj = load_project(project) if project is not None else None
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    bar = Progress(
+        TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(), console=Console(stderr=True),
+        disable=not sys.stderr.isatty() and os.environ.get("BGM_PROGRESS") != "1",
+    )
+    task = bar.add_task("building", total=1)
+
+    def progress(stage: str, done: int, total: int) -> None:
+        bar.update(task, description=stage, completed=done, total=max(total, 1))
+
+    with bar:
+        summary = build(holes, out, geozones=geozone, project=proj, truth=truth, progress=progress)
+    _say(f"wrote {out}/report.md ({summary['seconds']:.1f} s)")
+    return summary
+
+
+@app.command()
+def build(
+    input: InputArg,
+    out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-out"),
+    geozone: Annotated[Optional[list[str]], typer.Option("--geozone", help="Geozones to model (default all).")] = None,
+    project: ProjectOpt = None,
+    x: XOpt = None,
+    y: YOpt = None,
+    z: ZOpt = None,
+    geozone_column: GeozoneColOpt = None,
+    bench_height: BenchHeightOpt = None,
+    units: UnitsOpt = None,
+) -> None:
+    """The whole pipeline for every geozone: contours, correspondence, trajectories, predictions, surfaces, evaluation, report."""
+    from .build import load_truth
+
+    holes = _load(input, x, y, z, geozone_column, bench_height, units)
+    if holes.n_benches < 2:
+        raise BGMInputError(f"{input} has a single bench; building a model needs two or more benches")
+    summary = _run_build(holes, out, geozone, project, load_truth(input, holes))
+    typer.echo(json.dumps({k: summary[k] for k in ("holes", "seconds")} | {"out": str(out)}))
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-demo"),
+    view: Annotated[bool, typer.Option(help="Open the 3D viewer on the result when a display is available.")] = False,
+) -> None:
+    """Build the whole model on the bundled synthetic demo data (assets/demo_blastholes.csv)."""
+    from .blastholes import read_blastholes
+    from .build import load_truth
+
+    holes = read_blastholes(DEMO_CSV)
+    summary = _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes))
+    typer.echo((out / "report.md").read_text())
+    if view:
+        from bgm_viewer.cli_hooks import view_command
+
+        view_command(DEMO_CSV, None, None, None, None)
+
+
 @app.command("make-demo-data")
 def make_demo_data(
     out: Annotated[Path, typer.Option("--out", help="CSV to write.")] = DEMO_CSV,
@@ -227,10 +381,15 @@ def make_demo_data(
     from .atomic import atomic_path
     from .synthetic import demo_dataset
 
+    from .atomic import atomic_write_text
+    from .build import truth_sidecar
+
     _, table = demo_dataset(seed)
     with atomic_path(out) as tmp:
         table.to_csv(tmp, index=False)
-    _say(f"wrote {len(table)} holes to {out}")
+    # The generator knows the true sections: record how to regenerate them for evaluation.
+    atomic_write_text(truth_sidecar(out), json.dumps({"generator": "core.synthetic.demo_dataset", "seed": seed}))
+    _say(f"wrote {len(table)} holes to {out} (truth in {truth_sidecar(out).name})")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -38,7 +38,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPoint, MultiPolygon, Polygon
 
 from .atomic import atomic_path
-from .blastholes import Blastholes
+from .blastholes import Blastholes, drilled_area
 from .grid import Grid, as_multipolygon
 from .sdf import signed_distance
 
@@ -297,7 +297,7 @@ def fit_implicit_rbf(
     band_spacings: float = 2.0,
     far_fraction: float = 0.05,
     seed: int = 0,
-    resolution_spacings: float = 1.0,
+    resolution_spacings: float = 2.0,
 ) -> ImplicitRBF:
     """Fit a 3D RBF interpolant of signed distances at the holes (Leapfrog-style implicit model).
 
@@ -380,15 +380,6 @@ def predict_implicit_rbf(
 
 # ---------------------------------------------------------------------------
 # Protocol
-
-
-def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = DRILLED_RADIUS_SPACINGS) -> MultiPolygon:
-    """Area drilled by holes ``xy``: union of discs of ``radius_spacings`` spacings, closed over one spacing."""
-    if len(xy) == 0:
-        return MultiPolygon()
-    discs = shapely.buffer(MultiPoint(np.asarray(xy, float)), radius_spacings * spacing_m, quad_segs=6)
-    closed = discs.buffer(spacing_m, quad_segs=6).buffer(-spacing_m, quad_segs=6)
-    return as_multipolygon(closed)
 
 
 def truth_from_mine(mine, frame) -> Truth:

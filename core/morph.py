@@ -28,6 +28,7 @@ import shapely
 from scipy import ndimage
 from shapely.geometry import MultiPolygon, Point, Polygon
 
+from core.errors import BGMInputError
 from core.grid import Grid, as_multipolygon
 from core.sdf import signed_distance
 from core.trajectories import (
@@ -340,7 +341,9 @@ def morph_regions(
     src = _as_region(sources)
     tgt = _as_region(targets)
     if src.is_empty and tgt.is_empty:
-        raise ValueError("morph_regions needs a non-empty source or target region")
+        raise BGMInputError("Cannot morph: both the source and the target region are empty.")
+    if speed_clamp_m is not None and not (speed_clamp_m > 0 and np.isfinite(speed_clamp_m)):
+        raise BGMInputError(f"The morph speed clamp must be a positive length, got {speed_clamp_m}.")
     both = src.union(tgt) if not (src.is_empty or tgt.is_empty) else (tgt if src.is_empty else src)
     xmin, ymin, xmax, ymax = both.bounds
     span = max(xmax - xmin, ymax - ymin, 1e-9)

@@ -34,6 +34,9 @@ class ModelParameters:
     #: benches a lone hole of another domain is far more often a mislabelled
     #: assay than a body, and it would drag alignments around.
     min_component_holes: int = 3
+    #: Extrapolation beyond the benches (see :func:`core.prediction.region_beyond`).
+    smoothing_spacings: float = 10.0
+    deformation_weight: float = 1.0
     speed_clamp_m: float | None = None  #: |gamma_t| clamp of the morph speed
 
 
@@ -72,6 +75,12 @@ class GeozoneModel:
     geozone: str
     contours: list[Contour]
     pairs: list[BenchPair]
+    #: Components too small to model between benches (see ``min_component_holes``);
+    #: predictions hold them in place near their bench.
+    minor: list[Contour] = field(default_factory=list)
+    #: Outline of each bench's drilled area (bench index -> line): where sampling
+    #: stopped, not a geological boundary; predictions hold contours there.
+    frontiers: dict = field(default_factory=dict)
 
     def region_at_bench(self, bench: int):
         """Union of the geozone's contours on a bench (local metres)."""
@@ -200,8 +209,17 @@ def model_geozone(
             morph(pair, params, keep_fronts=keep_fields)
         if progress:
             progress(done, len(pairs))
-    own = [c for c in contours if c.geozone == geozone and len(c.holes) >= params.min_component_holes]
-    return GeozoneModel(geozone, own, pairs)
+    own = [c for c in contours if c.geozone == geozone]
+    big = [c for c in own if len(c.holes) >= params.min_component_holes]
+    minor = [c for c in own if len(c.holes) < params.min_component_holes]
+    return GeozoneModel(geozone, big, pairs, minor, drilling_frontiers(holes, {c.bench for c in big}))
+
+
+def drilling_frontiers(holes: Blastholes, benches) -> dict:
+    """Outline of the drilled area of each bench (bench index -> boundary line, local metres)."""
+    from .blastholes import drilled_area
+
+    return {k: drilled_area(holes.xy[holes.bench == k], holes.hole_spacing_m).boundary for k in sorted(benches)}
 
 
 # ---------------------------------------------------------------------------

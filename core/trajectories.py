@@ -342,19 +342,14 @@ def positions_at(trajectories: list[Trajectory], fraction: float) -> np.ndarray:
 
 
 def _segments(trajectories: list[Trajectory]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    a, b, owner = [], [], []
-    for k, tr in enumerate(trajectories):
-        xy = np.asarray(tr.xy, dtype=float)
-        if len(xy) < 2:
-            continue
-        p, q = xy[:-1], xy[1:]
-        nz = np.any(p != q, axis=1)
-        a.append(p[nz])
-        b.append(q[nz])
-        owner.append(np.full(int(nz.sum()), k))
-    if not a:
+    """All non-degenerate segments ``a -> b`` of the trajectories and their owner index."""
+    if not trajectories:
         return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=int)
-    return np.vstack(a), np.vstack(b), np.concatenate(owner)
+    lengths = np.array([len(tr.xy) for tr in trajectories])
+    pts = np.concatenate([np.asarray(tr.xy, dtype=float) for tr in trajectories])
+    owner = np.repeat(np.arange(len(trajectories)), lengths)
+    keep = (owner[:-1] == owner[1:]) & np.any(pts[:-1] != pts[1:], axis=1)
+    return pts[:-1][keep], pts[1:][keep], owner[:-1][keep]
 
 
 def crossing_pairs(trajectories: list[Trajectory], checked_prefix: int = 0) -> np.ndarray:
@@ -380,13 +375,18 @@ def crossing_pairs(trajectories: list[Trajectory], checked_prefix: int = 0) -> n
     a, b, owner = _segments(trajectories)
     if len(a) < 2:
         return np.zeros((0, 2), dtype=int)
-    rows = np.ascontiguousarray(np.hstack([a, b]))
-    key = rows.view(np.dtype((np.void, rows.dtype.itemsize * 4))).ravel()
-    _, first, inv = np.unique(key, return_index=True, return_inverse=True)
-    a, b = a[first], b[first]
-    order = np.argsort(inv, kind="stable")
-    owner_sorted = owner[order]
-    bounds = np.searchsorted(inv[order], np.arange(len(first) + 1))
+    if any(tr.backtracked for tr in trajectories):
+        # merge identical segments (shared trunks); owners grouped per segment
+        rows = np.ascontiguousarray(np.hstack([a, b]))
+        key = rows.view(np.dtype((np.void, rows.dtype.itemsize * 4))).ravel()
+        _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+        a, b = a[first], b[first]
+        order = np.argsort(inv, kind="stable")
+        owner_sorted = owner[order]
+        bounds = np.searchsorted(inv[order], np.arange(len(first) + 1))
+    else:
+        owner_sorted = owner
+        bounds = np.arange(len(owner) + 1)
     # split long segments so every piece is short: then two pieces can only
     # intersect if their midpoints are within one piece length
     length = np.hypot(*(b - a).T)

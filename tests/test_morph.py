@@ -258,3 +258,18 @@ def test_property_disc_to_ellipse(dx, dy, r_src, rx, ry):
     check_no_nan(res)
     check_trajectories(res)
     assert res.target_boundary_coverage >= 0.99
+
+
+def test_curvelet_pixels_appear_where_particles_lose_the_front():
+    from core.backtracking import curvelet_pixels
+
+    res = morph_regions(*BRANCHING, max_cells=128)
+    advected = [tr for tr in res.trajectories if not tr.backtracked]
+    t_mid = 0.5 * res.times[-1]
+    pix = curvelet_pixels(res.arrival_time, res.grid, advected, t_mid - 1.0, t_mid)
+    assert len(pix) > 0
+    # they lie in the arms, away from the disc source
+    assert np.min(np.hypot(*pix.T)) > 12.0
+    # with every trajectory (backtracked included) far fewer pixels are left
+    pix_all = curvelet_pixels(res.arrival_time, res.grid, res.trajectories, t_mid - 1.0, t_mid)
+    assert len(pix_all) < 0.5 * len(pix)
