@@ -15,6 +15,7 @@ from __future__ import annotations
 from . import _vtkenv  # noqa: F401
 
 import itertools
+import queue
 import threading
 import time
 import traceback
@@ -29,14 +30,6 @@ from .scene import SceneRenderer
 
 Signal = QtCore.Signal
 SLIDER_STEPS = 1000
-
-
-class _Bridge(QtCore.QObject):
-    """Carries worker-thread results to the GUI thread (queued signals)."""
-
-    progress = Signal(int, str, float, object)
-    finished = Signal(int, float)
-    failed = Signal(int, str)
 
 
 class ParamControl(QtWidgets.QWidget):
@@ -109,22 +102,27 @@ class MainWindow(QtWidgets.QMainWindow):
         self.setWindowTitle("BGM viewer")
         self.resize(1400, 900)
         self._jobs = itertools.count(1)
+        self.emit_times: list[float] = []
         self._job = 0
         self._pending_stage: str | None = None
         self._queued_stage: str | None = None
         self._request_time = 0.0
         self.last_run_seconds = float("nan")
         self.last_update_seconds = float("nan")
-        self._bridge = _Bridge()
-        self._bridge.progress.connect(self._on_progress)
-        self._bridge.finished.connect(self._on_finished)
-        self._bridge.failed.connect(self._on_failed)
+        # Worker results come back through a queue polled by a timer: passing Python
+        # objects through Qt signals from a plain thread can corrupt reference counts.
+        self._inbox: queue.Queue = queue.Queue()
+        self._poll = QtCore.QTimer(self)
+        self._poll.setInterval(20)
+        self._poll.timeout.connect(self._drain)
+        self._poll.start()
         self._debounce = QtCore.QTimer(self)
         self._debounce.setSingleShot(True)
         self._debounce.setInterval(debounce_ms)
         self._debounce.timeout.connect(self._start_queued)
 
-        self.plotter = QtInteractor(self)
+        # no multi-sampling: software rendering is ~4x slower with it (see issue 6)
+        self.plotter = QtInteractor(self, multi_samples=0, auto_update=False)
         self.setCentralWidget(self.plotter.interactor)
         self.scene = build_scene(self.model.holes, self.model.result, self.model.selection,
                                  visible=DEFAULT_VISIBLE, vertical_exaggeration=self.model.vertical_exaggeration)
@@ -433,7 +431,7 @@ class MainWindow(QtWidgets.QMainWindow):
         previous = self.model.result
         self.statusBar().showMessage(f"running from {stage}...")
         self.progress_bar.setValue(0)
-        bridge = self._bridge
+        inbox = self._inbox
 
         def work():
             t0 = time.perf_counter()
@@ -441,20 +439,36 @@ class MainWindow(QtWidgets.QMainWindow):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     for msg, frac, res in compute(inputs, previous, stage, lambda: self._job != job):
-                        bridge.progress.emit(job, msg, frac, res)
-                bridge.finished.emit(job, time.perf_counter() - t0)
+                        self.emit_times.append(time.perf_counter())
+                        inbox.put((self._on_progress, (job, msg, frac, res)))
+                inbox.put((self._on_finished, (job, time.perf_counter() - t0)))
             except Cancelled:
                 pass
             except Exception:  # noqa: BLE001 - reported in the status bar
-                bridge.failed.emit(job, traceback.format_exc(limit=3))
+                inbox.put((self._on_failed, (job, traceback.format_exc(limit=3))))
 
         threading.Thread(target=work, name=f"bgm-pipeline-{job}", daemon=True).start()
+
+    def _drain(self) -> None:
+        """Handle what the worker sent; only the newest progress of a burst is drawn."""
+        items = []
+        while True:
+            try:
+                items.append(self._inbox.get_nowait())
+            except queue.Empty:
+                break
+        for i, (fn, args) in enumerate(items):
+            later = any(f == self._on_progress for f, _ in items[i + 1:])
+            if fn == self._on_progress and later:
+                continue
+            fn(*args)
 
     def _on_progress(self, job: int, msg: str, frac: float, result) -> None:
         if job != self._job:
             return  # superseded
+        previous = self.model.result
         self.model.set_result(result)
-        refresh_scene(self.scene, self.model.holes, result, self.model.selection)
+        refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous)
         self._on_layer_row(None)
         if self._first_update:
             self._first_update = False
@@ -497,7 +511,7 @@ class MainWindow(QtWidgets.QMainWindow):
         end = time.perf_counter() + timeout_s
         while self.busy and time.perf_counter() < end:
             QtWidgets.QApplication.processEvents(QtCore.QEventLoop.AllEvents, 50)
-            time.sleep(0.01)
+            time.sleep(0.02)
         return not self.busy
 
     # ------------------------------------------------------------------ files
@@ -599,7 +613,6 @@ class MainWindow(QtWidgets.QMainWindow):
         return answer == QtWidgets.QMessageBox.Discard
 
     def closeEvent(self, event) -> None:  # noqa: N802 - Qt API
-        import sys; print("CLOSE", id(self.model), self.model.dirty, file=sys.stderr)
         if not self._confirm_discard():
             event.ignore()
             return

@@ -107,9 +107,37 @@ def build_scene(holes, result: PipelineResult, selection: Selection, *, visible=
     return scene
 
 
-def refresh_scene(scene: Scene, holes, result: PipelineResult, selection: Selection, predicted=()) -> None:
-    """Replace the data of the scene's layers, keeping visibility, opacity and frames where possible."""
+def _changed(result: PipelineResult, previous: PipelineResult | None, selection: Selection) -> set[str]:
+    """Names of the layers whose data differ between two results (all when unknown)."""
+    if previous is None:
+        return set(LAYER_NAMES)
+    out = set()
+    if result.contours.keys() != previous.contours.keys() or any(
+            result.contours[b] is not previous.contours.get(b) for b in result.contours):
+        out |= {"contours", "predicted contours"}
+        bh = [np.sort(np.concatenate([c.boundary_holes for c in cs] or [np.zeros(0, int)]))
+              for r in (result, previous) for cs in [[c for v in r.contours.values() for c in v]]]
+        if len(bh[0]) != len(bh[1]) or not np.array_equal(bh[0], bh[1]):
+            out.add("blastholes")
+    if result.selected_contour(selection) is not previous.selected_contour(selection):
+        out |= {"edge map", "GVF", "snake"}
+    if result.morph is not previous.morph:
+        out |= {"wavefront", "trajectories"}
+    if result.surface is not previous.surface:
+        out.add("surfaces")
+    return out
+
+
+def refresh_scene(scene: Scene, holes, result: PipelineResult, selection: Selection, predicted=(),
+                  previous: PipelineResult | None = None) -> None:
+    """Replace the data of the scene's layers, keeping visibility, opacity and frames where possible.
+
+    With ``previous`` (the result on screen), only layers whose data changed are rebuilt.
+    """
+    changed = _changed(result, previous, selection)
     for layer in make_layers(holes, result, selection, predicted):
+        if layer.name not in changed and scene.get(layer.name) is not None:
+            continue
         old = scene.get(layer.name)
         if old is not None and old.n_frames == layer.n_frames and old.n_frames > 1:
             layer._frame = old.frame

@@ -125,6 +125,12 @@ class SceneRenderer:
             plotter.disable_anti_aliasing()
         except Exception:  # noqa: BLE001 - older pyvista or no render window yet
             pass
+        ren_win = getattr(plotter, "ren_win", None)
+        if ren_win is not None:
+            ren_win.SetMultiSamples(0)
+            ren_win.SetLineSmoothing(False)
+            ren_win.SetPointSmoothing(False)
+            ren_win.SetPolygonSmoothing(False)
         plotter.set_background(to_float(BACKGROUND))
         for layer in scene.layers:
             self._rebuild(layer)

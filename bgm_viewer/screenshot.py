@@ -34,9 +34,19 @@ _NEEDS = {
 }
 
 
+def no_aa_theme():
+    """The global PyVista theme without multi-sampling or anti-aliasing (software rendering)."""
+    import copy
+
+    theme = copy.deepcopy(pv.global_theme)
+    theme.multi_samples = 0
+    theme.anti_aliasing = None
+    return theme
+
+
 def plotter_for(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True):
     """An off-screen plotter with ``scene`` drawn and the camera set."""
-    plotter = pv.Plotter(off_screen=True, window_size=tuple(window_size))
+    plotter = pv.Plotter(off_screen=True, window_size=tuple(window_size), theme=no_aa_theme())
     renderer = SceneRenderer(plotter, scene, legend=legend)
     renderer.set_camera(camera)
     return plotter, renderer

@@ -133,6 +133,7 @@ class Blastholes:
     hole_id: np.ndarray | None = None
     source: str = ""
     notes: list[str] = field(default_factory=list)
+    _drilled: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def geozones(self) -> list[str]:
@@ -166,6 +167,12 @@ class Blastholes:
                 f"geozones present: {', '.join(present)}"
             )
         return list(requested)
+
+    def drilled_area(self, k: int):
+        """Area drilled on bench ``k`` (see :func:`drilled_area`), computed once per bench."""
+        if k not in self._drilled:
+            self._drilled[k] = drilled_area(self.xy[self.bench == k], self.hole_spacing_m)
+        return self._drilled[k]
 
     def subset(self, keep: np.ndarray) -> "Blastholes":
         """The same table restricted to the holes ``keep`` (bool mask or indices).

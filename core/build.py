@@ -41,6 +41,9 @@ def truth_sidecar(path: Path) -> Path:
 def load_truth(path: Path, holes: Blastholes):
     """The true sections of a synthetic table, if its generator left a sidecar; else None.
 
+    The sidecar names the generator and its arguments, either
+    ``{"generator": "core.synthetic.demo_dataset", "seed": 2019}`` or
+    ``{"generator": "core.synthetic.make_mine", "kwargs": {...}}``.
     Returns a callable ``truth(geozone, z_m)`` in the engine's local frame.
     """
     side = truth_sidecar(Path(path))
@@ -49,10 +52,18 @@ def load_truth(path: Path, holes: Blastholes):
     from .evaluation import truth_from_mine
     from .synthetic import demo_dataset
 
-    spec = json.loads(side.read_text())
-    if spec.get("generator") != "core.synthetic.demo_dataset":
-        return None
-    mine, _ = demo_dataset(int(spec["seed"]))
+    from .synthetic import make_mine
+
+    try:
+        spec = json.loads(side.read_text())
+        if spec.get("generator") == "core.synthetic.demo_dataset":
+            mine, _ = demo_dataset(int(spec["seed"]))
+        elif spec.get("generator") == "core.synthetic.make_mine":
+            mine = make_mine(**spec["kwargs"])
+        else:
+            raise ValueError(f"unknown generator {spec.get('generator')!r}")
+    except (ValueError, KeyError, TypeError) as exc:
+        raise BGMInputError(f"truth file {side} is not usable: {exc}") from None
     return truth_from_mine(mine, holes.frame)
 
 
@@ -160,6 +171,8 @@ def build(
     containment = containment_summary([c for c in contours if c.geozone in wanted], holes)
     t_contours = time.perf_counter() - t0
 
+    for k in range(holes.n_benches):
+        holes.drilled_area(k)  # once, before the workers fork, so they all share it
     ctx = BuildContext(holes, contours, params, project, truth, out_dir, tuple(formats), evaluate)
     summaries: list[GeozoneSummary] = []
     evaluations = []

@@ -370,6 +370,40 @@ def demo(
         from bgm_viewer.cli_hooks import view_command
 
         view_command(DEMO_CSV, None, None, None, None)
+    else:
+        _say("open it in 3D with: bgm view")
+
+
+@app.command()
+def view(
+    input: Annotated[Optional[Path], typer.Argument(help="Blasthole table (default: the bundled demo).", show_default=False)] = None,
+    project: ProjectOpt = None,
+    screenshot: Annotated[
+        Optional[Path], typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window.")
+    ] = None,
+    layers: Annotated[
+        Optional[str],
+        typer.Option(help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."),
+    ] = None,
+    camera: Annotated[Optional[str], typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
+    geozone: Annotated[Optional[str], typer.Option("--geozone", help="Geozone to select.")] = None,
+    bench: Annotated[Optional[int], typer.Option(help="Bench index to select (0 = top).")] = None,
+    exaggeration: Annotated[Optional[float], typer.Option(help="Vertical exaggeration.")] = None,
+) -> None:
+    """Open the 3D viewer (or render a screenshot with no display)."""
+    # The viewer is a separate package on top of the engine; only this command loads it.
+    try:
+        from bgm_viewer.cli_hooks import view_command
+    except ImportError as exc:
+        raise BGMInputError(f"the viewer is not installed ({exc}); install it with: pip install -e '.[viewer]'") from None
+    if input is not None and not Path(input).exists():
+        raise BGMInputError(f"input file {str(input)!r} does not exist")
+    code = view_command(
+        input, project, screenshot, layers, camera, geozone=geozone, bench=bench, vertical_exaggeration=exaggeration
+    )
+    if screenshot:
+        _say(f"wrote {screenshot}")
+    raise typer.Exit(code or 0)
 
 
 @app.command("make-demo-data")

@@ -498,7 +498,7 @@ def evaluate_geozone(
     for done, k in enumerate(ks, start=1):
         z_k = float(levels[k])
         nxt = holes.on_bench(k + 1)
-        within = drilled_area(holes.xy[nxt], spacing)
+        within = holes.drilled_area(k + 1)
         if truth is not None:
             targets = [(float(f), float(f * height), z_k - float(f * height)) for f in fractions]
         else:

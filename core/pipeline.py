@@ -217,9 +217,7 @@ def model_geozone(
 
 def drilling_frontiers(holes: Blastholes, benches) -> dict:
     """Outline of the drilled area of each bench (bench index -> boundary line, local metres)."""
-    from .blastholes import drilled_area
-
-    return {k: drilled_area(holes.xy[holes.bench == k], holes.hole_spacing_m).boundary for k in sorted(benches)}
+    return {k: holes.drilled_area(k).boundary for k in sorted(benches)}
 
 
 # ---------------------------------------------------------------------------

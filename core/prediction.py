@@ -72,13 +72,23 @@ def _rings(region) -> list[tuple[int, bool, LinearRing]]:
     return out
 
 
-def _assemble(rings: list[tuple[int, bool, np.ndarray]]) -> MultiPolygon:
-    """Polygons from moved rings: exteriors minus their holes, repaired to validity."""
+def _assemble(rings: list[tuple[int, bool, np.ndarray]], resolution_m: float = 0.0) -> MultiPolygon:
+    """Polygons from moved rings: exteriors minus their holes, repaired to validity.
+
+    Rings are first simplified to ``resolution_m`` (the grid they came from
+    cannot place them more finely); repairing a dense, folded ring costs far
+    more than repairing its simplified outline.
+    """
     by_poly: dict[int, tuple[list, list]] = {}
     for k, is_hole, pts in rings:
         if len(pts) < 3:
             continue
-        poly = shapely.make_valid(Polygon(pts))
+        ring = Polygon(pts)
+        if resolution_m > 0:
+            ring = shapely.simplify(ring, resolution_m, preserve_topology=False)
+        if ring.is_empty:
+            continue
+        poly = shapely.make_valid(ring)
         by_poly.setdefault(k, ([], []))[1 if is_hole else 0].append(poly)
     parts = []
     for outer, holes in by_poly.values():
@@ -106,6 +116,7 @@ def region_between(pair: BenchPair, fraction: float) -> MultiPolygon:
     f = float(np.clip(fraction, 0.0, 1.0))
     rings = []
     base = 0
+    resolution = 0.0
     for step in pair.morphs:
         starts_phys, _, trajs = _step_tracks(pair, step)
         if not trajs:
@@ -126,7 +137,8 @@ def region_between(pair: BenchPair, fraction: float) -> MultiPolygon:
             order = np.argsort(shapely.line_locate_point(ring, shapely.points(start_aligned[sel])))
             rings.append((base + k, is_hole, points[sel[order]]))
         base += len(as_multipolygon(step.result.source).geoms)
-    return _assemble(rings)
+        resolution = max(resolution, 0.5 * step.result.grid.cell_size_m)
+    return _assemble(rings, resolution)
 
 
 def _moved_rings(
@@ -231,7 +243,7 @@ def region_beyond(
         )
         rings.extend((base + k, h, p) for k, h, p in moved)
         base += len(as_multipolygon(region).geoms)
-    return _assemble(rings)
+    return _assemble(rings, hole_spacing_m / 8)
 
 
 def predict_geozone(

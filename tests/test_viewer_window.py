@@ -50,11 +50,9 @@ def window(qtbot):
     model = ViewerModel(small_holes())
     model.select("g1", 0, 0)
     win = MainWindow(model, debounce_ms=10)
-    qtbot.addWidget(win)
-    win.show()
+    win.show()  # not qtbot.addWidget: pytest-qt would close it before this fixture's teardown
     qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
     yield win
-    import sys; print("TEARDOWN", id(win.model), file=sys.stderr)
     win.model.dirty = False  # no prompt at teardown
     win.close()
 
@@ -94,9 +92,11 @@ def test_manual_alignment_save_reload_and_undo(window, qtbot, tmp_path):
     auto = window.model.current_translation_m()
     window.dx_spin.setValue(auto[0] + 4.0)
     window.dy_spin.setValue(auto[1] + 2.0)
+    want = (window.dx_spin.value(), window.dy_spin.value())  # what the user typed (2 decimals)
     window.apply_translation()
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
-    np.testing.assert_allclose(window.model.current_translation_m(), (auto[0] + 4.0, auto[1] + 2.0), atol=1e-6)
+    np.testing.assert_allclose(window.model.current_translation_m(), want, atol=1e-6)
+    assert abs(want[0] - auto[0] - 4.0) < 0.01
     assert "locked" in window.translation_label.text()
 
     path = tmp_path / "proj.json"
@@ -106,14 +106,14 @@ def test_manual_alignment_save_reload_and_undo(window, qtbot, tmp_path):
 
     window.open_project(path)
     qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
-    np.testing.assert_allclose(window.model.current_translation_m(), (auto[0] + 4.0, auto[1] + 2.0), atol=1e-6)
+    np.testing.assert_allclose(window.model.current_translation_m(), want, atol=1e-6)
 
     window.nudge(1.0, 0.0)
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
-    np.testing.assert_allclose(window.model.current_translation_m()[0], auto[0] + 5.0, atol=1e-6)
+    np.testing.assert_allclose(window.model.current_translation_m()[0], want[0] + 1.0, atol=1e-6)
     window.undo()
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
-    np.testing.assert_allclose(window.model.current_translation_m(), (auto[0] + 4.0, auto[1] + 2.0), atol=1e-6)
+    np.testing.assert_allclose(window.model.current_translation_m(), want, atol=1e-6)
 
 
 def test_closing_with_unsaved_changes_prompts(window, monkeypatch):

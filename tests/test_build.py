@@ -1,0 +1,121 @@
+"""`bgm build` and `bgm predict` end to end on a small synthetic mine."""
+
+from __future__ import annotations
+
+import json
+
+import ezdxf
+import numpy as np
+import pandas as pd
+import pytest
+import trimesh
+from shapely.geometry import shape
+
+from core.atomic import atomic_write_text
+from core.build import truth_sidecar
+from core.synthetic import make_mine, sample_blastholes
+from test_cli import bgm
+
+
+SMALL_MINE = dict(seed=5, n_benches=4, extent_m=[200.0, 150.0], origin=[650_000.0, 7_400_000.0], n_pods=1)
+
+
+@pytest.fixture(scope="module")
+def small_mine_csv(tmp_path_factory):
+    mine = make_mine(**SMALL_MINE)
+    table = sample_blastholes(mine, seed=6)
+    path = tmp_path_factory.mktemp("mine") / "small.csv"
+    table.to_csv(path, index=False)
+    return path, table
+
+
+@pytest.fixture(scope="module")
+def built(small_mine_csv, tmp_path_factory):
+    path, _ = small_mine_csv
+    out = tmp_path_factory.mktemp("build")
+    bgm("build", path, "--out", out)
+    return out
+
+
+def test_build_writes_every_output(built):
+    summary = json.loads((built / "summary.json").read_text())
+    assert [g["geozone"] for g in summary["geozones"]] == ["g0", "g1", "g2", "g3"]
+    report = (built / "report.md").read_text()
+    assert "precision_recall.png" in report and "| g1 |" in report
+    assert (built / "precision_recall.png").stat().st_size > 10_000
+    table = pd.read_csv(built / "evaluation.csv")
+    assert {"depth_m", "precision_model", "precision_nil", "recall_model", "recall_implicit"} <= set(table.columns)
+    for g in ("g1", "g2"):
+        for name in ("correspondence.json", "morph.json", "prediction.geojson"):
+            assert (built / g / name).exists(), (g, name)
+
+
+@pytest.mark.parametrize("geozone", ["g1", "g2"])
+def test_surfaces_are_watertight_and_reopen_with_the_same_faces(built, geozone):
+    summary = json.loads((built / "summary.json").read_text())
+    info = next(g for g in summary["geozones"] if g["geozone"] == geozone)
+    assert info["watertight"] and info["volume"] > 0
+    meshes = {fmt: trimesh.load(built / geozone / f"surface.{fmt}", force="mesh") for fmt in ("obj", "ply", "stl")}
+    faces = {len(m.faces) for m in meshes.values()}
+    assert len(faces) == 1
+    n_faces = faces.pop()
+    assert meshes["ply"].is_watertight and meshes["ply"].volume > 0
+    assert meshes["ply"].volume == pytest.approx(info["volume"], rel=1e-6)
+    # Mine-grid coordinates survive in full precision (PLY stores doubles).
+    assert meshes["ply"].vertices[:, 1].min() > 7_399_000
+    doc = ezdxf.readfile(built / geozone / "surface.dxf")
+    assert len(doc.modelspace().query("3DFACE")) == n_faces
+    import pyvista
+
+    assert pyvista.read(built / geozone / "surface.vtp").n_cells == n_faces
+
+
+def test_predict_on_real_style_columns_in_feet(small_mine_csv, tmp_path):
+    _, table = small_mine_csv
+    feet = pd.DataFrame(
+        {
+            "EAST": table.x / 0.3048,
+            "NORTH": table.y / 0.3048,
+            "RL": table.z / 0.3048,
+            "HOLEID": table.hole_id,
+            "lookup_domain": table.geozone.str.replace("g", "33"),
+        }
+    )
+    path = tmp_path / "feet.csv"
+    feet.to_csv(path, index=False)
+    levels = sorted(feet.RL.round(-1).unique())
+    below = levels[0] - 16.0  # half a 32.8 ft bench below the deepest
+    between = levels[-1] - 16.0
+    out = tmp_path / "p.geojson"
+    bgm("predict", path, "--geozone", "331", "--elevations", f"{between},{below}", "--out", out)
+    data = json.loads(out.read_text())
+    zs = [f["properties"]["z"] for f in data["features"]]
+    assert zs == pytest.approx([between, below])
+    for f in data["features"]:
+        geom = shape(f["geometry"])
+        assert geom.is_valid and geom.area > 0
+        assert f["geometry"]["type"] in ("Polygon", "MultiPolygon")
+        # In the input's feet coordinates.
+        assert feet.EAST.min() - 200 < geom.centroid.x < feet.EAST.max() + 200
+
+
+def test_evaluate_uses_the_generator_truth_when_the_sidecar_is_there(small_mine_csv, tmp_path):
+    path, _ = small_mine_csv
+    proc = bgm("evaluate", path, "--geozone", "g1", "--out", tmp_path / "e1")
+    assert "next bench holes" in proc.stderr
+    assert len(pd.read_csv(tmp_path / "e1" / "evaluation.csv")) == 1  # next bench only
+    atomic_write_text(truth_sidecar(path), json.dumps({"generator": "core.synthetic.make_mine", "kwargs": SMALL_MINE}))
+    try:
+        proc = bgm("evaluate", path, "--geozone", "g1", "--out", tmp_path / "e2")
+        assert "synthetic generator" in proc.stderr
+        table = pd.read_csv(tmp_path / "e2" / "evaluation.csv")
+        assert len(table) == 8  # depths 1/8 .. 8/8 of a bench
+        # Against the true sections the model beats holding the last bench at a full bench below.
+        deepest = table.iloc[-1]
+        f1 = lambda p, r: 2 * p * r / (p + r)
+        assert f1(deepest.precision_model, deepest.recall_model) > f1(deepest.precision_nil, deepest.recall_nil)
+        truth_sidecar(path).write_text("{not json")
+        proc = bgm("evaluate", path, "--geozone", "g1", "--out", tmp_path / "e3", check=False)
+        assert proc.returncode == 2 and "truth file" in proc.stderr
+    finally:
+        truth_sidecar(path).unlink()
