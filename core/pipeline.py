@@ -37,6 +37,7 @@ class ModelParameters:
     #: Extrapolation beyond the benches (see :func:`core.prediction.region_beyond`).
     smoothing_spacings: float = 10.0
     deformation_weight: float = 1.0
+    translation_weight: float = 1.0
     speed_clamp_m: float | None = None  #: |gamma_t| clamp of the morph speed
 
 

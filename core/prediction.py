@@ -188,6 +188,8 @@ def region_beyond(
     smoothing_spacings: float = 10.0,
     deformation_weight: float = 1.0,
     frontier=None,
+    translation_weight: float = 1.0,
+    step_weights: list[float] | None = None,
 ) -> MultiPolygon:
     """Extrapolate the pair's movement beyond its lower (or above its upper) bench.
 
@@ -215,10 +217,16 @@ def region_beyond(
     frontier : shapely line, optional
         Outline of the bench's drilled area: contour points on it are held
         (see :func:`_moved_rings`).
+    translation_weight : float
+        Weight of the rigid translation.
+    step_weights : list of float, optional
+        A confidence in [0, 1] per morph instance that scales its whole
+        displacement (see :func:`movement_consistency`).
     """
     rings = []
     base = 0
-    for step in pair.morphs:
+    for n_step, step in enumerate(pair.morphs):
+        weight = 1.0 if step_weights is None else float(step_weights[n_step])
         if downward and not step.instance.target_ids:
             continue  # pinched out between the benches: nothing continues below
         if not downward and not step.instance.source_ids:
@@ -230,7 +238,7 @@ def region_beyond(
         # deformation is the less predictable part and is damped.
         translation = ends - starts_phys - (ends - np.array([t.xy[0] for t in trajs]))
         deformation = ends - np.array([t.xy[0] for t in trajs])
-        displacement = translation + deformation_weight * deformation
+        displacement = weight * (translation_weight * translation + deformation_weight * deformation)
         if downward:
             region = shapely.union_all([pair.targets[j].polygon for j in step.instance.target_ids])
             anchors, sign = ends, 1.0
@@ -246,6 +254,45 @@ def region_beyond(
     return _assemble(rings, hole_spacing_m / 8)
 
 
+def movement_consistency(
+    previous: BenchPair | None, pair: BenchPair, hole_spacing_m: float, no_history: float = 1.0
+) -> list[float]:
+    """How far to trust each morph instance's movement below ``pair``, from its history.
+
+    A boundary that dips moves alike from bench to bench; movement that is
+    shape noise (sampling, a domain pinching and swelling) does not repeat.
+    For each instance the translation of its sources over ``pair`` is
+    compared with the translation over ``previous`` of the components they
+    came from: the weight is ``max(0, t_k . t_k-1) / max(|t_k|^2, |t_k-1|^2)``,
+    1 for identical vectors and 0 for unrelated or opposite ones. Instances
+    that barely move on both pairs (less than a quarter spacing) keep weight 1;
+    those with no history (no previous pair, or a component that appeared on
+    the upper bench) keep the paper's full extrapolation, weight 1.
+    """
+    weights = []
+    for step in pair.morphs:
+        ids = list(step.instance.source_ids)
+        if previous is None or previous.correspondence is None or not ids:
+            weights.append(no_history)
+            continue
+        t_now = pair.correspondence.translations[ids].mean(axis=0)
+        # The pair's sources are the previous pair's targets (the same contours).
+        prev_targets = [j for j, c in enumerate(previous.targets) if any(c is pair.sources[i] for i in ids)]
+        prev_sources = sorted(
+            {i for m in previous.correspondence.instances if set(m.target_ids) & set(prev_targets) for i in m.source_ids}
+        )
+        if not prev_sources:
+            weights.append(no_history)
+            continue
+        t_before = previous.correspondence.translations[prev_sources].mean(axis=0)
+        scale = max(float(t_now @ t_now), float(t_before @ t_before))
+        if scale < (0.25 * hole_spacing_m) ** 2:
+            weights.append(1.0)
+            continue
+        weights.append(float(np.clip(float(t_now @ t_before) / scale, 0.0, 1.0)))
+    return weights
+
+
 def predict_geozone(
     model: GeozoneModel, z_m: list[float], hole_spacing_m: float, params=None
 ) -> dict[float, MultiPolygon]:
@@ -258,7 +305,11 @@ def predict_geozone(
     from .pipeline import ModelParameters
 
     params = params or ModelParameters()
-    extra = {"smoothing_spacings": params.smoothing_spacings, "deformation_weight": params.deformation_weight}
+    extra = {
+        "smoothing_spacings": params.smoothing_spacings,
+        "deformation_weight": params.deformation_weight,
+        "translation_weight": params.translation_weight,
+    }
     pairs = [p for p in model.pairs if p.correspondence is not None and p.morphs is not None]
     out: dict[float, MultiPolygon] = {}
     if not pairs:
@@ -273,7 +324,12 @@ def predict_geozone(
             out[z] = as_multipolygon(model.region_at_bench(exact[0]))
         elif z < bottom.target_z_m:
             height = bottom.source_z_m - bottom.target_z_m
-            out[z] = region_beyond(bottom, (bottom.target_z_m - z) / height, hole_spacing_m, True, **extra, frontier=model.frontiers.get(bottom.lower))
+            previous = pairs[-2] if len(pairs) > 1 and pairs[-2].lower == bottom.upper else None
+            out[z] = region_beyond(
+                bottom, (bottom.target_z_m - z) / height, hole_spacing_m, True, **extra,
+                frontier=model.frontiers.get(bottom.lower),
+                step_weights=movement_consistency(previous, bottom, hole_spacing_m),
+            )
         elif z > top.source_z_m:
             height = top.source_z_m - top.target_z_m
             out[z] = region_beyond(top, (z - top.source_z_m) / height, hole_spacing_m, False, **extra, frontier=model.frontiers.get(top.upper))
