@@ -144,11 +144,14 @@ def build(
     progress: Callable[[str, int, int], None] | None = None,
     evaluate: bool = True,
     workers: int | None = None,
+    scheduler: str | None = None,
 ) -> dict:
     """Run the whole pipeline and write every output under ``out_dir``.
 
-    Geozones are independent: they run in parallel on ``workers`` processes
-    (all local cores by default) with identical results.
+    Benches (for contours) and geozones (for everything else) are
+    independent: they run in parallel on ``workers`` local processes (all
+    cores by default), or on a dask.distributed cluster when ``scheduler``
+    gives its address, with identical results.
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
@@ -164,9 +167,7 @@ def build(
     mpu = holes.frame.metres_per_unit
     t0 = time.perf_counter()
 
-    contours = extract_contours(
-        holes, params=params.extraction, progress=(lambda d, n: progress("contours", d, n)) if progress else None
-    )
+    contours = extract_all_benches(holes, params, workers, scheduler, progress)
     write_geojson([contour_feature(c, holes) for c in contours if c.geozone in wanted], out_dir / "contours.geojson")
     containment = containment_summary([c for c in contours if c.geozone in wanted], holes)
     t_contours = time.perf_counter() - t0
@@ -176,7 +177,7 @@ def build(
     ctx = BuildContext(holes, contours, params, project, truth, out_dir, tuple(formats), evaluate)
     summaries: list[GeozoneSummary] = []
     evaluations = []
-    for done, (summary, rows) in enumerate(_map_geozones(ctx, wanted, workers), start=1):
+    for done, (summary, rows) in enumerate(_map_geozones(ctx, wanted, workers, scheduler), start=1):
         summaries.append(summary)
         if rows is not None and len(rows):
             evaluations.append(rows)
@@ -231,32 +232,78 @@ def _init_worker(ctx: BuildContext) -> None:
     _WORKER_CONTEXT = ctx
 
 
-def _worker_geozone(g: str):
-    return build_geozone(_WORKER_CONTEXT, g)
-
-
-def _map_geozones(ctx: BuildContext, geozones: list[str], workers: int | None):
+def _map_geozones(ctx: BuildContext, geozones: list[str], workers: int | None, scheduler: str | None = None):
     """Yield ``build_geozone`` results as they finish, in parallel where it pays."""
+    # Largest geozones first so the last job to start is a short one.
+    order = sorted(geozones, key=lambda g: -int(np.sum(ctx.holes.geozone == g)))
+    yield from _parallel_map(build_geozone, ctx, order, workers, scheduler)
+
+
+def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | None):
+    """``func(ctx, item)`` for every item: serially, on local processes, or on a dask cluster."""
     import multiprocessing
     import os
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    workers = os.cpu_count() or 1 if workers is None else workers
-    if workers <= 1 or len(geozones) <= 1 or "fork" not in multiprocessing.get_all_start_methods():
-        for g in geozones:
-            yield build_geozone(ctx, g)
+    if scheduler:
+        yield from _dask_map(func, ctx, items, scheduler)
         return
-    # Largest geozones first so the last job to start is a short one.
-    order = sorted(geozones, key=lambda g: -int(np.sum(ctx.holes.geozone == g)))
+    workers = (os.cpu_count() or 1) if workers is None else workers
+    if workers <= 1 or len(items) <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        for item in items:
+            yield func(ctx, item)
+        return
     with ProcessPoolExecutor(
-        max_workers=min(workers, len(geozones)),
+        max_workers=min(workers, len(items)),
         mp_context=multiprocessing.get_context("fork"),
         initializer=_init_worker,
         initargs=(ctx,),
     ) as pool:
-        futures = [pool.submit(_worker_geozone, g) for g in order]
+        futures = [pool.submit(_call_in_worker, func, item) for item in items]
         for fut in as_completed(futures):
             yield fut.result()
+
+
+def _dask_map(func, ctx, items: list, scheduler: str):
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise BGMInputError("--scheduler needs dask.distributed: pip install -e '.[dask]'") from None
+    try:
+        client = Client(scheduler, timeout="10s")
+    except (OSError, TimeoutError) as exc:
+        raise BGMInputError(f"cannot reach the dask scheduler at {scheduler}: {exc}") from None
+    try:
+        shared = client.scatter(ctx, broadcast=True)
+        futures = [client.submit(func, shared, item, pure=False) for item in items]
+        for fut in as_completed(futures):
+            yield fut.result()
+    finally:
+        client.close()
+
+
+def _call_in_worker(func, item):
+    return func(_WORKER_CONTEXT, item)
+
+
+def extract_all_benches(holes: Blastholes, params: ModelParameters, workers=None, scheduler=None, progress=None):
+    """Contours of every bench, benches in parallel; in bench order whatever order they finish in."""
+    ctx = (holes, params.extraction)
+    by_bench = {}
+    for done, (k, contours) in enumerate(
+        _parallel_map(_extract_one_bench, ctx, list(range(holes.n_benches)), workers, scheduler), start=1
+    ):
+        by_bench[k] = contours
+        if progress:
+            progress("contours", done, holes.n_benches)
+    return [c for k in sorted(by_bench) for c in by_bench[k]]
+
+
+def _extract_one_bench(ctx, k: int):
+    from .extraction import extract_bench
+
+    holes, extraction = ctx
+    return k, extract_bench(holes, k, None, extraction)
 
 
 def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFrame | None]:

@@ -308,7 +308,7 @@ def evaluate(
     typer.echo(format_table(table))
 
 
-def _run_build(holes, out, geozone, project, truth) -> dict:
+def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None) -> dict:
     from .build import build
     from .project import load_project
 
@@ -326,7 +326,9 @@ def _run_build(holes, out, geozone, project, truth) -> dict:
         bar.update(task, description=stage, completed=done, total=max(total, 1))
 
     with bar:
-        summary = build(holes, out, geozones=geozone, project=proj, truth=truth, progress=progress)
+        summary = build(
+            holes, out, geozones=geozone, project=proj, truth=truth, progress=progress, workers=workers, scheduler=scheduler
+        )
     _say(f"wrote {out}/report.md ({summary['seconds']:.1f} s)")
     return summary
 
@@ -337,6 +339,10 @@ def build(
     out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-out"),
     geozone: Annotated[Optional[list[str]], typer.Option("--geozone", help="Geozones to model (default all).")] = None,
     project: ProjectOpt = None,
+    workers: Annotated[Optional[int], typer.Option(help="Local processes (default: all cores).")] = None,
+    scheduler: Annotated[
+        Optional[str], typer.Option("--scheduler", help="Address of a dask.distributed scheduler to run on instead.")
+    ] = None,
     x: XOpt = None,
     y: YOpt = None,
     z: ZOpt = None,
@@ -350,7 +356,7 @@ def build(
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     if holes.n_benches < 2:
         raise BGMInputError(f"{input} has a single bench; building a model needs two or more benches")
-    summary = _run_build(holes, out, geozone, project, load_truth(input, holes))
+    summary = _run_build(holes, out, geozone, project, load_truth(input, holes), workers, scheduler)
     typer.echo(json.dumps({k: summary[k] for k in ("holes", "seconds")} | {"out": str(out)}))
 
 

@@ -143,8 +143,18 @@ def correspond(
     return pair.correspondence
 
 
-def morph(pair: BenchPair, params: ModelParameters | None = None, keep_fronts: bool = False) -> list[MorphStep]:
-    """Morph every instance of a corresponded pair (paper section 4)."""
+def morph(
+    pair: BenchPair,
+    params: ModelParameters | None = None,
+    keep_fronts: bool = False,
+    hole_spacing_m: float | None = None,
+) -> list[MorphStep]:
+    """Morph every instance of a corresponded pair (paper section 4).
+
+    With ``hole_spacing_m`` the level-set cells are never finer than a
+    quarter of it: contours cannot be placed more finely than the holes
+    allow, and a small pod on a 256-cell grid would cost as much as a pit.
+    """
     params = params or ModelParameters()
     if pair.correspondence is None:
         raise ValueError("morph needs the pair's correspondence first")
@@ -152,9 +162,14 @@ def morph(pair: BenchPair, params: ModelParameters | None = None, keep_fronts: b
     for inst in pair.correspondence.instances:
         sources = [pair.aligned_source(i) for i in inst.source_ids]
         targets = [pair.targets[j].polygon for j in inst.target_ids]
+        cell = None
+        if hole_spacing_m:
+            xmin, ymin, xmax, ymax = shapely.union_all([*sources, *targets]).bounds
+            cell = max(max(xmax - xmin, ymax - ymin) / params.morph_max_cells, hole_spacing_m / 4)
         result = morph_regions(
             sources,
             targets,
+            cell_size_m=cell,
             speed_clamp_m=params.speed_clamp_m,
             keep_fronts=keep_fronts,
             max_cells=params.morph_max_cells,
@@ -207,7 +222,7 @@ def model_geozone(
                 overrides = overrides_for(project, geozone, holes.bench_z_input(pair.upper))
             correspond(pair, holes, params, overrides, keep_fields)
         if "morph" in stages:
-            morph(pair, params, keep_fronts=keep_fields)
+            morph(pair, params, keep_fronts=keep_fields, hole_spacing_m=holes.hole_spacing_m)
         if progress:
             progress(done, len(pairs))
     own = [c for c in contours if c.geozone == geozone]
