@@ -29,3 +29,23 @@ def test_kennecott_contours_for_every_geozone_and_bench(kennecott_csv):
     assert summary["holes_inside_median"] >= 0.95
     assert summary["contours_with_95pct_inside"] >= 0.9
     assert summary["other_holes_inside_median"] <= 0.1
+
+
+def test_kennecott_builds_end_to_end_for_every_geozone(kennecott_csv, tmp_path):
+    """Every geozone and bench pair: correspondence, morph, prediction, surface, evaluation."""
+    from core.build import build
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = read_blastholes(kennecott_csv)
+    summary = build(holes, tmp_path, workers=2)
+    print("Kennecott build:", json.dumps({k: summary[k] for k in ("seconds", "contours_seconds")}))
+    for g in summary["geozones"]:
+        print(json.dumps({k: g[k] for k in ("geozone", "components", "bench_pairs", "coverage_before", "coverage_after", "watertight", "note")}))
+        if g["bench_pairs"]:
+            assert g["watertight"], g
+            assert g["coverage_after"] >= 0.95, g
+            assert g["coverage_after"] >= g["coverage_before"] - 1e-9, g
+        else:
+            assert "one bench" in g["note"]
+    assert summary["evaluation"] and (tmp_path / "report.md").exists()
