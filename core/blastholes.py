@@ -39,6 +39,9 @@ FEET_TO_METRES = 0.3048
 OFF_BENCH_FRACTION = 0.3
 #: Holes closer than this (metres) on one bench are the same hole.
 COINCIDENT_M = 1e-3
+#: Smallest bench height (input units, metres or feet) recognised when benches
+#: are given at exact levels with no scatter (see :func:`detect_benches`).
+MIN_BENCH_GAP = 2.0
 
 
 class BGMWarning(UserWarning):
@@ -471,6 +474,13 @@ def detect_benches(
         # all equal on a single bench).
         typical = np.median(gaps[gaps > 0])
         cut = (gaps > gaps.max() / 3.0) & (gaps > 20.0 * typical)
+        # Benches given at exact levels (z is the bench RL, no scatter): the only
+        # positive gaps are then the bench gaps themselves, so ``typical`` is a
+        # bench gap and nothing was cut (all benches merged into one and their
+        # holes into "duplicates"). A wide gap of at least MIN_BENCH_GAP units is
+        # a bench break too; rounding steps are smaller, and splits inside a
+        # scattered bench are merged back just below.
+        cut |= (gaps > gaps.max() / 3.0) & (gaps >= MIN_BENCH_GAP)
         labels = _merge_scatter_splits(zs, np.concatenate([[0], np.cumsum(cut)]))
         centres = []
         for k in range(labels[-1] + 1):
