@@ -92,7 +92,8 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
     else:
         layers.append(WavefrontLayer())
         layers.append(TrajectoriesLayer())
-    layers.append(ContoursLayer(list(predicted), colours, name="predicted contours", predicted=True, line_width=2.0))
+    predicted = list(predicted) or list(getattr(result, "predicted", []))
+    layers.append(ContoursLayer(predicted, colours, name="predicted contours", predicted=True, line_width=2.0))
     surf = [(selection.geozone, result.surface)] if result.surface is not None else []
     layers.append(SurfaceLayer.from_trimesh(surf, colours))
     return layers

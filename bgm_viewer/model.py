@@ -113,6 +113,7 @@ class PipelineResult:
     correspondence: object | None = None  # core.correspondence.PairCorrespondence
     morph: MorphRecord | None = None
     surface: object | None = None  # trimesh.Trimesh
+    predicted: list = field(default_factory=list)  # (geozone, z_m, polygon) below the deepest bench
     timings: dict[str, float] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
     complete: bool = False
@@ -211,6 +212,12 @@ def compute(inputs: PipelineInputs, previous: PipelineResult | None, from_stage:
         except Exception as exc:  # noqa: BLE001 - shown in the status bar, never fatal
             res.errors["surface"] = str(exc)
         res.timings["surface"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        try:
+            res.predicted = _predict(inputs, res)
+        except Exception as exc:  # noqa: BLE001 - shown in the status bar, never fatal
+            res.errors["prediction"] = str(exc)
+        res.timings["prediction"] = time.perf_counter() - t0
     res.complete = True
     yield "done", 1.0, snapshot()
 
@@ -281,6 +288,28 @@ def _morph(inputs: PipelineInputs, res: PipelineResult) -> MorphRecord | None:
     z = holes.bench_levels_m
     return MorphRecord(list(inst.source_ids), list(inst.target_ids), result, (float(shift[0]), float(shift[1])),
                        float(z[sel.bench]), float(z[sel.bench + 1]))
+
+
+def _predict(inputs: PipelineInputs, res: PipelineResult) -> list:
+    """The selected geozone half a bench and one bench below the deepest bench (core.prediction)."""
+    from core.pipeline import GeozoneModel, bench_pairs, correspond, drilling_frontiers, morph
+    from core.prediction import predict_geozone
+
+    holes, sel = inputs.holes, inputs.selection
+    contours = [c for b in sorted(res.contours) for c in res.contours[b]]
+    pairs = bench_pairs(holes, contours, sel.geozone, 3)
+    if not pairs or not pairs[-1].targets:
+        return []
+    used = pairs[-2:] if len(pairs) > 1 and pairs[-2].lower == pairs[-1].upper else pairs[-1:]
+    for p in used:
+        correspond(p, holes)
+        morph(p, hole_spacing_m=holes.hole_spacing_m)
+    last = used[-1]
+    own = [c for c in contours if c.geozone == sel.geozone]
+    model = GeozoneModel(sel.geozone, own, used, frontiers=drilling_frontiers(holes, {last.lower}))
+    height = last.source_z_m - last.target_z_m
+    out = predict_geozone(model, [last.target_z_m - f * height for f in (0.5, 1.0)], holes.hole_spacing_m)
+    return [(sel.geozone, z, poly) for z, region in out.items() for poly in region.geoms]
 
 
 def _surface(inputs: PipelineInputs, res: PipelineResult):

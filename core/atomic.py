@@ -14,6 +14,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from .errors import BGMInputError
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
@@ -29,10 +31,18 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     that writers choosing a format by extension still work.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(
-        dir=path.parent, prefix=f".{path.name}.", suffix=suffix if suffix is not None else path.suffix
-    )
+    # An output path that is a folder, or a folder that cannot be created or
+    # written to, is the user's to fix: say so in one line (BGMInputError)
+    # instead of an internal error from os.replace / mkstemp.
+    if path.is_dir():
+        raise BGMInputError(f"cannot write {str(path)!r}: it is a directory; give a file name")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(
+            dir=path.parent, prefix=f".{path.name}.", suffix=suffix if suffix is not None else path.suffix
+        )
+    except OSError as exc:
+        raise BGMInputError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
     os.close(fd)
     tmp = Path(tmp_name)
     try:

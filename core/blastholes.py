@@ -42,6 +42,8 @@ COINCIDENT_M = 1e-3
 #: Smallest bench height (input units, metres or feet) recognised when benches
 #: are given at exact levels with no scatter (see :func:`detect_benches`).
 MIN_BENCH_GAP = 2.0
+#: Coordinates larger than this (input units) are rejected as not coordinates.
+MAX_COORDINATE = 1e12
 
 
 class BGMWarning(UserWarning):
@@ -359,6 +361,15 @@ def blastholes_from_table(
             raise BGMInputError(
                 f"column {cols[role]!r} ({role}) has {len(bad)} missing, non-numeric or infinite "
                 f"value(s), on data line(s) {_rows(bad)}"
+            )
+        # Finite but absurd magnitudes (1e300) overflow distance computations
+        # (kD-tree) deep in the engine; no mine grid comes near 1e12 units, and
+        # past it float64 cannot hold sub-millimetre positions anyway.
+        huge = np.flatnonzero(np.abs(values) > MAX_COORDINATE)
+        if len(huge):
+            raise BGMInputError(
+                f"column {cols[role]!r} ({role}) has {len(huge)} value(s) beyond {MAX_COORDINATE:.0e} in "
+                f"magnitude, too large to be coordinates, on data line(s) {_rows(huge)}"
             )
         coords[role] = values
     labels = _label_strings(table[cols["geozone"]])

@@ -110,6 +110,8 @@ def load_project(path: str | os.PathLike) -> Project:
         malformed override.
     """
     path = Path(path)
+    if path.is_dir():  # "does not exist" would mislead
+        raise BGMInputError(f"project file {path} is a directory, not a project file.")
     if not path.is_file():
         raise BGMInputError(f"project file {path} does not exist.")
     try:

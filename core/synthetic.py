@@ -260,7 +260,8 @@ def drill_pattern(
 def bench_footprint(mine: SyntheticMine, k: int, rng: np.random.Generator, partial: bool) -> Polygon:
     """Drilled area of bench ``k``: the pit shrinks with depth; some benches are only partly drilled."""
     xmin, ymin, xmax, ymax = mine.extent_m
-    shrink = 0.03 * k * min(xmax - xmin, ymax - ymin)
+    # The pit narrows by 3% of its width per bench, to at most 30% (deep pits keep a floor).
+    shrink = min(0.03 * k, 0.3) * min(xmax - xmin, ymax - ymin)
     area = box(xmin + shrink, ymin + shrink, xmax - shrink, ymax - shrink)
     area = area.buffer(-0.1 * (ymax - ymin), join_style="round").buffer(0.1 * (ymax - ymin), join_style="round")
     if partial:

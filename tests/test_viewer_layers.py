@@ -194,7 +194,12 @@ def test_scene_from_pipeline(model):
     assert scene["snake"].n_frames > 1
     assert not scene["trajectories"].is_empty and not scene["wavefront"].is_empty
     assert not scene["surfaces"].is_empty
-    assert scene["predicted contours"].is_empty  # no core prediction stage yet
+    # Predicted contours of the selected geozone, half a bench and a bench below the deepest one.
+    assert not scene["predicted contours"].is_empty, res.errors
+    deepest = float(model.holes.bench_levels_m[-1])
+    assert {round(z - deepest, 6) for _, z, _ in res.predicted} == {
+        round(-0.5 * model.holes.bench_height_m, 6), round(-model.holes.bench_height_m, 6)}
+    assert all(p.is_valid and p.area > 0 for _, _, p in res.predicted)
     labels = [label for label, _ in scene.legend_entries()]
     assert "geozone g1" in labels and "GVF" in labels
     scene["GVF"].visible = False
