@@ -1,0 +1,50 @@
+"""Per-geozone work runs serially, on local processes or on a dask cluster, with identical results."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import pytest
+
+from core.blastholes import BGMWarning, blastholes_from_table
+from core.build import build
+from core.synthetic import make_mine, sample_blastholes
+
+
+@pytest.fixture(scope="module")
+def holes():
+    mine = make_mine(seed=9, n_benches=3, extent_m=(140.0, 100.0), n_pods=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        return blastholes_from_table(sample_blastholes(mine, seed=10))
+
+
+def _results(out):
+    summary = json.loads((out / "summary.json").read_text())
+    geozones = {g["geozone"]: {k: g[k] for k in ("components", "bench_pairs", "coverage_after", "volume")} for g in summary["geozones"]}
+    predictions = {g: (out / g / "prediction.geojson").read_text() for g in geozones if (out / g / "prediction.geojson").exists()}
+    contours = (out / "contours.geojson").read_text()
+    return geozones, predictions, contours
+
+
+def test_local_processes_match_a_serial_run(holes, tmp_path):
+    build(holes, tmp_path / "serial", workers=1, evaluate=False, formats=("ply",))
+    build(holes, tmp_path / "parallel", workers=2, evaluate=False, formats=("ply",))
+    assert _results(tmp_path / "serial") == _results(tmp_path / "parallel")
+
+
+def test_a_dask_cluster_matches_a_serial_run(holes, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    build(holes, tmp_path / "serial", workers=1, evaluate=False, formats=("ply",))
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        build(holes, tmp_path / "dask", scheduler=cluster.scheduler_address, evaluate=False, formats=("ply",))
+    assert _results(tmp_path / "serial") == _results(tmp_path / "dask")
+
+
+def test_unreachable_scheduler_is_a_clear_error(holes, tmp_path):
+    pytest.importorskip("distributed")
+    from core.errors import BGMInputError
+
+    with pytest.raises(BGMInputError, match="cannot reach the dask scheduler"):
+        build(holes, tmp_path / "x", scheduler="tcp://127.0.0.1:9", evaluate=False, formats=("ply",))
