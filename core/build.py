@@ -362,7 +362,9 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         summary.area = info["area_m2"] / mpu**2
         summary.watertight = bool(info["watertight"])
         summary.files = {k: str(Path(v).relative_to(out_dir)) for k, v in exported.items()}
-    except BGMInputError as exc:  # e.g. a geozone whose every section is empty
+    except (BGMInputError, RuntimeError) as exc:
+        # e.g. every section empty, or a mesh that would not close even after repair: the
+        # geozone's other outputs stand, and the report says why it has no surface.
         summary.note = f"no surface: {exc}"
     if ctx.evaluate and holes.n_benches >= 3:
         rows = evaluate_geozone(holes, g, predictor_from_model(model, holes, params), truth=ctx.truth, contours=ctx.contours)

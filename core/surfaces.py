@@ -171,6 +171,8 @@ def surface_from_sections(
         mesh.fix_normals(multibody=False)
         if mesh.volume < 0:
             mesh.invert()
+    if not (mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0):
+        mesh = _repair(mesh)
     _check(mesh)
     return mesh
 
@@ -313,6 +315,23 @@ def _fill_empty_sections(sdfs: list, regions: list, cell_size_m: float) -> None:
         near = [depth[j] for j in (i - 1, i + 1) if 0 <= j < len(sdfs) and depth[j] is not None]
         m = max(near) if near else cell_size_m
         sdfs[i] = np.full(shape, -(max(m, 0.0) + 0.5 * cell_size_m))
+
+
+def _repair(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """Standard repairs for the rare marching-cubes mesh that does not close.
+
+    Merging coincident vertices, dropping zero-area faces and filling small
+    holes closes meshes opened by near-degenerate voxel configurations; the
+    result is checked again by :func:`_check`.
+    """
+    mesh.merge_vertices()
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.remove_unreferenced_vertices()
+    trimesh.repair.fill_holes(mesh)
+    trimesh.repair.fix_normals(mesh, multibody=True)
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh
 
 
 def _check(mesh: trimesh.Trimesh) -> None:
