@@ -59,12 +59,16 @@ def _load(input: Path, x, y, z, geozone_column, bench_height, units):
         input, x=x, y=y, z=z, geozone=geozone_column, bench_height=bench_height, length_unit=units
     )
     unit = holes.frame.length_unit
-    height = holes.frame.length_to_input(holes.bench_height_m) if holes.n_benches > 1 else float("nan")
-    _say(
-        f"{input}: {len(holes.xy)} holes, {len(holes.geozones)} geozones, {holes.n_benches} benches "
-        f"({holes.bench_z_input(0)} to {holes.bench_z_input(holes.n_benches - 1)} {unit}, "
-        f"bench height {height:.1f} {unit}), hole spacing {holes.frame.length_to_input(holes.hole_spacing_m):.2f} {unit}"
-    )
+    spacing = f"hole spacing {holes.frame.length_to_input(holes.hole_spacing_m):.2f} {unit}"
+    if holes.n_benches == 1:
+        benches = f"1 bench at {holes.bench_z_input(0)} {unit}"
+    else:
+        height = holes.frame.length_to_input(holes.bench_height_m)
+        benches = (
+            f"{holes.n_benches} benches ({holes.bench_z_input(0)} to {holes.bench_z_input(holes.n_benches - 1)} {unit}, "
+            f"bench height {height:.1f} {unit})"
+        )
+    _say(f"{input}: {len(holes.xy)} holes, {len(holes.geozones)} geozones, {benches}, {spacing}")
     return holes
 
 

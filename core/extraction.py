@@ -142,7 +142,7 @@ def extract_bench(
         return []
     xy = holes.xy[idx]
     labels = holes.geozone[idx]
-    spacing = holes.hole_spacing_m
+    spacing = bench_spacing(xy, holes.hole_spacing_m)
     radius = params.radius_m(spacing)
     table = neighbour_table(xy, radius)
     entropy = local_entropy(labels, table)
@@ -162,8 +162,37 @@ def extract_bench(
                     keep_fields and g in wanted,
                 )
             )
-    contours = _cut_enclosed(contours)
+    contours = _cut_enclosed(contours, holes.xy, spacing)
     return [c for c in contours if c.geozone in wanted]
+
+
+#: A bench whose own hole spacing differs from the whole table's by more than
+#: this factor is extracted with its own spacing (see :func:`bench_spacing`).
+BENCH_SPACING_FACTOR = 2.0
+#: A snake contour holding fewer of its component's holes than this gets the
+#: missed holes added back (see :func:`_extract_component`).
+MIN_HOLES_INSIDE = 0.9
+
+
+def bench_spacing(xy: np.ndarray, table_spacing_m: float) -> float:
+    """The hole spacing extraction uses on one bench.
+
+    The table's median spacing, unless this bench is drilled on a pattern more
+    than :data:`BENCH_SPACING_FACTOR` times denser or sparser (a 25 m
+    exploration grid under a 3 m grade-control bench): with the table's
+    spacing every hole of such a bench would be a component of its own (or a
+    dense bench one blob), so the bench's own median nearest-neighbour
+    distance is used. Ordinary pattern changes (5-7 m) keep the table's value.
+    """
+    from .blastholes import median_hole_spacing
+
+    if len(xy) < 2:
+        return table_spacing_m
+    own = median_hole_spacing(xy, np.zeros(len(xy), int))
+    if not np.isfinite(own) or own <= 0:
+        return table_spacing_m
+    ratio = own / table_spacing_m
+    return float(own) if ratio > BENCH_SPACING_FACTOR or ratio < 1 / BENCH_SPACING_FACTOR else table_spacing_m
 
 
 def _transition_points(xy: np.ndarray, labels: np.ndarray, table: np.ndarray) -> np.ndarray:
@@ -222,6 +251,17 @@ def _extract_component(
         # The snake collapsed (e.g. a ring of boundary holes around a large gap):
         # the outline of the holes is the honest answer.
         polygon, contour.method = _outline(np.vstack([xy, edge_points]), spacing), "outline"
+    elif inside < MIN_HOLES_INSIDE:
+        # The snake's rigidity cut the corners of a small, ragged component
+        # (single holes sticking out of it), or shrank along a single row of
+        # holes (collinear drilling), and left more than a tenth of its holes
+        # outside: add those holes' discs back (closed over a spacing)
+        # so the contour holds its own holes. Contours that already hold 90%
+        # are left exactly as the snake found them.
+        missed = ~shapely.contains_xy(polygon, xy[:, 0], xy[:, 1])
+        discs = shapely.buffer(MultiPoint(xy[missed]), 0.5 * spacing, quad_segs=8)
+        merged = polygon.union(discs).buffer(0.5 * spacing, quad_segs=8).buffer(-0.5 * spacing, quad_segs=8)
+        polygon = _largest_polygon(merged)
     contour.polygon = polygon
     contour.fields = fields
     return contour
@@ -304,6 +344,15 @@ def _largest_polygon(geometry) -> Polygon:
     return shapely.geometry.polygon.orient(max(parts, key=lambda p: p.area))
 
 
+def _part_with_most(geometry, xy: np.ndarray) -> Polygon:
+    """The polygon of ``geometry`` holding most of the points ``xy`` (ties: the largest)."""
+    parts = list(as_multipolygon(geometry).geoms)
+    if not parts:
+        return Polygon()
+    best = max(parts, key=lambda q: (int(shapely.contains_xy(q, xy[:, 0], xy[:, 1]).sum()), q.area))
+    return shapely.geometry.polygon.orient(best)
+
+
 def _outline(points: np.ndarray, spacing: float) -> Polygon:
     """Outline of a handful of holes: their discs of half a spacing, closed over gaps of a spacing."""
     discs = shapely.buffer(MultiPoint(points), 0.5 * spacing, quad_segs=8)
@@ -311,30 +360,68 @@ def _outline(points: np.ndarray, spacing: float) -> Polygon:
     return _largest_polygon(closed)
 
 
-def _cut_enclosed(contours: list[Contour]) -> list[Contour]:
+def _cut_enclosed(
+    contours: list[Contour], holes_xy: np.ndarray | None = None, spacing: float | None = None
+) -> list[Contour]:
     """Resolve overlaps between geozones on a bench: the smaller region wins.
 
     A region enclosed by a larger one (a pod in host rock) becomes a hole in
     it; one that overlaps the edge of a larger one (a body at the drilling
     frontier) is cut from it, so regions on a bench never overlap.
+
+    With ``holes_xy`` and ``spacing``, when the cut would leave the larger
+    contour holding less than :data:`MIN_HOLES_INSIDE` of its holes because
+    the smaller regions' contours overreach its holes along their common
+    boundary (holes of the larger component inside a smaller region, within
+    half a spacing of its edge), those holes' discs (0.4 spacing) stay with the
+    larger region and are taken out of the smaller ones. Holes deep inside a
+    smaller region (mislabelled assays in a pod) still go with it; contours
+    that keep 90% of their holes are cut exactly as before.
     """
     polys = [c.polygon for c in contours]
     tree = shapely.STRtree(polys)
+    keep_out = [[] for _ in contours]  # discs given back to a larger neighbour, per smaller contour
+    cutters: list[list[int]] = []
+    for i, c in enumerate(contours):
+        p = polys[i]
+        cut = []
+        if not p.is_empty:
+            for j in tree.query(p):
+                q = polys[j]
+                if j == i or contours[j].geozone == c.geozone or q.is_empty or q.area >= p.area:
+                    continue
+                if p.intersects(q):
+                    cut.append(j)
+        cutters.append(cut)
+        if not cut or holes_xy is None or not spacing:
+            continue
+        own = holes_xy[c.holes]
+        inside = shapely.contains_xy(p, own[:, 0], own[:, 1])
+        lost = [shapely.contains_xy(polys[j], own[:, 0], own[:, 1]) & inside for j in cut]
+        if (inside & ~np.any(lost, axis=0)).mean() >= MIN_HOLES_INSIDE:
+            continue  # the cut leaves this contour holding 90% of its holes: as before
+        for j, lost_j in zip(cut, lost):
+            if lost_j.any():
+                pts = own[lost_j]
+                near = shapely.distance(polys[j].boundary, shapely.points(pts)) < 0.5 * spacing
+                if near.any():
+                    keep_out[j].append(shapely.buffer(MultiPoint(pts[near]), 0.4 * spacing, quad_segs=8))
+    # The smaller regions first lose the discs they overreached into ...
+    shrunk = list(polys)
+    for j, discs in enumerate(keep_out):
+        if discs:
+            shrunk[j] = _largest_polygon(polys[j].difference(shapely.union_all(discs)))
+    # ... then are cut out of the larger ones.
     out = []
     for i, c in enumerate(contours):
-        p = c.polygon
-        if p.is_empty:
-            out.append(c)
-            continue
-        cut = []
-        for j in tree.query(p):
-            q = polys[j]
-            if j == i or contours[j].geozone == c.geozone or q.is_empty or q.area >= p.area:
-                continue
-            if p.intersects(q):
-                cut.append(q)
-        if cut:
-            p = _largest_polygon(p.difference(shapely.union_all(cut)))
+        p = polys[i]
+        if cutters[i]:
+            p = p.difference(shapely.union_all([shrunk[j] for j in cutters[i]]))
+            # A smaller region across it may split it: keep the part holding
+            # most of the component's holes (the largest one when unknown).
+            p = _largest_polygon(p) if holes_xy is None else _part_with_most(p, holes_xy[c.holes])
+        if p is not polys[i] or shrunk[i] is not polys[i]:
+            p = p if not keep_out[i] else _largest_polygon(p.difference(shapely.union_all(keep_out[i])))
             c = replace(c, polygon=p)
         out.append(c)
     return out

@@ -17,8 +17,25 @@ from .extraction import Contour
 
 
 def to_input_geometry(geometry, holes: Blastholes):
-    """A local-metre shapely geometry in the input's coordinates."""
-    return shapely.transform(geometry, holes.frame.to_input)
+    """A local-metre shapely geometry in the input's coordinates.
+
+    Adding mine-grid offsets (y ~ 7,400,000) rounds coordinates to ~1e-9 m,
+    which can turn a valid hair-thin sliver of a local polygon (e.g. where a
+    single row of holes meets another geozone) into a self-intersection. Such
+    results are repaired, keeping the type: a Polygon stays a Polygon (its
+    largest part; the others are rounding debris), a MultiPolygon stays one.
+    """
+    out = shapely.transform(geometry, holes.frame.to_input)
+    if out.is_empty or out.is_valid or out.geom_type not in ("Polygon", "MultiPolygon"):
+        return out
+    from .grid import as_multipolygon
+
+    parts = as_multipolygon(out)
+    if out.geom_type == "Polygon":
+        if not parts.geoms:
+            return shapely.Polygon()
+        return shapely.geometry.polygon.orient(max(parts.geoms, key=lambda p: p.area))
+    return parts
 
 
 def contour_feature(contour: Contour, holes: Blastholes) -> dict:
