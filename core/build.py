@@ -81,7 +81,8 @@ def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelPa
         if not pairs or pairs[-1].lower != k:
             return {z: shapely.MultiPolygon() for z in z_targets_m}
         partial = GeozoneModel(
-            model.geozone, [c for c in model.contours if c.bench <= k], pairs, frontiers=model.frontiers
+            model.geozone, [c for c in model.contours if c.bench <= k], pairs, model.minor,
+            frontiers=model.frontiers, beyond_frontier=model.beyond_frontier,
         )
         return predict_geozone(partial, list(z_targets_m), holes.hole_spacing_m, params)
 

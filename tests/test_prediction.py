@@ -14,7 +14,8 @@ from core.evaluation import evaluate_geozone, summary_table, truth_from_mine
 from core.extraction import Contour
 from core.extraction import extract_contours
 from core.pipeline import BenchPair, GeozoneModel, ModelParameters, model_geozone, morph
-from core.prediction import predict_geozone, region_beyond, region_between
+from core.pipeline import beyond_frontiers
+from core.prediction import persistence_coefficient, predict_geozone, region_beyond, region_between
 
 
 def _contour(poly, bench, z) -> Contour:
@@ -70,8 +71,9 @@ def test_predict_geozone_picks_bench_between_below_and_above():
     out = predict_geozone(model, [110.0, 100.0, 95.0, 90.0, 80.0], 5.0)
     assert out[100.0].equals(shapely.MultiPolygon([pair.sources[0].polygon]))
     assert iou(out[95.0], Point(3.0, 1.5).buffer(30.0)) > 0.93
-    assert iou(out[80.0], Point(12.0, 6.0).buffer(30.0)) > 0.93
-    assert iou(out[110.0], Point(-6.0, -3.0).buffer(30.0)) > 0.93
+    # One pair: no history to learn persistence from, so half the movement carries on.
+    assert iou(out[80.0], Point(9.0, 4.5).buffer(30.0)) > 0.93
+    assert iou(out[110.0], Point(-3.0, -1.5).buffer(30.0)) > 0.93
 
 
 def test_a_splitting_body_keeps_splitting_below_the_benches():
@@ -102,3 +104,59 @@ def test_model_beats_nil_below_withheld_benches_on_a_fresh_mine(geozone):
         r = table.loc[fraction]
         assert r.precision_model > r.precision_nil, r
         assert r.recall_model > r.recall_nil, r
+
+
+def _pair_between(src_contour, centre, bench, r=30.0) -> BenchPair:
+    tgt = _contour(Point(*centre).buffer(r, quad_segs=32), bench + 1, 100.0 - 10 * (bench + 1))
+    pair = BenchPair("g", bench, bench + 1, 100.0 - 10 * bench, 100.0 - 10 * (bench + 1), [src_contour], [tgt])
+    pair.correspondence = correspond_pair([src_contour.polygon], [tgt.polygon], hole_spacing_m=5.0)
+    morph(pair)
+    return pair
+
+
+def _three_benches(first_shift, second_shift) -> list[BenchPair]:
+    top = _contour(Point(0, 0).buffer(30.0, quad_segs=32), 0, 100.0)
+    a = _pair_between(top, first_shift, 0)
+    b = _pair_between(a.targets[0], np.add(first_shift, second_shift), 1)
+    return [a, b]
+
+
+def test_persistence_is_learnt_from_the_geozones_own_benches():
+    steady = persistence_coefficient(_three_benches((8.0, 4.0), (8.0, 4.0)), 5.0)
+    back_and_forth = persistence_coefficient(_three_benches((8.0, 4.0), (-8.0, -4.0)), 5.0)
+    assert steady > 0.9
+    assert back_and_forth == 0.0
+    # One pair: nothing to learn from, half the paper's extrapolation.
+    assert persistence_coefficient(_three_benches((8.0, 4.0), (8.0, 4.0))[:1], 5.0) == 0.5
+
+
+def test_a_steady_dip_is_carried_on_and_a_wobble_is_held():
+    for second, expected in (((8.0, 4.0), (24.0, 12.0)), ((-8.0, -4.0), (0.0, 0.0))):
+        pairs = _three_benches((8.0, 4.0), second)
+        model = GeozoneModel("g", [pairs[0].sources[0], pairs[0].targets[0], pairs[1].targets[0]], pairs)
+        below = predict_geozone(model, [70.0], 5.0)[70.0]
+        assert iou(below, Point(*expected).buffer(30.0)) > 0.9, (second, below.centroid)
+
+
+def test_a_geozone_goes_on_past_the_drilling_frontier():
+    import pandas as pd
+
+    from core.blastholes import blastholes_from_table
+
+    # Bench 0 (z 100) drilled over x < 150 with the geozone on y > 20; bench 1 (z 90)
+    # drilled over x < 100 only, with the geozone on y > 0.
+    rows = []
+    for z, x_end, y_cut in ((100.0, 150.0, 20.0), (90.0, 100.0, 0.0)):
+        gx, gy = np.meshgrid(np.arange(0.0, x_end, 5.0), np.arange(-50.0, 50.0, 5.0))
+        for x, y in zip(gx.ravel(), gy.ravel()):
+            rows.append((x, y, z, "a" if y > y_cut else "b"))
+    holes = blastholes_from_table(pd.DataFrame(rows, columns=["x", "y", "z", "geozone"]))
+    beyond = beyond_frontiers(holes, "a", {1}, reach_spacings=20)[1]
+    to_local = lambda x, y: Point(*holes.frame.to_local(np.array([x]), np.array([y]))[0])  # noqa: E731
+    assert beyond.is_valid and beyond.intersection(holes.drilled_area(1)).area < 1e-6
+    assert beyond.contains(to_local(120.0, 30.0))  # bench 0 was drilled there: its label
+    assert not beyond.contains(to_local(120.0, 10.0))  # bench 0 says b, though bench 1's nearest hole is a
+    assert beyond.contains(to_local(165.0, 10.0))  # past every bench: the nearest hole of bench 1
+    assert not beyond.contains(to_local(165.0, -10.0))
+    assert not beyond.contains(to_local(230.0, 30.0))  # further than the reach
+    assert beyond_frontiers(holes, "a", {1}, reach_spacings=0)[1].difference(holes.drilled_area(0)).area < 1e-6

@@ -26,11 +26,15 @@ HOLE_AREA_M2 = 6.0 * 6.0 * math.sqrt(3) / 2  # one hole per cell of a 6 m stagge
 
 def synthetic_table(n_holes: int, seed: int = 7):
     n_benches = int(min(max(round(math.log10(n_holes) * 4 - 8), 4), 16))
-    # The pit shrinks with depth (see core.synthetic.bench_footprint): scale the top extent up.
+    # The pit shrinks with depth and benches are drilled in part (see core.synthetic):
+    # size the top bench from a first guess, then rescale once to the count it gave.
     per_bench = n_holes / n_benches / 0.75
     side = math.sqrt(per_bench * HOLE_AREA_M2 / 0.75)
-    mine = make_mine(seed=seed, n_benches=n_benches, extent_m=(side / 0.75 ** 0.5, side * 0.75 ** 0.5), n_pods=6)
-    return sample_blastholes(mine, seed=seed + 1), n_benches
+    for _ in range(3):
+        mine = make_mine(seed=seed, n_benches=n_benches, extent_m=(side / 0.75 ** 0.5, side * 0.75 ** 0.5), n_pods=6)
+        table = sample_blastholes(mine, seed=seed + 1)
+        side *= math.sqrt(n_holes / len(table))
+    return table, n_benches
 
 
 def main(sizes: list[int]) -> None:
