@@ -22,11 +22,12 @@ import traceback
 import warnings
 from pathlib import Path
 
+import numpy as np
 from qtpy import QtCore, QtGui, QtWidgets
 
 from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, refresh_scene
 from .model import PARAMETERS, STAGES, Cancelled, ViewerModel, compute
-from .scene import SceneRenderer
+from .scene import SceneRenderer, drag_on_plane
 
 Signal = QtCore.Signal
 SLIDER_STEPS = 1000
@@ -89,6 +90,41 @@ class ParamControl(QtWidgets.QWidget):
         return float(self.field.value())
 
 
+def _single_render(interactor):
+    """Make the VTK widget show a frame VTK has just rendered without rendering it again.
+
+    pyvistaqt's widget renders the scene again in every ``paintGL`` (so a
+    scene changed without a render never shows stale), and every VTK render
+    (camera interaction, :class:`SceneRenderer`) schedules such a paint: each
+    frame was drawn twice, ~65 ms instead of ~30 ms with software OpenGL.
+    After a finished VTK render the next paint only copies its image, as the
+    C++ ``QVTKOpenGLNativeWidget`` does; every other paint still renders.
+    """
+    if not hasattr(interactor, "_in_paint"):
+        return interactor  # a pyvistaqt without the hook: keep its behaviour
+    fresh = {"frame": False}
+
+    def rendered(*_):
+        if not interactor._in_paint:
+            fresh["frame"] = True
+
+    interactor.ren_win.AddObserver("EndEvent", rendered)
+    paint = interactor.paintGL
+
+    def paint_gl():
+        if not fresh["frame"]:
+            return paint()
+        fresh["frame"] = False
+        interactor._in_paint = True  # pyvistaqt then blits without rendering
+        try:
+            return paint()
+        finally:
+            interactor._in_paint = False
+
+    interactor.paintGL = paint_gl
+    return interactor
+
+
 class MainWindow(QtWidgets.QMainWindow):
     """BGM viewer main window."""
 
@@ -122,7 +158,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._debounce.timeout.connect(self._start_queued)
 
         # no multi-sampling: software rendering is ~4x slower with it (see issue 6)
-        self.plotter = QtInteractor(self, multi_samples=0, auto_update=False)
+        self.plotter = _single_render(QtInteractor(self, multi_samples=0, auto_update=False))
         self.setCentralWidget(self.plotter.interactor)
         self.scene = build_scene(self.model.holes, self.model.result, self.model.selection,
                                  visible=DEFAULT_VISIBLE, vertical_exaggeration=self.model.vertical_exaggeration)
@@ -142,6 +178,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._play.setInterval(80)
         self._play.timeout.connect(self._advance_frame)
         self.model.connect(self._on_model)
+        self._drag_start: tuple[int, int] | None = None
+        self._watch_mouse()
         self._update_title()
         if auto_run:
             self.request("boundary", immediate=True)
@@ -299,11 +337,66 @@ class MainWindow(QtWidgets.QMainWindow):
         self.nudge_step.setRange(0.1, 100.0)
         self.nudge_step.setValue(1.0)
         form.addRow("Ctrl+arrow step (m)", self.nudge_step)
+        form.addRow(QtWidgets.QLabel("Shift + drag in the view moves the source on its bench."))
         for key, (dx, dy) in {"Left": (-1, 0), "Right": (1, 0), "Up": (0, 1), "Down": (0, -1)}.items():
             sc = QtWidgets.QShortcut(QtGui.QKeySequence(f"Ctrl+{key}"), self)
             sc.activated.connect(lambda dx=dx, dy=dy: self.nudge(dx * self.nudge_step.value(),
                                                                  dy * self.nudge_step.value()))
         self._dock("Manual alignment", w, QtCore.Qt.RightDockWidgetArea)
+
+    # ------------------------------------------------------------------ mouse alignment
+    def _watch_mouse(self) -> None:
+        """Shift + left drag in the 3D view moves the selected source on its bench plane.
+
+        The observers sit on the VTK interactor ahead of the camera style and
+        swallow the events of a Shift drag, so the camera stays put while the
+        source moves; any other drag turns the camera as usual.
+        """
+        iren = self.plotter.iren.interactor
+        self._mouse_tags = {}
+        for event, handler in (("LeftButtonPressEvent", self._on_press), ("MouseMoveEvent", self._on_move),
+                               ("LeftButtonReleaseEvent", self._on_release)):
+            self._mouse_tags[event] = iren.AddObserver(event, handler, 10.0)
+
+    def _swallow(self, event: str) -> None:
+        self.plotter.iren.interactor.GetCommand(self._mouse_tags[event]).SetAbortFlag(1)
+
+    def _source_plane_z(self) -> float:
+        z = float(self.model.holes.bench_levels_m[self.model.selection.bench])
+        return float(self.scene.view.z(z))
+
+    def drag_translation(self, start_px, end_px) -> np.ndarray | None:
+        """World ``(dx, dy)`` metres of a drag between two display pixels on the source bench."""
+        return drag_on_plane(self.plotter, start_px, end_px, self._source_plane_z())
+
+    def _on_press(self, iren, event) -> None:
+        if not iren.GetShiftKey() or self.model.current_translation_m() is None:
+            return
+        self._drag_start = tuple(iren.GetEventPosition())
+        self.statusBar().showMessage("dragging the source: release to apply")
+        self._swallow(event)
+
+    def _on_move(self, iren, event) -> None:
+        if self._drag_start is None:
+            return
+        d = self.drag_translation(self._drag_start, iren.GetEventPosition())
+        if d is not None:
+            cur = self.model.current_translation_m() or (0.0, 0.0)
+            self.statusBar().showMessage(
+                f"dragging the source: translation {cur[0] + d[0]:.2f}, {cur[1] + d[1]:.2f} m (release to apply)")
+        self._swallow(event)
+
+    def _on_release(self, iren, event) -> None:
+        if self._drag_start is None:
+            return
+        start, self._drag_start = self._drag_start, None
+        self._swallow(event)
+        d = self.drag_translation(start, iren.GetEventPosition())
+        if d is None:
+            self.statusBar().showMessage("cannot drag in a side view: turn the camera towards the benches", 5000)
+            return
+        if np.hypot(*d) > 0:
+            self.nudge(float(d[0]), float(d[1]))
 
     # ------------------------------------------------------------------ layer panel
     def _on_layer_item(self, item) -> None:
@@ -468,7 +561,8 @@ class MainWindow(QtWidgets.QMainWindow):
             return  # superseded
         previous = self.model.result
         self.model.set_result(result)
-        refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous)
+        with self.renderer.batch():
+            refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous)
         self._on_layer_row(None)
         if self._first_update:
             self._first_update = False
@@ -524,7 +618,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._pending_stage = self._queued_stage = None
         self.model = model
         self.model.connect(self._on_model)
-        refresh_scene(self.scene, model.holes, model.result, model.selection)
+        with self.renderer.batch():
+            refresh_scene(self.scene, model.holes, model.result, model.selection)
         self._fill_selection()
         for name, ctl in self.param_controls.items():
             ctl.set_value(model.params[name])

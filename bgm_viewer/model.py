@@ -162,7 +162,8 @@ def compute(inputs: PipelineInputs, previous: PipelineResult | None, from_stage:
     last = STAGES.index(until)
     if previous is None or not previous.contours:
         start = 0
-    res = PipelineResult(contours=dict(previous.contours) if previous and start > 0 else {},
+    # Benches not yet redone keep showing their previous contours until they are.
+    res = PipelineResult(contours=dict(previous.contours) if previous else {},
                          correspondence=previous.correspondence if previous and start > 2 else None,
                          morph=previous.morph if previous and start > 3 else None,
                          surface=None, timings=dict(previous.timings) if previous else {})
@@ -195,6 +196,8 @@ def compute(inputs: PipelineInputs, previous: PipelineResult | None, from_stage:
         for i, b in enumerate(order):
             check()
             res.contours[b] = extract_bench(holes, b, None, ep, keep_fields=(b == sel.bench))
+            if i == 0 and len(pair) > 1:
+                yield "contours of the selected bench", 0.2, snapshot()
             if i == len(pair) - 1:
                 res.timings["extraction (pair)"] = time.perf_counter() - t0
                 yield "contours of the bench pair", 0.3, snapshot()
@@ -280,10 +283,7 @@ def _morph(inputs: PipelineInputs, res: PipelineResult) -> MorphRecord | None:
     xmin, ymin, xmax, ymax = union.bounds
     h = max(xmax - xmin, ymax - ymin, 1e-6) / max(int(params["morph_cells"]) - 9, 8)
     kw = dict(cell_size_m=h, speed_clamp_m=float(params["speed_clamp_cells"]) * h, keep_fronts=True)
-    try:
-        result = morph_regions(moved, targets, **kw)
-    except ImportError:  # curvelet backtracking not available in this core yet
-        result = morph_regions(moved, targets, backtrack=False, **kw)
+    result = morph_regions(moved, targets, **kw)
     shift = np.mean(pc.translations[inst.source_ids], axis=0) if inst.source_ids else np.zeros(2)
     z = holes.bench_levels_m
     return MorphRecord(list(inst.source_ids), list(inst.target_ids), result, (float(shift[0]), float(shift[1])),

@@ -9,6 +9,8 @@ the same renderer with a ``pyvistaqt.QtInteractor`` as the plotter.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 from . import _vtkenv  # noqa: F401
 
 from collections.abc import Callable, Iterable
@@ -121,6 +123,8 @@ class SceneRenderer:
         self.show_legend = legend
         self.auto_render = auto_render
         self.actors: dict[str, list] = {}
+        self._legend_shown: list | None = None
+        self._batching = 0
         try:
             plotter.disable_anti_aliasing()
         except Exception:  # noqa: BLE001 - older pyvista or no render window yet
@@ -150,8 +154,27 @@ class SceneRenderer:
             self._rebuild(layer)
         if what in ("visible", "added", "data", "color") or layer is None:
             self._update_legend()
-        if self.auto_render:
+        if self.auto_render and not self._batching:
             self.plotter.render()
+
+    @contextmanager
+    def batch(self):
+        """Apply many layer changes with one render at the end.
+
+        A software-rendered frame costs tens of milliseconds; a pipeline
+        update replaces most layers at once, and a render per layer made the
+        window take over a second to show a result computed in 0.1 s.
+        """
+        self._batching += 1
+        suppressed = getattr(self.plotter, "suppress_rendering", False)
+        self.plotter.suppress_rendering = True  # pyvista's own renders (add_actor, legends)
+        try:
+            yield self
+        finally:
+            self.plotter.suppress_rendering = suppressed
+            self._batching -= 1
+            if self.auto_render and not self._batching:
+                self.plotter.render()
 
     def _rebuild(self, layer: Layer) -> None:
         for actor in self.actors.pop(layer.name, []):
@@ -165,13 +188,14 @@ class SceneRenderer:
         self.actors[layer.name] = actors
 
     def _update_legend(self) -> None:
+        entries = self.scene.legend_entries() if self.show_legend else []
+        if entries == self._legend_shown:
+            return  # rebuilding an unchanged legend costs a render
+        self._legend_shown = entries
         try:
             self.plotter.remove_legend(render=False)
         except Exception:  # noqa: BLE001
             pass
-        if not self.show_legend:
-            return
-        entries = self.scene.legend_entries()
         if entries:
             self.plotter.add_legend([[label, to_float(rgb)] for label, rgb in entries], bcolor=(0.1, 0.1, 0.12),
                                     border=False, size=(0.16, min(0.026 * len(entries), 0.5)), loc="upper right",
@@ -214,3 +238,35 @@ def world_to_pixels(plotter, xyz: np.ndarray) -> np.ndarray:
         x, y, _ = ren.GetDisplayPoint()
         out[i] = (x, h - 1 - y)
     return out
+
+
+def display_to_plane(plotter, x_px: float, y_px: float, z_display: float) -> np.ndarray | None:
+    """World ``(x, y)`` under a display pixel, on the horizontal plane ``z = z_display``.
+
+    ``(x_px, y_px)`` are VTK display coordinates (origin at the bottom left,
+    as the interactor reports mouse positions). The view ray through the
+    pixel is intersected with the plane; ``None`` when the ray runs parallel
+    to it (a side view), where a drag cannot say where on the bench it is.
+    """
+    ren = plotter.renderer
+    ends = []
+    for depth in (0.0, 1.0):
+        ren.SetDisplayPoint(float(x_px), float(y_px), depth)
+        ren.DisplayToWorld()
+        w = np.asarray(ren.GetWorldPoint(), float)
+        ends.append(w[:3] / w[3])
+    near, far = ends
+    dz = far[2] - near[2]
+    if abs(dz) < 1e-9 * max(1.0, float(np.linalg.norm(far - near))):
+        return None
+    t = (z_display - near[2]) / dz
+    return (near + t * (far - near))[:2]
+
+
+def drag_on_plane(plotter, start_px, end_px, z_display: float) -> np.ndarray | None:
+    """World ``(dx, dy)`` of a mouse drag between two display pixels, measured on the plane ``z = z_display``."""
+    a = display_to_plane(plotter, *start_px, z_display)
+    b = display_to_plane(plotter, *end_px, z_display)
+    if a is None or b is None:
+        return None
+    return b - a

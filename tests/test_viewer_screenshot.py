@@ -14,7 +14,7 @@ pv = pytest.importorskip("pyvista")
 from bgm_viewer.builders import build_scene  # noqa: E402
 from bgm_viewer.model import PipelineResult, Selection, load_holes  # noqa: E402
 from bgm_viewer.palette import BACKGROUND, LAYER_COLOURS, geozone_colours  # noqa: E402
-from bgm_viewer.scene import world_to_pixels  # noqa: E402
+from bgm_viewer.scene import display_to_plane, drag_on_plane, world_to_pixels  # noqa: E402
 from bgm_viewer.screenshot import plotter_for, render_screenshot, scene_image  # noqa: E402
 from bgm_viewer.testing import small_model  # noqa: E402
 
@@ -138,3 +138,27 @@ bad = [m for m in sys.modules if m.startswith(('PySide6', 'qtpy', 'pyvistaqt'))]
 assert not bad, bad
 """
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+@pytest.mark.parametrize("camera", ["iso", "top"])
+def test_a_mouse_drag_is_measured_on_the_bench_plane(model, camera):
+    """Pixels under the mouse map back to the bench plane, so a drag recovers a known shift."""
+    scene = build_scene(model.holes, model.result, model.selection, visible=["blastholes"])
+    plotter, renderer = plotter_for(scene, window_size=SIZE, camera=camera, legend=False)
+    try:
+        plotter.render()
+        z = float(renderer.scene.view.z(model.holes.bench_levels_m[model.selection.bench]))
+        cx, cy = model.holes.xy.mean(axis=0)
+        world = np.array([[cx, cy, z], [cx + 12.0, cy - 7.0, z]])
+        px = world_to_pixels(plotter, world)
+        h = plotter.window_size[1]
+        display = [(c, h - 1 - r) for c, r in px]  # image rows back to VTK display y
+        for (x, y), w in zip(display, world):
+            np.testing.assert_allclose(display_to_plane(plotter, x, y, z), w[:2], atol=0.05 * 12.0)
+        np.testing.assert_allclose(drag_on_plane(plotter, display[0], display[1], z), [12.0, -7.0], atol=0.6)
+        plotter.view_xz()  # a side view looks along the plane: no answer rather than a wild one
+        plotter.enable_parallel_projection()
+        plotter.render()
+        assert display_to_plane(plotter, *display[0], z) is None
+    finally:
+        plotter.close()

@@ -116,6 +116,35 @@ def test_manual_alignment_save_reload_and_undo(window, qtbot, tmp_path):
     np.testing.assert_allclose(window.model.current_translation_m(), want, atol=1e-6)
 
 
+def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
+    """A Shift + left drag in the 3D view moves the selected source by the dragged distance."""
+    from bgm_viewer.scene import world_to_pixels
+
+    auto = window.model.current_translation_m()
+    window.renderer.set_camera("top")
+    window.plotter.render()
+    camera_before = window.plotter.camera_position
+    z = window._source_plane_z()
+    c = _selected_polygon(window).centroid
+    px = world_to_pixels(window.plotter, np.array([[c.x, c.y, z], [c.x + 6.0, c.y + 3.0, z]]))
+    h = window.plotter.window_size[1]
+    (x0, y0), (x1, y1) = [(int(round(col)), int(round(h - 1 - row))) for col, row in px]
+    expected = window.drag_translation((x0, y0), (x1, y1))  # what the rounded pixels mean on the bench
+    np.testing.assert_allclose(expected, [6.0, 3.0], atol=1.0)
+
+    iren = window.plotter.iren.interactor
+    for event, (x, y) in (("LeftButtonPressEvent", (x0, y0)), ("MouseMoveEvent", ((x0 + x1) // 2, (y0 + y1) // 2)),
+                          ("MouseMoveEvent", (x1, y1)), ("LeftButtonReleaseEvent", (x1, y1))):
+        iren.SetEventInformation(x, y, 0, 1)  # ctrl off, shift on
+        iren.InvokeEvent(event)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), np.add(auto, expected), atol=1e-6)
+    assert window.plotter.camera_position == camera_before  # the drag did not turn the camera
+    window.undo()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), auto, atol=1e-6)
+
+
 def test_closing_with_unsaved_changes_prompts(window, monkeypatch):
     asked = []
 
