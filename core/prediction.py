@@ -14,7 +14,10 @@ contour by inverse-distance weighting of the nearest trajectory ends and
 smoothed along the contour, and the contour moves by ``f`` times it for a
 depth of ``f`` bench heights. Smoothing along the contour keeps neighbouring
 points moving alike, so the extrapolated contour does not fold; the result is
-repaired to valid polygons in any case.
+repaired to valid polygons in any case. How much of the movement is carried
+on is learnt from the geozone's own benches (:func:`persistence_coefficient`),
+and the region is joined with the geozone's continuation past the bench's
+drilling frontier (:func:`core.pipeline.beyond_frontiers`).
 """
 
 from __future__ import annotations
@@ -180,35 +183,22 @@ def _moved_rings(
     return out
 
 
-def pair_displacements(pair: BenchPair) -> tuple[np.ndarray, np.ndarray]:
-    """Where the pair's trajectories end (lower bench) and how far each moved, physically.
+def pair_movements(pair: BenchPair) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Physical start (upper bench), end (lower bench) and displacement of every trajectory of a pair.
 
-    Returns ``(ends, displacement)``, both ``(n, 2)`` local metres: the
-    displacement is the trajectory's physical end minus its physical start
-    (the source's translation plus the local deformation).
+    All ``(n, 2)`` local metres; the displacement is the end minus the
+    physical start (the source's translation plus the local deformation).
     """
-    ends, moves = [], []
-    for step in pair.morphs or []:
-        starts_phys, e, trajs = _step_tracks(pair, step)
-        if trajs:
-            ends.append(e)
-            moves.append(e - starts_phys)
-    if not ends:
-        return np.zeros((0, 2)), np.zeros((0, 2))
-    return np.concatenate(ends), np.concatenate(moves)
-
-
-def _starts_and_moves(pair: BenchPair) -> tuple[np.ndarray, np.ndarray]:
-    """Physical start (upper bench) and displacement of every trajectory of a pair."""
-    starts, moves = [], []
+    starts, ends = [], []
     for step in pair.morphs or []:
         s, e, trajs = _step_tracks(pair, step)
         if trajs:
             starts.append(s)
-            moves.append(e - s)
+            ends.append(e)
     if not starts:
-        return np.zeros((0, 2)), np.zeros((0, 2))
-    return np.concatenate(starts), np.concatenate(moves)
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2))
+    starts, ends = np.concatenate(starts), np.concatenate(ends)
+    return starts, ends, ends - starts
 
 
 def persistence_coefficient(pairs: list[BenchPair], hole_spacing_m: float, no_history: float = 0.5) -> float:
@@ -237,8 +227,8 @@ def persistence_coefficient(pairs: list[BenchPair], hole_spacing_m: float, no_hi
     for upper, lower in zip(usable, usable[1:]):
         if upper.lower != lower.upper:
             continue
-        ends, before = pair_displacements(upper)
-        starts, after = _starts_and_moves(lower)
+        _, ends, before = pair_movements(upper)
+        starts, _, after = pair_movements(lower)
         if len(ends) == 0 or len(starts) == 0:
             continue
         dist, idx = cKDTree(ends).query(starts)
