@@ -292,7 +292,9 @@ def _morph(inputs: PipelineInputs, res: PipelineResult) -> MorphRecord | None:
 
 def _predict(inputs: PipelineInputs, res: PipelineResult) -> list:
     """The selected geozone half a bench and one bench below the deepest bench (core.prediction)."""
-    from core.pipeline import GeozoneModel, beyond_frontiers, bench_pairs, correspond, drilling_frontiers, morph
+    from core.pipeline import (
+        GeozoneModel, ModelParameters, beyond_frontiers, bench_pairs, correspond, drilling_frontiers, morph,
+    )
     from core.prediction import predict_geozone
 
     holes, sel = inputs.holes, inputs.selection
@@ -308,7 +310,7 @@ def _predict(inputs: PipelineInputs, res: PipelineResult) -> list:
     own = [c for c in contours if c.geozone == sel.geozone]
     model = GeozoneModel(
         sel.geozone, own, used, frontiers=drilling_frontiers(holes, {last.lower}),
-        beyond_frontier=beyond_frontiers(holes, sel.geozone, {last.lower}),
+        beyond_frontier=beyond_frontiers(holes, sel.geozone, {last.lower}, ModelParameters().frontier_reach_spacings),
     )
     height = last.source_z_m - last.target_z_m
     out = predict_geozone(model, [last.target_z_m - f * height for f in (0.5, 1.0)], holes.hole_spacing_m)

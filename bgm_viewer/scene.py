@@ -9,11 +9,10 @@ the same renderer with a ``pyvistaqt.QtInteractor`` as the plotter.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 from . import _vtkenv  # noqa: F401
 
 from collections.abc import Callable, Iterable
+from contextlib import contextmanager
 
 import numpy as np
 

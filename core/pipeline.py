@@ -247,7 +247,7 @@ def drilling_frontiers(holes: Blastholes, benches) -> dict:
     return {k: holes.drilled_area(k).boundary for k in sorted(benches)}
 
 
-def beyond_frontiers(holes: Blastholes, geozone: str, benches, reach_spacings: float = 10.0) -> dict:
+def beyond_frontiers(holes: Blastholes, geozone: str, benches, reach_spacings: float) -> dict:
     """Where the geozone is taken to go on past each bench's drilling frontier.
 
     A bench's contours stop where its drilling stopped, not where the geozone
