@@ -12,8 +12,6 @@ real display or ``xvfb-run``.
 
 from __future__ import annotations
 
-from . import _vtkenv  # noqa: F401
-
 import itertools
 import queue
 import threading
@@ -25,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from qtpy import QtCore, QtGui, QtWidgets
 
+from . import _vtkenv  # noqa: F401
 from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, refresh_scene
 from .model import PARAMETERS, STAGES, Cancelled, ViewerModel, compute
 from .scene import SceneRenderer, drag_on_plane
@@ -160,8 +159,13 @@ class MainWindow(QtWidgets.QMainWindow):
         # no multi-sampling: software rendering is ~4x slower with it (see issue 6)
         self.plotter = _single_render(QtInteractor(self, multi_samples=0, auto_update=False))
         self.setCentralWidget(self.plotter.interactor)
-        self.scene = build_scene(self.model.holes, self.model.result, self.model.selection,
-                                 visible=DEFAULT_VISIBLE, vertical_exaggeration=self.model.vertical_exaggeration)
+        self.scene = build_scene(
+            self.model.holes,
+            self.model.result,
+            self.model.selection,
+            visible=DEFAULT_VISIBLE,
+            vertical_exaggeration=self.model.vertical_exaggeration,
+        )
         self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True)
         self.renderer.set_camera("iso")
 
@@ -318,8 +322,12 @@ class MainWindow(QtWidgets.QMainWindow):
         row.addWidget(self.dy_spin)
         form.addRow("dx, dy", row)
         buttons = QtWidgets.QHBoxLayout()
-        for text, fn in (("Apply", self.apply_translation), ("Lock", self.lock_current),
-                         ("Clear", self.clear_override), ("Undo", self.undo)):
+        for text, fn in (
+            ("Apply", self.apply_translation),
+            ("Lock", self.lock_current),
+            ("Clear", self.clear_override),
+            ("Undo", self.undo),
+        ):
             b = QtWidgets.QPushButton(text)
             b.clicked.connect(fn)
             buttons.addWidget(b)
@@ -340,8 +348,9 @@ class MainWindow(QtWidgets.QMainWindow):
         form.addRow(QtWidgets.QLabel("Shift + drag in the view moves the source on its bench."))
         for key, (dx, dy) in {"Left": (-1, 0), "Right": (1, 0), "Up": (0, 1), "Down": (0, -1)}.items():
             sc = QtWidgets.QShortcut(QtGui.QKeySequence(f"Ctrl+{key}"), self)
-            sc.activated.connect(lambda dx=dx, dy=dy: self.nudge(dx * self.nudge_step.value(),
-                                                                 dy * self.nudge_step.value()))
+            sc.activated.connect(
+                lambda dx=dx, dy=dy: self.nudge(dx * self.nudge_step.value(), dy * self.nudge_step.value())
+            )
         self._dock("Manual alignment", w, QtCore.Qt.RightDockWidgetArea)
 
     # ------------------------------------------------------------------ mouse alignment
@@ -354,8 +363,11 @@ class MainWindow(QtWidgets.QMainWindow):
         """
         iren = self.plotter.iren.interactor
         self._mouse_tags = {}
-        for event, handler in (("LeftButtonPressEvent", self._on_press), ("MouseMoveEvent", self._on_move),
-                               ("LeftButtonReleaseEvent", self._on_release)):
+        for event, handler in (
+            ("LeftButtonPressEvent", self._on_press),
+            ("MouseMoveEvent", self._on_move),
+            ("LeftButtonReleaseEvent", self._on_release),
+        ):
             self._mouse_tags[event] = iren.AddObserver(event, handler, 10.0)
 
     def _swallow(self, event: str) -> None:
@@ -383,7 +395,8 @@ class MainWindow(QtWidgets.QMainWindow):
         if d is not None:
             cur = self.model.current_translation_m() or (0.0, 0.0)
             self.statusBar().showMessage(
-                f"dragging the source: translation {cur[0] + d[0]:.2f}, {cur[1] + d[1]:.2f} m (release to apply)")
+                f"dragging the source: translation {cur[0] + d[0]:.2f}, {cur[1] + d[1]:.2f} m (release to apply)"
+            )
         self._swallow(event)
 
     def _on_release(self, iren, event) -> None:
@@ -495,7 +508,9 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _update_title(self) -> None:
         name = Path(self.model.project_path).name if self.model.project_path else "untitled project"
-        self.setWindowTitle(f"BGM viewer - {self.model.holes.source or 'input'} - {name}{' *' if self.model.dirty else ''}")
+        self.setWindowTitle(
+            f"BGM viewer - {self.model.holes.source or 'input'} - {name}{' *' if self.model.dirty else ''}"
+        )
 
     # ------------------------------------------------------------------ worker
     @property
@@ -537,7 +552,7 @@ class MainWindow(QtWidgets.QMainWindow):
                 inbox.put((self._on_finished, (job, time.perf_counter() - t0)))
             except Cancelled:
                 pass
-            except Exception:  # noqa: BLE001 - reported in the status bar
+            except Exception:
                 inbox.put((self._on_failed, (job, traceback.format_exc(limit=3))))
 
         threading.Thread(target=work, name=f"bgm-pipeline-{job}", daemon=True).start()
@@ -551,7 +566,7 @@ class MainWindow(QtWidgets.QMainWindow):
             except queue.Empty:
                 break
         for i, (fn, args) in enumerate(items):
-            later = any(f == self._on_progress for f, _ in items[i + 1:])
+            later = any(f == self._on_progress for f, _ in items[i + 1 :])
             if fn == self._on_progress and later:
                 continue
             fn(*args)
@@ -631,8 +646,9 @@ class MainWindow(QtWidgets.QMainWindow):
     def open_input_dialog(self) -> None:
         if not self._confirm_discard():
             return
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Open blastholes", "",
-                                                        "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)")
+        path, _ = QtWidgets.QFileDialog.getOpenFileName(
+            self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
+        )
         if path:
             self._guard(lambda: self.open_input(path))
 
@@ -654,8 +670,9 @@ class MainWindow(QtWidgets.QMainWindow):
     def save_project(self, ask: bool = False) -> bool:
         path = self.model.project_path
         if ask or not path:
-            path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save project", path or "project.bgm.json",
-                                                            "BGM project (*.json)")
+            path, _ = QtWidgets.QFileDialog.getSaveFileName(
+                self, "Save project", path or "project.bgm.json", "BGM project (*.json)"
+            )
             if not path:
                 return False
         return self._guard(lambda: self.model.save_project(path))
@@ -669,20 +686,24 @@ class MainWindow(QtWidgets.QMainWindow):
             self._guard(lambda: self.export_screenshot(path))
 
     def export_surface(self, path) -> None:
-        from core.export import export_surface
-        from core.surfaces import to_input_frame
+        from core.io.export import export_surface
+        from core.model.surfaces import to_input_frame
 
         mesh = self.model.result.surface
         if mesh is None:
             raise ValueError("no surface has been computed yet")
         f = self.model.holes.frame
-        export_surface(to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit), path,
-                       name=self.model.selection.geozone)
+        export_surface(
+            to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit), path, name=self.model.selection.geozone
+        )
 
     def export_surface_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(
-            self, "Export surface", f"{self.model.selection.geozone}.obj",
-            "Surfaces (*.obj *.ply *.stl *.vtp *.dxf *.omf)")
+            self,
+            "Export surface",
+            f"{self.model.selection.geozone}.obj",
+            "Surfaces (*.obj *.ply *.stl *.vtp *.dxf *.omf)",
+        )
         if path:
             self._guard(lambda: self.export_surface(path))
 
@@ -690,7 +711,7 @@ class MainWindow(QtWidgets.QMainWindow):
         try:
             fn()
             return True
-        except Exception as exc:  # noqa: BLE001 - user-facing message
+        except Exception as exc:
             QtWidgets.QMessageBox.warning(self, "BGM viewer", str(exc))
             return False
 
@@ -700,14 +721,17 @@ class MainWindow(QtWidgets.QMainWindow):
         if not self.model.dirty:
             return True
         answer = QtWidgets.QMessageBox.question(
-            self, "Unsaved changes", "The project has unsaved parameter or alignment changes. Save them?",
+            self,
+            "Unsaved changes",
+            "The project has unsaved parameter or alignment changes. Save them?",
             QtWidgets.QMessageBox.Save | QtWidgets.QMessageBox.Discard | QtWidgets.QMessageBox.Cancel,
-            QtWidgets.QMessageBox.Save)
+            QtWidgets.QMessageBox.Save,
+        )
         if answer == QtWidgets.QMessageBox.Save:
             return self.save_project()
         return answer == QtWidgets.QMessageBox.Discard
 
-    def closeEvent(self, event) -> None:  # noqa: N802 - Qt API
+    def closeEvent(self, event) -> None:
         if not self._confirm_discard():
             event.ignore()
             return

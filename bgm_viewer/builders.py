@@ -5,10 +5,9 @@ Layer names (what ``--layers`` and the layer panel use): see :data:`LAYER_NAMES`
 
 from __future__ import annotations
 
-from . import _vtkenv  # noqa: F401
-
 import numpy as np
 
+from . import _vtkenv  # noqa: F401
 from .layers import (
     BlastholesLayer,
     ContoursLayer,
@@ -41,9 +40,19 @@ DEFAULT_VISIBLE = ("blastholes", "contours", "snake", "trajectories", "surfaces"
 
 def _alias(name: str) -> str:
     key = name.strip().lower().replace("_", " ").replace("-", " ")
-    aliases = {"holes": "blastholes", "edges": "edge map", "edgemap": "edge map", "gvf": "GVF",
-               "arrows": "GVF", "front": "wavefront", "fronts": "wavefront", "tracks": "trajectories",
-               "predicted": "predicted contours", "prediction": "predicted contours", "surface": "surfaces"}
+    aliases = {
+        "holes": "blastholes",
+        "edges": "edge map",
+        "edgemap": "edge map",
+        "gvf": "GVF",
+        "arrows": "GVF",
+        "front": "wavefront",
+        "fronts": "wavefront",
+        "tracks": "trajectories",
+        "predicted": "predicted contours",
+        "prediction": "predicted contours",
+        "surface": "surfaces",
+    }
     key = aliases.get(key, key)
     for n in LAYER_NAMES:
         if n.lower() == key.lower():
@@ -99,11 +108,21 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
     return layers
 
 
-def build_scene(holes, result: PipelineResult, selection: Selection, *, visible=None,
-                vertical_exaggeration: float = 2.0, predicted=()) -> Scene:
+def build_scene(
+    holes,
+    result: PipelineResult,
+    selection: Selection,
+    *,
+    visible=None,
+    vertical_exaggeration: float = 2.0,
+    predicted=(),
+) -> Scene:
     """A :class:`Scene` of the standard layers with ``visible`` (names) shown."""
-    scene = Scene(make_layers(holes, result, selection, predicted), vertical_exaggeration=vertical_exaggeration,
-                  z_ref=float(np.max(holes.bench_levels_m)))
+    scene = Scene(
+        make_layers(holes, result, selection, predicted),
+        vertical_exaggeration=vertical_exaggeration,
+        z_ref=float(np.max(holes.bench_levels_m)),
+    )
     scene.set_visible_only(parse_layers(visible))
     return scene
 
@@ -114,10 +133,14 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
         return set(LAYER_NAMES)
     out = set()
     if result.contours.keys() != previous.contours.keys() or any(
-            result.contours[b] is not previous.contours.get(b) for b in result.contours):
+        result.contours[b] is not previous.contours.get(b) for b in result.contours
+    ):
         out |= {"contours", "predicted contours"}
-        bh = [np.sort(np.concatenate([c.boundary_holes for c in cs] or [np.zeros(0, int)]))
-              for r in (result, previous) for cs in [[c for v in r.contours.values() for c in v]]]
+        bh = [
+            np.sort(np.concatenate([c.boundary_holes for c in cs] or [np.zeros(0, int)]))
+            for r in (result, previous)
+            for cs in [[c for v in r.contours.values() for c in v]]
+        ]
         if len(bh[0]) != len(bh[1]) or not np.array_equal(bh[0], bh[1]):
             out.add("blastholes")
     if result.selected_contour(selection) is not previous.selected_contour(selection):
@@ -129,8 +152,14 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
     return out
 
 
-def refresh_scene(scene: Scene, holes, result: PipelineResult, selection: Selection, predicted=(),
-                  previous: PipelineResult | None = None) -> None:
+def refresh_scene(
+    scene: Scene,
+    holes,
+    result: PipelineResult,
+    selection: Selection,
+    predicted=(),
+    previous: PipelineResult | None = None,
+) -> None:
     """Replace the data of the scene's layers, keeping visibility, opacity and frames where possible.
 
     With ``previous`` (the result on screen), only layers whose data changed are rebuilt.

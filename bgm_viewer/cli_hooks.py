@@ -15,18 +15,33 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def view_command(input: str | Path | None = None, project: str | Path | None = None,
-                 screenshot: str | Path | None = None, layers: str | list[str] | None = None,
-                 camera: str | None = None, *, geozone: str | None = None, bench: int | None = None,
-                 vertical_exaggeration: float | None = None) -> int:
+def view_command(
+    input: str | Path | None = None,
+    project: str | Path | None = None,
+    screenshot: str | Path | None = None,
+    layers: str | list[str] | None = None,
+    camera: str | None = None,
+    *,
+    geozone: str | None = None,
+    bench: int | None = None,
+    vertical_exaggeration: float | None = None,
+) -> int:
     """Entry point of ``bgm view [INPUT] [--project P] [--screenshot out.png] [--layers a,b] [--camera iso]``."""
     if input is None and project is not None:
         input = _project_input(project)
     if screenshot:
         from .screenshot import render_screenshot
 
-        render_screenshot(input, screenshot, layers=layers, camera=camera or "iso", project=project,
-                          geozone=geozone, bench=bench, vertical_exaggeration=vertical_exaggeration)
+        render_screenshot(
+            input,
+            screenshot,
+            layers=layers,
+            camera=camera or "iso",
+            project=project,
+            geozone=geozone,
+            bench=bench,
+            vertical_exaggeration=vertical_exaggeration,
+        )
         return 0
     from .app import run_viewer
 
@@ -35,7 +50,7 @@ def view_command(input: str | Path | None = None, project: str | Path | None = N
 
 def _project_input(project) -> str | None:
     """The input named by a project file (relative to the project's folder)."""
-    from core.project import load_project
+    from core.io.project import load_project
 
     p = load_project(project).input_path
     if not p:

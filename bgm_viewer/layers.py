@@ -15,8 +15,6 @@ the vertical exaggeration about a reference elevation (the top bench).
 
 from __future__ import annotations
 
-from . import _vtkenv  # noqa: F401  (must precede pyvista)
-
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
@@ -24,6 +22,7 @@ import numpy as np
 import pyvista as pv
 from shapely.geometry import MultiPolygon, Polygon
 
+from . import _vtkenv  # noqa: F401  (must precede pyvista)
 from .palette import LAYER_COLOURS, geozone_colours, lighten
 
 RGB = tuple[int, int, int]
@@ -128,10 +127,10 @@ class Layer:
         self._visible = bool(visible)
         self._opacity = float(opacity)
         self._color = color
-        self._listeners: list[Callable[["Layer", str], None]] = []
+        self._listeners: list[Callable[[Layer, str], None]] = []
 
     # -- observers ---------------------------------------------------------
-    def connect(self, callback: Callable[["Layer", str], None]) -> None:
+    def connect(self, callback: Callable[[Layer, str], None]) -> None:
         """Call ``callback(layer, what)`` after every change."""
         self._listeners.append(callback)
 
@@ -229,8 +228,19 @@ class BlastholesLayer(Layer):
 
     kind = "blastholes"
 
-    def __init__(self, xy, z, geozone, boundary=None, colours=None, *, name="blastholes",
-                 point_size: float = 5.0, boundary_point_size: float = 9.0, **kw):
+    def __init__(
+        self,
+        xy,
+        z,
+        geozone,
+        boundary=None,
+        colours=None,
+        *,
+        name="blastholes",
+        point_size: float = 5.0,
+        boundary_point_size: float = 9.0,
+        **kw,
+    ):
         super().__init__(name, **kw)
         self.xy = np.asarray(xy, float).reshape(-1, 2)
         self.z = np.broadcast_to(np.asarray(z, float), (len(self.xy),)).copy()
@@ -241,8 +251,8 @@ class BlastholesLayer(Layer):
         self.boundary_point_size = boundary_point_size
 
     @classmethod
-    def from_blastholes(cls, holes, contours: Iterable | None = None, colours=None, **kw) -> "BlastholesLayer":
-        """From :class:`core.blastholes.Blastholes`; boundary holes from ``core`` contours."""
+    def from_blastholes(cls, holes, contours: Iterable | None = None, colours=None, **kw) -> BlastholesLayer:
+        """From :class:`core.io.blastholes.Blastholes`; boundary holes from ``core`` contours."""
         boundary = np.zeros(len(holes.xy), bool)
         for c in contours or []:
             boundary[np.asarray(c.boundary_holes, int)] = True
@@ -264,9 +274,19 @@ class BlastholesLayer(Layer):
                 continue
             mesh = pv.PolyData(pts[sel])
             mesh.point_data["rgb"] = rgb[sel]
-            items.append(MeshItem(mesh, {"scalars": "rgb", "rgb": True, "point_size": size,
-                                         "render_points_as_spheres": False, "lighting": False,
-                                         "show_scalar_bar": False}))
+            items.append(
+                MeshItem(
+                    mesh,
+                    {
+                        "scalars": "rgb",
+                        "rgb": True,
+                        "point_size": size,
+                        "render_points_as_spheres": False,
+                        "lighting": False,
+                        "show_scalar_bar": False,
+                    },
+                )
+            )
         return items
 
     def legend(self):
@@ -283,8 +303,16 @@ class ContoursLayer(Layer):
 
     kind = "contours"
 
-    def __init__(self, items: Sequence[tuple[str, float, Polygon | MultiPolygon]] = (), colours=None, *,
-                 name="contours", line_width: float = 3.0, predicted: bool = False, **kw):
+    def __init__(
+        self,
+        items: Sequence[tuple[str, float, Polygon | MultiPolygon]] = (),
+        colours=None,
+        *,
+        name="contours",
+        line_width: float = 3.0,
+        predicted: bool = False,
+        **kw,
+    ):
         super().__init__(name, **kw)
         self.items = [(str(g), float(z), p) for g, z, p in items]
         self.colours = dict(colours) if colours else geozone_colours(g for g, _, _ in self.items)
@@ -292,8 +320,8 @@ class ContoursLayer(Layer):
         self.predicted = predicted
 
     @classmethod
-    def from_contours(cls, contours: Iterable, colours=None, **kw) -> "ContoursLayer":
-        """From :class:`core.extraction.Contour` objects."""
+    def from_contours(cls, contours: Iterable, colours=None, **kw) -> ContoursLayer:
+        """From :class:`core.extraction.contours.Contour` objects."""
         return cls([(c.geozone, c.bench_z_m, c.polygon) for c in contours], colours, **kw)
 
     def set_items(self, items) -> None:
@@ -347,14 +375,21 @@ class EdgeMapLayer(Layer):
             return []
         rows, cols = self.edge_map.shape
         g = self.grid
-        img = pv.ImageData(dimensions=(cols, rows, 1), spacing=(g.cell_size_m, g.cell_size_m, 1.0),
-                           origin=(g.x0, g.y0, float(view.z(self.z_m)) - 0.05))
+        img = pv.ImageData(
+            dimensions=(cols, rows, 1),
+            spacing=(g.cell_size_m, g.cell_size_m, 1.0),
+            origin=(g.x0, g.y0, float(view.z(self.z_m)) - 0.05),
+        )
         v = np.clip(self.edge_map, 0, 1)
         v = v / max(float(v.max()), 1e-12)
         grey = (70 + 185 * v).astype(np.uint8).ravel()  # rows = y, so C order is x fastest
         img.point_data["rgb"] = np.column_stack([grey, grey, grey])
-        return [MeshItem(img.extract_surface(algorithm=None), {"scalars": "rgb", "rgb": True, "lighting": False,
-                                                "show_scalar_bar": False})]
+        return [
+            MeshItem(
+                img.extract_surface(algorithm=None),
+                {"scalars": "rgb", "rgb": True, "lighting": False, "show_scalar_bar": False},
+            )
+        ]
 
 
 class GVFLayer(Layer):
@@ -362,14 +397,15 @@ class GVFLayer(Layer):
 
     Parameters
     ----------
-    grid : core.grid.Grid; gvf : (2, rows, cols) x and y components; z : metres;
+    grid : core.geometry.grid.Grid; gvf : (2, rows, cols) x and y components; z : metres;
     arrows_across : about this many arrows along the longer side.
     """
 
     kind = "gvf"
 
-    def __init__(self, grid=None, gvf=None, z: float = 0.0, *, name="GVF", arrows_across: int = 22,
-                 line_width: float = 2.0, **kw):
+    def __init__(
+        self, grid=None, gvf=None, z: float = 0.0, *, name="GVF", arrows_across: int = 22, line_width: float = 2.0, **kw
+    ):
         kw.setdefault("color", LAYER_COLOURS["gvf"])
         super().__init__(name, **kw)
         self.arrows_across = int(arrows_across)
@@ -414,8 +450,9 @@ class GVFLayer(Layer):
             pts[j::4, :2] = p
         pts[:, 2] = z
         base = 4 * np.arange(k)
-        segs = np.column_stack([np.full(k, 2), base, base + 1, np.full(k, 2), base + 2, base + 1,
-                                np.full(k, 2), base + 3, base + 1]).ravel()
+        segs = np.column_stack(
+            [np.full(k, 2), base, base + 1, np.full(k, 2), base + 2, base + 1, np.full(k, 2), base + 3, base + 1]
+        ).ravel()
         mesh = pv.PolyData(pts, lines=segs.astype(np.int64))
         return [MeshItem(mesh, _line_style(self.line_width, rgb=False, color=self.color))]
 
@@ -469,10 +506,17 @@ class SnakeLayer(Layer):
         def closed(a):
             return _xyz(np.vstack([a, a[:1]]), z)
 
-        items = [MeshItem(polylines([closed(self.history[0])]), _line_style(1.5, rgb=False,
-                                                                          color=LAYER_COLOURS["snake_start"]))]
-        items.append(MeshItem(polylines([closed(self.history[self._frame])]),
-                              _line_style(self.line_width, rgb=False, color=self.color)))
+        items = [
+            MeshItem(
+                polylines([closed(self.history[0])]), _line_style(1.5, rgb=False, color=LAYER_COLOURS["snake_start"])
+            )
+        ]
+        items.append(
+            MeshItem(
+                polylines([closed(self.history[self._frame])]),
+                _line_style(self.line_width, rgb=False, color=self.color),
+            )
+        )
         return items
 
 
@@ -498,8 +542,19 @@ class WavefrontLayer(Layer):
 
     kind = "wavefront"
 
-    def __init__(self, fronts=(), times=None, z_from: float = 0.0, z_to: float = 0.0, shift=(0.0, 0.0), *,
-                 name="wavefront", max_fronts: int = 24, line_width=2.0, **kw):
+    def __init__(
+        self,
+        fronts=(),
+        times=None,
+        z_from: float = 0.0,
+        z_to: float = 0.0,
+        shift=(0.0, 0.0),
+        *,
+        name="wavefront",
+        max_fronts: int = 24,
+        line_width=2.0,
+        **kw,
+    ):
         kw.setdefault("color", LAYER_COLOURS["wavefront"])
         super().__init__(name, **kw)
         self.max_fronts = max_fronts
@@ -565,8 +620,18 @@ class TrajectoriesLayer(Layer):
 
     kind = "trajectories"
 
-    def __init__(self, trajectories=(), z_from: float = 0.0, z_to: float = 0.0, shift=(0.0, 0.0), *,
-                 name="trajectories", max_tracks: int = 150, line_width=1.5, **kw):
+    def __init__(
+        self,
+        trajectories=(),
+        z_from: float = 0.0,
+        z_to: float = 0.0,
+        shift=(0.0, 0.0),
+        *,
+        name="trajectories",
+        max_tracks: int = 150,
+        line_width=1.5,
+        **kw,
+    ):
         kw.setdefault("color", LAYER_COLOURS["trajectories"])
         super().__init__(name, **kw)
         self.max_tracks = max_tracks
@@ -611,15 +676,22 @@ class SurfaceLayer(Layer):
 
     kind = "surfaces"
 
-    def __init__(self, meshes: Sequence[tuple[str, np.ndarray, np.ndarray]] = (), colours=None, *,
-                 name="surfaces", opacity: float = 0.6, **kw):
+    def __init__(
+        self,
+        meshes: Sequence[tuple[str, np.ndarray, np.ndarray]] = (),
+        colours=None,
+        *,
+        name="surfaces",
+        opacity: float = 0.6,
+        **kw,
+    ):
         super().__init__(name, opacity=opacity, **kw)
         self.meshes = [(str(g), np.asarray(v, float), np.asarray(f, np.int64)) for g, v, f in meshes]
         self.colours = dict(colours) if colours else geozone_colours(g for g, _, _ in self.meshes)
 
     @classmethod
-    def from_trimesh(cls, items: Iterable[tuple[str, object]], colours=None, **kw) -> "SurfaceLayer":
-        """From ``(geozone, trimesh.Trimesh)`` pairs (``core.surfaces.surface_from_sections``)."""
+    def from_trimesh(cls, items: Iterable[tuple[str, object]], colours=None, **kw) -> SurfaceLayer:
+        """From ``(geozone, trimesh.Trimesh)`` pairs (``core.model.surfaces.surface_from_sections``)."""
         return cls([(g, m.vertices, m.faces) for g, m in items], colours, **kw)
 
     def set_meshes(self, meshes) -> None:
@@ -634,9 +706,12 @@ class SurfaceLayer(Layer):
             pts = v.copy()
             pts[:, 2] = view.z(pts[:, 2])
             faces = np.column_stack([np.full(len(f), 3), f]).ravel()
-            items.append(MeshItem(pv.PolyData(pts, faces=faces),
-                                  {"color": self.colours.get(g, (200, 200, 200)), "smooth_shading": False,
-                                   "show_scalar_bar": False}))
+            items.append(
+                MeshItem(
+                    pv.PolyData(pts, faces=faces),
+                    {"color": self.colours.get(g, (200, 200, 200)), "smooth_shading": False, "show_scalar_bar": False},
+                )
+            )
         return items
 
     def legend(self):

@@ -15,6 +15,7 @@ instance), ``surface`` (the selected geozone's surface from its sections).
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import time
@@ -26,8 +27,8 @@ import numpy as np
 import shapely
 from shapely import affinity
 
-from core.blastholes import Blastholes, blastholes_from_table, read_blastholes
-from core.extraction import Contour, ExtractionParameters, extract_bench, snake_contour
+from core.extraction.contours import Contour, ExtractionParameters, extract_bench, snake_contour
+from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 
 STAGES = ("boundary", "snake", "correspondence", "morph", "surface")
 
@@ -47,8 +48,15 @@ class ParamSpec:
 
 
 PARAMETERS: tuple[ParamSpec, ...] = (
-    ParamSpec("search_radius_spacings", "search radius (x spacing)", "boundary", 1.0, 4.0, 1.6,
-              help="region growing and entropy radius r, in hole spacings"),
+    ParamSpec(
+        "search_radius_spacings",
+        "search radius (x spacing)",
+        "boundary",
+        1.0,
+        4.0,
+        1.6,
+        help="region growing and entropy radius r, in hole spacings",
+    ),
     ParamSpec("entropy_threshold", "entropy threshold", "boundary", 0.0, 1.5, 0.5),
     ParamSpec("gap_angle_deg", "gap-closure angle (deg)", "boundary", 60.0, 180.0, 120.0),
     ParamSpec("gap_neighbours", "gap-closure neighbours", "boundary", 4, 24, 12, integer=True),
@@ -99,7 +107,7 @@ class MorphRecord:
 
     source_ids: list[int]
     target_ids: list[int]
-    result: object  # core.morph.MorphResult
+    result: object  # core.morph.levelset.MorphResult
     shift_m: tuple[float, float]
     z_from_m: float
     z_to_m: float
@@ -110,7 +118,7 @@ class PipelineResult:
     """Everything the layers are drawn from; replaced (not mutated) by each run."""
 
     contours: dict[int, list[Contour]] = field(default_factory=dict)
-    correspondence: object | None = None  # core.correspondence.PairCorrespondence
+    correspondence: object | None = None  # core.correspondence.pair.PairCorrespondence
     morph: MorphRecord | None = None
     surface: object | None = None  # trimesh.Trimesh
     predicted: list = field(default_factory=list)  # (geozone, z_m, polygon) below the deepest bench
@@ -146,8 +154,13 @@ class PipelineInputs:
 Progress = tuple[str, float, PipelineResult]
 
 
-def compute(inputs: PipelineInputs, previous: PipelineResult | None, from_stage: str,
-            cancelled: Callable[[], bool] = lambda: False, until: str = "surface") -> Iterator[Progress]:
+def compute(  # noqa: C901 - to be split into named steps
+    inputs: PipelineInputs,
+    previous: PipelineResult | None,
+    from_stage: str,
+    cancelled: Callable[[], bool] = lambda: False,
+    until: str = "surface",
+) -> Iterator[Progress]:
     """Run the stages from ``from_stage`` on; yield ``(message, fraction, result)`` as parts finish.
 
     The selected component is updated first (for a snake-stage change, by re-running
@@ -163,10 +176,13 @@ def compute(inputs: PipelineInputs, previous: PipelineResult | None, from_stage:
     if previous is None or not previous.contours:
         start = 0
     # Benches not yet redone keep showing their previous contours until they are.
-    res = PipelineResult(contours=dict(previous.contours) if previous else {},
-                         correspondence=previous.correspondence if previous and start > 2 else None,
-                         morph=previous.morph if previous and start > 3 else None,
-                         surface=None, timings=dict(previous.timings) if previous else {})
+    res = PipelineResult(
+        contours=dict(previous.contours) if previous else {},
+        correspondence=previous.correspondence if previous and start > 2 else None,
+        morph=previous.morph if previous and start > 3 else None,
+        surface=None,
+        timings=dict(previous.timings) if previous else {},
+    )
     ep = extraction_parameters(params, holes.hole_spacing_m)
     n = holes.n_benches
     pair = [b for b in (sel.bench, sel.bench + 1) if 0 <= b < n]
@@ -212,13 +228,13 @@ def compute(inputs: PipelineInputs, previous: PipelineResult | None, from_stage:
         t0 = time.perf_counter()
         try:
             res.surface = _surface(inputs, res)
-        except Exception as exc:  # noqa: BLE001 - shown in the status bar, never fatal
+        except Exception as exc:
             res.errors["surface"] = str(exc)
         res.timings["surface"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         try:
             res.predicted = _predict(inputs, res)
-        except Exception as exc:  # noqa: BLE001 - shown in the status bar, never fatal
+        except Exception as exc:
             res.errors["prediction"] = str(exc)
         res.timings["prediction"] = time.perf_counter() - t0
     res.complete = True
@@ -231,7 +247,7 @@ def _pair_stages(inputs: PipelineInputs, res: PipelineResult, snapshot, check, s
         t0 = time.perf_counter()
         try:
             res.correspondence = _correspond(inputs, res)
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             res.correspondence, res.errors["correspondence"] = None, str(exc)
         res.timings["correspondence"] = time.perf_counter() - t0
         yield "correspondence", 0.35, snapshot()
@@ -240,14 +256,14 @@ def _pair_stages(inputs: PipelineInputs, res: PipelineResult, snapshot, check, s
         t0 = time.perf_counter()
         try:
             res.morph = _morph(inputs, res)
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             res.morph, res.errors["morph"] = None, str(exc)
         res.timings["morph"] = time.perf_counter() - t0
         yield "morph", 0.5, snapshot()
 
 
 def _correspond(inputs: PipelineInputs, res: PipelineResult):
-    from core.correspondence import correspond_pair
+    from core.correspondence.pair import correspond_pair
 
     holes, sel = inputs.holes, inputs.selection
     if sel.bench + 1 >= holes.n_benches:
@@ -260,13 +276,19 @@ def _correspond(inputs: PipelineInputs, res: PipelineResult):
     locked = {s: t for s, t in inputs.locked.items() if s < ns}
     forced = {p for p in inputs.forced if p[0] < ns and p[1] < nt}
     forbidden = {p for p in inputs.forbidden if p[0] < ns and p[1] < nt}
-    return correspond_pair(src, tgt, hole_spacing_m=holes.hole_spacing_m,
-                           mu_lower_m=float(inputs.params["mu_lower_spacings"]) * holes.hole_spacing_m,
-                           locked_translations=locked, forced=forced, forbidden=forbidden)
+    return correspond_pair(
+        src,
+        tgt,
+        hole_spacing_m=holes.hole_spacing_m,
+        mu_lower_m=float(inputs.params["mu_lower_spacings"]) * holes.hole_spacing_m,
+        locked_translations=locked,
+        forced=forced,
+        forbidden=forbidden,
+    )
 
 
 def _morph(inputs: PipelineInputs, res: PipelineResult) -> MorphRecord | None:
-    from core.morph import morph_regions
+    from core.morph.levelset import morph_regions
 
     pc = res.correspondence
     sel, holes, params = inputs.selection, inputs.holes, inputs.params
@@ -282,20 +304,32 @@ def _morph(inputs: PipelineInputs, res: PipelineResult) -> MorphRecord | None:
     union = shapely.union_all([g for g in moved + targets if not g.is_empty])
     xmin, ymin, xmax, ymax = union.bounds
     h = max(xmax - xmin, ymax - ymin, 1e-6) / max(int(params["morph_cells"]) - 9, 8)
-    kw = dict(cell_size_m=h, speed_clamp_m=float(params["speed_clamp_cells"]) * h, keep_fronts=True)
+    kw = {"cell_size_m": h, "speed_clamp_m": float(params["speed_clamp_cells"]) * h, "keep_fronts": True}
     result = morph_regions(moved, targets, **kw)
     shift = np.mean(pc.translations[inst.source_ids], axis=0) if inst.source_ids else np.zeros(2)
     z = holes.bench_levels_m
-    return MorphRecord(list(inst.source_ids), list(inst.target_ids), result, (float(shift[0]), float(shift[1])),
-                       float(z[sel.bench]), float(z[sel.bench + 1]))
+    return MorphRecord(
+        list(inst.source_ids),
+        list(inst.target_ids),
+        result,
+        (float(shift[0]), float(shift[1])),
+        float(z[sel.bench]),
+        float(z[sel.bench + 1]),
+    )
 
 
 def _predict(inputs: PipelineInputs, res: PipelineResult) -> list:
-    """The selected geozone half a bench and one bench below the deepest bench (core.prediction)."""
-    from core.pipeline import (
-        GeozoneModel, ModelParameters, beyond_frontiers, bench_pairs, correspond, drilling_frontiers, morph,
+    """The selected geozone half a bench and one bench below the deepest bench (core.model.prediction)."""
+    from core.model.pipeline import (
+        GeozoneModel,
+        ModelParameters,
+        bench_pairs,
+        beyond_frontiers,
+        correspond,
+        drilling_frontiers,
+        morph,
     )
-    from core.prediction import predict_geozone
+    from core.model.prediction import predict_geozone
 
     holes, sel = inputs.holes, inputs.selection
     contours = [c for b in sorted(res.contours) for c in res.contours[b]]
@@ -309,7 +343,10 @@ def _predict(inputs: PipelineInputs, res: PipelineResult) -> list:
     last = used[-1]
     own = [c for c in contours if c.geozone == sel.geozone]
     model = GeozoneModel(
-        sel.geozone, own, used, frontiers=drilling_frontiers(holes, {last.lower}),
+        sel.geozone,
+        own,
+        used,
+        frontiers=drilling_frontiers(holes, {last.lower}),
         beyond_frontier=beyond_frontiers(holes, sel.geozone, {last.lower}, ModelParameters().frontier_reach_spacings),
     )
     height = last.source_z_m - last.target_z_m
@@ -319,7 +356,7 @@ def _predict(inputs: PipelineInputs, res: PipelineResult) -> list:
 
 def _surface(inputs: PipelineInputs, res: PipelineResult):
     """Surface of the selected geozone: its bench sections plus the morph's intermediate fronts."""
-    from core.surfaces import surface_from_sections
+    from core.model.surfaces import surface_from_sections
 
     holes, sel = inputs.holes, inputs.selection
     sections = []
@@ -336,8 +373,9 @@ def _surface(inputs: PipelineInputs, res: PipelineResult):
             i = int(np.argmin(np.abs(times / t_end - f)))
             front = affinity.translate(m.result.fronts[i], -(1 - f) * m.shift_m[0], -(1 - f) * m.shift_m[1])
             z = m.z_from_m + f * (m.z_to_m - m.z_from_m)
-            others = [c.polygon for k, c in enumerate(res.geozone_contours(sel.geozone, sel.bench))
-                      if k not in m.source_ids]
+            others = [
+                c.polygon for k, c in enumerate(res.geozone_contours(sel.geozone, sel.bench)) if k not in m.source_ids
+            ]
             # other components keep their upper-bench section half-way down
             sections.append((z, shapely.union_all([front, *others]) if others else front))
     if sum(not r.is_empty for _, r in sections) == 0:
@@ -357,7 +395,7 @@ def load_holes(source=None) -> Blastholes:
     if isinstance(source, Blastholes):
         return source
     if source is None or str(source) == "demo":
-        from core.synthetic import demo_dataset
+        from core.synthetic.blobs import demo_dataset
 
         _, table = demo_dataset()
         return blastholes_from_table(table, source="demo")
@@ -375,7 +413,7 @@ class ViewerModel:
         default_zone = next((g for g in zones if g != zones[0]), zones[0]) if len(zones) > 1 else zones[0]
         self.selection = selection or Selection(default_zone, 0, 0)
         self.vertical_exaggeration = 2.0
-        self.overrides: list = []  # core.project.AlignmentOverride
+        self.overrides: list = []  # core.io.project.AlignmentOverride
         self._undo: list[list] = []
         self.result: PipelineResult = PipelineResult()
         self.dirty = False
@@ -400,21 +438,28 @@ class ViewerModel:
 
     def overrides_here(self) -> tuple[dict, set, set]:
         """Locked translations (metres), forced and forbidden pairs of the selected bench pair."""
-        from core.project import Project, overrides_for
+        from core.io.project import Project, overrides_for
 
-        locked_in, forced, forbidden = overrides_for(Project(overrides=self.overrides), self.selection.geozone,
-                                                     self.source_z_input())
+        locked_in, forced, forbidden = overrides_for(
+            Project(overrides=self.overrides), self.selection.geozone, self.source_z_input()
+        )
         mpu = self.holes.frame.metres_per_unit
         locked = {s: (t[0] * mpu, t[1] * mpu) for s, t in locked_in.items()}
         return locked, forced, forbidden
 
     def inputs(self) -> PipelineInputs:
         locked, forced, forbidden = self.overrides_here()
-        return PipelineInputs(self.holes, dict(self.params), self.selection, locked, frozenset(forced),
-                              frozenset(forbidden))
+        return PipelineInputs(
+            self.holes, dict(self.params), self.selection, locked, frozenset(forced), frozenset(forbidden)
+        )
 
-    def run(self, from_stage: str = "boundary", cancelled=lambda: False,
-            progress: Callable[[str, float], None] | None = None, until: str = "surface") -> PipelineResult:
+    def run(
+        self,
+        from_stage: str = "boundary",
+        cancelled=lambda: False,
+        progress: Callable[[str, float], None] | None = None,
+        until: str = "surface",
+    ) -> PipelineResult:
         """Run synchronously (screenshots, tests); the window uses a worker with :func:`compute`."""
         for msg, frac, res in compute(self.inputs(), self.result, from_stage, cancelled, until):
             self.set_result(res)
@@ -440,9 +485,11 @@ class ViewerModel:
     def select(self, geozone: str | None = None, bench: int | None = None, component: int | None = None) -> str | None:
         """Change the selection; returns the stage to re-run from (or ``None``)."""
         old = self.selection
-        sel = Selection(geozone if geozone is not None else old.geozone,
-                        int(bench) if bench is not None else old.bench,
-                        int(component) if component is not None else old.component)
+        sel = Selection(
+            geozone if geozone is not None else old.geozone,
+            int(bench) if bench is not None else old.bench,
+            int(component) if component is not None else old.component,
+        )
         if sel.geozone not in self.holes.geozones:
             raise ValueError(f"geozone {sel.geozone!r} is not in the input")
         if not 0 <= sel.bench < max(self.holes.n_benches - 1, 1):
@@ -459,7 +506,7 @@ class ViewerModel:
 
     # -- manual alignment ------------------------------------------------------------
     def _override(self, create: bool = True):
-        from core.project import AlignmentOverride, _same_z  # noqa: PLC2701
+        from core.io.project import AlignmentOverride, _same_z
 
         sel, z = self.selection, self.source_z_input()
         for o in self.overrides:
@@ -539,16 +586,19 @@ class ViewerModel:
 
     # -- project file ------------------------------------------------------------------
     def to_project(self):
-        from core.project import Project
+        from core.io.project import Project
 
         params = dict(self.params)
-        params["viewer"] = {"geozone": self.selection.geozone, "bench": self.selection.bench,
-                            "component": self.selection.component,
-                            "vertical_exaggeration": self.vertical_exaggeration}
+        params["viewer"] = {
+            "geozone": self.selection.geozone,
+            "bench": self.selection.bench,
+            "component": self.selection.component,
+            "vertical_exaggeration": self.vertical_exaggeration,
+        }
         return Project(parameters=params, overrides=copy.deepcopy(self.overrides), input_path=self.input_path)
 
     def save_project(self, path: str | Path) -> None:
-        from core.project import save_project
+        from core.io.project import save_project
 
         save_project(self.to_project(), path)
         self.project_path = str(path)
@@ -557,7 +607,7 @@ class ViewerModel:
 
     def load_project(self, path: str | Path) -> None:
         """Apply a project file's parameters, selection and overrides (the input is not reloaded)."""
-        from core.project import load_project
+        from core.io.project import load_project
 
         proj = load_project(path)
         params = dict(proj.parameters)
@@ -567,10 +617,8 @@ class ViewerModel:
                 spec = PARAM_BY_NAME[name]
                 self.params[name] = int(round(value)) if spec.integer else float(value)
         if isinstance(viewer, dict):
-            try:
+            with contextlib.suppress(ValueError, TypeError):
                 self.select(viewer.get("geozone"), viewer.get("bench"), viewer.get("component"))
-            except (ValueError, TypeError):
-                pass
             ve = viewer.get("vertical_exaggeration")
             if isinstance(ve, (int, float)) and ve > 0:
                 self.vertical_exaggeration = float(ve)

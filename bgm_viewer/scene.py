@@ -9,13 +9,12 @@ the same renderer with a ``pyvistaqt.QtInteractor`` as the plotter.
 
 from __future__ import annotations
 
-from . import _vtkenv  # noqa: F401
-
 from collections.abc import Callable, Iterable
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 
 import numpy as np
 
+from . import _vtkenv  # noqa: F401
 from .layers import Layer, ViewTransform
 from .palette import BACKGROUND, to_float
 
@@ -124,10 +123,8 @@ class SceneRenderer:
         self.actors: dict[str, list] = {}
         self._legend_shown: list | None = None
         self._batching = 0
-        try:
+        with suppress(Exception):
             plotter.disable_anti_aliasing()
-        except Exception:  # noqa: BLE001 - older pyvista or no render window yet
-            pass
         ren_win = getattr(plotter, "ren_win", None)
         if ren_win is not None:
             ren_win.SetMultiSamples(0)
@@ -180,8 +177,9 @@ class SceneRenderer:
             self.plotter.remove_actor(actor, render=False)
         actors = []
         for k, item in enumerate(layer.build(self.scene.view)):
-            actor = self.plotter.add_mesh(item.mesh, name=f"{layer.name}#{k}", reset_camera=False,
-                                          render=False, **item.style)
+            actor = self.plotter.add_mesh(
+                item.mesh, name=f"{layer.name}#{k}", reset_camera=False, render=False, **item.style
+            )
             actor.SetVisibility(layer.visible)
             actors.append(actor)
         self.actors[layer.name] = actors
@@ -191,14 +189,17 @@ class SceneRenderer:
         if entries == self._legend_shown:
             return  # rebuilding an unchanged legend costs a render
         self._legend_shown = entries
-        try:
+        with suppress(Exception):
             self.plotter.remove_legend(render=False)
-        except Exception:  # noqa: BLE001
-            pass
         if entries:
-            self.plotter.add_legend([[label, to_float(rgb)] for label, rgb in entries], bcolor=(0.1, 0.1, 0.12),
-                                    border=False, size=(0.16, min(0.026 * len(entries), 0.5)), loc="upper right",
-                                    face="rectangle")
+            self.plotter.add_legend(
+                [[label, to_float(rgb)] for label, rgb in entries],
+                bcolor=(0.1, 0.1, 0.12),
+                border=False,
+                size=(0.16, min(0.026 * len(entries), 0.5)),
+                loc="upper right",
+                face="rectangle",
+            )
 
     # -- camera ------------------------------------------------------------
     def set_camera(self, camera: str | None = "iso") -> None:

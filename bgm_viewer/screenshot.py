@@ -7,13 +7,12 @@ rendering). This module never imports Qt.
 
 from __future__ import annotations
 
-from . import _vtkenv  # noqa: F401  (before pyvista)
-
 from pathlib import Path
 
 import numpy as np
 import pyvista as pv
 
+from . import _vtkenv  # noqa: F401  (before pyvista)
 from .builders import build_scene, parse_layers
 from .model import STAGES, ViewerModel
 from .scene import Scene, SceneRenderer
@@ -52,7 +51,9 @@ def plotter_for(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = 
     return plotter, renderer
 
 
-def scene_image(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True) -> np.ndarray:
+def scene_image(
+    scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True
+) -> np.ndarray:
     """``(rows, cols, 3)`` uint8 image of ``scene``."""
     plotter, _ = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)
     try:
@@ -67,14 +68,26 @@ def model_scene(model: ViewerModel, layers=None, *, run: bool = True) -> Scene:
     if run and names:
         until = STAGES[max(STAGES.index(_NEEDS[n]) for n in names)]
         model.run("boundary", until=until)
-    return build_scene(model.holes, model.result, model.selection, visible=names,
-                       vertical_exaggeration=model.vertical_exaggeration)
+    return build_scene(
+        model.holes, model.result, model.selection, visible=names, vertical_exaggeration=model.vertical_exaggeration
+    )
 
 
-def render_screenshot(holes_or_path=None, out_png: str | Path = "bgm.png", layers=None, camera: str | None = "iso", *,
-                      project=None, geozone: str | None = None, bench: int | None = None,
-                      component: int | None = None, vertical_exaggeration: float | None = None,
-                      window_size=DEFAULT_SIZE, legend: bool = True, model: ViewerModel | None = None) -> Path:
+def render_screenshot(
+    holes_or_path=None,
+    out_png: str | Path = "bgm.png",
+    layers=None,
+    camera: str | None = "iso",
+    *,
+    project=None,
+    geozone: str | None = None,
+    bench: int | None = None,
+    component: int | None = None,
+    vertical_exaggeration: float | None = None,
+    window_size=DEFAULT_SIZE,
+    legend: bool = True,
+    model: ViewerModel | None = None,
+) -> Path:
     """Render the viewer scene of ``holes_or_path`` to ``out_png``; returns the path.
 
     Parameters
@@ -101,8 +114,13 @@ def render_screenshot(holes_or_path=None, out_png: str | Path = "bgm.png", layer
             model.vertical_exaggeration = float(vertical_exaggeration)
         scene = model_scene(model, layers)
     else:
-        scene = build_scene(model.holes, model.result, model.selection, visible=parse_layers(layers),
-                            vertical_exaggeration=vertical_exaggeration or model.vertical_exaggeration)
+        scene = build_scene(
+            model.holes,
+            model.result,
+            model.selection,
+            visible=parse_layers(layers),
+            vertical_exaggeration=vertical_exaggeration or model.vertical_exaggeration,
+        )
     out_png = Path(out_png)
     out_png.parent.mkdir(parents=True, exist_ok=True)
     plotter, _ = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)

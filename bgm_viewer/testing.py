@@ -9,8 +9,8 @@ import warnings
 @functools.lru_cache(maxsize=2)
 def small_holes(seed: int = 3):
     """A 3-bench synthetic mine of about 900 holes (extraction takes about a second)."""
-    from core.blastholes import blastholes_from_table
-    from core.synthetic import make_mine, sample_blastholes
+    from core.io.blastholes import blastholes_from_table
+    from core.synthetic.blobs import make_mine, sample_blastholes
 
     mine = make_mine(seed=seed, n_benches=3, extent_m=(140.0, 100.0), n_pods=1)
     with warnings.catch_warnings():

@@ -13,12 +13,12 @@ import sys
 import time
 import warnings
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import numpy as np
 import typer
 
-from .errors import BGMInputError
+from core.errors import BGMInputError
 
 app = typer.Typer(
     name="bgm",
@@ -32,18 +32,21 @@ ASSETS = Path(__file__).resolve().parent.parent / "assets"
 DEMO_CSV = ASSETS / "demo_blastholes.csv"
 
 # Options shared by every command that reads blastholes.
-XOpt = Annotated[Optional[str], typer.Option("--x", help="Column holding x (default: x/east/easting, any case).")]
-YOpt = Annotated[Optional[str], typer.Option("--y", help="Column holding y (default: y/north/northing).")]
-ZOpt = Annotated[Optional[str], typer.Option("--z", help="Column holding elevation (default: z/rl/elevation/elev/mid_z).")]
+XOpt = Annotated[str | None, typer.Option("--x", help="Column holding x (default: x/east/easting, any case).")]
+YOpt = Annotated[str | None, typer.Option("--y", help="Column holding y (default: y/north/northing).")]
+ZOpt = Annotated[str | None, typer.Option("--z", help="Column holding elevation (default: z/rl/elevation/elev/mid_z).")]
 GeozoneColOpt = Annotated[
-    Optional[str],
-    typer.Option("--geozone-column", help="Column holding the geozone label (default: geozone/domain/lookup_domain/label/zone)."),
+    str | None,
+    typer.Option(
+        "--geozone-column", help="Column holding the geozone label (default: geozone/domain/lookup_domain/label/zone)."
+    ),
 ]
 BenchHeightOpt = Annotated[
-    Optional[float], typer.Option("--bench-height", help="Bench height in input units (default: detected from z).")
+    float | None, typer.Option("--bench-height", help="Bench height in input units (default: detected from z).")
 ]
 UnitsOpt = Annotated[
-    Optional[str], typer.Option("--units", help="Length unit of the input, m or ft (default: guessed from the bench height).")
+    str | None,
+    typer.Option("--units", help="Length unit of the input, m or ft (default: guessed from the bench height)."),
 ]
 InputArg = Annotated[Path, typer.Argument(help="Blasthole table (CSV or Parquet).", show_default=False)]
 
@@ -53,11 +56,9 @@ def _say(message: str) -> None:
 
 
 def _load(input: Path, x, y, z, geozone_column, bench_height, units):
-    from .blastholes import read_blastholes
+    from core.io.blastholes import read_blastholes
 
-    holes = read_blastholes(
-        input, x=x, y=y, z=z, geozone=geozone_column, bench_height=bench_height, length_unit=units
-    )
+    holes = read_blastholes(input, x=x, y=y, z=z, geozone=geozone_column, bench_height=bench_height, length_unit=units)
     unit = holes.frame.length_unit
     spacing = f"hole spacing {holes.frame.length_to_input(holes.hole_spacing_m):.2f} {unit}"
     if holes.n_benches == 1:
@@ -99,10 +100,10 @@ def contours(
     input: InputArg,
     out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("contours.geojson"),
     geozone: Annotated[
-        Optional[list[str]], typer.Option("--geozone", help="Geozone to extract (repeat for several; default all).")
+        list[str] | None, typer.Option("--geozone", help="Geozone to extract (repeat for several; default all).")
     ] = None,
     search_radius: Annotated[
-        Optional[float], typer.Option(help="Region-growing radius r in input units (default 1.6 x hole spacing).")
+        float | None, typer.Option(help="Region-growing radius r in input units (default 1.6 x hole spacing).")
     ] = None,
     x: XOpt = None,
     y: YOpt = None,
@@ -116,9 +117,9 @@ def contours(
     Writes one Polygon feature per bench, geozone and component with
     properties geozone, bench (elevation), component and containment figures.
     """
-    from .export import write_geojson
-    from .extraction import ExtractionParameters, extract_contours
-    from .reporting import containment_summary, contour_feature
+    from core.extraction.contours import ExtractionParameters, extract_contours
+    from core.io.export import write_geojson
+    from core.io.reporting import containment_summary, contour_feature
 
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     wanted = holes.check_geozones(geozone)
@@ -139,13 +140,13 @@ def contours(
 
 GeozoneOpt = Annotated[str, typer.Option("--geozone", help="Geozone to model (as written in the input, e.g. 3310).")]
 ProjectOpt = Annotated[
-    Optional[Path], typer.Option("--project", help="Project file with manual alignment overrides (JSON).")
+    Path | None, typer.Option("--project", help="Project file with manual alignment overrides (JSON).")
 ]
 
 
 def _model(input, geozone, project, stages, x, y, z, geozone_column, bench_height, units):
-    from .pipeline import model_geozone
-    from .project import load_project
+    from core.io.project import load_project
+    from core.model.pipeline import model_geozone
 
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     holes.check_geozones([geozone])
@@ -175,13 +176,17 @@ def correspond(
     units: UnitsOpt = None,
 ) -> None:
     """Associate components between successive benches and estimate their translations (paper section 3)."""
-    from .atomic import atomic_write_text
-    from .pipeline import correspondence_json
+    from core.io.atomic import atomic_write_text
+    from core.model.pipeline import correspondence_json
 
-    holes, model, elapsed = _model(input, geozone, project, ("correspond",), x, y, z, geozone_column, bench_height, units)
+    holes, model, elapsed = _model(
+        input, geozone, project, ("correspond",), x, y, z, geozone_column, bench_height, units
+    )
     data = correspondence_json(model, holes)
     atomic_write_text(out, json.dumps(data, indent=1))
-    typer.echo(json.dumps({"geozone": geozone, "pairs": len(data["pairs"]), "seconds": round(elapsed, 2), "out": str(out)}))
+    typer.echo(
+        json.dumps({"geozone": geozone, "pairs": len(data["pairs"]), "seconds": round(elapsed, 2), "out": str(out)})
+    )
 
 
 @app.command()
@@ -198,10 +203,12 @@ def morph(
     units: UnitsOpt = None,
 ) -> None:
     """Morph each bench's regions into the next bench's and trace the boundary's trajectories (paper section 4)."""
-    from .atomic import atomic_write_text
-    from .pipeline import morph_json
+    from core.io.atomic import atomic_write_text
+    from core.model.pipeline import morph_json
 
-    holes, model, elapsed = _model(input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units)
+    holes, model, elapsed = _model(
+        input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units
+    )
     data = morph_json(model, holes)
     atomic_write_text(out, json.dumps(data))
     cov = [p["target_boundary_coverage"] for p in data["pairs"] if p["target_boundary_coverage"] is not None]
@@ -227,7 +234,10 @@ def predict(
     input: InputArg,
     geozone: GeozoneOpt,
     elevations: Annotated[
-        str, typer.Option("--elevations", help="Comma-separated elevations in input units (above, between or below the benches).")
+        str,
+        typer.Option(
+            "--elevations", help="Comma-separated elevations in input units (above, between or below the benches)."
+        ),
     ],
     out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("prediction.geojson"),
     project: ProjectOpt = None,
@@ -239,9 +249,9 @@ def predict(
     units: UnitsOpt = None,
 ) -> None:
     """Predict the geozone's region at any elevation (paper: contour prediction)."""
-    from .export import write_geojson
-    from .prediction import predict_geozone
-    from .reporting import to_input_geometry
+    from core.io.export import write_geojson
+    from core.io.reporting import to_input_geometry
+    from core.model.prediction import predict_geozone
 
     try:
         levels = [float(v) for v in elevations.replace(";", ",").split(",") if v.strip()]
@@ -249,7 +259,9 @@ def predict(
         raise BGMInputError(f"--elevations must be numbers separated by commas, got {elevations!r}") from None
     if not levels or not all(np.isfinite(levels)):
         raise BGMInputError(f"--elevations needs at least one finite number, got {elevations!r}")
-    holes, model, elapsed = _model(input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units)
+    holes, model, elapsed = _model(
+        input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units
+    )
     z_m = [float(holes.frame.z_to_local(v)) for v in levels]
     regions = predict_geozone(model, z_m, holes.hole_spacing_m)
     features = []
@@ -261,14 +273,20 @@ def predict(
         features.append(
             {
                 "geometry": geometry,
-                "properties": {"geozone": geozone, "z": level, f"area_{holes.frame.length_unit}2": round(geometry.area, 3)},
+                "properties": {
+                    "geozone": geozone,
+                    "z": level,
+                    f"area_{holes.frame.length_unit}2": round(geometry.area, 3),
+                },
             }
         )
     write_geojson([f for f in features if not f["geometry"].is_empty], out)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty:
         _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
-    typer.echo(json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)}))
+    typer.echo(
+        json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)})
+    )
 
 
 @app.command()
@@ -284,10 +302,10 @@ def evaluate(
     units: UnitsOpt = None,
 ) -> None:
     """Precision and recall of predictions below withheld benches, against nil, linear and implicit references."""
-    from .build import load_truth, predictor_from_model
-    from .evaluation import evaluate_geozone, format_table, plot_precision_recall, summary_table
-    from .extraction import extract_contours
-    from .pipeline import ModelParameters, model_geozone
+    from core.extraction.contours import extract_contours
+    from core.model.build import load_truth, predictor_from_model
+    from core.model.evaluation import evaluate_geozone, format_table, plot_precision_recall, summary_table
+    from core.model.pipeline import ModelParameters, model_geozone
 
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     holes.check_geozones([geozone])
@@ -303,25 +321,30 @@ def evaluate(
         raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
     table = summary_table(rows)
     out.mkdir(parents=True, exist_ok=True)
-    from .atomic import atomic_write_text
+    from core.io.atomic import atomic_write_text
 
     atomic_write_text(out / "evaluation_rows.csv", rows.to_csv(index=False))
     atomic_write_text(out / "evaluation.csv", table.to_csv(index=False))
     plot_precision_recall(table, out / "precision_recall.png", title=f"{geozone}: model vs references")
-    _say(f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s")
+    _say(
+        f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s"
+    )
     typer.echo(format_table(table))
 
 
 def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None) -> dict:
-    from .build import build
-    from .project import load_project
+    from core.io.project import load_project
+    from core.model.build import build
 
     proj = load_project(project) if project is not None else None
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     bar = Progress(
-        TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(), console=Console(stderr=True),
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
         disable=not sys.stderr.isatty() and os.environ.get("BGM_PROGRESS") != "1",
     )
     task = bar.add_task("building", total=1)
@@ -331,7 +354,14 @@ def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None
 
     with bar:
         summary = build(
-            holes, out, geozones=geozone, project=proj, truth=truth, progress=progress, workers=workers, scheduler=scheduler
+            holes,
+            out,
+            geozones=geozone,
+            project=proj,
+            truth=truth,
+            progress=progress,
+            workers=workers,
+            scheduler=scheduler,
         )
     _say(f"wrote {out}/report.md ({summary['seconds']:.1f} s)")
     return summary
@@ -341,11 +371,11 @@ def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None
 def build(
     input: InputArg,
     out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-out"),
-    geozone: Annotated[Optional[list[str]], typer.Option("--geozone", help="Geozones to model (default all).")] = None,
+    geozone: Annotated[list[str] | None, typer.Option("--geozone", help="Geozones to model (default all).")] = None,
     project: ProjectOpt = None,
-    workers: Annotated[Optional[int], typer.Option(help="Local processes (default: all cores).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Local processes (default: all cores).")] = None,
     scheduler: Annotated[
-        Optional[str], typer.Option("--scheduler", help="Address of a dask.distributed scheduler to run on instead.")
+        str | None, typer.Option("--scheduler", help="Address of a dask.distributed scheduler to run on instead.")
     ] = None,
     x: XOpt = None,
     y: YOpt = None,
@@ -355,7 +385,7 @@ def build(
     units: UnitsOpt = None,
 ) -> None:
     """The whole pipeline for every geozone: contours, correspondence, trajectories, predictions, surfaces, evaluation, report."""
-    from .build import load_truth
+    from core.model.build import load_truth
 
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     if holes.n_benches < 2:
@@ -370,11 +400,11 @@ def demo(
     view: Annotated[bool, typer.Option(help="Open the 3D viewer on the result when a display is available.")] = False,
 ) -> None:
     """Build the whole model on the bundled synthetic demo data (assets/demo_blastholes.csv)."""
-    from .blastholes import read_blastholes
-    from .build import load_truth
+    from core.io.blastholes import read_blastholes
+    from core.model.build import load_truth
 
     holes = read_blastholes(DEMO_CSV)
-    summary = _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes))
+    _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes))
     typer.echo((out / "report.md").read_text())
     if view:
         from bgm_viewer.cli_hooks import view_command
@@ -386,26 +416,33 @@ def demo(
 
 @app.command()
 def view(
-    input: Annotated[Optional[Path], typer.Argument(help="Blasthole table (default: the bundled demo).", show_default=False)] = None,
+    input: Annotated[
+        Path | None, typer.Argument(help="Blasthole table (default: the bundled demo).", show_default=False)
+    ] = None,
     project: ProjectOpt = None,
     screenshot: Annotated[
-        Optional[Path], typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window.")
+        Path | None,
+        typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window."),
     ] = None,
     layers: Annotated[
-        Optional[str],
-        typer.Option(help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."),
+        str | None,
+        typer.Option(
+            help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."
+        ),
     ] = None,
-    camera: Annotated[Optional[str], typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
-    geozone: Annotated[Optional[str], typer.Option("--geozone", help="Geozone to select.")] = None,
-    bench: Annotated[Optional[int], typer.Option(help="Bench index to select (0 = top).")] = None,
-    exaggeration: Annotated[Optional[float], typer.Option(help="Vertical exaggeration.")] = None,
+    camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
+    geozone: Annotated[str | None, typer.Option("--geozone", help="Geozone to select.")] = None,
+    bench: Annotated[int | None, typer.Option(help="Bench index to select (0 = top).")] = None,
+    exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
 ) -> None:
     """Open the 3D viewer (or render a screenshot with no display)."""
     # The viewer is a separate package on top of the engine; only this command loads it.
     try:
         from bgm_viewer.cli_hooks import view_command
     except ImportError as exc:
-        raise BGMInputError(f"the viewer is not installed ({exc}); install it with: pip install -e '.[viewer]'") from None
+        raise BGMInputError(
+            f"the viewer is not installed ({exc}); install it with: pip install -e '.[viewer]'"
+        ) from None
     if input is not None and not Path(input).exists():
         raise BGMInputError(f"input file {str(input)!r} does not exist")
     code = view_command(
@@ -422,11 +459,9 @@ def make_demo_data(
     seed: Annotated[int, typer.Option(help="Random seed of the synthetic mine.")] = 2019,
 ) -> None:
     """Regenerate the bundled synthetic demo blastholes (assets/demo_blastholes.csv)."""
-    from .atomic import atomic_path
-    from .synthetic import demo_dataset
-
-    from .atomic import atomic_write_text
-    from .build import truth_sidecar
+    from core.io.atomic import atomic_path, atomic_write_text
+    from core.model.build import truth_sidecar
+    from core.synthetic.blobs import demo_dataset
 
     _, table = demo_dataset(seed)
     with atomic_path(out) as tmp:
@@ -442,7 +477,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 def main() -> None:
     """Entry point of the ``bgm`` console script."""
-    from .blastholes import BGMWarning
+    from core.io.blastholes import BGMWarning
 
     # Users see the engine's own warnings (repairs to their data), not library chatter.
     warnings.showwarning = _show_warning

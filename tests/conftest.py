@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import shapely
 
-from core.blastholes import BGMWarning, blastholes_from_table
-from core.synthetic import make_mine, sample_blastholes
+from core.io.blastholes import BGMWarning, blastholes_from_table
+from core.synthetic.blobs import make_mine, sample_blastholes
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO_CSV = ROOT / "assets" / "demo_blastholes.csv"

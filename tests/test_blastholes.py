@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pandas as pd
 import pytest
-
 from conftest import synthetic
-from core.blastholes import BGMWarning, blastholes_from_table, detect_benches, read_blastholes
+
 from core.errors import BGMInputError
+from core.io.blastholes import BGMWarning, detect_benches, read_blastholes
 
 
 def small_table(n_per_bench: int = 40, benches=(100.0, 90.0, 80.0), seed: int = 0) -> pd.DataFrame:
@@ -19,7 +17,9 @@ def small_table(n_per_bench: int = 40, benches=(100.0, 90.0, 80.0), seed: int = 
     for z in benches:
         gx, gy = np.meshgrid(np.arange(8) * 6.0, np.arange(n_per_bench // 8) * 6.0)
         for x, y in zip(gx.ravel(), gy.ravel()):
-            rows.append((x + rng.normal(0, 0.3), y + rng.normal(0, 0.3), z + rng.uniform(-1, 1), "3310" if x < 20 else "2210"))
+            rows.append(
+                (x + rng.normal(0, 0.3), y + rng.normal(0, 0.3), z + rng.uniform(-1, 1), "3310" if x < 20 else "2210")
+            )
     return pd.DataFrame(rows, columns=["EAST", "NORTH", "RL", "lookup_domain"])
 
 

@@ -5,19 +5,17 @@ from __future__ import annotations
 import json
 
 import ezdxf
-import numpy as np
 import pandas as pd
 import pytest
 import trimesh
 from shapely.geometry import shape
-
-from core.atomic import atomic_write_text
-from core.build import truth_sidecar
-from core.synthetic import make_mine, sample_blastholes
 from test_cli import bgm
 
+from core.io.atomic import atomic_write_text
+from core.model.build import truth_sidecar
+from core.synthetic.blobs import make_mine, sample_blastholes
 
-SMALL_MINE = dict(seed=5, n_benches=4, extent_m=[200.0, 150.0], origin=[650_000.0, 7_400_000.0], n_pods=1)
+SMALL_MINE = {"seed": 5, "n_benches": 4, "extent_m": [200.0, 150.0], "origin": [650_000.0, 7_400_000.0], "n_pods": 1}
 
 
 @pytest.fixture(scope="module")
@@ -112,7 +110,10 @@ def test_evaluate_uses_the_generator_truth_when_the_sidecar_is_there(small_mine_
         assert len(table) == 8  # depths 1/8 .. 8/8 of a bench
         # Against the true sections the model beats holding the last bench at a full bench below.
         deepest = table.iloc[-1]
-        f1 = lambda p, r: 2 * p * r / (p + r)
+
+        def f1(p, r):
+            return 2 * p * r / (p + r)
+
         assert f1(deepest.precision_model, deepest.recall_model) > f1(deepest.precision_nil, deepest.recall_nil)
         truth_sidecar(path).write_text("{not json")
         proc = bgm("evaluate", path, "--geozone", "g1", "--out", tmp_path / "e3", check=False)

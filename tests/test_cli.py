@@ -5,15 +5,12 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
-import shapely
-from shapely.geometry import shape
-
 from conftest import DEMO_CSV
+from shapely.geometry import shape
 
 BGM = [sys.executable, "-c", "from core.cli import main; main()"]
 

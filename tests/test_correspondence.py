@@ -1,4 +1,4 @@
-"""Tests of core.correspondence (paper section 3) on shapes with known truth."""
+"""Tests of core.correspondence.pair (paper section 3) on shapes with known truth."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from shapely import affinity
 from shapely.geometry import Point, Polygon, box
 
-from core.correspondence import (
+from core.correspondence.pair import (
     PairCorrespondence,
     align_translation_m,
     allocate_ports,
@@ -22,7 +22,7 @@ from core.correspondence import (
     subtrees,
 )
 from core.errors import BGMInputError
-from core.grid import Grid
+from core.geometry.grid import Grid
 
 HOLE = 6.0
 
@@ -78,14 +78,14 @@ def test_fft_translation_integer_shift_exact_including_negative_lags():
         u[r + 3 : r + 20, c + 2 : c + 6] = True  # asymmetric
         dr, dc = rng.integers(-r, shape[0] - 20 - r), rng.integers(-c, shape[1] - 15 - c)
         target = np.roll(np.roll(u, dr, 0), dc, 1)
-        from core.sdf import signed_distance
+        from core.geometry.sdf import signed_distance
 
         got = fft_translation(u, signed_distance(target))
         assert got == (float(dr), float(dc))
 
 
 def test_no_wrap_around_for_large_shift_near_frame_edge():
-    from core.sdf import signed_distance
+    from core.geometry.sdf import signed_distance
 
     # Source in the top-left corner, target in the bottom-right corner: the
     # lag is most of the frame. A circular correlation without padding would
@@ -205,7 +205,8 @@ def test_merge_sources_do_not_overlap_even_when_shift_differs():
 
 def dumbbell(cx, cy) -> Polygon:
     return (
-        Point(cx - 35, cy).buffer(22.0, 64)
+        Point(cx - 35, cy)
+        .buffer(22.0, 64)
         .union(Point(cx + 35, cy).buffer(22.0, 64))
         .union(box(cx - 35, cy - 7, cx + 35, cy + 7))
     )

@@ -4,9 +4,21 @@ import subprocess
 import sys
 
 CORE_MODULES = [
-    "core.blastholes", "core.synthetic", "core.extraction", "core.correspondence", "core.morph",
-    "core.trajectories", "core.backtracking", "core.prediction", "core.surfaces", "core.export",
-    "core.evaluation", "core.pipeline", "core.build", "core.project", "core.cli",
+    "core.io.blastholes",
+    "core.synthetic.blobs",
+    "core.extraction.contours",
+    "core.correspondence.pair",
+    "core.morph.levelset",
+    "core.morph.trajectories",
+    "core.morph.backtracking",
+    "core.model.prediction",
+    "core.model.surfaces",
+    "core.io.export",
+    "core.model.evaluation",
+    "core.model.pipeline",
+    "core.model.build",
+    "core.io.project",
+    "core.cli",
 ]
 
 

@@ -1,4 +1,4 @@
-"""Tests of core.evaluation: scoring, reference predictors and the predictive-value protocol."""
+"""Tests of core.model.evaluation: scoring, reference predictors and the predictive-value protocol."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from shapely.geometry import MultiPolygon, Point, Polygon, box
 
-from core import evaluation as ev
-from core.blastholes import blastholes_from_table
-from core.extraction import extract_contours
-from core.grid import Grid
-from core.synthetic import make_mine, sample_blastholes
+from core.extraction.contours import extract_contours
+from core.geometry.grid import Grid
+from core.io.blastholes import blastholes_from_table
+from core.model import evaluation as ev
+from core.synthetic.blobs import make_mine, sample_blastholes
 
 # ---------------------------------------------------------------------------
 # precision_recall
@@ -94,7 +94,9 @@ def test_linear_sdf_follows_a_moving_disc():
         assert ev.iou(pred, disc(k)) > ev.iou(ev.predict_nil(regions, z), disc(k)) + 0.05
     # A single known bench (or an empty one) falls back to the zero-order hold.
     assert ev.iou(ev.predict_linear_sdf({100.0: disc(0)}, 90.0, grid), disc(0)) == pytest.approx(1.0)
-    assert ev.iou(ev.predict_linear_sdf({100.0: MultiPolygon(), 90.0: disc(1)}, 80.0, grid), disc(1)) == pytest.approx(1.0)
+    assert ev.iou(ev.predict_linear_sdf({100.0: MultiPolygon(), 90.0: disc(1)}, 80.0, grid), disc(1)) == pytest.approx(
+        1.0
+    )
 
 
 def test_linear_sdf_holds_a_new_speck():
@@ -139,8 +141,14 @@ def test_implicit_rbf_predicts_the_next_bench(small_mine):
     z = float(holes.bench_levels_m[3])
     grid = ev.default_grid([holes.xy])
     pred = ev.predict_implicit_rbf(
-        holes.xy[known], holes.z[known], holes.geozone[known] == "g1", z, grid,
-        bench=holes.bench[known], spacing_m=holes.hole_spacing_m, bench_height_m=holes.bench_height_m,
+        holes.xy[known],
+        holes.z[known],
+        holes.geozone[known] == "g1",
+        z,
+        grid,
+        bench=holes.bench[known],
+        spacing_m=holes.hole_spacing_m,
+        bench_height_m=holes.bench_height_m,
     )
     within = ev.drilled_area(holes.xy[holes.on_bench(3)], holes.hole_spacing_m)
     p, r, _, _ = ev.precision_recall(pred, truth("g1", z), within)
@@ -206,7 +214,7 @@ def test_evaluate_geozone_real_data_mode(small_mine):
     def hold(known, geozone, z_targets):
         regions = ev.bench_regions(known, geozone, [c for c in contours if c.bench <= known.bench.max()])
         last = regions[int(known.bench.max())]
-        return {z: last for z in z_targets}
+        return dict.fromkeys(z_targets, last)
 
     df = ev.evaluate_geozone(holes, "g1", hold, contours=contours, references=("nil", "linear"))
     assert len(df) == (holes.n_benches - 2) * 3

@@ -14,12 +14,12 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shapely import affinity
-from shapely.geometry import LineString, MultiPolygon, Point, box
+from shapely.geometry import MultiPolygon, Point, box
 from shapely.ops import unary_union
 
-from core.grid import Grid
-from core.morph import MorphResult, morph_regions, region_sdf, reinitialise
-from core.trajectories import (
+from core.geometry.grid import Grid
+from core.morph.levelset import MorphResult, morph_regions, region_sdf, reinitialise
+from core.morph.trajectories import (
     Trajectory,
     boundary_coverage,
     crossing_pairs,
@@ -261,7 +261,7 @@ def test_property_disc_to_ellipse(dx, dy, r_src, rx, ry):
 
 
 def test_curvelet_pixels_appear_where_particles_lose_the_front():
-    from core.backtracking import curvelet_pixels
+    from core.morph.backtracking import curvelet_pixels
 
     res = morph_regions(*BRANCHING, max_cells=128)
     advected = [tr for tr in res.trajectories if not tr.backtracked]

@@ -7,9 +7,9 @@ import warnings
 
 import pytest
 
-from core.blastholes import BGMWarning, blastholes_from_table
-from core.build import build
-from core.synthetic import make_mine, sample_blastholes
+from core.io.blastholes import BGMWarning, blastholes_from_table
+from core.model.build import build
+from core.synthetic.blobs import make_mine, sample_blastholes
 
 
 @pytest.fixture(scope="module")
@@ -22,8 +22,13 @@ def holes():
 
 def _results(out):
     summary = json.loads((out / "summary.json").read_text())
-    geozones = {g["geozone"]: {k: g[k] for k in ("components", "bench_pairs", "coverage_after", "volume")} for g in summary["geozones"]}
-    predictions = {g: (out / g / "prediction.geojson").read_text() for g in geozones if (out / g / "prediction.geojson").exists()}
+    geozones = {
+        g["geozone"]: {k: g[k] for k in ("components", "bench_pairs", "coverage_after", "volume")}
+        for g in summary["geozones"]
+    }
+    predictions = {
+        g: (out / g / "prediction.geojson").read_text() for g in geozones if (out / g / "prediction.geojson").exists()
+    }
     contours = (out / "contours.geojson").read_text()
     return geozones, predictions, contours
 

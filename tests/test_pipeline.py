@@ -6,11 +6,11 @@ import warnings
 
 import numpy as np
 import pytest
-
 from conftest import synthetic
-from core.blastholes import BGMWarning, blastholes_from_table
-from core.pipeline import model_geozone
-from core.synthetic import demo_dataset
+
+from core.io.blastholes import BGMWarning, blastholes_from_table
+from core.model.pipeline import model_geozone
+from core.synthetic.blobs import demo_dataset
 
 
 @pytest.mark.parametrize("source", ["demo", 31])

@@ -5,17 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
+from conftest import iou, synthetic
 from shapely.geometry import Point
 
-from conftest import iou, synthetic
-from core.build import predictor_from_model
-from core.correspondence import correspond_pair
-from core.evaluation import evaluate_geozone, summary_table, truth_from_mine
-from core.extraction import Contour
-from core.extraction import extract_contours
-from core.pipeline import BenchPair, GeozoneModel, ModelParameters, model_geozone, morph
-from core.pipeline import beyond_frontiers
-from core.prediction import persistence_coefficient, predict_geozone, region_beyond, region_between
+from core.correspondence.pair import correspond_pair
+from core.extraction.contours import Contour, extract_contours
+from core.model.build import predictor_from_model
+from core.model.evaluation import evaluate_geozone, summary_table, truth_from_mine
+from core.model.pipeline import BenchPair, GeozoneModel, ModelParameters, beyond_frontiers, model_geozone, morph
+from core.model.prediction import persistence_coefficient, predict_geozone, region_between, region_beyond
 
 
 def _contour(poly, bench, z) -> Contour:
@@ -96,8 +94,12 @@ def test_model_beats_nil_below_withheld_benches_on_a_fresh_mine(geozone):
     params = ModelParameters()
     model = model_geozone(holes, geozone, contours=contours, params=params)
     rows = evaluate_geozone(
-        holes, geozone, predictor_from_model(model, holes, params),
-        truth=truth_from_mine(mine, holes.frame), contours=contours, references=("nil",),
+        holes,
+        geozone,
+        predictor_from_model(model, holes, params),
+        truth=truth_from_mine(mine, holes.frame),
+        contours=contours,
+        references=("nil",),
     )
     table = summary_table(rows).set_index("fraction")
     for fraction in (0.5, 1.0):  # 5 m and 10 m below a 10 m bench
@@ -141,7 +143,7 @@ def test_a_steady_dip_is_carried_on_and_a_wobble_is_held():
 def test_a_geozone_goes_on_past_the_drilling_frontier():
     import pandas as pd
 
-    from core.blastholes import blastholes_from_table
+    from core.io.blastholes import blastholes_from_table
 
     # Bench 0 (z 100) drilled over x < 150 with the geozone on y > 20; bench 1 (z 90)
     # drilled over x < 100 only, with the geozone on y > 0.

@@ -1,4 +1,4 @@
-"""Tests of core.project: project file round trip, errors, atomic saving."""
+"""Tests of core.io.project: project file round trip, errors, atomic saving."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from core.errors import BGMInputError
-from core.project import (
+from core.io.project import (
     VERSION,
     AlignmentOverride,
     Project,
@@ -62,7 +62,7 @@ def test_later_override_wins():
 def test_overrides_feed_correspond_pair():
     from shapely.geometry import Point
 
-    from core.correspondence import correspond_pair
+    from core.correspondence.pair import correspond_pair
 
     project = Project(overrides=[AlignmentOverride("ore", 100.0, 0, translation=(1.0, 2.0), associate={1: True})])
     locked, forced, forbidden = overrides_for(project, "ore", 100.0)

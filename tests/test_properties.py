@@ -26,17 +26,17 @@ from hypothesis import strategies as st
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Polygon
 
-from core.blastholes import BGMWarning, blastholes_from_table
-from core.correspondence import correspond_pair, fft_translation
-from core.export import export_surface
-from core.extraction import extract_contours
-from core.morph import morph_regions
-from core.reporting import containment, to_input_geometry
-from core.sdf import signed_distance
-from core.surfaces import surface_from_sections
-from core.trajectories import crossing_pairs
+from core.correspondence.pair import correspond_pair, fft_translation
+from core.extraction.contours import extract_contours
+from core.geometry.sdf import signed_distance
+from core.io.blastholes import BGMWarning, blastholes_from_table
+from core.io.export import export_surface
+from core.io.reporting import containment, to_input_geometry
+from core.model.surfaces import surface_from_sections
+from core.morph.levelset import morph_regions
+from core.morph.trajectories import crossing_pairs
 
-SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+SETTINGS = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow, HealthCheck.data_too_large]}
 
 
 def blob(cx: float, cy: float, radius: float, harmonics=(), n: int = 96) -> Polygon:
@@ -57,7 +57,10 @@ harmonics = st.lists(
 @st.composite
 def blobs(draw, centre=20.0, r_min=8.0, r_max=25.0):
     return blob(
-        draw(st.floats(-centre, centre)), draw(st.floats(-centre, centre)), draw(st.floats(r_min, r_max)), draw(harmonics)
+        draw(st.floats(-centre, centre)),
+        draw(st.floats(-centre, centre)),
+        draw(st.floats(r_min, r_max)),
+        draw(harmonics),
     )
 
 
@@ -83,7 +86,9 @@ def labelled_holes(draw):
     w, h = xy.max(axis=0)
     for g in range(draw(st.integers(1, 3))):
         shape = blob(
-            rng.uniform(0, w), rng.uniform(0, h), rng.uniform(1.5, 6.0) * spacing,
+            rng.uniform(0, w),
+            rng.uniform(0, h),
+            rng.uniform(1.5, 6.0) * spacing,
             [(int(rng.integers(2, 5)), rng.uniform(-0.2, 0.2), rng.uniform(0, 2 * np.pi))],
         )
         labels[shapely.contains_xy(shape, xy[:, 0], xy[:, 1])] = f"g{g}"
@@ -94,7 +99,12 @@ def labelled_holes(draw):
         labels[flip] = [rng.choice([p for p in present if p != lab]) for lab in labels[flip]]
     origin = draw(st.sampled_from([(0.0, 0.0), (650_000.0, 7_400_000.0)]))
     table = pd.DataFrame(
-        {"x": xy[:, 0] + origin[0], "y": xy[:, 1] + origin[1], "z": 100.0 + rng.uniform(-0.5, 0.5, len(xy)), "geozone": labels}
+        {
+            "x": xy[:, 0] + origin[0],
+            "y": xy[:, 1] + origin[1],
+            "z": 100.0 + rng.uniform(-0.5, 0.5, len(xy)),
+            "geozone": labels,
+        }
     )
     return table
 
@@ -258,7 +268,12 @@ def section_stacks(draw):
         if kind == "blob":
             region = draw(blobs(centre=15.0, r_min=8.0, r_max=25.0))
         elif kind == "two":
-            region = MultiPolygon([blob(-22, 0, draw(st.floats(6, 12)), draw(harmonics)), blob(22, 0, draw(st.floats(6, 12)), draw(harmonics))])
+            region = MultiPolygon(
+                [
+                    blob(-22, 0, draw(st.floats(6, 12)), draw(harmonics)),
+                    blob(22, 0, draw(st.floats(6, 12)), draw(harmonics)),
+                ]
+            )
         else:
             region = Polygon()
         sections.append((z, region))

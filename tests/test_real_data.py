@@ -5,11 +5,9 @@ from __future__ import annotations
 import json
 import warnings
 
-import numpy as np
-
-from core.blastholes import BGMWarning, read_blastholes
-from core.extraction import extract_contours
-from core.reporting import containment_summary
+from core.extraction.contours import extract_contours
+from core.io.blastholes import BGMWarning, read_blastholes
+from core.io.reporting import containment_summary
 
 
 def test_kennecott_contours_for_every_geozone_and_bench(kennecott_csv):
@@ -33,7 +31,7 @@ def test_kennecott_contours_for_every_geozone_and_bench(kennecott_csv):
 
 def test_kennecott_builds_end_to_end_for_every_geozone(kennecott_csv, tmp_path):
     """Every geozone and bench pair: correspondence, morph, prediction, surface, evaluation."""
-    from core.build import build
+    from core.model.build import build
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BGMWarning)
@@ -41,7 +39,22 @@ def test_kennecott_builds_end_to_end_for_every_geozone(kennecott_csv, tmp_path):
     summary = build(holes, tmp_path, workers=2)
     print("Kennecott build:", json.dumps({k: summary[k] for k in ("seconds", "contours_seconds")}))
     for g in summary["geozones"]:
-        print(json.dumps({k: g[k] for k in ("geozone", "components", "bench_pairs", "coverage_before", "coverage_after", "watertight", "note")}))
+        print(
+            json.dumps(
+                {
+                    k: g[k]
+                    for k in (
+                        "geozone",
+                        "components",
+                        "bench_pairs",
+                        "coverage_before",
+                        "coverage_after",
+                        "watertight",
+                        "note",
+                    )
+                }
+            )
+        )
         if g["bench_pairs"]:
             assert g["watertight"], g
             assert g["coverage_after"] >= 0.95, g
@@ -52,7 +65,9 @@ def test_kennecott_builds_end_to_end_for_every_geozone(kennecott_csv, tmp_path):
     # Issue 5: on the next (withheld) bench the model beats holding the last bench and
     # the implicit RBF model on F1, all geozones area-weighted.
     row = summary["evaluation"][0]
-    f1 = {m: 2 * row[f"precision_{m}"] * row[f"recall_{m}"] / (row[f"precision_{m}"] + row[f"recall_{m}"])
-          for m in ("model", "nil", "linear", "implicit")}
+    f1 = {
+        m: 2 * row[f"precision_{m}"] * row[f"recall_{m}"] / (row[f"precision_{m}"] + row[f"recall_{m}"])
+        for m in ("model", "nil", "linear", "implicit")
+    }
     print("Kennecott next-bench F1:", json.dumps({m: round(v, 3) for m, v in f1.items()}))
     assert f1["model"] > f1["nil"] and f1["model"] > f1["implicit"], f1

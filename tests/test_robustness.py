@@ -21,9 +21,9 @@ import pytest
 import shapely
 from shapely.geometry import shape
 
-from core.blastholes import BGMWarning, blastholes_from_table, read_blastholes
 from core.errors import BGMInputError
-from core.synthetic import make_mine, sample_blastholes
+from core.io.blastholes import BGMWarning, blastholes_from_table, read_blastholes
+from core.synthetic.blobs import make_mine, sample_blastholes
 
 BGM = [sys.executable, "-c", "from core.cli import main; main()"]
 ORIGIN = (650_000.0, 7_400_000.0)
@@ -110,8 +110,13 @@ def base_contours(base_csv, tmp_path_factory) -> list[dict]:
 def comparable(feats: list[dict]) -> list[tuple]:
     """Features reduced to what must not change between equivalent inputs (areas to 1e-6 relative)."""
     return sorted(
-        (f["properties"]["geozone"], f["properties"]["bench"], f["properties"]["component"], f["properties"]["holes"],
-         pytest.approx(shape(f["geometry"]).area, rel=1e-3))
+        (
+            f["properties"]["geozone"],
+            f["properties"]["bench"],
+            f["properties"]["component"],
+            f["properties"]["holes"],
+            pytest.approx(shape(f["geometry"]).area, rel=1e-3),
+        )
         for f in feats
     )
 
@@ -182,9 +187,15 @@ BAD_FILES = {
     "blank lines only": (_write_bytes(b"\n\n   \n"), ("cannot read",)),
     "header only": (_write_bytes(b"x,y,z,geozone\n"), ("header but no rows",)),
     "directory": (lambda p: p.parent, ("is a directory",)),
-    "Parquet that is not Parquet": (lambda p: _write_bytes(b"x,y,z,geozone\n1,2,3,a\n")(p.with_suffix(".parquet")), ("as Parquet",)),
+    "Parquet that is not Parquet": (
+        lambda p: _write_bytes(b"x,y,z,geozone\n1,2,3,a\n")(p.with_suffix(".parquet")),
+        ("as Parquet",),
+    ),
     "binary junk": (_write_bytes(bytes(range(256)) * 8), ("cannot read",)),
-    "UTF-16 text": (lambda p: (p.write_text("x,y,z,geozone\n1,2,3,a\n4,5,6,b\n", encoding="utf-16"), p)[1], ("not UTF-8",)),
+    "UTF-16 text": (
+        lambda p: (p.write_text("x,y,z,geozone\n1,2,3,a\n4,5,6,b\n", encoding="utf-16"), p)[1],
+        ("not UTF-8",),
+    ),
 }
 
 
@@ -355,7 +366,9 @@ def test_collinear_holes(tmp_path):
     check_polygons(feats)
     for z in (100.0, 90.0, 80.0):
         ore = t[(t.z == z) & (t.geozone == "ore")]
-        polys = [shape(f["geometry"]) for f in feats if f["properties"]["bench"] == z and f["properties"]["geozone"] == "ore"]
+        polys = [
+            shape(f["geometry"]) for f in feats if f["properties"]["bench"] == z and f["properties"]["geozone"] == "ore"
+        ]
         assert polys, z
         region = shapely.union_all(polys)
         assert shapely.contains_xy(region.buffer(1e-6), ore.x.to_numpy(), ore.y.to_numpy()).all()
@@ -463,9 +476,13 @@ def test_feet_give_the_same_contours_scaled(table, base_contours, tmp_path):
     assert "ft" in proc.stderr
     feet = features(out)
     assert len(feet) == len(base_contours)
-    metres = {(f["properties"]["geozone"], f["properties"]["component"], f["properties"]["bench"]): f for f in base_contours}
+    metres = {
+        (f["properties"]["geozone"], f["properties"]["component"], f["properties"]["bench"]): f for f in base_contours
+    }
     for f in feet:
-        g = metres[(f["properties"]["geozone"], f["properties"]["component"], round(f["properties"]["bench"] * 0.3048, 1))]
+        g = metres[
+            (f["properties"]["geozone"], f["properties"]["component"], round(f["properties"]["bench"] * 0.3048, 1))
+        ]
         assert f["properties"]["holes"] == g["properties"]["holes"]
         a = shapely.affinity.scale(shape(f["geometry"]), 0.3048, 0.3048, origin=(0, 0))
         b = shape(g["geometry"])
@@ -551,7 +568,7 @@ def test_ctrl_c_in_the_cli_exits_130_with_one_line(base_csv, tmp_path):
     out = tmp_path / "contours.geojson"
     out.write_text("previous\n")
     code = (
-        "import pathlib, core.atomic\n"
+        "import pathlib, core.io.atomic\n"
         "real = pathlib.Path.write_text\n"
         "def boom(self, data, *a, **k):\n"
         "    real(self, data[:10], *a, **k)\n"
@@ -561,7 +578,9 @@ def test_ctrl_c_in_the_cli_exits_130_with_one_line(base_csv, tmp_path):
     )
     proc = subprocess.run(
         [sys.executable, "-c", code, "contours", str(base_csv), "--out", str(out)],
-        capture_output=True, text=True, timeout=300,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert "Traceback" not in proc.stderr
     assert proc.returncode == 130

@@ -1,4 +1,4 @@
-"""Closed geozone surfaces from stacked sections, and their export (core.surfaces, core.export)."""
+"""Closed geozone surfaces from stacked sections, and their export (core.model.surfaces, core.io.export)."""
 
 from __future__ import annotations
 
@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Point, Polygon, box, shape
 
-from core import export as export_mod
 from core.errors import BGMInputError
-from core.export import (
+from core.io import export as export_mod
+from core.io.export import (
     DEFAULT_FORMATS,
     SURFACE_FORMATS,
     export_all,
@@ -26,7 +26,7 @@ from core.export import (
     omf_available,
     write_geojson,
 )
-from core.surfaces import mesh_summary, surface_from_sections, to_input_frame
+from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
 
 MINE_ORIGIN = (650000.0, 7400000.0)
 
@@ -145,9 +145,7 @@ def test_empty_sections_end_the_body_between_benches():
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     st.lists(
-        st.tuples(
-            st.floats(-20, 20), st.floats(-20, 20), st.floats(8, 30), st.floats(8, 30), st.floats(0, 3.1)
-        ),
+        st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(8, 30), st.floats(8, 30), st.floats(0, 3.1)),
         min_size=2,
         max_size=4,
     ),

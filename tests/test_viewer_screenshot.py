@@ -114,8 +114,9 @@ def test_gvf_layer_draws_arrows(model):
 
 def test_stage_layers_render(model, tmp_path):
     for layers, camera in [("snake,edge map", "top"), ("wavefront,trajectories", "iso"), ("surfaces", "iso")]:
-        out = render_screenshot(out_png=tmp_path / "x.png", layers=layers, camera=camera, model=model,
-                                window_size=SIZE, legend=False)
+        out = render_screenshot(
+            out_png=tmp_path / "x.png", layers=layers, camera=camera, model=model, window_size=SIZE, legend=False
+        )
         img = np.asarray(pv.read(str(out)).point_data.active_scalars)
         assert _not_background(img[:, :3].reshape(-1, 1, 3)).mean() > 0.002, layers
     # trajectories: cyan or magenta pixels drawn

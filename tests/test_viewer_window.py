@@ -133,8 +133,12 @@ def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
     np.testing.assert_allclose(expected, [6.0, 3.0], atol=1.0)
 
     iren = window.plotter.iren.interactor
-    for event, (x, y) in (("LeftButtonPressEvent", (x0, y0)), ("MouseMoveEvent", ((x0 + x1) // 2, (y0 + y1) // 2)),
-                          ("MouseMoveEvent", (x1, y1)), ("LeftButtonReleaseEvent", (x1, y1))):
+    for event, (x, y) in (
+        ("LeftButtonPressEvent", (x0, y0)),
+        ("MouseMoveEvent", ((x0 + x1) // 2, (y0 + y1) // 2)),
+        ("MouseMoveEvent", (x1, y1)),
+        ("LeftButtonReleaseEvent", (x1, y1)),
+    ):
         iren.SetEventInformation(x, y, 0, 1)  # ctrl off, shift on
         iren.InvokeEvent(event)
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
@@ -162,7 +166,8 @@ def test_closing_with_unsaved_changes_prompts(window, monkeypatch):
 
 
 def test_no_prompt_when_saved(window, monkeypatch):
-    monkeypatch.setattr(QtWidgets.QMessageBox, "question",
-                        lambda *a, **k: pytest.fail("should not ask when nothing changed"))
+    monkeypatch.setattr(
+        QtWidgets.QMessageBox, "question", lambda *a, **k: pytest.fail("should not ask when nothing changed")
+    )
     assert not window.model.dirty
     assert window.close()

@@ -1,4 +1,4 @@
-"""Benchmark of core.correspondence.correspond_pair on typical synthetic bench pairs.
+"""Benchmark of core.correspondence.pair.correspond_pair on typical synthetic bench pairs.
 
 Run: ``python tests/benchmarks/bench_correspondence.py [--repeats N] [--profile]``.
 Prints the median wall time per bench pair (target: < 0.2 s per pair).
@@ -20,7 +20,7 @@ from shapely.geometry import Point, Polygon
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from core.correspondence import correspond_pair  # noqa: E402
+from core.correspondence.pair import correspond_pair
 
 HOLE_SPACING_M = 6.0
 

@@ -21,10 +21,10 @@ from scipy import ndimage
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from core.blastholes import read_blastholes  # noqa: E402
-from core.extraction import extract_contours  # noqa: E402
-from core.gvf import gvf_explicit, gvf_residual, gvf_steady_state  # noqa: E402
-from core.reporting import containment_summary  # noqa: E402
+from core.extraction.contours import extract_contours  # noqa: E402
+from core.extraction.gvf import gvf_explicit, gvf_residual, gvf_steady_state  # noqa: E402
+from core.io.blastholes import read_blastholes  # noqa: E402
+from core.io.reporting import containment_summary  # noqa: E402
 
 KENNECOTT = ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv"
 

@@ -18,7 +18,7 @@ from shapely import affinity
 from shapely.geometry import Point, box
 from shapely.ops import unary_union
 
-from core.morph import morph_regions
+from core.morph.levelset import morph_regions
 
 
 def ellipse(cx, cy, rx, ry):
@@ -41,7 +41,9 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true", help="cProfile the branching instance")
     args = parser.parse_args()
     morph_regions(*INSTANCES["translated disc"], max_cells=64)  # warm-up (imports, caches)
-    print(f"{'instance':28s} {'grid':>10s} {'steps':>5s} {'traj':>5s} {'cov0':>6s} {'cov':>6s} {'iou':>6s} {'best s':>7s} {'median s':>8s} {'best cpu':>8s}")
+    print(
+        f"{'instance':28s} {'grid':>10s} {'steps':>5s} {'traj':>5s} {'cov0':>6s} {'cov':>6s} {'iou':>6s} {'best s':>7s} {'median s':>8s} {'best cpu':>8s}"
+    )
     for name, (src, tgt) in INSTANCES.items():
         times, cpu = [], []
         for _ in range(args.repeats):

@@ -21,9 +21,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from core.blastholes import read_blastholes  # noqa: E402
-from core.extraction import extract_contours  # noqa: E402
-from core.pipeline import bench_pairs, correspond, morph, ModelParameters  # noqa: E402
+from core.extraction.contours import extract_contours  # noqa: E402
+from core.io.blastholes import read_blastholes  # noqa: E402
+from core.model.pipeline import ModelParameters, bench_pairs, correspond, morph  # noqa: E402
 
 KENNECOTT = ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv"
 
@@ -50,14 +50,23 @@ def run(path: Path) -> None:
                 if step.instance.source_ids and step.instance.target_ids:
                     before.append(step.result.coverage_before_backtracking)
                     after.append(step.result.target_boundary_coverage)
-    q = lambda a: " / ".join(f"{v:.3f}" for v in np.percentile(a, [5, 25, 50, 75, 95]))
+
+    def q(a):
+        return " / ".join(f"{v:.3f}" for v in np.percentile(a, [5, 25, 50, 75, 95]))
+
     print(f"{path.name}: {len(t_corr)} bench pairs over {len(holes.geozones)} geozones, {n_instances} morph instances")
-    print(f"  correspondence per pair: median {np.median(t_corr):.3f} s, 90th pct {np.percentile(t_corr, 90):.3f} s, total {sum(t_corr):.1f} s")
-    print(f"  morph per pair:          median {np.median(t_morph):.3f} s, 90th pct {np.percentile(t_morph, 90):.3f} s, "
-          f"total {sum(t_morph):.1f} s ({sum(t_morph) / max(n_instances, 1):.3f} s per instance)")
+    print(
+        f"  correspondence per pair: median {np.median(t_corr):.3f} s, 90th pct {np.percentile(t_corr, 90):.3f} s, total {sum(t_corr):.1f} s"
+    )
+    print(
+        f"  morph per pair:          median {np.median(t_morph):.3f} s, 90th pct {np.percentile(t_morph, 90):.3f} s, "
+        f"total {sum(t_morph):.1f} s ({sum(t_morph) / max(n_instances, 1):.3f} s per instance)"
+    )
     print(f"  coverage before backtracking (5/25/50/75/95 pct): {q(before)}")
-    print(f"  coverage after backtracking  (5/25/50/75/95 pct): {q(after)}  "
-          f"({np.mean(np.array(after) >= 0.99):.0%} of instances at >= 0.99)")
+    print(
+        f"  coverage after backtracking  (5/25/50/75/95 pct): {q(after)}  "
+        f"({np.mean(np.array(after) >= 0.99):.0%} of instances at >= 0.99)"
+    )
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ above it, scored against the generator's true sections; all geozones
 area-weighted, then per geozone at 10 m. Kennecott (when present): the next
 bench withheld, scored against its holes, F1 per method. Also prints the
 movement persistence the model learnt for each geozone
-(:func:`core.prediction.persistence_coefficient`).
+(:func:`core.model.prediction.persistence_coefficient`).
 """
 
 from __future__ import annotations
@@ -24,13 +24,13 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 KENNECOTT = ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv"
 
-from core.blastholes import BGMWarning, blastholes_from_table, read_blastholes  # noqa: E402
-from core.build import predictor_from_model  # noqa: E402
-from core.evaluation import evaluate_geozone, format_table, summary_table, truth_from_mine  # noqa: E402
-from core.extraction import extract_contours  # noqa: E402
-from core.pipeline import ModelParameters, model_geozone  # noqa: E402
-from core.prediction import persistence_coefficient  # noqa: E402
-from core.synthetic import demo_dataset, make_mine, sample_blastholes  # noqa: E402
+from core.extraction.contours import extract_contours  # noqa: E402
+from core.io.blastholes import BGMWarning, blastholes_from_table, read_blastholes  # noqa: E402
+from core.model.build import predictor_from_model  # noqa: E402
+from core.model.evaluation import evaluate_geozone, format_table, summary_table, truth_from_mine  # noqa: E402
+from core.model.pipeline import ModelParameters, model_geozone  # noqa: E402
+from core.model.prediction import persistence_coefficient  # noqa: E402
+from core.synthetic.blobs import demo_dataset, make_mine, sample_blastholes  # noqa: E402
 
 
 def evaluate(holes, truth=None, references=("nil", "linear", "implicit")) -> tuple[pd.DataFrame, dict]:
@@ -42,8 +42,9 @@ def evaluate(holes, truth=None, references=("nil", "linear", "implicit")) -> tup
         if not model.pairs:
             continue
         learnt[g] = round(persistence_coefficient(model.pairs, holes.hole_spacing_m), 2)
-        df = evaluate_geozone(holes, g, predictor_from_model(model, holes, params), truth=truth,
-                              contours=contours, references=references)
+        df = evaluate_geozone(
+            holes, g, predictor_from_model(model, holes, params), truth=truth, contours=contours, references=references
+        )
         df.insert(0, "geozone", g)
         rows.append(df)
     return pd.concat(rows, ignore_index=True), learnt
@@ -75,8 +76,10 @@ def synthetic(seeds: list[int]) -> None:
     print("\nPer geozone at one bench below (percent):")
     for g, part in df.groupby("geozone"):
         r = summary_table(part).set_index("fraction").loc[1.0]
-        cells = "  ".join(f"{m} P {100 * r[f'precision_{m}']:.1f} R {100 * r[f'recall_{m}']:.1f}"
-                          for m in ("model", "nil", "linear", "implicit"))
+        cells = "  ".join(
+            f"{m} P {100 * r[f'precision_{m}']:.1f} R {100 * r[f'recall_{m}']:.1f}"
+            for m in ("model", "nil", "linear", "implicit")
+        )
         print(f"  {g}: {cells}")
 
 

@@ -16,9 +16,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _measure import run_measured  # noqa: E402
+from _measure import run_measured
 
-from core.synthetic import make_mine, sample_blastholes  # noqa: E402
+from core.synthetic.blobs import make_mine, sample_blastholes
 
 BGM = [sys.executable, "-c", "from core.cli import main; main()"]
 HOLE_AREA_M2 = 6.0 * 6.0 * math.sqrt(3) / 2  # one hole per cell of a 6 m staggered pattern
@@ -26,12 +26,12 @@ HOLE_AREA_M2 = 6.0 * 6.0 * math.sqrt(3) / 2  # one hole per cell of a 6 m stagge
 
 def synthetic_table(n_holes: int, seed: int = 7):
     n_benches = int(min(max(round(math.log10(n_holes) * 4 - 8), 4), 16))
-    # The pit shrinks with depth and benches are drilled in part (see core.synthetic):
+    # The pit shrinks with depth and benches are drilled in part (see core.synthetic.blobs):
     # size the top bench from a first guess, then rescale once to the count it gave.
     per_bench = n_holes / n_benches / 0.75
     side = math.sqrt(per_bench * HOLE_AREA_M2 / 0.75)
     for _ in range(3):
-        mine = make_mine(seed=seed, n_benches=n_benches, extent_m=(side / 0.75 ** 0.5, side * 0.75 ** 0.5), n_pods=6)
+        mine = make_mine(seed=seed, n_benches=n_benches, extent_m=(side / 0.75**0.5, side * 0.75**0.5), n_pods=6)
         table = sample_blastholes(mine, seed=seed + 1)
         side *= math.sqrt(n_holes / len(table))
     return table, n_benches

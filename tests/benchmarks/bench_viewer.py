@@ -34,8 +34,12 @@ def bench_offscreen(n_frames: int = 36) -> dict:
     print(f"demo pipeline (all stages, {model.holes.n_benches} benches): {time.perf_counter() - t0:.2f} s")
     for k, v in model.result.timings.items():
         print(f"  {k:<20s} {v:.3f} s")
-    scene = build_scene(model.holes, model.result, model.selection,
-                        visible=["blastholes", "contours", "snake", "trajectories", "surfaces"])
+    scene = build_scene(
+        model.holes,
+        model.result,
+        model.selection,
+        visible=["blastholes", "contours", "snake", "trajectories", "surfaces"],
+    )
     plotter, renderer = plotter_for(scene, window_size=(1280, 960), camera="iso")
     plotter.render()
     # slider change -> contour on screen (snake-stage parameter: fast path)
@@ -51,8 +55,10 @@ def bench_offscreen(n_frames: int = 36) -> dict:
         refresh_scene(scene, model.holes, res, model.selection, previous=previous)
         plotter.ren_win.Render()
         times.append(time.perf_counter() - t)
-    print(f"slider change -> updated contour on screen: median {np.median(times) * 1000:.0f} ms "
-          f"(target < 500 ms) {['%.0f' % (x * 1000) for x in times]}")
+    print(
+        f"slider change -> updated contour on screen: median {np.median(times) * 1000:.0f} ms "
+        f"(target < 500 ms) {['%.0f' % (x * 1000) for x in times]}"
+    )
     # frame time while rotating
     cam = plotter.camera
     ft = []
@@ -61,8 +67,10 @@ def bench_offscreen(n_frames: int = 36) -> dict:
         t = time.perf_counter()
         plotter.ren_win.Render()
         ft.append(time.perf_counter() - t)
-    print(f"frame time rotating the demo scene: median {np.median(ft) * 1000:.1f} ms, "
-          f"max {np.max(ft) * 1000:.1f} ms (target < 50 ms)")
+    print(
+        f"frame time rotating the demo scene: median {np.median(ft) * 1000:.1f} ms, "
+        f"max {np.max(ft) * 1000:.1f} ms (target < 50 ms)"
+    )
     plotter.close()
     return {"slider_s": float(np.median(times)), "frame_s": float(np.median(ft))}
 
@@ -82,7 +90,7 @@ def bench_window() -> None:
         lat = []
         for value in values:
             shown = []
-            win.resultShown.connect(lambda: shown.append(time.perf_counter()))
+            win.resultShown.connect(lambda shown=shown: shown.append(time.perf_counter()))
             t = time.perf_counter()
             win.param_controls[name].field.setValue(value)
             while not shown:
@@ -109,8 +117,10 @@ def bench_window() -> None:
         ft.append(time.perf_counter() - t)
     iren.InvokeEvent("LeftButtonReleaseEvent")
     app.processEvents()
-    print(f"window ({w} x {h} px view): frame time rotating with the mouse: median {np.median(ft) * 1000:.1f} ms, "
-          f"max {np.max(ft) * 1000:.1f} ms, {len(renders)} renders for 36 moves (target < 50 ms)")
+    print(
+        f"window ({w} x {h} px view): frame time rotating with the mouse: median {np.median(ft) * 1000:.1f} ms, "
+        f"max {np.max(ft) * 1000:.1f} ms, {len(renders)} renders for 36 moves (target < 50 ms)"
+    )
     win.model.dirty = False
     win.close()
     sys.stdout.flush()

@@ -35,12 +35,12 @@ import shapely
 from scipy import ndimage
 from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
-from shapely.geometry import MultiPoint, MultiPolygon, Polygon
+from shapely.geometry import MultiPolygon, Polygon
 
-from .atomic import atomic_path
-from .blastholes import Blastholes, drilled_area
-from .grid import Grid, as_multipolygon
-from .sdf import signed_distance
+from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.sdf import signed_distance
+from core.io.atomic import atomic_path
+from core.io.blastholes import Blastholes
 
 #: The paper's prediction depths, as fractions of the bench height (1.25 m steps of a 10 m bench).
 DEFAULT_FRACTIONS: tuple[float, ...] = tuple(i / 8 for i in range(1, 9))
@@ -211,9 +211,11 @@ def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float
     """Bench index of each hole and the bench height: as given, or detected from the elevations."""
     if bench is not None and bench_height_m is not None and np.isfinite(bench_height_m):
         return np.asarray(bench), float(bench_height_m)
-    from .blastholes import detect_benches
+    from core.io.blastholes import detect_benches
 
-    levels, found, height, _ = detect_benches(z, bench_height_m if bench_height_m and np.isfinite(bench_height_m) else None)
+    levels, found, height, _ = detect_benches(
+        z, bench_height_m if bench_height_m and np.isfinite(bench_height_m) else None
+    )
     if not np.isfinite(height):
         height = 10.0  # a single bench: z does not matter, any scale will do
     if bench is None:
@@ -222,9 +224,7 @@ def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float
     return np.asarray(bench if bench is not None else found), float(height)
 
 
-def hole_signed_distance(
-    xy: np.ndarray, inside: np.ndarray, groups: np.ndarray, cap_m: float
-) -> np.ndarray:
+def hole_signed_distance(xy: np.ndarray, inside: np.ndarray, groups: np.ndarray, cap_m: float) -> np.ndarray:
     """Signed distance of each hole to its bench's boundary, estimated from the labels alone.
 
     The boundary lies midway between holes of different labels, so a hole's
@@ -342,13 +342,18 @@ def fit_implicit_rbf(
         raise ValueError("no holes to fit an implicit model to")
     groups, bench_height_m = _bench_groups(z, bench, bench_height_m)
     if spacing_m is None or not np.isfinite(spacing_m):
-        d = [cKDTree(xy[groups == g]).query(xy[groups == g], k=2)[0][:, 1] for g in np.unique(groups) if (groups == g).sum() > 1]
+        d = [
+            cKDTree(xy[groups == g]).query(xy[groups == g], k=2)[0][:, 1]
+            for g in np.unique(groups)
+            if (groups == g).sum() > 1
+        ]
         spacing_m = float(np.median(np.concatenate(d))) if d else 5.0
     z_scale = z_spacings * spacing_m / bench_height_m
     if inside.all() or not inside.any():
         cap = 6 * spacing_m
-        return ImplicitRBF(None, z_scale, spacing_m, constant=cap if inside.all() else -cap,
-                           resolution_spacings=resolution_spacings)
+        return ImplicitRBF(
+            None, z_scale, spacing_m, constant=cap if inside.all() else -cap, resolution_spacings=resolution_spacings
+        )
     sd = hole_signed_distance(xy, inside, groups, 6 * spacing_m)
     rng = np.random.default_rng(seed)
     keep = (np.abs(sd) <= band_spacings * spacing_m) | (rng.random(len(sd)) < far_fraction)
@@ -385,8 +390,8 @@ def predict_implicit_rbf(
 def truth_from_mine(mine, frame) -> Truth:
     """Truth function ``(geozone, z_m) -> MultiPolygon`` in the Blastholes local frame for a synthetic mine.
 
-    ``mine`` is a :class:`core.synthetic.SyntheticMine`, ``frame`` the
-    :class:`core.blastholes.LocalFrame` of the holes read from its table
+    ``mine`` is a :class:`core.synthetic.blobs.SyntheticMine`, ``frame`` the
+    :class:`core.io.blastholes.LocalFrame` of the holes read from its table
     (``local = (mine_local + mine.origin - frame.origin) * metres_per_unit``).
     """
     from shapely import affinity
@@ -418,7 +423,7 @@ def _lookup(predictions: Mapping[float, MultiPolygon], z: float) -> MultiPolygon
 def bench_regions(holes: Blastholes, geozone: str, contours=None) -> dict[int, MultiPolygon]:
     """Region of ``geozone`` on every bench (union of its extracted contours), keyed by bench index."""
     if contours is None:
-        from .extraction import extract_contours
+        from core.extraction.contours import extract_contours
 
         contours = extract_contours(holes, [geozone])
     out = {k: [] for k in range(holes.n_benches)}
@@ -497,7 +502,7 @@ def evaluate_geozone(
     ks = list(range(1, n - 1))
     for done, k in enumerate(ks, start=1):
         z_k = float(levels[k])
-        nxt = holes.on_bench(k + 1)
+        holes.on_bench(k + 1)
         within = holes.drilled_area(k + 1)
         if truth is not None:
             targets = [(float(f), float(f * height), z_k - float(f * height)) for f in fractions]
@@ -522,8 +527,12 @@ def evaluate_geozone(
             methods["linear"] = LinearSDF(regions, grid).region
         if "implicit" in references:
             model = fit_implicit_rbf(
-                known.xy, known.z, inside_all[known_mask], bench=known.bench,
-                spacing_m=spacing, bench_height_m=height,
+                known.xy,
+                known.z,
+                inside_all[known_mask],
+                bench=known.bench,
+                spacing_m=spacing,
+                bench_height_m=height,
             )
             methods["implicit"] = lambda z, m=model: m.region(z, grid)
         for f, depth, z in targets:
@@ -531,16 +540,37 @@ def evaluate_geozone(
             for name, predict in methods.items():
                 p, r, pa, ga = precision_recall(predict(z), g, within)
                 rows.append(
-                    dict(
-                        bench=k, bench_z=z_k, z_m=z, depth_m=depth, fraction=f, method=name,
-                        precision=p, recall=r, f1=f1_score(p, r), p_area=pa, g_area=ga,
-                        i_area=0.0 if not np.isfinite(p) else p * pa,
-                    )
+                    {
+                        "bench": k,
+                        "bench_z": z_k,
+                        "z_m": z,
+                        "depth_m": depth,
+                        "fraction": f,
+                        "method": name,
+                        "precision": p,
+                        "recall": r,
+                        "f1": f1_score(p, r),
+                        "p_area": pa,
+                        "g_area": ga,
+                        "i_area": 0.0 if not np.isfinite(p) else p * pa,
+                    }
                 )
         if progress:
             progress(done, len(ks))
-    columns = ["bench", "bench_z", "z_m", "depth_m", "fraction", "method", "precision", "recall",
-               "f1", "p_area", "g_area", "i_area"]
+    columns = [
+        "bench",
+        "bench_z",
+        "z_m",
+        "depth_m",
+        "fraction",
+        "method",
+        "precision",
+        "recall",
+        "f1",
+        "p_area",
+        "g_area",
+        "i_area",
+    ]
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -593,10 +623,10 @@ def format_table(summary: pd.DataFrame) -> str:
 
 
 _STYLE = {
-    "model": dict(color="0.55", marker="o", lw=2.0),
-    "nil": dict(color="black", marker="s", lw=1.5),
-    "linear": dict(color="tab:blue", marker="^", lw=1.0, ls="--"),
-    "implicit": dict(color="tab:orange", marker="v", lw=1.0, ls="--"),
+    "model": {"color": "0.55", "marker": "o", "lw": 2.0},
+    "nil": {"color": "black", "marker": "s", "lw": 1.5},
+    "linear": {"color": "tab:blue", "marker": "^", "lw": 1.0, "ls": "--"},
+    "implicit": {"color": "tab:orange", "marker": "v", "lw": 1.0, "ls": "--"},
 }
 
 
@@ -611,7 +641,7 @@ def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | 
 
     fig = Figure(figsize=(10, 4), dpi=120)
     axes = fig.subplots(1, 2, sharex=True)
-    methods = [c[len("precision_"):] for c in summary.columns if c.startswith("precision_") and c != "precision_gain"]
+    methods = [c[len("precision_") :] for c in summary.columns if c.startswith("precision_") and c != "precision_gain"]
     for ax, what in zip(axes, ("precision", "recall")):
         for m in methods:
             ax.plot(summary["depth_m"], 100 * summary[f"{what}_{m}"], label=m, **_STYLE.get(m, {}))

@@ -25,7 +25,7 @@ import shapely.affinity
 from shapely.geometry import MultiPolygon, Polygon, box
 from shapely.ops import unary_union
 
-from .grid import as_multipolygon
+from core.geometry.grid import as_multipolygon
 
 HOST = "g0"
 
@@ -116,7 +116,7 @@ class SyntheticMine:
         return labels
 
     def offset_to(self, frame) -> tuple[float, float]:
-        """Shift from this mine's local metres to a :class:`~core.blastholes.LocalFrame`'s metres.
+        """Shift from this mine's local metres to a :class:`~core.io.blastholes.LocalFrame`'s metres.
 
         The mine's points are drilled at ``mine_local + origin`` (metres); the
         frame maps input ``p`` to ``(p - frame.origin) * metres_per_unit``.

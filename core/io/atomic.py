@@ -14,7 +14,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import BGMInputError
+from core.errors import BGMInputError
 
 
 @contextlib.contextmanager

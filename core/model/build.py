@@ -18,14 +18,21 @@ import numpy as np
 import pandas as pd
 import shapely
 
-from .atomic import atomic_write_text
-from .errors import BGMInputError
-from .blastholes import Blastholes
-from .extraction import Contour, extract_contours
-from .grid import as_multipolygon
-from .pipeline import GeozoneModel, ModelParameters, correspondence_json, model_geozone, morph_json, pair_coverage
-from .prediction import predict_geozone, region_between
-from .reporting import containment_summary, contour_feature, to_input_geometry
+from core.errors import BGMInputError
+from core.extraction.contours import Contour
+from core.geometry.grid import as_multipolygon
+from core.io.atomic import atomic_write_text
+from core.io.blastholes import Blastholes
+from core.io.reporting import containment_summary, contour_feature, to_input_geometry
+from core.model.pipeline import (
+    GeozoneModel,
+    ModelParameters,
+    correspondence_json,
+    model_geozone,
+    morph_json,
+    pair_coverage,
+)
+from core.model.prediction import predict_geozone, region_between
 
 #: Depths below the deepest bench at which predictions are written, in bench heights.
 PREDICTION_FRACTIONS = tuple(k / 8 for k in range(1, 9))
@@ -49,10 +56,8 @@ def load_truth(path: Path, holes: Blastholes):
     side = truth_sidecar(Path(path))
     if not side.exists():
         return None
-    from .evaluation import truth_from_mine
-    from .synthetic import demo_dataset
-
-    from .synthetic import make_mine
+    from core.model.evaluation import truth_from_mine
+    from core.synthetic.blobs import demo_dataset, make_mine
 
     try:
         spec = json.loads(side.read_text())
@@ -81,8 +86,12 @@ def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelPa
         if not pairs or pairs[-1].lower != k:
             return {z: shapely.MultiPolygon() for z in z_targets_m}
         partial = GeozoneModel(
-            model.geozone, [c for c in model.contours if c.bench <= k], pairs, model.minor,
-            frontiers=model.frontiers, beyond_frontier=model.beyond_frontier,
+            model.geozone,
+            [c for c in model.contours if c.bench <= k],
+            pairs,
+            model.minor,
+            frontiers=model.frontiers,
+            beyond_frontier=model.beyond_frontier,
         )
         return predict_geozone(partial, list(z_targets_m), holes.hole_spacing_m, params)
 
@@ -156,8 +165,8 @@ def build(
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
-    from .evaluation import plot_precision_recall, summary_table
-    from .export import DEFAULT_FORMATS, write_geojson
+    from core.io.export import DEFAULT_FORMATS, write_geojson
+    from core.model.evaluation import plot_precision_recall, summary_table
 
     params = params or ModelParameters()
     formats = formats or DEFAULT_FORMATS
@@ -165,7 +174,6 @@ def build(
     out_dir.mkdir(parents=True, exist_ok=True)
     wanted = holes.check_geozones(geozones)
     unit = holes.frame.length_unit
-    mpu = holes.frame.metres_per_unit
     t0 = time.perf_counter()
 
     contours = extract_all_benches(holes, params, workers, scheduler, progress)
@@ -301,7 +309,7 @@ def extract_all_benches(holes: Blastholes, params: ModelParameters, workers=None
 
 
 def _extract_one_bench(ctx, k: int):
-    from .extraction import extract_bench
+    from core.extraction.contours import extract_bench
 
     holes, extraction = ctx
     return k, extract_bench(holes, k, None, extraction)
@@ -309,9 +317,9 @@ def _extract_one_bench(ctx, k: int):
 
 def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFrame | None]:
     """Everything ``bgm build`` writes for one geozone, under ``out_dir/<geozone>/``."""
-    from .evaluation import evaluate_geozone
-    from .export import export_all, write_geojson
-    from .surfaces import mesh_summary, surface_from_sections, to_input_frame
+    from core.io.export import export_all, write_geojson
+    from core.model.evaluation import evaluate_geozone
+    from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
 
     holes, params, out_dir = ctx.holes, ctx.params, ctx.out_dir
     mpu = holes.frame.metres_per_unit
@@ -354,7 +362,9 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     write_geojson(features, gdir / "prediction.geojson")
     try:
         # Half a hole spacing resolves all the data can tell; finer only adds faces.
-        mesh = surface_from_sections(surface_sections(model, holes, params), cell_size_m=surface_cell_size(model, holes))
+        mesh = surface_from_sections(
+            surface_sections(model, holes, params), cell_size_m=surface_cell_size(model, holes)
+        )
         info = mesh_summary(mesh)
         exported = export_all(
             to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu), gdir, "surface", ctx.formats
@@ -368,7 +378,9 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         # geozone's other outputs stand, and the report says why it has no surface.
         summary.note = f"no surface: {exc}"
     if ctx.evaluate and holes.n_benches >= 3:
-        rows = evaluate_geozone(holes, g, predictor_from_model(model, holes, params), truth=ctx.truth, contours=ctx.contours)
+        rows = evaluate_geozone(
+            holes, g, predictor_from_model(model, holes, params), truth=ctx.truth, contours=ctx.contours
+        )
         if len(rows):
             rows.insert(0, "geozone", g)
     summary.seconds = time.perf_counter() - tg

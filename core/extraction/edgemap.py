@@ -13,7 +13,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 from skimage import morphology
 
-from .grid import Grid
+from core.geometry.grid import Grid
 
 
 def edge_structure(

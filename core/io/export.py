@@ -1,6 +1,6 @@
 """Writing geozone surfaces and boundary polygons to files mining software reads.
 
-Every file goes through :func:`core.atomic.atomic_path`: an interrupted or
+Every file goes through :func:`core.io.atomic.atomic_path`: an interrupted or
 failed export leaves any previous file untouched.
 
 Formats (chosen by suffix, or by ``fmt``):
@@ -42,8 +42,8 @@ import shapely
 import trimesh
 from shapely.geometry import mapping, shape
 
-from .atomic import atomic_path
-from .errors import BGMInputError
+from core.errors import BGMInputError
+from core.io.atomic import atomic_path
 
 #: Formats :func:`export_surface` writes, by canonical name.
 SURFACE_FORMATS = ("obj", "ply", "stl", "vtp", "dxf", "omf")
@@ -159,12 +159,10 @@ def write_geojson(
         if not isinstance(geom, shapely.Geometry):
             try:
                 geom = shape(geom)
-            except Exception as exc:  # noqa: BLE001 - report any malformed mapping
+            except Exception as exc:
                 raise BGMInputError(f"feature {k} has an unreadable geometry: {exc}") from None
         if geom.geom_type not in ("Polygon", "MultiPolygon"):
-            raise BGMInputError(
-                f"feature {k} is a {geom.geom_type}; only Polygon and MultiPolygon are written"
-            )
+            raise BGMInputError(f"feature {k} is a {geom.geom_type}; only Polygon and MultiPolygon are written")
         if not geom.is_empty and not np.all(np.isfinite(shapely.get_coordinates(geom))):
             raise BGMInputError(f"feature {k} has non-finite coordinates")
         props = dict(feat.get("properties") or {})
@@ -202,8 +200,7 @@ def _resolve_format(path: Path, fmt: str | None) -> str:
     if fmt is None:
         if not path.suffix:
             raise BGMInputError(
-                f"cannot tell the surface format of {path} (no suffix); "
-                f"use one of: {', '.join(SURFACE_FORMATS)}"
+                f"cannot tell the surface format of {path} (no suffix); use one of: {', '.join(SURFACE_FORMATS)}"
             )
         return _canonical(path.suffix)
     return _canonical(fmt)
@@ -213,9 +210,7 @@ def _canonical(fmt: str) -> str:
     f = str(fmt).strip().lower().lstrip(".")
     f = _ALIASES.get(f, f)
     if f not in SURFACE_FORMATS:
-        raise BGMInputError(
-            f"unknown surface format {fmt!r}; supported: {', '.join(SURFACE_FORMATS)}"
-        )
+        raise BGMInputError(f"unknown surface format {fmt!r}; supported: {', '.join(SURFACE_FORMATS)}")
     return f
 
 
@@ -287,7 +282,7 @@ def _write_vtp(tmp: Path, vertices, faces, name, mesh) -> None:
         "    </Piece>\n"
         "  </PolyData>\n"
         '  <AppendedData encoding="raw">\n   _'
-    ).encode("utf-8")
+    ).encode()
     with open(tmp, "wb") as fh:
         fh.write(head)
         for b in blocks:
@@ -310,21 +305,82 @@ def _write_dxf(tmp: Path, vertices, faces, name, mesh) -> None:
     lo = vertices.min(axis=0)
     hi = vertices.max(axis=0)
     head = [
-        "0", "SECTION", "2", "HEADER",
-        "9", "$ACADVER", "1", "AC1009",
-        "9", "$EXTMIN", "10", repr(float(lo[0])), "20", repr(float(lo[1])), "30", repr(float(lo[2])),
-        "9", "$EXTMAX", "10", repr(float(hi[0])), "20", repr(float(hi[1])), "30", repr(float(hi[2])),
-        "0", "ENDSEC",
-        "0", "SECTION", "2", "TABLES",
-        "0", "TABLE", "2", "LTYPE", "70", "1",
-        "0", "LTYPE", "2", "CONTINUOUS", "70", "0", "3", "Solid line", "72", "65", "73", "0",
-        "40", "0.0",
-        "0", "ENDTAB",
-        "0", "TABLE", "2", "LAYER", "70", "1",
-        "0", "LAYER", "2", layer, "70", "0", "62", "7", "6", "CONTINUOUS",
-        "0", "ENDTAB",
-        "0", "ENDSEC",
-        "0", "SECTION", "2", "ENTITIES",
+        "0",
+        "SECTION",
+        "2",
+        "HEADER",
+        "9",
+        "$ACADVER",
+        "1",
+        "AC1009",
+        "9",
+        "$EXTMIN",
+        "10",
+        repr(float(lo[0])),
+        "20",
+        repr(float(lo[1])),
+        "30",
+        repr(float(lo[2])),
+        "9",
+        "$EXTMAX",
+        "10",
+        repr(float(hi[0])),
+        "20",
+        repr(float(hi[1])),
+        "30",
+        repr(float(hi[2])),
+        "0",
+        "ENDSEC",
+        "0",
+        "SECTION",
+        "2",
+        "TABLES",
+        "0",
+        "TABLE",
+        "2",
+        "LTYPE",
+        "70",
+        "1",
+        "0",
+        "LTYPE",
+        "2",
+        "CONTINUOUS",
+        "70",
+        "0",
+        "3",
+        "Solid line",
+        "72",
+        "65",
+        "73",
+        "0",
+        "40",
+        "0.0",
+        "0",
+        "ENDTAB",
+        "0",
+        "TABLE",
+        "2",
+        "LAYER",
+        "70",
+        "1",
+        "0",
+        "LAYER",
+        "2",
+        layer,
+        "70",
+        "0",
+        "62",
+        "7",
+        "6",
+        "CONTINUOUS",
+        "0",
+        "ENDTAB",
+        "0",
+        "ENDSEC",
+        "0",
+        "SECTION",
+        "2",
+        "ENTITIES",
     ]
     template = (
         "0\n3DFACE\n8\n" + layer.replace("%", "%%") + "\n"
@@ -379,7 +435,7 @@ def _require_omf():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
             import omf
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:
         raise BGMInputError(
             "OMF export needs the optional 'omf' package (pip install omf); "
             f"it could not be imported ({exc.__class__.__name__}: {exc})"

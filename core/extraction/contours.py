@@ -20,18 +20,24 @@ Two refinements over the paper, both for fidelity to the true boundary:
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import shapely
 from shapely.geometry import MultiPoint, Polygon
 
-from .blastholes import Blastholes
-from .boundary import connected_components, entropy_boundary, gap_boundary, local_entropy, neighbour_table
-from .edgemap import edge_structure, synthesize_edge_map
-from .grid import Grid, as_multipolygon
-from .gvf import gvf_steady_state
-from .snake import box_snake, evolve_snake
+from core.extraction.boundary import (
+    connected_components,
+    entropy_boundary,
+    gap_boundary,
+    local_entropy,
+    neighbour_table,
+)
+from core.extraction.edgemap import edge_structure, synthesize_edge_map
+from core.extraction.gvf import gvf_steady_state
+from core.extraction.snake import box_snake, evolve_snake
+from core.geometry.grid import Grid, as_multipolygon
+from core.io.blastholes import Blastholes
 
 
 @dataclass(frozen=True)
@@ -158,7 +164,17 @@ def extract_bench(
             members = sel[comp == c]
             contours.append(
                 _extract_component(
-                    holes, bench, g, c, idx, members, on_entropy, transition, spacing, radius, params,
+                    holes,
+                    bench,
+                    g,
+                    c,
+                    idx,
+                    members,
+                    on_entropy,
+                    transition,
+                    spacing,
+                    radius,
+                    params,
                     keep_fields and g in wanted,
                 )
             )
@@ -184,7 +200,7 @@ def bench_spacing(xy: np.ndarray, table_spacing_m: float) -> float:
     dense bench one blob), so the bench's own median nearest-neighbour
     distance is used. Ordinary pattern changes (5-7 m) keep the table's value.
     """
-    from .blastholes import median_hole_spacing
+    from core.io.blastholes import median_hole_spacing
 
     if len(xy) < 2:
         return table_spacing_m
@@ -360,7 +376,7 @@ def _outline(points: np.ndarray, spacing: float) -> Polygon:
     return _largest_polygon(closed)
 
 
-def _cut_enclosed(
+def _cut_enclosed(  # noqa: C901 - to be split into named steps
     contours: list[Contour], holes_xy: np.ndarray | None = None, spacing: float | None = None
 ) -> list[Contour]:
     """Resolve overlaps between geozones on a bench: the smaller region wins.

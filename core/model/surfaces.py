@@ -31,7 +31,7 @@ pinch-out rather than a flat cut).
 Precision: all arithmetic is float64. Meshes are built in a local metric frame
 (small numbers); :func:`to_input_frame` moves them back to mine-grid or
 projected coordinates (x ~ 650 000, y ~ 7 400 000), where float32 would only
-resolve about 0.5 m. Keep float64 on export: ``core.export`` writes float64 in
+resolve about 0.5 m. Keep float64 on export: ``core.io.export`` writes float64 in
 PLY, VTP, OBJ (text), DXF and OMF; STL is float32 by definition.
 """
 
@@ -47,9 +47,9 @@ from scipy import ndimage
 from shapely.geometry import MultiPolygon, Polygon
 from skimage import measure
 
-from .errors import BGMInputError
-from .grid import Grid, as_multipolygon
-from .sdf import signed_distance
+from core.errors import BGMInputError
+from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.sdf import signed_distance
 
 #: Default number of cells along the longer horizontal side of the sections.
 DEFAULT_CELLS_ACROSS = 300
@@ -166,9 +166,7 @@ def _mesh_from_volume(vol: np.ndarray, grid: Grid, cell_size_m: float, z_levels:
     # Slice index -> elevation: the pads sit 1e-3 of a slice beyond the end sections.
     dz_end_lo = (z_levels[1] - z_levels[0]) if len(z_levels) > 1 else 1.0
     dz_end_hi = (z_levels[-1] - z_levels[-2]) if len(z_levels) > 1 else 1.0
-    z_of_index = np.concatenate(
-        [[z_levels[0] - 1e-3 * dz_end_lo], z_levels, [z_levels[-1] + 1e-3 * dz_end_hi]]
-    )
+    z_of_index = np.concatenate([[z_levels[0] - 1e-3 * dz_end_lo], z_levels, [z_levels[-1] + 1e-3 * dz_end_hi]])
     index = np.arange(len(z_of_index), dtype=float)
     xyz = np.column_stack(
         [
@@ -206,9 +204,7 @@ def mesh_summary(mesh: trimesh.Trimesh) -> dict:
     }
 
 
-def to_input_frame(
-    mesh: trimesh.Trimesh, origin_xy: tuple[float, float], metres_per_unit: float
-) -> trimesh.Trimesh:
+def to_input_frame(mesh: trimesh.Trimesh, origin_xy: tuple[float, float], metres_per_unit: float) -> trimesh.Trimesh:
     """Copy of ``mesh`` moved from the local metric frame back to input coordinates.
 
     ``x = x_local / metres_per_unit + origin_x``, ``y`` likewise,
@@ -249,9 +245,7 @@ def _normalise_sections(sections: Iterable) -> list[tuple[float, MultiPolygon]]:
             raise BGMInputError(f"section at z={z:g} is not a shapely geometry: {type(region).__name__}")
         by_z.setdefault(z, []).append(region)
     if len(by_z) < 2:
-        raise BGMInputError(
-            f"a surface needs sections at two or more elevations, got {len(by_z)}"
-        )
+        raise BGMInputError(f"a surface needs sections at two or more elevations, got {len(by_z)}")
     out = []
     for z in sorted(by_z):
         parts = [as_multipolygon(r) for r in by_z[z]]

@@ -16,11 +16,11 @@ import shapely
 from scipy.spatial import cKDTree
 from shapely import affinity
 
-from .blastholes import Blastholes
-from .correspondence import MorphInstance, PairCorrespondence, correspond_pair
-from .extraction import Contour, ExtractionParameters, extract_contours
-from .morph import MorphResult, morph_regions
-from .trajectories import trajectory_xyz
+from core.correspondence.pair import MorphInstance, PairCorrespondence, correspond_pair
+from core.extraction.contours import Contour, ExtractionParameters, extract_contours
+from core.io.blastholes import Blastholes
+from core.morph.levelset import MorphResult, morph_regions
+from core.morph.trajectories import trajectory_xyz
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class ModelParameters:
     #: benches a lone hole of another domain is far more often a mislabelled
     #: assay than a body, and it would drag alignments around.
     min_component_holes: int = 3
-    #: Extrapolation beyond the benches (see :func:`core.prediction.region_beyond`).
+    #: Extrapolation beyond the benches (see :func:`core.model.prediction.region_beyond`).
     smoothing_spacings: float = 10.0
     deformation_weight: float = 1.0
     translation_weight: float = 1.0
@@ -131,7 +131,7 @@ def correspond(
     """Associate and align the pair's sources with its targets (paper section 3).
 
     ``overrides`` is ``(locked_translations_in_input_units, forced, forbidden)``
-    as :func:`core.project.overrides_for` returns it.
+    as :func:`core.io.project.overrides_for` returns it.
     """
     params = params or ModelParameters()
     locked, forced, forbidden = overrides or ({}, set(), set())
@@ -206,7 +206,7 @@ def model_geozone(
     contours : list of Contour, optional
         Contours already extracted (any geozones); extracted when omitted.
     params : ModelParameters, optional
-    project : core.project.Project, optional
+    project : core.io.project.Project, optional
         Manual overrides (locked translations, forced/forbidden associations)
         applied on every run.
     stages : tuple of str
@@ -216,7 +216,7 @@ def model_geozone(
     progress : callable, optional
         ``progress(done, total)`` over bench pairs.
     """
-    from .project import overrides_for
+    from core.io.project import overrides_for
 
     params = params or ModelParameters()
     if contours is None:
@@ -237,7 +237,11 @@ def model_geozone(
     minor = [c for c in own if len(c.holes) < params.min_component_holes]
     benches = {c.bench for c in big}
     return GeozoneModel(
-        geozone, big, pairs, minor, drilling_frontiers(holes, benches),
+        geozone,
+        big,
+        pairs,
+        minor,
+        drilling_frontiers(holes, benches),
         beyond_frontiers(holes, geozone, benches, params.frontier_reach_spacings),
     )
 
@@ -276,7 +280,7 @@ def beyond_frontiers(holes: Blastholes, geozone: str, benches, reach_spacings: f
     """
     from scipy import ndimage
 
-    from .grid import Grid, as_multipolygon
+    from core.geometry.grid import Grid, as_multipolygon
 
     benches = sorted(benches)
     if not benches or not len(holes.xy):

@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
 
-from .errors import BGMInputError
+from core.errors import BGMInputError
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "x": ("x", "east", "easting"),
@@ -179,7 +179,7 @@ class Blastholes:
             self._drilled[k] = drilled_area(self.xy[self.bench == k], self.hole_spacing_m)
         return self._drilled[k]
 
-    def subset(self, keep: np.ndarray) -> "Blastholes":
+    def subset(self, keep: np.ndarray) -> Blastholes:
         """The same table restricted to the holes ``keep`` (bool mask or indices).
 
         Bench levels are kept as they are so bench indices stay comparable.
@@ -216,7 +216,7 @@ def read_table(path: str | Path) -> pd.DataFrame:
     try:
         if suffix in (".parquet", ".pq"):
             return pd.read_parquet(path)
-        with open(path, "r", encoding="utf-8-sig", errors="strict") as fh:
+        with open(path, encoding="utf-8-sig", errors="strict") as fh:
             head = fh.read(64 * 1024)
         if "\x00" in head:
             raise BGMInputError(
@@ -241,9 +241,7 @@ def read_table(path: str | Path) -> pd.DataFrame:
 def find_column(columns: list[str], role: str, explicit: str | None = None) -> str:
     """The column playing ``role`` (x, y, z or geozone), found by name case-insensitively."""
     if explicit:
-        matches = [c for c in columns if c == explicit] or [
-            c for c in columns if str(c).lower() == explicit.lower()
-        ]
+        matches = [c for c in columns if c == explicit] or [c for c in columns if str(c).lower() == explicit.lower()]
         if not matches:
             raise BGMInputError(
                 f"column {explicit!r} given for {role} is not in the table; columns are: {', '.join(map(str, columns))}"
@@ -430,8 +428,16 @@ def blastholes_from_table(
 def _guess_unit(bench_height: float, length_unit: str | None) -> str:
     if length_unit:
         unit = length_unit.strip().lower()
-        aliases = {"m": "m", "metre": "m", "metres": "m", "meter": "m", "meters": "m",
-                   "ft": "ft", "feet": "ft", "foot": "ft"}
+        aliases = {
+            "m": "m",
+            "metre": "m",
+            "metres": "m",
+            "meter": "m",
+            "meters": "m",
+            "ft": "ft",
+            "feet": "ft",
+            "foot": "ft",
+        }
         if unit not in aliases:
             raise BGMInputError(f"unknown length unit {length_unit!r}: use m or ft")
         return aliases[unit]
@@ -593,7 +599,7 @@ def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = 0.75
     import shapely
     from shapely.geometry import MultiPoint
 
-    from .grid import as_multipolygon
+    from core.geometry.grid import as_multipolygon
 
     if len(xy) == 0:
         return shapely.MultiPolygon()

@@ -9,8 +9,8 @@ with ``phi`` and the target signed distance ``gamma_t`` positive inside (paper
 convention). The front grows where the target lies outside it and shrinks
 where it lies inside, and comes to rest on the target contour; merging and
 splitting are handled by the level set itself. Particles ride the front
-(:mod:`core.trajectories`) and target-boundary segments they miss are
-recovered by curvelet backtracking (:mod:`core.backtracking`).
+(:mod:`core.morph.trajectories`) and target-boundary segments they miss are
+recovered by curvelet backtracking (:mod:`core.morph.backtracking`).
 
 Numerics: Godunov upwind gradient (Osher & Sethian), CFL time step
 ``dt = h / (2 max|F|)``, periodic re-initialisation of ``phi`` to a signed
@@ -29,9 +29,9 @@ from scipy import ndimage
 from shapely.geometry import MultiPolygon, Point, Polygon
 
 from core.errors import BGMInputError
-from core.grid import Grid, as_multipolygon
-from core.sdf import signed_distance
-from core.trajectories import (
+from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.sdf import signed_distance
+from core.morph.trajectories import (
     Trajectory,
     advect_particles,
     bilinear,
@@ -113,7 +113,7 @@ def region_sdf(grid: Grid, region: Polygon | MultiPolygon, band_cells: float = 2
     """Signed distance (metres, positive inside) of a polygonal region on ``grid``.
 
     Exact Euclidean distance transform of the rasterised region
-    (:func:`core.sdf.signed_distance`, paper Algorithm 3) everywhere, replaced
+    (:func:`core.geometry.sdf.signed_distance`, paper Algorithm 3) everywhere, replaced
     within ``band_cells`` of the boundary by the exact distance to the
     polygon boundary, so that the zero set lies on the true contour to
     sub-cell accuracy (particles start and stop on the real contours).
@@ -220,7 +220,9 @@ class _NarrowBand:
         self.up = np.where(r < rows - 1, idx + cols, idx)
 
 
-def _band_step(flat: np.ndarray, band: _NarrowBand, speed_b: np.ndarray, pos_b: np.ndarray, dt: float, h: float) -> np.ndarray:
+def _band_step(
+    flat: np.ndarray, band: _NarrowBand, speed_b: np.ndarray, pos_b: np.ndarray, dt: float, h: float
+) -> np.ndarray:
     """New values of the band cells after one Godunov upwind step (see :func:`upwind_gradient_norm`)."""
     v = flat[band.idx]
     dmx = v - flat[band.left]
@@ -284,7 +286,7 @@ def _deepest_disc(region: MultiPolygon, cell_size_m: float) -> MultiPolygon:
 # ---------------------------------------------------------------------------
 
 
-def morph_regions(
+def morph_regions(  # noqa: C901 - to be split into named steps
     sources,
     targets,
     *,
@@ -324,7 +326,7 @@ def morph_regions(
     reinit_every_steps : int
         Re-initialise ``phi`` to a signed distance every this many steps.
     backtrack : bool
-        Run curvelet backtracking (:func:`core.backtracking.backtrack_trajectories`).
+        Run curvelet backtracking (:func:`core.morph.backtracking.backtrack_trajectories`).
 
     Returns
     -------
@@ -438,7 +440,7 @@ def morph_regions(
     cov0 = boundary_coverage(trajs, tgt, h)
     cov = cov0
     if backtrack and cov0 < 1.0:
-        from core.backtracking import backtrack_trajectories
+        from core.morph.backtracking import backtrack_trajectories
 
         trajs = backtrack_trajectories(trajs, arrival, grid, phi0, src, tgt)
         cov = boundary_coverage(trajs, tgt, h)

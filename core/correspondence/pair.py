@@ -14,7 +14,7 @@ of the post-alignment association graph, which the contour metamorphosis stage
 (paper section 4) then works on in the motion-compensated frame.
 
 Everything here works on shapely polygons in the local metric frame (metres)
-and on one common :class:`core.grid.Grid` per bench pair. No global state.
+and on one common :class:`core.geometry.grid.Grid` per bench pair. No global state.
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ from shapely import affinity
 from shapely.geometry import MultiPolygon, Polygon
 
 from core.errors import BGMInputError
-from core.grid import Grid, as_multipolygon
-from core.sdf import signed_distance
+from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.sdf import signed_distance
 
 #: Default lower limit of the association radius, as a multiple of the hole
 #: spacing (``mu_lower`` in eqs. (6)-(7)). Lateral drift of a boundary between
@@ -210,9 +210,7 @@ class PairCorrespondence:
                 "shape": list(self.grid.shape),
             }
         if self.fields:
-            out["fields"] = {
-                str(k): f.to_dict(include_arrays) for k, f in sorted(self.fields.items())
-            }
+            out["fields"] = {str(k): f.to_dict(include_arrays) for k, f in sorted(self.fields.items())}
         return out
 
 
@@ -312,9 +310,7 @@ def association_matrix(
 
     d = np.full((ns, nt), np.inf)
     si, ti = np.nonzero(s_ok[:, None] & t_ok[None, :])
-    d[si, ti] = shapely.distance(
-        np.array(src, dtype=object)[si], np.array(tgt, dtype=object)[ti]
-    )
+    d[si, ti] = shapely.distance(np.array(src, dtype=object)[si], np.array(tgt, dtype=object)[ti])
     d_min = d[s_ok].min(axis=1)
     n_eff = int(s_ok.sum())
     mu = float(np.mean(d_min))
@@ -326,9 +322,7 @@ def association_matrix(
     a_t = np.array([g.area for g in tgt])
     phi = np.sqrt(a_s / np.pi)
     lam = np.maximum(np.minimum(mu, phi), mu_lower_m)
-    c_s = np.array(
-        [[g.centroid.x, g.centroid.y] if not g.is_empty else [np.nan, np.nan] for g in src]
-    )
+    c_s = np.array([[g.centroid.x, g.centroid.y] if not g.is_empty else [np.nan, np.nan] for g in src])
 
     if grid is None:
         grid = Grid.for_extent(_union_bounds(src + tgt), cells_across=256, margin_cells=2)
@@ -479,7 +473,7 @@ def align_translation_m(
 
     Rasterises both polygons on a common grid of ``cell_size_m`` padded by the
     source extent (so the source can reach any placement overlapping the
-    target), correlates the source mask with the target SDF (core.sdf,
+    target), correlates the source mask with the target SDF (core.geometry.sdf,
     Algorithm 3) and returns ``(dx_m, dy_m)`` to add to the source.
     """
     src, tgt = _geom(source), _geom(target)
@@ -581,9 +575,7 @@ def allocate_ports(
 # ----------------------------------------------------------------------------
 
 
-def default_parameters(
-    hole_spacing_m: float, extent_m: float, cell_size_m: float | None = None
-) -> tuple[float, float]:
+def default_parameters(hole_spacing_m: float, extent_m: float, cell_size_m: float | None = None) -> tuple[float, float]:
     """Default ``(mu_lower_m, cell_size_m)`` for a hole spacing.
 
     ``mu_lower_m = 1.5 * hole_spacing_m`` (lateral drift of a boundary between
@@ -608,7 +600,7 @@ def _check_positive(name: str, value) -> float:
     return value
 
 
-def correspond_pair(
+def correspond_pair(  # noqa: C901 - to be split into named steps
     sources: list[Polygon | MultiPolygon],
     targets: list[Polygon | MultiPolygon],
     *,
@@ -700,9 +692,7 @@ def correspond_pair(
     translations = np.zeros((ns, 2))
     if bounds is None:
         A0 = np.zeros((ns, nt), dtype=bool)
-        return PairCorrespondence(
-            A0, translations, _instances(A0), A0.copy(), cell, mu_lower, None, {}
-        )
+        return PairCorrespondence(A0, translations, _instances(A0), A0.copy(), cell, mu_lower, None, {})
 
     # Frame: all components plus half the largest source extent (a source
     # aligned over a target rarely sticks out further than that) and 4 cells.
@@ -887,9 +877,7 @@ def _check_overrides(ns, nt, locked, forced, forbidden) -> None:
     for name, pairs in (("forced", forced), ("forbidden", forbidden)):
         for s, t in pairs:
             if not (0 <= s < ns and 0 <= t < nt):
-                raise BGMInputError(
-                    f"{name} association ({s}, {t}) is out of range for {ns} sources and {nt} targets."
-                )
+                raise BGMInputError(f"{name} association ({s}, {t}) is out of range for {ns} sources and {nt} targets.")
     both = set(forced) & set(forbidden)
     if both:
         raise BGMInputError(f"association {sorted(both)[0]} is both forced and forbidden.")

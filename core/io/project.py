@@ -18,7 +18,7 @@ geozone on the bench at elevation ``source_z`` (the upper bench of a bench
 pair, paper section 3 "source"): ``translation`` locks its translation
 (input units; translations do not depend on the local frame's origin) and
 ``associate`` forces (``true``) or forbids (``false``) its association with
-target components by index. Files are written atomically (core.atomic).
+target components by index. Files are written atomically (core.io.atomic).
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from core.atomic import atomic_write_text
 from core.errors import BGMInputError
+from core.io.atomic import atomic_write_text
 
 FORMAT = "bgm-project"
 VERSION = 1
@@ -165,9 +165,7 @@ def _parse_override(path: Path, i: int, o) -> AlignmentOverride:
         raise BGMInputError(f"{where}: source must be a non-negative integer.")
     translation = o.get("translation")
     if translation is not None:
-        if not (
-            isinstance(translation, list) and len(translation) == 2 and all(map(_is_number, translation))
-        ):
+        if not (isinstance(translation, list) and len(translation) == 2 and all(map(_is_number, translation))):
             raise BGMInputError(f"{where}: translation must be two finite numbers or null.")
         translation = (float(translation[0]), float(translation[1]))
     raw_assoc = o.get("associate", {})
@@ -196,7 +194,7 @@ def _same_z(a: float, b: float) -> bool:
 def overrides_for(
     project: Project, geozone: str, source_z: float
 ) -> tuple[dict[int, tuple[float, float]], set[tuple[int, int]], set[tuple[int, int]]]:
-    """Overrides of one bench pair in the form :func:`core.correspondence.correspond_pair` takes.
+    """Overrides of one bench pair in the form :func:`core.correspondence.pair.correspond_pair` takes.
 
     Parameters
     ----------

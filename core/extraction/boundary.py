@@ -78,9 +78,7 @@ def local_entropy(labels: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
     return -np.sum(p * np.log2(p + ENTROPY_EPS), axis=1)
 
 
-def entropy_boundary(
-    entropy: np.ndarray, neighbours: np.ndarray, threshold: float = 0.5
-) -> np.ndarray:
+def entropy_boundary(entropy: np.ndarray, neighbours: np.ndarray, threshold: float = 0.5) -> np.ndarray:
     """Holes with ``h_n >= max(T_entropy, median neighbourhood entropy)`` (section 2.2)."""
     n = len(entropy)
     padded = np.append(entropy, np.nan)

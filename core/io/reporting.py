@@ -12,8 +12,8 @@ import numpy as np
 import shapely
 from shapely.geometry import mapping
 
-from .blastholes import Blastholes
-from .extraction import Contour
+from core.extraction.contours import Contour
+from core.io.blastholes import Blastholes
 
 
 def to_input_geometry(geometry, holes: Blastholes):
@@ -28,7 +28,7 @@ def to_input_geometry(geometry, holes: Blastholes):
     out = shapely.transform(geometry, holes.frame.to_input)
     if out.is_empty or out.is_valid or out.geom_type not in ("Polygon", "MultiPolygon"):
         return out
-    from .grid import as_multipolygon
+    from core.geometry.grid import as_multipolygon
 
     parts = as_multipolygon(out)
     if out.geom_type == "Polygon":

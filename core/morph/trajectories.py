@@ -3,7 +3,7 @@
 Paper section 4 ("Contour metamorphosis", subsections "Iso-contours and wave
 speed adjustment" and "Challenges") and ``ALGORITHMS.md`` ("Particle
 advection"). Particles start evenly along the source contour and ride the
-level-set front of :mod:`core.morph` along its normal,
+level-set front of :mod:`core.morph.levelset` along its normal,
 
     x_{k+1} = x_k - dt * F(x_k) * grad(phi) / |grad(phi)|,   F = clip(gamma_t, -c, c),
 
@@ -13,7 +13,7 @@ the same clamped speed that moves the front, so a particle stays on the zero
 set. A particle ends once it reaches the target contour, ``|gamma_t| < h/2``.
 
 Everything here works in the local metric frame (metres); times are the
-dimensionless morph time of :func:`core.morph.morph_regions`.
+dimensionless morph time of :func:`core.morph.levelset.morph_regions`.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import shapely
 from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 
-from core.grid import Grid, _polygons
+from core.geometry.grid import Grid, _polygons
 
 
 @dataclass
@@ -41,7 +41,7 @@ class Trajectory:
         Morph time of each position, non-decreasing.
     backtracked : bool
         True for trajectories recovered by curvelet backtracking
-        (:mod:`core.backtracking`) rather than by particle advection.
+        (:mod:`core.morph.backtracking`) rather than by particle advection.
     """
 
     xy: np.ndarray
@@ -108,7 +108,9 @@ def bilinear(field_: np.ndarray, rc: np.ndarray) -> np.ndarray:
     return (a * (1 - fc) + b * fc) * (1 - fr) + (d * (1 - fc) + e * fc) * fr
 
 
-def ring_samples(region: Polygon | MultiPolygon, spacing_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def ring_samples(
+    region: Polygon | MultiPolygon, spacing_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Evenly spaced points along every ring (exterior and holes) of ``region``.
 
     Parameters
@@ -324,7 +326,7 @@ def positions_at(trajectories: list[Trajectory], fraction: float) -> np.ndarray:
 
     Gives the iso-contour points at the intermediate elevation
     ``z_source + fraction * (z_target - z_source)``, in the order of
-    ``trajectories`` (which :func:`core.morph.morph_regions` returns ordered
+    ``trajectories`` (which :func:`core.morph.levelset.morph_regions` returns ordered
     along the source contour).
     """
     f = float(np.clip(fraction, 0.0, 1.0))

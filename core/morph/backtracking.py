@@ -3,7 +3,7 @@
 Paper section 4.2-4.3 (Fig. "branching point phenomenon", Algorithms 10-12)
 and ``ALGORITHMS.md`` ("Curvelet backtracking"). Where the source and target
 contours differ strongly in curvature (a thin arm, a star point), the
-particles of :mod:`core.trajectories` diverge and leave target-boundary
+particles of :mod:`core.morph.trajectories` diverge and leave target-boundary
 segments without any trajectory, although the wavefront did reach them.
 
 Formulation used here
@@ -31,7 +31,7 @@ times taken from ``T`` and made non-decreasing. Tracks are built one after
 the other, longest (latest arrival) first, and each finished one becomes a
 possible trunk for the next, so tracks join rather than run side by side;
 gradient lines do not cross, and any residual numerical crossing is
-removed by :func:`core.trajectories.remove_crossings`.
+removed by :func:`core.morph.trajectories.remove_crossings`.
 """
 
 from __future__ import annotations
@@ -41,8 +41,8 @@ import shapely
 from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 
-from core.grid import Grid
-from core.trajectories import Trajectory, bilinear, remove_crossings, ring_samples
+from core.geometry.grid import Grid
+from core.morph.trajectories import Trajectory, bilinear, remove_crossings, ring_samples
 
 
 def arrival_descent_field(arrival_time: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -99,12 +99,7 @@ def curvelet_pixels(
     xy = grid.rc_to_xy(np.column_stack([r, c]).astype(float))
     if not len(xy) or not trajectories:
         return xy
-    heads = np.array(
-        [
-            [np.interp(t1, tr.t, tr.xy[:, 0]), np.interp(t1, tr.t, tr.xy[:, 1])]
-            for tr in trajectories
-        ]
-    )
+    heads = np.array([[np.interp(t1, tr.t, tr.xy[:, 0]), np.interp(t1, tr.t, tr.xy[:, 1])] for tr in trajectories])
     d, _ = cKDTree(heads).query(xy)
     return xy[d > radius_cells * grid.cell_size_m]
 

@@ -45,7 +45,7 @@ class Grid:
         bounds: tuple[float, float, float, float],
         cell_size_m: float,
         margin_cells: int = 8,
-    ) -> "Grid":
+    ) -> Grid:
         """Smallest grid covering ``bounds = (xmin, ymin, xmax, ymax)`` plus a margin."""
         xmin, ymin, xmax, ymax = (float(b) for b in bounds)
         if not (cell_size_m > 0 and np.isfinite(cell_size_m)):
@@ -66,7 +66,7 @@ class Grid:
         cells_across: int = 240,
         margin_cells: int = 8,
         min_cell_size_m: float = 0.0,
-    ) -> "Grid":
+    ) -> Grid:
         """Grid of about ``cells_across`` cells along the longer side of ``bounds``.
 
         The paper's edge maps use ``n_x * n_y ~ 240^2`` with a margin ``p = 8``
@@ -92,16 +92,12 @@ class Grid:
     def xy_to_rc(self, xy: np.ndarray) -> np.ndarray:
         """World ``(n, 2)`` x, y to fractional ``(n, 2)`` row, col."""
         xy = np.asarray(xy, dtype=float)
-        return np.column_stack(
-            [(xy[..., 1] - self.y0) / self.cell_size_m, (xy[..., 0] - self.x0) / self.cell_size_m]
-        )
+        return np.column_stack([(xy[..., 1] - self.y0) / self.cell_size_m, (xy[..., 0] - self.x0) / self.cell_size_m])
 
     def rc_to_xy(self, rc: np.ndarray) -> np.ndarray:
         """Fractional ``(n, 2)`` row, col to world ``(n, 2)`` x, y."""
         rc = np.asarray(rc, dtype=float)
-        return np.column_stack(
-            [self.x0 + rc[..., 1] * self.cell_size_m, self.y0 + rc[..., 0] * self.cell_size_m]
-        )
+        return np.column_stack([self.x0 + rc[..., 1] * self.cell_size_m, self.y0 + rc[..., 0] * self.cell_size_m])
 
     def cell_centres(self) -> tuple[np.ndarray, np.ndarray]:
         """``(X, Y)`` arrays of cell centre coordinates, each of ``shape``."""
@@ -110,7 +106,7 @@ class Grid:
         ys = self.y0 + np.arange(rows) * self.cell_size_m
         return np.meshgrid(xs, ys)
 
-    def shifted(self, dx_m: float, dy_m: float) -> "Grid":
+    def shifted(self, dx_m: float, dy_m: float) -> Grid:
         """The same grid moved by ``(dx_m, dy_m)``."""
         return Grid(self.x0 + dx_m, self.y0 + dy_m, self.cell_size_m, self.shape)
 

@@ -17,7 +17,7 @@ points moving alike, so the extrapolated contour does not fold; the result is
 repaired to valid polygons in any case. How much of the movement is carried
 on is learnt from the geozone's own benches (:func:`persistence_coefficient`),
 and the region is joined with the geozone's continuation past the bench's
-drilling frontier (:func:`core.pipeline.beyond_frontiers`).
+drilling frontier (:func:`core.model.pipeline.beyond_frontiers`).
 """
 
 from __future__ import annotations
@@ -28,11 +28,9 @@ from scipy.ndimage import uniform_filter1d
 from scipy.spatial import cKDTree
 from shapely.geometry import LinearRing, MultiPolygon, Polygon
 
-from .grid import as_multipolygon
-from .pipeline import BenchPair, GeozoneModel, MorphStep
-from .trajectories import normalised_arc_length
-
-
+from core.geometry.grid import as_multipolygon
+from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
+from core.morph.trajectories import normalised_arc_length
 
 
 def _point_at(xy: np.ndarray, s: np.ndarray, f: float) -> np.ndarray:
@@ -306,8 +304,14 @@ def region_beyond(
             region = shapely.union_all([pair.sources[i].polygon for i in step.instance.source_ids])
             anchors, sign = starts_phys, -1.0
         moved = _moved_rings(
-            region, anchors, sign * displacement, fraction, hole_spacing_m / 4,
-            smoothing_spacings * hole_spacing_m, frontier, hole_spacing_m,
+            region,
+            anchors,
+            sign * displacement,
+            fraction,
+            hole_spacing_m / 4,
+            smoothing_spacings * hole_spacing_m,
+            frontier,
+            hole_spacing_m,
         )
         rings.extend((base + k, h, p) for k, h, p in moved)
         base += len(as_multipolygon(region).geoms)
@@ -326,7 +330,7 @@ def predict_geozone(
     (:func:`persistence_coefficient`), joined with the geozone's continuation
     past that bench's drilling frontier (``model.beyond_frontier``).
     """
-    from .pipeline import ModelParameters
+    from core.model.pipeline import ModelParameters
 
     params = params or ModelParameters()
     extra = {
@@ -343,22 +347,31 @@ def predict_geozone(
     top, bottom = pairs[0], pairs[-1]
     persistence = persistence_coefficient(pairs, hole_spacing_m)
     for z in z_m:
-        exact = [b for b in {p.upper for p in pairs} | {p.lower for p in pairs}
-                 if abs(_bench_z(pairs, b) - z) < 1e-6]
+        exact = [b for b in {p.upper for p in pairs} | {p.lower for p in pairs} if abs(_bench_z(pairs, b) - z) < 1e-6]
         if exact:
             out[z] = as_multipolygon(model.region_at_bench(exact[0]))
         elif z < bottom.target_z_m:
             height = bottom.source_z_m - bottom.target_z_m
             moved = region_beyond(
-                bottom, (bottom.target_z_m - z) / height, hole_spacing_m, True, **extra,
-                frontier=model.frontiers.get(bottom.lower), persistence=persistence,
+                bottom,
+                (bottom.target_z_m - z) / height,
+                hole_spacing_m,
+                True,
+                **extra,
+                frontier=model.frontiers.get(bottom.lower),
+                persistence=persistence,
             )
             out[z] = _with_continuation(moved, model.beyond_frontier.get(bottom.lower))
         elif z > top.source_z_m:
             height = top.source_z_m - top.target_z_m
             moved = region_beyond(
-                top, (z - top.source_z_m) / height, hole_spacing_m, False, **extra,
-                frontier=model.frontiers.get(top.upper), persistence=persistence,
+                top,
+                (z - top.source_z_m) / height,
+                hole_spacing_m,
+                False,
+                **extra,
+                frontier=model.frontiers.get(top.upper),
+                persistence=persistence,
             )
             out[z] = _with_continuation(moved, model.beyond_frontier.get(top.upper))
         else:
@@ -381,4 +394,3 @@ def _bench_z(pairs: list[BenchPair], bench: int) -> float:
         if p.lower == bench:
             return p.target_z_m
     return float("nan")
-

@@ -8,7 +8,7 @@ semi-implicit step is ``x_new = (I + tau A)^-1 (x + tau kappa v(x))`` with
 (``../shared/ALGORITHMS.md``). scikit-image's ``active_contour`` hard-wires
 image-gradient forces, hence this module.
 
-Everything here is in grid units (cells); :mod:`core.extraction` maps to metres.
+Everything here is in grid units (cells); :mod:`core.extraction.contours` maps to metres.
 """
 
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""Shared geometry: image grids over local metres and signed distance functions."""

@@ -1,0 +1,1 @@
+"""Reading blasthole tables, writing exports and project files, atomic saves."""

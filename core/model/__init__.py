@@ -1,0 +1,1 @@
+"""The geozone model: the pipeline over bench pairs, prediction, surfaces, evaluation and the build."""
