@@ -11,7 +11,7 @@ from shapely.geometry import MultiPolygon, Point, Polygon, box
 
 from core.extraction.contours import extract_contours
 from core.geometry.grid import Grid
-from core.io.blastholes import blastholes_from_table
+from core.io.blastholes import blastholes_from_table, drilled_area
 from core.model import evaluation as ev
 from core.synthetic.blobs import make_mine, sample_blastholes
 
@@ -150,7 +150,7 @@ def test_implicit_rbf_predicts_the_next_bench(small_mine):
         spacing_m=holes.hole_spacing_m,
         bench_height_m=holes.bench_height_m,
     )
-    within = ev.drilled_area(holes.xy[holes.on_bench(3)], holes.hole_spacing_m)
+    within = drilled_area(holes.xy[holes.on_bench(3)], holes.hole_spacing_m)
     p, r, _, _ = ev.precision_recall(pred, truth("g1", z), within)
     assert p > 0.6 and r > 0.6
     # Without the bench argument benches are found from the elevations.
