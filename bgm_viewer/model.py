@@ -27,7 +27,7 @@ import numpy as np
 import shapely
 from shapely import affinity
 
-from core.extraction.contours import Contour, ExtractionParameters, extract_bench, snake_contour
+from core.extraction.contours import Contour, ExtractionParameters, extract_bench
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 
 STAGES = ("boundary", "snake", "correspondence", "morph", "surface")
@@ -200,8 +200,8 @@ def compute(  # noqa: C901 - to be split into named steps
             c = res.selected_contour(sel) if previous else None
             if c is not None and c.fields is not None:
                 t0 = time.perf_counter()
-                poly, fields = snake_contour(c.fields.edge_points_m, holes.hole_spacing_m, ep, True, holes.xy[c.holes])
-                new = replace(c, polygon=poly, fields=fields)
+                fresh = extract_bench(holes, sel.bench, [sel.geozone], ep, keep_fields=True)
+                new = next((x for x in fresh if x.component == c.component), c)
                 res.contours[sel.bench] = [new if x is c else x for x in res.contours[sel.bench]]
                 res.timings["selected snake"] = time.perf_counter() - t0
                 check()

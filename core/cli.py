@@ -105,6 +105,14 @@ def contours(
     search_radius: Annotated[
         float | None, typer.Option(help="Region-growing radius r in input units (default 1.6 x hole spacing).")
     ] = None,
+    keep_isolated: Annotated[
+        bool,
+        typer.Option(
+            "--keep-isolated",
+            help="Keep components of one or two holes surrounded by other geozones as contours "
+            "(by default they are taken as label noise and reported as isolated_holes).",
+        ),
+    ] = False,
     x: XOpt = None,
     y: YOpt = None,
     z: ZOpt = None,
@@ -124,7 +132,8 @@ def contours(
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     wanted = holes.check_geozones(geozone)
     params = ExtractionParameters(
-        search_radius_m=None if search_radius is None else float(holes.frame.length_to_local(search_radius))
+        search_radius_m=None if search_radius is None else float(holes.frame.length_to_local(search_radius)),
+        keep_isolated_holes=keep_isolated,
     )
     start = time.perf_counter()
     advance, bar = _progress("extracting contours", holes.n_benches)
@@ -134,7 +143,10 @@ def contours(
     features = [contour_feature(c, holes) for c in result]
     write_geojson(features, out)
     summary = containment_summary(result, holes)
-    summary.update({"features": len(features), "seconds": round(elapsed, 2), "out": str(out)})
+    isolated = sum(len(c.isolated_holes) for c in result)
+    summary.update(
+        {"features": len(features), "isolated_holes": isolated, "seconds": round(elapsed, 2), "out": str(out)}
+    )
     typer.echo(json.dumps(summary, indent=2))
 
 

@@ -15,11 +15,10 @@ from core.extraction.boundary import (
     local_entropy,
     neighbour_table,
 )
-from core.extraction.contours import ExtractionParameters, extract_contours, snake_contour
-from core.extraction.edgemap import edge_structure, synthesize_edge_map
+from core.extraction.contours import ExtractionParameters, extract_bench, extract_contours
 from core.extraction.gvf import gvf_explicit, gvf_residual, gvf_steady_state
+from core.extraction.noise import absorbed_labels, isolated_holes
 from core.extraction.snake import box_snake, evolve_snake
-from core.geometry.grid import Grid
 from core.io.reporting import containment
 
 
@@ -93,19 +92,114 @@ def test_snake_converges_onto_a_circle_from_its_bounding_box():
     assert np.abs(r - 40.0).max() < 1.5
 
 
+def _bench(xy, labels, spacing=6.0):
+    """Holes of one labelled bench read into the engine (mine-grid origin, two benches)."""
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    n = len(xy)
+    table = pd.DataFrame(
+        {
+            "x": np.concatenate([xy[:, 0], xy[:, 0]]) + 650_000.0,
+            "y": np.concatenate([xy[:, 1], xy[:, 1]]) + 7_400_000.0,
+            "z": np.r_[np.full(n, 500.0), np.full(n, 490.0)],
+            "geozone": np.concatenate([labels, labels]),
+        }
+    )
+    return blastholes_from_table(table, source="constructed")
+
+
 def test_snake_contour_hugs_a_concave_outline():
-    # L-shaped component of holes: the contour must follow the inner corner.
-    xy = hex_grid(14, 14)
-    keep = ~((xy[:, 0] > 45) & (xy[:, 1] > 40))
-    holes = xy[keep]
-    on, outward = gap_boundary(holes, 2 * np.pi / 3, 12, 25.0)
-    points = holes[on] + 3.0 * outward[on]
-    poly, fields = snake_contour(points, 6.0, ExtractionParameters(), keep_fields=True, component_xy_m=holes)
-    assert poly.is_valid
-    assert shapely.contains_xy(poly, holes[:, 0], holes[:, 1]).mean() >= 0.95
-    truth = shapely.MultiPoint(holes).buffer(3.0).buffer(3.0).buffer(-3.0)
-    assert iou(poly, truth) > 0.9
-    assert fields.snake_history_m and fields.gvf.shape[0] == 2
+    # An L-shaped body in host rock: the contour must follow the inner corner.
+    xy = hex_grid(24, 24)
+    body = (xy[:, 0] > 30) & (xy[:, 0] < 100) & (xy[:, 1] > 25) & (xy[:, 1] < 95) & ~((xy[:, 0] > 65) & (xy[:, 1] > 60))
+    holes = _bench(xy, np.where(body, "g1", "g0"))
+    [c] = extract_bench(holes, 0, ["g1"], keep_fields=True)
+    assert c.method == "snake" and c.polygon.is_valid
+    truth = shapely.Polygon([(30, 25), (100, 25), (100, 60), (65, 60), (65, 95), (30, 95)])
+    local = shapely.affinity.translate(
+        truth, *(-np.asarray(holes.frame.to_input(np.zeros((1, 2)))[0]) + [650_000.0, 7_400_000.0])
+    )
+    assert iou(c.polygon, local) > 0.9
+    assert c.fields.snake_history_m and c.fields.gvf.shape[0] == 2
+
+
+def _local(holes, geometry):
+    """A geometry given in the constructed bench's own (pre-offset) coordinates, in the engine's frame."""
+    o = holes.frame.to_input(np.zeros((1, 2)))[0] - [650_000.0, 7_400_000.0]
+    return shapely.affinity.translate(geometry, -o[0], -o[1])
+
+
+def test_a_single_mislabelled_hole_gives_no_contour_and_is_reported():
+    xy = hex_grid(20, 20)
+    labels = np.full(len(xy), "g0", dtype=object)
+    odd = int(np.argmin(np.hypot(xy[:, 0] - 60, xy[:, 1] - 50)))
+    labels[odd] = "g1"
+    holes = _bench(xy, labels)
+    contours = extract_bench(holes, 0)
+    assert not [c for c in contours if c.geozone == "g1"]
+    [host] = [c for c in contours if c.geozone == "g0"]
+    assert list(host.isolated_holes) == [odd]
+    # The host is not holed around it, and the option keeps it for users who want every pod.
+    assert host.polygon.contains(shapely.Point(holes.xy[odd]).buffer(6.0))
+    kept = extract_bench(holes, 0, ["g1"], ExtractionParameters(keep_isolated_holes=True))
+    assert len(kept) == 1 and list(kept[0].holes) == [odd]
+
+
+def test_label_noise_is_one_or_two_surrounded_holes_not_a_thin_body():
+    xy = hex_grid(20, 20)
+    labels = np.full(len(xy), "g0", dtype=object)
+    d = lambda x, y: np.hypot(xy[:, 0] - x, xy[:, 1] - y)  # noqa: E731
+    single = np.argsort(d(20, 20))[:1]
+    pair = np.argsort(d(90, 30))[:2]
+    triangle = np.argsort(d(40, 80))[:3]
+    row = np.flatnonzero(np.abs(xy[:, 1] - xy[:, 1][np.argmin(d(0, 52))]) < 1.0)  # one hole wide, a whole row
+    for idx, g in ((single, "a"), (pair, "b"), (triangle, "c"), (row, "d")):
+        labels[idx] = g
+    flagged = isolated_holes(xy, labels, 6.0)
+    assert set(np.flatnonzero(flagged)) == set(single) | set(pair)
+    cleaned = absorbed_labels(xy, labels, flagged)
+    assert set(cleaned[single]) == {"g0"} and set(cleaned[pair]) == {"g0"}
+    assert (cleaned[triangle] == "c").all() and (cleaned[row] == "d").all()
+
+
+def test_a_strip_three_holes_wide_gets_one_thin_contour_of_its_width():
+    xy = hex_grid(30, 30)
+    angle = np.radians(35.0)
+    normal = np.array([-np.sin(angle), np.cos(angle)])
+    offset = (xy - [90.0, 75.0]) @ normal
+    width = 3 * 6.0 * np.sqrt(3) / 2  # three rows of a 6 m staggered pattern, across the strip
+    labels = np.where(np.abs(offset) < width / 2, "g1", "g0")
+    holes = _bench(xy, labels)
+    strip = [c for c in extract_bench(holes, 0, ["g1"]) if len(c.holes) > 2]
+    assert len(strip) == 1
+    c = strip[0]
+    assert shapely.contains_xy(c.polygon, *holes.xy[c.holes].T).mean() >= 0.95
+    # Width = area / length along the strip, within one hole spacing of the truth.
+    u = np.array([np.cos(angle), np.sin(angle)])
+    along = holes.xy[c.holes] @ u
+    assert abs(c.polygon.area / np.ptp(along) - width) < 6.0
+    truth = _local(
+        holes,
+        shapely.Polygon(
+            [(90, 75) + s * 400 * u + t * width / 2 * normal for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+        ),
+    )
+    drilled = holes.drilled_area(0)
+    assert iou(c.polygon.intersection(drilled), truth.intersection(drilled)) > 0.8
+
+
+def test_two_bodies_two_rows_apart_get_two_contours():
+    xy = hex_grid(30, 24)
+    rows = np.round(xy[:, 1] / (6.0 * np.sqrt(3) / 2)).astype(int)
+    labels = np.where((rows >= 4) & (rows <= 8) | (rows >= 11) & (rows <= 15), "g1", "g0")  # rows 9-10 between
+    holes = _bench(xy, labels)
+    bodies = extract_bench(holes, 0, ["g1"])
+    assert len(bodies) == 2
+    assert not bodies[0].polygon.intersects(bodies[1].polygon)
+    for c in bodies:
+        assert shapely.contains_xy(c.polygon, *holes.xy[c.holes].T).mean() >= 0.95
 
 
 @pytest.mark.parametrize("seed", [101, 202])
@@ -138,14 +232,3 @@ def test_keep_fields_returns_what_the_viewer_draws():
     # The first snake is the bounding box of the edge structure, the last the contour.
     first = shapely.Polygon(f.snake_history_m[0])
     assert first.contains(c.polygon.buffer(-1.0))
-
-
-def test_edge_structure_links_neighbouring_boundary_points_only():
-    pts = np.array([[0, 0], [5, 0], [10, 0], [100, 0]], dtype=float)
-    edges = edge_structure(pts, max_edge_m=12.0, edge_neighbours=5, edge_joints=1, max_joint_m=20.0)
-    assert {tuple(e) for e in edges} == {(0, 1), (0, 2), (1, 2)}
-    grid = Grid.covering((0, -5, 10, 5), 0.5, 4)
-    f = synthesize_edge_map(grid, pts[:3], edges)
-    assert f.max() == pytest.approx(1.0)
-    row = int(round(grid.xy_to_rc(np.array([[5.0, 0.0]]))[0, 0]))
-    assert f[row].max() > 0.5 and f[0].max() < 0.05

@@ -56,8 +56,18 @@ def contour_feature(contour: Contour, holes: Blastholes) -> dict:
             f"area_{unit}2": round(float(geometry.area), 3),
             "holes_inside": round(stats["holes_inside"], 4),
             "other_holes_inside": round(stats["other_holes_inside"], 4),
+            "isolated_holes": int(len(contour.isolated_holes)),
+            "isolated_hole_ids": hole_ids(holes, contour.isolated_holes),
         },
     }
+
+
+def hole_ids(holes: Blastholes, index: np.ndarray) -> list:
+    """Hole ids of the given holes as written in the input (row numbers, 1-based, where it has none)."""
+    index = np.asarray(index, int)
+    if holes.hole_id is None:
+        return [int(i) + 1 for i in index]
+    return [str(v) for v in holes.hole_id[index]]
 
 
 def containment(contour: Contour, holes: Blastholes) -> dict:
