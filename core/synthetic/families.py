@@ -55,6 +55,9 @@ from core.synthetic.solids import (
 GAP_M = 12.0
 #: Tries to place one geozone before giving up on it.
 ATTEMPTS = 40
+#: Sideways movement of dipping layers and contacts, and migration of fold hinges, in metres per metre
+#: of depth: 2-15 m per 10 m bench, dips of atan(1 / 1.5) = 34 to atan(1 / 0.2) = 79 degrees.
+SHIFT_RANGE_PER_M = (0.2, 1.5)
 
 Geozone = list  # the solids of one geozone
 
@@ -168,7 +171,7 @@ def strip_style(rng: np.random.Generator) -> StripStyle:
     straight = rng.random() < 0.4
     return StripStyle(
         strike_rad=float(rng.uniform(0, np.pi)),
-        shift_per_m=float(rng.uniform(0.2, 1.5) * rng.choice([-1.0, 1.0])),
+        shift_per_m=float(rng.uniform(*SHIFT_RANGE_PER_M) * rng.choice([-1.0, 1.0])),
         bend_m=0.0 if straight else float(rng.uniform(4.0, 15.0)),
         wavelength_m=float(rng.uniform(350.0, 900.0)),
         phase_rad=float(rng.uniform(0, 2 * np.pi)),
@@ -188,14 +191,29 @@ def _strip_trace(layout: Layout, style: StripStyle, offset_m: float, shift_per_m
     )
 
 
-def _fitting_offset(rng, layout: Layout, shift: float, lo_margin: float, hi_margin: float, fraction: float = 0.85):
-    """An offset and rate that keep a trace in the pit, slowing the rate down until one fits."""
-    for _ in range(30):
+def _fitting_offset(
+    rng: np.random.Generator,
+    layout: Layout,
+    shift: float,
+    lo_margin: float,
+    hi_margin: float,
+    fraction: float = 0.85,
+    min_speed: float = 0.0,
+):
+    """An offset and rate that keep a trace in the pit, slowing the rate (not below ``min_speed``) until one fits."""
+    while True:
         interval = offset_interval(layout, shift, lo_margin, hi_margin, fraction)
         if interval is not None:
             return float(rng.uniform(*interval)), shift
+        if abs(shift) * 0.85 < min_speed or shift == 0:
+            return None, shift
         shift *= 0.85
-    return None, shift
+
+
+def _layer_shift(rng: np.random.Generator, style: StripStyle) -> float:
+    """The style's rate, varied by up to 20% for one layer (dips differ a little), kept in :data:`SHIFT_RANGE_PER_M`."""
+    lo, hi = SHIFT_RANGE_PER_M
+    return float(np.sign(style.shift_per_m) * np.clip(abs(style.shift_per_m) * rng.uniform(0.8, 1.2), lo, hi))
 
 
 def strips_builder(style: StripStyle, widths_m: tuple[float, ...]) -> Builder:
@@ -205,10 +223,11 @@ def strips_builder(style: StripStyle, widths_m: tuple[float, ...]) -> Builder:
     """
 
     def build(rng: np.random.Generator, layout: Layout) -> list[Geozone]:
-        shift = style.shift_per_m * rng.uniform(0.8, 1.2)
         total = float(sum(widths_m))
         margin = total / 2 + style.bend_m
-        c, shift = _fitting_offset(rng, layout, shift, margin, margin)
+        c, shift = _fitting_offset(
+            rng, layout, _layer_shift(rng, style), margin, margin, min_speed=SHIFT_RANGE_PER_M[0]
+        )
         if c is None:
             return []
         normal = _unit(style.strike_rad + np.pi / 2)
@@ -231,14 +250,16 @@ def contact_builder(style: StripStyle) -> Builder:
     """A single dipping contact: the geozone is everything on one side of it (a half-space)."""
 
     def build(rng: np.random.Generator, layout: Layout) -> list[Geozone]:
-        shift = style.shift_per_m * rng.uniform(0.8, 1.2)
         # Both sides keep a good share of every bench.
-        c, shift = _fitting_offset(rng, layout, shift, 0.0, 0.0, fraction=0.55)
+        c, shift = _fitting_offset(
+            rng, layout, _layer_shift(rng, style), 0.0, 0.0, fraction=0.55, min_speed=SHIFT_RANGE_PER_M[0]
+        )
         if c is None:
             return []
         normal = _unit(style.strike_rad + np.pi / 2)
         trace = _strip_trace(layout, style, c, shift)
-        side = tuple(normal * rng.choice([-1.0, 1.0]))
+        # The geozone is the smaller side at mid-depth, leaving room for layers on the other.
+        side = tuple(normal * (1.0 if c + shift * layout.depth_m / 2 >= 0 else -1.0))
         return [[DippingContact(trace, tuple(shift * normal), layout.top_m, side)]]
 
     return Builder(build, crossing=True)
@@ -247,22 +268,23 @@ def contact_builder(style: StripStyle) -> Builder:
 def make_strips(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
     """Dipping layers crossing the whole pit, sometimes with a single contact.
 
-    2-3 layers of one strike (random), 12-32 m wide in plan, moving 2-15 m
-    sideways per 10 m of depth with dips within 20% of each other; in 30% of
-    mines two of them share a contact, in 35% a half-space geozone (a single
-    contact of the same strike) is added.
+    2-3 geozones of one strike (random): layers 12-32 m wide in plan, moving
+    2-15 m sideways per 10 m of depth with dips within 20% of each other; in
+    30% of mines two layers share a contact, in 35% one geozone is a
+    half-space (a single contact of the same strike, on the smaller side).
     """
 
     def plan(rng: np.random.Generator) -> list[Builder]:
         style = strip_style(rng)
         builders: list[Builder] = []
         n_layers = int(rng.integers(2, 4))
+        if rng.random() < 0.35:
+            builders.append(contact_builder(style))
+            n_layers -= 1
         if rng.random() < 0.3:
             builders.append(strips_builder(style, tuple(rng.uniform(12.0, 32.0, 2))))
             n_layers -= 1
-        builders += [strips_builder(style, (float(rng.uniform(12.0, 32.0)),)) for _ in range(n_layers)]
-        if rng.random() < 0.35:  # last: it takes whatever side of the pit the layers leave
-            builders.append(contact_builder(style))
+        builders += [strips_builder(style, (float(rng.uniform(12.0, 32.0)),)) for _ in range(max(n_layers, 0))]
         return builders
 
     return compose("strips", seed, plan, n_benches, bench_height_m, units)
@@ -361,10 +383,12 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
         widths = rng.uniform(12.0, 30.0, n_layers)
         gaps = np.where(rng.random(n_layers) < 0.3, 0.0, rng.uniform(12.0, 30.0, n_layers))
         inner = np.r_[0.0, np.cumsum(widths[:-1] + gaps[:-1])]  # inner contact of each layer, outward from layer 0's
-        migration = float(rng.uniform(0.2, 1.5) * rng.choice([-1.0, 1.0]))
+        migration = float(rng.uniform(*SHIFT_RANGE_PER_M) * rng.choice([-1.0, 1.0]))
         lateral = float(rng.uniform(-0.2, 0.2))
         # The outermost hinge sits inner[-1] + widths[-1] behind the inner one (against the axis).
-        p, migration = _fitting_offset(rng, layout, migration, inner[-1] + widths[-1], 0.0, fraction=0.6)
+        p, migration = _fitting_offset(
+            rng, layout, migration, inner[-1] + widths[-1], 0.0, fraction=0.6, min_speed=SHIFT_RANGE_PER_M[0]
+        )
         q, lateral = _fitting_offset(rng, layout, lateral, 0.0, 0.0, fraction=0.3)
         if p is None or q is None:
             return []
