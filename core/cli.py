@@ -469,17 +469,30 @@ def view(
 def make_demo_data(
     out: Annotated[Path, typer.Option("--out", help="CSV to write.")] = DEMO_CSV,
     seed: Annotated[int, typer.Option(help="Random seed of the synthetic mine.")] = 2019,
+    family: Annotated[
+        str | None,
+        typer.Option(help="Synthetic family instead of the demo: strips, widening, folds, splits, pods or mix."),
+    ] = None,
 ) -> None:
-    """Regenerate the bundled synthetic demo blastholes (assets/demo_blastholes.csv)."""
+    """Regenerate the bundled synthetic demo blastholes (assets/demo_blastholes.csv), or a synthetic family's."""
     from core.io.atomic import atomic_path, atomic_write_text
     from core.model.build import truth_sidecar
     from core.synthetic.blobs import demo_dataset
+    from core.synthetic.scenarios import scenario
 
-    _, table = demo_dataset(seed)
+    if family is None:
+        _, table = demo_dataset(seed)
+        spec = {"generator": "core.synthetic.demo_dataset", "seed": seed}
+    else:
+        try:
+            _, table, _ = scenario(family, seed)
+        except ValueError as exc:
+            raise BGMInputError(str(exc)) from None
+        spec = {"generator": "core.synthetic.scenario", "family": family, "seed": seed}
     with atomic_path(out) as tmp:
         table.to_csv(tmp, index=False)
     # The generator knows the true sections: record how to regenerate them for evaluation.
-    atomic_write_text(truth_sidecar(out), json.dumps({"generator": "core.synthetic.demo_dataset", "seed": seed}))
+    atomic_write_text(truth_sidecar(out), json.dumps(spec))
     _say(f"wrote {len(table)} holes to {out} (truth in {truth_sidecar(out).name})")
 
 

@@ -48,9 +48,12 @@ def truth_sidecar(path: Path) -> Path:
 def load_truth(path: Path, holes: Blastholes):
     """The true sections of a synthetic table, if its generator left a sidecar; else None.
 
-    The sidecar names the generator and its arguments, either
-    ``{"generator": "core.synthetic.demo_dataset", "seed": 2019}`` or
-    ``{"generator": "core.synthetic.make_mine", "kwargs": {...}}``.
+    The sidecar names the generator and its arguments:
+    ``{"generator": "core.synthetic.demo_dataset", "seed": 2019}``,
+    ``{"generator": "core.synthetic.make_mine", "kwargs": {...}}`` or
+    ``{"generator": "core.synthetic.scenario", "family": "strips", "seed": 7}``
+    (optionally with ``n_benches``, ``bench_height_m`` and ``units``, see
+    :func:`core.synthetic.scenarios.scenario`).
     Returns a callable ``truth(geozone, z_m)`` in the engine's local frame.
     """
     side = truth_sidecar(Path(path))
@@ -58,6 +61,7 @@ def load_truth(path: Path, holes: Blastholes):
         return None
     from core.model.evaluation import truth_from_mine
     from core.synthetic.blobs import demo_dataset, make_mine
+    from core.synthetic.scenarios import make_family
 
     try:
         spec = json.loads(side.read_text())
@@ -65,6 +69,9 @@ def load_truth(path: Path, holes: Blastholes):
             mine, _ = demo_dataset(int(spec["seed"]))
         elif spec.get("generator") == "core.synthetic.make_mine":
             mine = make_mine(**spec["kwargs"])
+        elif spec.get("generator") == "core.synthetic.scenario":
+            layout = {k: spec[k] for k in ("n_benches", "bench_height_m", "units") if k in spec}
+            mine = make_family(spec["family"], spec["seed"], **layout)
         else:
             raise ValueError(f"unknown generator {spec.get('generator')!r}")
     except (ValueError, KeyError, TypeError) as exc:

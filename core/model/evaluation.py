@@ -391,20 +391,13 @@ def truth_from_mine(mine, frame) -> Truth:
     """Truth function ``(geozone, z_m) -> MultiPolygon`` in the Blastholes local frame for a synthetic mine.
 
     ``mine`` is a :class:`core.synthetic.blobs.SyntheticMine`, ``frame`` the
-    :class:`core.io.blastholes.LocalFrame` of the holes read from its table
-    (``local = (mine_local + mine.origin - frame.origin) * metres_per_unit``).
+    :class:`core.io.blastholes.LocalFrame` of the holes read from its table;
+    :meth:`~core.synthetic.blobs.SyntheticMine.section_in` maps the mine's
+    metres through the table's units and the frame's origin.
     """
-    from shapely import affinity
-
-    dx = (mine.origin[0] - frame.origin_x) * frame.metres_per_unit
-    dy = (mine.origin[1] - frame.origin_y) * frame.metres_per_unit
-    s = frame.metres_per_unit
 
     def truth(geozone: str, z_m: float) -> MultiPolygon:
-        region = mine.section(geozone, z_m / s)
-        if s != 1.0:
-            region = affinity.scale(region, s, s, origin=(0, 0))
-        return as_multipolygon(affinity.translate(region, dx, dy))
+        return mine.section_in(frame, geozone, z_m)
 
     return truth
 

@@ -17,6 +17,7 @@ drilled on some benches, a little label noise), as a mine would.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 import pandas as pd
@@ -74,40 +75,64 @@ class Blob:
         return Polygon(np.column_stack([cx + c * x - s * y, cy + s * x + c * y]))
 
 
-@dataclass
-class SyntheticMine:
-    """Geozones as unions of :class:`Blob` solids, with an exact section at any elevation.
+class Solid(Protocol):
+    """A 3D body known by its horizontal sections: anything with ``section(z_m)``.
 
-    Geozones listed first take precedence where solids overlap. Coordinates
-    are local metres; ``origin`` is added when drilling so the table is in
-    mine-grid coordinates.
+    ``section(z_m)`` returns the body's region at elevation ``z_m`` (metres,
+    in the mine's local frame) as a shapely Polygon or MultiPolygon, empty
+    where the body is absent. :class:`Blob` is one; :mod:`core.synthetic.solids`
+    has more.
     """
 
-    geozones: dict[str, list[Blob]]
+    def section(self, z_m: float) -> Polygon | MultiPolygon: ...
+
+
+@dataclass
+class SyntheticMine:
+    """Geozones as unions of solids, with an exact section at any elevation.
+
+    Each geozone is a list of solids (:class:`Solid`: :class:`Blob` or any
+    object with ``section(z_m)``). Geozones listed first take precedence where
+    solids overlap; the host :data:`HOST` is everything else inside the extent.
+
+    Geometry is in local metres. The drilled table is in ``metres_per_unit``
+    units (1 for metres, 0.3048 for feet): a local point ``p`` (metres) is
+    written as ``(p + origin) / metres_per_unit``, ``origin`` being the
+    mine-grid position of the local origin in metres, and an elevation ``z``
+    as ``z / metres_per_unit``.
+    """
+
+    geozones: dict[str, list[Solid]]
     extent_m: tuple[float, float, float, float]
     bench_levels_m: np.ndarray
     origin: tuple[float, float] = (0.0, 0.0)
     footprints: dict[float, Polygon] = field(default_factory=dict)
+    metres_per_unit: float = 1.0
+
+    def sections(self, z_m: float) -> dict[str, MultiPolygon]:
+        """True region of every geozone (host included) at elevation ``z_m``, inside the extent."""
+        frame = box(*self.extent_m)
+        taken = Polygon()
+        out = {}
+        for name, solids in self.geozones.items():
+            region = unary_union([s.section(z_m) for s in solids]).intersection(frame).difference(taken)
+            out[name] = as_multipolygon(region)
+            taken = taken.union(region)
+        out[HOST] = as_multipolygon(frame.difference(taken))
+        return out
 
     def section(self, geozone: str, z_m: float) -> MultiPolygon:
         """True region of ``geozone`` at elevation ``z_m`` (local metres), inside the extent."""
-        frame = box(*self.extent_m)
-        taken = Polygon()
-        for name, blobs in self.geozones.items():
-            region = unary_union([b.section(z_m) for b in blobs]).intersection(frame).difference(taken)
-            if name == geozone:
-                return as_multipolygon(region)
-            taken = taken.union(region)
-        if geozone == HOST:
-            return as_multipolygon(frame.difference(taken))
-        raise KeyError(geozone)
+        if geozone != HOST and geozone not in self.geozones:
+            raise KeyError(geozone)
+        return self.sections(z_m)[geozone]
 
     def label_at(self, xy: np.ndarray, z_m: float) -> np.ndarray:
-        """True geozone label of points ``xy`` at elevation ``z_m``."""
+        """True geozone label of points ``xy`` (local metres) at elevation ``z_m``."""
         labels = np.full(len(xy), HOST, dtype=object)
         unset = np.ones(len(xy), bool)
-        for name, blobs in self.geozones.items():
-            region = unary_union([b.section(z_m) for b in blobs])
+        for name, solids in self.geozones.items():
+            region = unary_union([s.section(z_m) for s in solids])
             if region.is_empty:
                 continue
             inside = shapely.contains_xy(region, xy[:, 0], xy[:, 1]) & unset
@@ -115,25 +140,38 @@ class SyntheticMine:
             unset &= ~inside
         return labels
 
-    def offset_to(self, frame) -> tuple[float, float]:
-        """Shift from this mine's local metres to a :class:`~core.io.blastholes.LocalFrame`'s metres.
+    def scale_to(self, frame) -> float:
+        """Engine metres per mine metre when the drilled table is read in ``frame``.
 
-        The mine's points are drilled at ``mine_local + origin`` (metres); the
-        frame maps input ``p`` to ``(p - frame.origin) * metres_per_unit``.
+        1 unless the table is read in other units than it was written in.
         """
-        mpu = frame.metres_per_unit
-        return ((self.origin[0] - frame.origin_x) * mpu, (self.origin[1] - frame.origin_y) * mpu)
+        return frame.metres_per_unit / self.metres_per_unit
+
+    def offset_to(self, frame) -> tuple[float, float]:
+        """Shift from this mine's local metres (scaled by :meth:`scale_to`) to a frame's metres.
+
+        A mine point ``p`` is written as ``(p + origin) / metres_per_unit``
+        and the frame maps input ``q`` to ``(q - frame.origin) * frame.metres_per_unit``,
+        so ``p`` lands at ``scale * p + offset``.
+        """
+        s, mpu = self.scale_to(frame), frame.metres_per_unit
+        return (s * self.origin[0] - frame.origin_x * mpu, s * self.origin[1] - frame.origin_y * mpu)
+
+    def _to_frame(self, frame, geometry):
+        s = self.scale_to(frame)
+        if s != 1.0:
+            geometry = shapely.affinity.scale(geometry, s, s, origin=(0, 0))
+        return shapely.affinity.translate(geometry, *self.offset_to(frame))
 
     def section_in(self, frame, geozone: str, z_m: float) -> MultiPolygon:
-        """True section of ``geozone`` at ``z_m`` in the frame's local metres."""
-        dx, dy = self.offset_to(frame)
-        return as_multipolygon(shapely.affinity.translate(self.section(geozone, z_m), dx, dy))
+        """True section of ``geozone`` at the frame's elevation ``z_m``, in the frame's local metres."""
+        return as_multipolygon(self._to_frame(frame, self.section(geozone, z_m / self.scale_to(frame))))
 
     def footprint_in(self, frame, z_m: float) -> Polygon:
-        """Drilled area of the bench nearest ``z_m`` in the frame's local metres."""
-        dx, dy = self.offset_to(frame)
-        level = min(self.footprints, key=lambda q: abs(q - z_m))
-        return shapely.affinity.translate(self.footprints[level], dx, dy)
+        """Drilled area of the bench nearest the frame's elevation ``z_m``, in the frame's local metres."""
+        z_mine = z_m / self.scale_to(frame)
+        level = min(self.footprints, key=lambda q: abs(q - z_mine))
+        return self._to_frame(frame, self.footprints[level])
 
     @property
     def labels(self) -> list[str]:
