@@ -4,6 +4,30 @@ A source (a component on the upper bench) is associated with a target (a
 component on the bench below) when the target lies, for the most part, where
 a Gaussian likelihood centred on the source -- scaled by the source's size and
 by how far the components of the two benches typically lie apart -- is high.
+In detail (:func:`association_matrix`):
+
+* ``d_{s,t}`` is the shapely polygon-to-polygon distance (0 when the two
+  overlap or touch). We prefer it to the centroid distance: a component's
+  boundary is what moves between benches, and centroid distances between
+  components of very different size would swamp the apparent motion
+  statistics. Then ``d_min[s] = min_t d_{s,t}`` (eq. (1)), ``mu`` and
+  ``sigma`` its mean and (population) standard deviation (eq. (2)), and
+  ``s = sigma / sqrt(ns)`` the standard error.
+* ``lambda_s = max(min(mu, phi_s), mu_lower)`` with ``phi_s =
+  sqrt(a_s / pi)`` (eq. (6)); ``nu = 4 / (1 + exp(-s / mu_lower))``
+  (eq. (7)); ``p_s(x) = exp(-(|x - c_s| / lambda_s)^2 / (2 nu^2))``
+  (eq. (5)) with ``c_s`` the source centroid.
+* ``A(s, t) = 1`` iff the ``K``-th percentile of ``p_s`` over the cells of
+  target ``t`` is at least 0.5, ``K = 50 (1 + (1 - min(a_s / a_t, 1)))``
+  (eqs. (8)-(9)). A target too small to contain a cell centre is
+  represented by one interior point.
+* Safeguard (not in the paper): a source and a target that overlap or
+  touch (``d_{s,t} = 0``) are always associated. With a large target and a
+  small ``lambda_s`` the median likelihood over the target can fall below
+  0.5 even when the source lies right on top of it, which would wrongly
+  make the target a new pod.
+* Empty geometries are associated with nothing and do not enter the
+  statistics.
 """
 
 from __future__ import annotations
@@ -49,28 +73,8 @@ def association_matrix(
 
     Notes
     -----
-    * ``d_{s,t}`` is the shapely polygon-to-polygon distance (0 when the two
-      overlap or touch). We prefer it to the centroid distance: a component's
-      boundary is what moves between benches, and centroid distances between
-      components of very different size would swamp the apparent motion
-      statistics. Then ``d_min[s] = min_t d_{s,t}`` (eq. (1)), ``mu`` and
-      ``sigma`` its mean and (population) standard deviation (eq. (2)), and
-      ``s = sigma / sqrt(ns)`` the standard error.
-    * ``lambda_s = max(min(mu, phi_s), mu_lower)`` with ``phi_s =
-      sqrt(a_s / pi)`` (eq. (6)); ``nu = 4 / (1 + exp(-s / mu_lower))``
-      (eq. (7)); ``p_s(x) = exp(-(|x - c_s| / lambda_s)^2 / (2 nu^2))``
-      (eq. (5)) with ``c_s`` the source centroid.
-    * ``A(s, t) = 1`` iff the ``K``-th percentile of ``p_s`` over the cells of
-      target ``t`` is at least 0.5, ``K = 50 (1 + (1 - min(a_s / a_t, 1)))``
-      (eqs. (8)-(9)). A target too small to contain a cell centre is
-      represented by one interior point.
-    * Safeguard (not in the paper): a source and a target that overlap or
-      touch (``d_{s,t} = 0``) are always associated. With a large target and a
-      small ``lambda_s`` the median likelihood over the target can fall below
-      0.5 even when the source lies right on top of it, which would wrongly
-      make the target a new pod.
-    * Empty geometries are associated with nothing and do not enter the
-      statistics.
+    The equations and the one safeguard added to them are in the module
+    docstring.
     """
     ns, nt = len(sources), len(targets)
     A = np.zeros((ns, nt), dtype=bool)
@@ -97,7 +101,7 @@ def association_matrix(
         grid = Grid.for_extent(bounds, cells_across=256, margin_cells=2)
     masks = {} if target_masks is None else target_masks
     ok = np.nonzero(s_ok)[0]
-    for t in np.nonzero(t_ok)[0]:
+    for t in np.flatnonzero(t_ok).tolist():
         if t not in masks:
             masks[t] = grid.rasterize(tgt[t])
         xy = _cell_xy(grid, masks[t], tgt[t])

@@ -136,6 +136,12 @@ class PairCorrespondence:
     grid: Grid | None = None
     fields: dict[int, SourceField] = field(default_factory=dict)
 
+    @classmethod
+    def unaligned(cls, ns: int, nt: int, cell_size_m: float, mu_lower_m: float) -> PairCorrespondence:
+        """No association and no translation (every component is empty: nothing to align)."""
+        nothing = np.zeros((ns, nt), dtype=bool)
+        return cls(nothing, np.zeros((ns, 2)), morph_instances(nothing), nothing.copy(), cell_size_m, mu_lower_m)
+
     def to_dict(self, include_arrays: bool = False) -> dict:
         """JSON-friendly summary (value-function arrays only if ``include_arrays``)."""
         out = {
@@ -216,14 +222,10 @@ def correspond_pair(
 
     Notes
     -----
-    Steps: (1) tentative association (section 3.1,
-    :func:`~core.correspondence.association.association_matrix`) plus the
-    overrides; (2) the sources are placed one at a time, each by FFT
-    cross-correlation with a value function built from its subtree
-    (:func:`_place_sources`, :func:`_value_function`); (3) edges whose moved
-    source no longer touches its target are dropped
-    (:func:`~core.correspondence.subtrees.prune_association`) and the
-    connected sets of the rest are the morph instances.
+    Steps: tentative association (3.1) plus the overrides; the sources
+    placed one at a time, each by FFT cross-correlation with a value function
+    from its subtree (:func:`_place_sources`); edges whose moved source misses
+    its target dropped (3.2.4); the connected sets of the rest.
     """
     hole_spacing_m = _check_positive("hole_spacing_m", hole_spacing_m)
     if mu_lower_m is not None:
@@ -234,21 +236,11 @@ def correspond_pair(
     tgt = [as_multipolygon(t) for t in targets]
     locked = {} if locked_translations is None else dict(locked_translations)
     _check_overrides(len(src), len(tgt), locked, forced, forbidden)
-
-    max_extent = max((_extent_m(g) for g in src if not g.is_empty), default=0.0)
-    bounds = union_bounds(src + tgt)
-    span = 0.0 if bounds is None else max(bounds[2] - bounds[0], bounds[3] - bounds[1])
-    mu_default, cell = default_parameters(
-        hole_spacing_m, span + max_extent + 8 * hole_spacing_m / CELLS_PER_HOLE_SPACING, cell_size_m
-    )
-    mu_lower = mu_default if mu_lower_m is None else mu_lower_m
-    if bounds is None:
-        nothing = np.zeros((len(src), len(tgt)), dtype=bool)
-        return PairCorrespondence(
-            nothing, np.zeros((len(src), 2)), morph_instances(nothing), nothing.copy(), cell, mu_lower
-        )
-
-    rasters = TargetRasters(_alignment_grid(src + tgt, cell, max_extent, span), tgt)
+    cell, mu_lower, max_extent = _pair_scales(src, tgt, hole_spacing_m, mu_lower_m, cell_size_m)
+    grid = _alignment_grid(src + tgt, cell, max_extent)
+    if grid is None:
+        return PairCorrespondence.unaligned(len(src), len(tgt), cell, mu_lower)
+    rasters = TargetRasters(grid, tgt)
     A = association_matrix(src, tgt, mu_lower_m=mu_lower, grid=rasters.grid, target_masks=rasters.masks)
     for s, t in forced:
         A[s, t] = True
@@ -274,18 +266,43 @@ def _extent_m(geom: MultiPolygon) -> float:
     return max(b[2] - b[0], b[3] - b[1])
 
 
-def _alignment_grid(geoms: list[MultiPolygon], cell_size_m: float, max_extent_m: float, span_m: float) -> Grid:
-    """The common alignment grid of a bench pair.
+def _pair_scales(
+    src: list[MultiPolygon],
+    tgt: list[MultiPolygon],
+    hole_spacing_m: float,
+    mu_lower_m: float | None,
+    cell_size_m: float | None,
+) -> tuple[float, float, float]:
+    """``(cell_size_m, mu_lower_m, largest source extent)`` of a bench pair.
+
+    The given scales, or the defaults of :func:`default_parameters` for the
+    frame the sources may move in (all components, plus the largest source
+    extent and two hole spacings).
+    """
+    max_extent = max((_extent_m(g) for g in src if not g.is_empty), default=0.0)
+    bounds = union_bounds(src + tgt)
+    span = 0.0 if bounds is None else max(bounds[2] - bounds[0], bounds[3] - bounds[1])
+    frame_m = span + max_extent + 8 * hole_spacing_m / CELLS_PER_HOLE_SPACING
+    mu_default, cell = default_parameters(hole_spacing_m, frame_m, cell_size_m)
+    return cell, (mu_default if mu_lower_m is None else mu_lower_m), max_extent
+
+
+def _alignment_grid(geoms: list[MultiPolygon], cell_size_m: float, max_extent_m: float) -> Grid | None:
+    """The common alignment grid of a bench pair; ``None`` when every component is empty.
 
     All components plus half the largest source extent (a source aligned over
     a target rarely sticks out further than that) and 4 cells. Grids over
     :data:`HARD_MAX_CELLS_ACROSS` cells across are refused.
     """
+    bounds = union_bounds(geoms)
+    if bounds is None:
+        return None
     grid = frame_for(geoms, cell_size_m, 0.5 * max_extent_m + 4 * cell_size_m)
     if max(grid.shape) > HARD_MAX_CELLS_ACROSS:
+        span = max(bounds[2] - bounds[0], bounds[3] - bounds[1])
         raise BGMInputError(
             f"cell size {cell_size_m} m makes a {grid.shape[0]} x {grid.shape[1]} alignment grid; "
-            f"use a cell size of at least {span_m / MAX_CELLS_ACROSS:.3g} m."
+            f"use a cell size of at least {span / MAX_CELLS_ACROSS:.3g} m."
         )
     return grid
 

@@ -10,6 +10,7 @@ the *morph instances* the metamorphosis stage (section 4) works on.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,7 +81,7 @@ def prune_association(
     targets: list[MultiPolygon],
     translations_m: np.ndarray,
     cell_size_m: float,
-    forced: set[tuple[int, int]] | frozenset[tuple[int, int]],
+    forced: Collection[tuple[int, int]],
 ) -> np.ndarray:
     """Association after alignment: edges whose moved source misses its target dropped.
 

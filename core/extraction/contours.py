@@ -396,7 +396,8 @@ def _cut_enclosed(  # noqa: C901 - to be split into named steps
     """
     polys = [c.polygon for c in contours]
     tree = shapely.STRtree(polys)
-    keep_out = [[] for _ in contours]  # discs given back to a larger neighbour, per smaller contour
+    # discs given back to a larger neighbour, per smaller contour
+    keep_out: list[list[Polygon]] = [[] for _ in contours]
     cutters: list[list[int]] = []
     for i, c in enumerate(contours):
         p = polys[i]

@@ -143,13 +143,7 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
     """
     h = cell_size_m
     inside = phi > 0
-    edge = np.zeros_like(inside)
-    dh = inside[:, 1:] != inside[:, :-1]
-    edge[:, 1:] |= dh
-    edge[:, :-1] |= dh
-    dv = inside[1:, :] != inside[:-1, :]
-    edge[1:, :] |= dv
-    edge[:-1, :] |= dv
+    edge = _interface_cells(inside)
     if not edge.any():
         big = float(np.hypot(*phi.shape)) * h if band_m is None else band_m + 2 * h
         return np.where(inside, big, -big)
@@ -163,25 +157,14 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
         r0, r1 = max(int(r.min()) - pad, 0), min(int(r.max()) + pad + 1, rows)
         c0, c1 = max(int(c.min()) - pad, 0), min(int(c.max()) + pad + 1, cols)
         out = np.where(inside, band_m + 2 * h, -(band_m + 2 * h))
-    up, dn = np.minimum(r + 1, rows - 1), np.maximum(r - 1, 0)
-    rt, lt = np.minimum(c + 1, cols - 1), np.maximum(c - 1, 0)
-    gy = (phi[up, c] - phi[dn, c]) / ((up - dn) * h)
-    gx = (phi[r, rt] - phi[r, lt]) / ((rt - lt) * h)
-    g2 = np.maximum(gx * gx + gy * gy, 1e-12)
-    v = phi[r, c]
-    # Newton step in cells, limited to one cell
-    dr = -v * gy / g2 / h
-    dc = -v * gx / g2 / h
-    n = np.hypot(dr, dc)
-    lim = np.where(n > 1.0, 1.0 / np.maximum(n, 1e-12), 1.0)
     shape = (r1 - r0, c1 - c0)
-    g = np.sqrt(g2)
     # per interface cell: foot point and unit normal (row, col components)
+    foot_r, foot_c, normal_r, normal_c = _foot_and_normal(phi, r, c, h)
     info = np.zeros((4,) + shape)
-    info[0, r - r0, c - c0] = r - r0 + dr * lim
-    info[1, r - r0, c - c0] = c - c0 + dc * lim
-    info[2, r - r0, c - c0] = gy / g
-    info[3, r - r0, c - c0] = gx / g
+    info[0, r - r0, c - c0] = r - r0 + foot_r
+    info[1, r - r0, c - c0] = c - c0 + foot_c
+    info[2, r - r0, c - c0] = normal_r
+    info[3, r - r0, c - c0] = normal_c
     ir, ic = ndimage.distance_transform_edt(~edge[r0:r1, c0:c1], return_distances=False, return_indices=True)
     fr, fc, nr, nc = info[:, ir, ic]
     rr, cc = np.indices(shape)
@@ -194,6 +177,39 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
     d = np.sqrt(dn * dn + dt * dt) * h
     out[r0:r1, c0:c1] = np.where(inside[r0:r1, c0:c1], d, -d)
     return out
+
+
+def _interface_cells(inside: np.ndarray) -> np.ndarray:
+    """Cells with a 4-neighbour on the other side of the front."""
+    edge = np.zeros_like(inside)
+    dh = inside[:, 1:] != inside[:, :-1]
+    edge[:, 1:] |= dh
+    edge[:, :-1] |= dh
+    dv = inside[1:, :] != inside[:-1, :]
+    edge[1:, :] |= dv
+    edge[:-1, :] |= dv
+    return edge
+
+
+def _foot_and_normal(phi: np.ndarray, r: np.ndarray, c: np.ndarray, h: float) -> np.ndarray:
+    """``(4, n)``: offset in cells (row, col) of each cell's foot on the zero set, and the unit normal there.
+
+    One Newton step ``-phi grad(phi) / |grad(phi)|^2`` (central differences,
+    one-sided at the grid edge), limited to one cell.
+    """
+    rows, cols = phi.shape
+    up, dn = np.minimum(r + 1, rows - 1), np.maximum(r - 1, 0)
+    rt, lt = np.minimum(c + 1, cols - 1), np.maximum(c - 1, 0)
+    gy = (phi[up, c] - phi[dn, c]) / ((up - dn) * h)
+    gx = (phi[r, rt] - phi[r, lt]) / ((rt - lt) * h)
+    g2 = np.maximum(gx * gx + gy * gy, 1e-12)
+    v = phi[r, c]
+    dr = -v * gy / g2 / h
+    dc = -v * gx / g2 / h
+    n = np.hypot(dr, dc)
+    lim = np.where(n > 1.0, 1.0 / np.maximum(n, 1e-12), 1.0)
+    g = np.sqrt(g2)
+    return np.stack([dr * lim, dc * lim, gy / g, gx / g])
 
 
 class _NarrowBand:
@@ -327,12 +343,8 @@ def morph_regions(
 
     Notes
     -----
-    Steps: the regions and the grid (:func:`_morph_frame`); their signed
-    distances ``phi(0) = gamma_s`` and ``gamma_t`` (:func:`region_sdf`); particles
-    along the source contour (:func:`_seeded_particles`); the level-set
-    evolution, which records the time of arrival and advects the particles
-    (:func:`_evolve_front`); the trajectories, backtracked where the particles
-    left the target boundary uncovered (:func:`_trajectories`).
+    Steps: regions and grid, signed distances, particles on the source
+    contour, level-set evolution (:func:`_evolve_front`), trajectories.
     """
     src, tgt, grid = _morph_frame(sources, targets, cell_size_m, speed_clamp_m, max_cells)
     h = grid.cell_size_m
@@ -340,10 +352,9 @@ def morph_regions(
     phi0 = region_sdf(grid, src)
     gamma = region_sdf(grid, tgt)
     speed = np.clip(gamma, -c, c)
-    dt = 0.5 * h / max(float(np.max(np.abs(speed))), 1e-12)
-    if max_steps is None:
-        diag = float(np.hypot(*grid.shape)) * h
-        max_steps = int(np.ceil(2 * (diag / max(c, 1e-12) + _stall_time(c, h)) / dt))
+    dt = 0.5 * h / max(float(np.max(np.abs(speed))), 1e-12)  # CFL: the front moves at most h/2 a step
+    if max_steps is None:  # enough to cross the grid diagonal twice
+        max_steps = int(np.ceil(2 * (float(np.hypot(*grid.shape)) * h / max(c, 1e-12) + _stall_time(c, h)) / dt))
     particles = _seeded_particles(src, tgt, grid, gamma)
     run = _evolve_front(phi0, gamma, speed, particles, grid, dt, c, max_steps, reinit_every_steps, keep_fronts)
     phi = reinitialise(run.phi, h)
