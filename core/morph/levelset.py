@@ -365,15 +365,15 @@ def morph_regions(
         target_sdf=gamma,
         arrival_time=run.arrival_time,
         times=np.asarray(run.times),
+        dt=dt,
+        n_steps=run.n_steps,
         fronts=run.fronts,
         iou=_iou(phi > 0, gamma > 0),
+        source=src,
+        target=tgt,
         trajectories=trajs,
         coverage_before_backtracking=cov0,
         target_boundary_coverage=cov,
-        source=src,
-        target=tgt,
-        dt=dt,
-        n_steps=run.n_steps,
     )
 
 
