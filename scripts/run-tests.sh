@@ -1,5 +1,9 @@
 #!/usr/bin/env bash
-# Set up everything the tests need (idempotent) and run the whole suite.
+# Set up everything the tests need (idempotent), run the checks, then the whole suite.
+# The checks come first and any finding fails the run before a test starts: ruff (lint
+# and format), mypy over core, and import-linter's contract that core never imports the
+# viewer, Qt or a renderer (pyproject.toml). Locally, BGM_SKIP_IMPORT_RULES=1 skips the
+# import contract; CI (which sets CI, see .ci/run) never skips it.
 # Window tests need an X server: on Debian as root, xvfb and the xcb libraries
 # Qt wants are installed when missing; elsewhere those tests skip.
 set -euo pipefail
@@ -13,6 +17,27 @@ if ! command -v xvfb-run >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt
      libxkbcommon-x11-0 libxcb-xinerama0 libxcb-shape0 libgl1 libegl1 >/dev/null) \
   || echo "could not install xvfb; window tests will be skipped"
 fi
+
+failed=()
+check() {
+  local name=$1
+  shift
+  echo "== $name"
+  "$@" || failed+=("$name")
+}
+check "ruff check" .venv/bin/ruff check core bgm_viewer tests
+check "ruff format" .venv/bin/ruff format --check core bgm_viewer tests
+check "mypy" .venv/bin/mypy core
+if [ -n "${BGM_SKIP_IMPORT_RULES:-}" ] && [ -z "${CI:-}" ]; then
+  echo "== lint-imports skipped (BGM_SKIP_IMPORT_RULES is set)"
+else
+  check "lint-imports" .venv/bin/lint-imports
+fi
+if [ ${#failed[@]} -gt 0 ]; then
+  echo "checks failed: ${failed[*]}" >&2
+  exit 1
+fi
+
 export QT_API=pyside6
 if command -v xvfb-run >/dev/null 2>&1; then
   exec xvfb-run -a -s "-screen 0 1280x1024x24" .venv/bin/python -m pytest -q "$@"

@@ -11,6 +11,7 @@ Conventions: array index ``[row, col]``; cell ``(i, j)`` has its centre at
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -161,6 +162,15 @@ def _polygons(geometry) -> list[Polygon]:
     if isinstance(geometry, MultiPolygon):
         return list(geometry.geoms)
     return [g for g in getattr(geometry, "geoms", []) if isinstance(g, Polygon)]
+
+
+def union_bounds(geometries: Iterable) -> tuple[float, float, float, float] | None:
+    """``(xmin, ymin, xmax, ymax)`` of the non-empty geometries together; ``None`` if all are empty."""
+    bs = [g.bounds for g in geometries if not g.is_empty]
+    if not bs:
+        return None
+    b = np.array(bs, dtype=float)
+    return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()), float(b[:, 3].max()))
 
 
 def as_multipolygon(geometry) -> MultiPolygon:

@@ -1,13 +1,19 @@
 """Signed distance functions of regions on a grid (paper Algorithm 3).
 
 Convention of the paper (section 3.2.1): positive inside the region, negative
-outside, zero on the boundary.
+outside, zero on the boundary. :func:`signed_distance` is the distance of a
+pixel region; :func:`region_signed_distance` that of a polygonal region, exact
+near its boundary (the morph's level sets and the surfaces' sections).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import shapely
 from scipy import ndimage
+from shapely.geometry import MultiPolygon, Polygon
+
+from core.geometry.grid import Grid
 
 
 def signed_distance(mask: np.ndarray, cell_size_m: float = 1.0) -> np.ndarray:
@@ -42,3 +48,59 @@ def signed_distance(mask: np.ndarray, cell_size_m: float = 1.0) -> np.ndarray:
     inside = ndimage.distance_transform_edt(mask)
     outside = ndimage.distance_transform_edt(~mask)
     return np.where(mask, inside - 0.5, -(outside - 0.5)) * cell_size_m
+
+
+def region_signed_distance(
+    grid: Grid, region: Polygon | MultiPolygon, band_cells: float = 2.0, mask: np.ndarray | None = None
+) -> np.ndarray:
+    """Signed distance (metres, positive inside) of a polygonal region on ``grid``, exact near its boundary.
+
+    Parameters
+    ----------
+    grid : Grid
+        The cells; distances are from their centres.
+    region : Polygon or MultiPolygon
+        The region, holes allowed, in the grid's frame (metres).
+    band_cells : float
+        Width, in cells, of the band around the boundary where distances are exact.
+    mask : (rows, cols) bool array, optional
+        The region's cells, when the caller has rasterised it already (e.g.
+        with :meth:`Grid.rasterize`, whose cells on the boundary itself may
+        differ); by default the cells whose centres lie inside.
+
+    Returns
+    -------
+    (rows, cols) float array
+
+    Notes
+    -----
+    The region's raster (cells whose centres lie inside, holes honoured,
+    by prepared shapely point-in-polygon unless ``mask`` is given) gets the exact Euclidean
+    distance transform of :func:`signed_distance` (paper Algorithm 3). Within
+    ``band_cells`` of the boundary that raster value is replaced by the exact
+    distance to the polygon boundary, signed by the exact point-in-polygon
+    test, so the zero level follows the polygon to sub-cell accuracy, not its
+    pixels: morph particles start and stop on the real contours and surfaces
+    are not stair-stepped. A region thinner than a cell (no cell centre
+    inside) is placed by exact distances in a 7 x 7 cell window around it,
+    minus 3 cells elsewhere. An empty region is everywhere far outside.
+    """
+    h = grid.cell_size_m
+    X, Y = grid.cell_centres()
+    shapely.prepare(region)
+    if mask is None:
+        mask = shapely.contains_xy(region, X, Y)
+    sdf = signed_distance(mask, h)
+    if region.is_empty:
+        return sdf
+    band = np.abs(sdf) <= band_cells * h
+    if not mask.any():
+        rc = np.rint(grid.xy_to_rc(np.array(region.representative_point().coords))).astype(int)[0]
+        r0, c0 = np.clip(rc, 0, np.array(grid.shape) - 1)
+        band = np.zeros(grid.shape, dtype=bool)
+        band[max(r0 - 3, 0) : r0 + 4, max(c0 - 3, 0) : c0 + 4] = True
+        sdf = np.full(grid.shape, -3.0 * h)
+    xs, ys = X[band], Y[band]
+    d = shapely.distance(region.boundary, shapely.points(xs, ys))
+    sdf[band] = np.where(shapely.contains_xy(region, xs, ys), d, -d)
+    return sdf

@@ -234,7 +234,7 @@ class BuildContext:
     contours: list[Contour]
     params: ModelParameters
     project: object
-    truth: object
+    truth: Callable[[str, float], shapely.MultiPolygon] | None
     out_dir: Path
     formats: tuple
     evaluate: bool

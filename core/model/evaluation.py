@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -224,6 +225,16 @@ def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float
     return np.asarray(bench if bench is not None else found), float(height)
 
 
+def _median_spacing(xy: np.ndarray, groups: np.ndarray) -> float:
+    """Median distance from a hole to its nearest neighbour on the same bench (5 m if no bench has two)."""
+    d = [
+        cKDTree(xy[groups == g]).query(xy[groups == g], k=2)[0][:, 1]
+        for g in np.unique(groups)
+        if (groups == g).sum() > 1
+    ]
+    return float(np.median(np.concatenate(d))) if d else 5.0
+
+
 def hole_signed_distance(xy: np.ndarray, inside: np.ndarray, groups: np.ndarray, cap_m: float) -> np.ndarray:
     """Signed distance of each hole to its bench's boundary, estimated from the labels alone.
 
@@ -342,12 +353,7 @@ def fit_implicit_rbf(
         raise ValueError("no holes to fit an implicit model to")
     groups, bench_height_m = _bench_groups(z, bench, bench_height_m)
     if spacing_m is None or not np.isfinite(spacing_m):
-        d = [
-            cKDTree(xy[groups == g]).query(xy[groups == g], k=2)[0][:, 1]
-            for g in np.unique(groups)
-            if (groups == g).sum() > 1
-        ]
-        spacing_m = float(np.median(np.concatenate(d))) if d else 5.0
+        spacing_m = _median_spacing(xy, groups)
     z_scale = z_spacings * spacing_m / bench_height_m
     if inside.all() or not inside.any():
         cap = 6 * spacing_m
@@ -387,6 +393,23 @@ def predict_implicit_rbf(
 # Protocol
 
 
+#: Columns of the table :func:`evaluate_geozone` returns.
+_COLUMNS = (
+    "bench",
+    "bench_z",
+    "z_m",
+    "depth_m",
+    "fraction",
+    "method",
+    "precision",
+    "recall",
+    "f1",
+    "p_area",
+    "g_area",
+    "i_area",
+)
+
+
 def truth_from_mine(mine, frame) -> Truth:
     """Truth function ``(geozone, z_m) -> MultiPolygon`` in the Blastholes local frame for a synthetic mine.
 
@@ -419,7 +442,7 @@ def bench_regions(holes: Blastholes, geozone: str, contours=None) -> dict[int, M
         from core.extraction.contours import extract_contours
 
         contours = extract_contours(holes, [geozone])
-    out = {k: [] for k in range(holes.n_benches)}
+    out: dict[int, list] = {k: [] for k in range(holes.n_benches)}
     for c in contours:
         if c.geozone == geozone and not c.polygon.is_empty:
             out[c.bench].append(c.polygon)
@@ -486,85 +509,93 @@ def evaluate_geozone(
     if grid is None:
         grid = default_grid([holes.xy])
     regions_by_bench = bench_regions(holes, geozone, contours)
-    spacing = holes.hole_spacing_m
     height = holes.bench_height_m
     if not np.isfinite(height):
         height = float(np.median(-np.diff(levels))) if n > 1 else np.nan
-    inside_all = holes.geozone == geozone
-    rows = []
+    rows: list[dict] = []
     ks = list(range(1, n - 1))
     for done, k in enumerate(ks, start=1):
-        z_k = float(levels[k])
-        holes.on_bench(k + 1)
-        within = holes.drilled_area(k + 1)
-        if truth is not None:
-            targets = [(float(f), float(f * height), z_k - float(f * height)) for f in fractions]
-        else:
-            d = z_k - float(levels[k + 1])
-            targets = [(1.0, d, float(levels[k + 1]))] if any(np.isclose(f, 1.0) for f in fractions) else []
-        if not targets:
-            if progress:
-                progress(done, len(ks))
-            continue
-        z_targets = [t[2] for t in targets]
-        known_mask = holes.bench <= k
-        known = holes.subset(known_mask)
-        regions = {float(levels[j]): regions_by_bench[j] for j in range(k + 1)}
-        methods: dict[str, Callable[[float], MultiPolygon]] = {}
-        if model_predictor is not None:
-            preds = model_predictor(known, geozone, list(z_targets))
-            methods["model"] = lambda z, preds=preds: _lookup(preds, z)
-        if "nil" in references:
-            methods["nil"] = lambda z, r=regions: predict_nil(r, z)
-        if "linear" in references:
-            methods["linear"] = LinearSDF(regions, grid).region
-        if "implicit" in references:
-            model = fit_implicit_rbf(
-                known.xy,
-                known.z,
-                inside_all[known_mask],
-                bench=known.bench,
-                spacing_m=spacing,
-                bench_height_m=height,
-            )
-            methods["implicit"] = lambda z, m=model: m.region(z, grid)
-        for f, depth, z in targets:
-            g = truth(geozone, z) if truth is not None else regions_by_bench[k + 1]
-            for name, predict in methods.items():
-                p, r, pa, ga = precision_recall(predict(z), g, within)
-                rows.append(
-                    {
-                        "bench": k,
-                        "bench_z": z_k,
-                        "z_m": z,
-                        "depth_m": depth,
-                        "fraction": f,
-                        "method": name,
-                        "precision": p,
-                        "recall": r,
-                        "f1": f1_score(p, r),
-                        "p_area": pa,
-                        "g_area": ga,
-                        "i_area": 0.0 if not np.isfinite(p) else p * pa,
-                    }
-                )
+        targets = _prediction_targets(levels, k, fractions, height, truth is not None)
+        if targets:
+            regions = {float(levels[j]): regions_by_bench[j] for j in range(k + 1)}
+            z_targets = [z for _, _, z in targets]
+            methods = _predictors(holes, geozone, k, regions, z_targets, model_predictor, references, grid, height)
+            observed = regions_by_bench[k + 1]
+            rows += _scores(methods, targets, truth, geozone, observed, holes.drilled_area(k + 1), k, float(levels[k]))
         if progress:
             progress(done, len(ks))
-    columns = [
-        "bench",
-        "bench_z",
-        "z_m",
-        "depth_m",
-        "fraction",
-        "method",
-        "precision",
-        "recall",
-        "f1",
-        "p_area",
-        "g_area",
-        "i_area",
-    ]
-    return pd.DataFrame(rows, columns=columns)
+    return pd.DataFrame(rows, columns=list(_COLUMNS))
+
+
+def _prediction_targets(
+    levels: np.ndarray, k: int, fractions: Sequence[float], height_m: float, have_truth: bool
+) -> list[tuple[float, float, float]]:
+    """``(fraction, depth_m, z_m)`` to predict below bench ``k``.
+
+    Every fraction of the bench height with a truth function; without one,
+    only the next bench, at its actual elevation (if 1 is among the fractions).
+    """
+    z_k = float(levels[k])
+    if have_truth:
+        return [(float(f), float(f * height_m), z_k - float(f * height_m)) for f in fractions]
+    d = z_k - float(levels[k + 1])
+    return [(1.0, d, float(levels[k + 1]))] if any(np.isclose(f, 1.0) for f in fractions) else []
+
+
+def _predictors(
+    holes: Blastholes,
+    geozone: str,
+    k: int,
+    regions: dict[float, MultiPolygon],
+    z_targets: list[float],
+    model_predictor: ModelPredictor | None,
+    references: Sequence[str],
+    grid: Grid,
+    height_m: float,
+) -> dict[str, Callable[[float], MultiPolygon]]:
+    """Each method's section at an elevation, knowing only benches ``0..k`` (``regions``, by elevation)."""
+    known_mask = holes.bench <= k
+    known = holes.subset(known_mask)
+    methods: dict[str, Callable[[float], MultiPolygon]] = {}
+    if model_predictor is not None:
+        methods["model"] = partial(_lookup, model_predictor(known, geozone, list(z_targets)))
+    if "nil" in references:
+        methods["nil"] = partial(predict_nil, regions)
+    if "linear" in references:
+        methods["linear"] = LinearSDF(regions, grid).region
+    if "implicit" in references:
+        inside = (holes.geozone == geozone)[known_mask]
+        model = fit_implicit_rbf(
+            known.xy, known.z, inside, bench=known.bench, spacing_m=holes.hole_spacing_m, bench_height_m=height_m
+        )
+        methods["implicit"] = partial(model.region, grid=grid)
+    return methods
+
+
+def _scores(
+    methods: dict[str, Callable[[float], MultiPolygon]],
+    targets: list[tuple[float, float, float]],
+    truth: Truth | None,
+    geozone: str,
+    observed: MultiPolygon,
+    within: Polygon | MultiPolygon,
+    k: int,
+    z_k: float,
+) -> list[dict]:
+    """Rows of :func:`evaluate_geozone` for bench ``k``: every method at every target, scored inside ``within``.
+
+    The truth is ``truth(geozone, z)``, or without a truth function the
+    region ``observed`` on the next bench.
+    """
+    rows = []
+    for f, depth, z in targets:
+        g = truth(geozone, z) if truth is not None else observed
+        for name, predict in methods.items():
+            p, r, pa, ga = precision_recall(predict(z), g, within)
+            row = dict(zip(_COLUMNS, (k, z_k, z, depth, f, name, p, r, f1_score(p, r), pa, ga)))
+            row["i_area"] = 0.0 if not np.isfinite(p) else p * pa
+            rows.append(row)
+    return rows
 
 
 def summary_table(df: pd.DataFrame) -> pd.DataFrame:

@@ -69,7 +69,7 @@ class BenchPair:
 
     def aligned_source(self, i: int):
         """Source ``i`` moved by its estimated translation (local metres)."""
-        dx, dy = self.correspondence.translations[i]
+        dx, dy = self.correspondence.translations[i]  # type: ignore[union-attr]  # set by correspond() before use
         return affinity.translate(self.sources[i].polygon, dx, dy)
 
 
@@ -360,11 +360,11 @@ def correspondence_json(model: GeozoneModel, holes: Blastholes) -> dict:
                 "target_z": holes.bench_z_input(p.lower),
                 "sources": [_component_dict(i, c, holes) for i, c in enumerate(p.sources)],
                 "targets": [_component_dict(j, c, holes) for j, c in enumerate(p.targets)],
-                "association": corr.association.astype(int).tolist(),
-                "translations": holes.frame.length_to_input(corr.translations).reshape(-1, 2).tolist(),
+                "association": corr.association.astype(int).tolist(),  # type: ignore[union-attr]  # set by correspond() before use
+                "translations": holes.frame.length_to_input(corr.translations).reshape(-1, 2).tolist(),  # type: ignore[union-attr]  # set by correspond() before use
                 "instances": [
                     {"sources": list(map(int, m.source_ids)), "targets": list(map(int, m.target_ids))}
-                    for m in corr.instances
+                    for m in corr.instances  # type: ignore[union-attr]  # set by correspond() before use
                 ],
             }
         )

@@ -58,10 +58,10 @@ def _translations_for(pair: BenchPair, step: MorphStep, points: np.ndarray) -> n
     if not ids:
         return np.zeros_like(points)
     if len(ids) == 1:
-        return np.repeat(pair.correspondence.translations[ids[0]][None, :], len(points), axis=0)
+        return np.repeat(pair.correspondence.translations[ids[0]][None, :], len(points), axis=0)  # type: ignore[union-attr]  # set by correspond() before use
     aligned = [pair.aligned_source(i) for i in ids]
     d = np.stack([shapely.distance(a.boundary, shapely.points(points)) for a in aligned])
-    return pair.correspondence.translations[np.array(ids)[np.argmin(d, axis=0)]]
+    return pair.correspondence.translations[np.array(ids)[np.argmin(d, axis=0)]]  # type: ignore[union-attr]  # set by correspond() before use
 
 
 def _rings(region) -> list[tuple[int, bool, LinearRing]]:
@@ -159,7 +159,7 @@ def _moved_rings(
     sampling stopped, and its bench-to-bench change is the pit's, not the
     geozone's.
     """
-    out = []
+    out: list[tuple[int, bool, np.ndarray]] = []
     if len(anchors) == 0:
         return out
     tree = cKDTree(anchors)
@@ -281,7 +281,7 @@ def region_beyond(
         Fraction of the movement carried on below the deepest bench (see
         :func:`persistence_coefficient`); 1 is the paper's displacement estimate.
     """
-    rings = []
+    rings: list[tuple[int, bool, np.ndarray]] = []
     base = 0
     for step in pair.morphs:
         if downward and not step.instance.target_ids:

@@ -48,8 +48,8 @@ from shapely.geometry import MultiPolygon, Polygon
 from skimage import measure
 
 from core.errors import BGMInputError
-from core.geometry.grid import Grid, as_multipolygon
-from core.geometry.sdf import signed_distance
+from core.geometry.grid import Grid, as_multipolygon, union_bounds
+from core.geometry.sdf import region_signed_distance
 
 #: Default number of cells along the longer horizontal side of the sections.
 DEFAULT_CELLS_ACROSS = 300
@@ -113,45 +113,62 @@ def surface_from_sections(
     levels = _normalise_sections(sections)
     zs = np.array([z for z, _ in levels], dtype=float)
     regions = [r for _, r in levels]
+    grid = _section_grid(regions, cell_size_m)
+    z_levels, src = _z_slices(zs, z_spacing_m if z_spacing_m is not None else grid.cell_size_m)
+    n_vox = (len(z_levels) + 2) * (grid.shape[0] + 2) * (grid.shape[1] + 2)
+    if n_vox > MAX_VOXELS:
+        raise BGMInputError(
+            f"the surface grid would have {n_vox:,} voxels (more than {MAX_VOXELS:,}); "
+            f"use a larger cell size than {grid.cell_size_m:g} m or a larger z spacing"
+        )
+    return _closed_mesh(_sdf_volume(regions, grid, src), grid, z_levels)
 
-    bounds = _union_bounds(regions)
+
+def _section_grid(regions: list[MultiPolygon], cell_size_m: float | None) -> Grid:
+    """The common horizontal grid of all sections (at least one not empty), with an outside margin."""
+    bounds = union_bounds(regions)
+    assert bounds is not None  # _normalise_sections refuses all-empty sections
     span = max(bounds[2] - bounds[0], bounds[3] - bounds[1])
     if cell_size_m is None:
         cell_size_m = max(span, 1e-6) / (DEFAULT_CELLS_ACROSS - 2 * MARGIN_CELLS - 1)
     cell_size_m = float(cell_size_m)
     if not (math.isfinite(cell_size_m) and cell_size_m > 0):
         raise BGMInputError(f"cell size must be a positive number of metres, got {cell_size_m!r}")
-    grid = Grid.covering(bounds, cell_size_m, margin_cells=MARGIN_CELLS)
+    return Grid.covering(bounds, cell_size_m, margin_cells=MARGIN_CELLS)
 
-    z_levels, src = _z_slices(zs, z_spacing_m if z_spacing_m is not None else cell_size_m)
-    n_vox = (len(z_levels) + 2) * (grid.shape[0] + 2) * (grid.shape[1] + 2)
-    if n_vox > MAX_VOXELS:
-        raise BGMInputError(
-            f"the surface grid would have {n_vox:,} voxels (more than {MAX_VOXELS:,}); "
-            f"use a larger cell size than {cell_size_m:g} m or a larger z spacing"
-        )
 
-    sdfs = [_section_sdf(grid, r) for r in regions]
-    _fill_empty_sections(sdfs, regions, cell_size_m)
+def _sdf_volume(regions: list[MultiPolygon], grid: Grid, slices: list[tuple[int, float]]) -> np.ndarray:
+    """Signed distances on every slice, axes (slice, row, col), padded by one outside layer all round.
 
-    # Volume axes: (slice, row, col), padded by one outside layer all round.
-    outside = -(max(float(np.max(s)) for s in sdfs) + 2.0 * cell_size_m)
-    vol = np.full((len(z_levels) + 2, grid.shape[0] + 2, grid.shape[1] + 2), outside)
-    for k, (i, t) in enumerate(src):
-        sl = sdfs[i] if t == 0.0 else (1.0 - t) * sdfs[i] + t * sdfs[i + 1]
-        vol[k + 1, 1:-1, 1:-1] = sl
-    # An exact zero at a voxel makes marching cubes emit zero-area triangles.
-    tiny = 1e-9 * cell_size_m
-    vol[vol == 0.0] = tiny
+    Each section's SDF (:func:`_section_sdf`; empty sections pinch out,
+    :func:`_fill_empty_sections`) is interpolated linearly in z onto the
+    slices between sections (``slices`` from :func:`_z_slices`). Exact zeros
+    are nudged to a tiny positive value: marching cubes would emit zero-area
+    triangles there.
+    """
+    h = grid.cell_size_m
+    sdfs = _fill_empty_sections([_section_sdf(grid, r) for r in regions], h)
+    outside = -(max(float(np.max(s)) for s in sdfs) + 2.0 * h)
+    vol = np.full((len(slices) + 2, grid.shape[0] + 2, grid.shape[1] + 2), outside)
+    for k, (i, t) in enumerate(slices):
+        vol[k + 1, 1:-1, 1:-1] = sdfs[i] if t == 0.0 else (1.0 - t) * sdfs[i] + t * sdfs[i + 1]
+    vol[vol == 0.0] = 1e-9 * h
+    return vol
 
-    # Parts of a section that touch only at a cell corner make marching cubes
-    # emit non-manifold edges that no repair closes. Smoothing each slice by a
-    # fraction of a cell removes such contacts and moves the surface by well
-    # under a cell, so it is the fallback, not the default.
+
+def _closed_mesh(vol: np.ndarray, grid: Grid, z_levels: np.ndarray) -> trimesh.Trimesh:
+    """Watertight mesh of the zero level of ``vol``, smoothing the slices only if it must.
+
+    Parts of a section that touch only at a cell corner make marching cubes
+    emit non-manifold edges that no repair closes. Smoothing each slice by a
+    fraction of a cell removes such contacts and moves the surface by well
+    under a cell, so it is the fallback, not the default.
+    """
+    h = grid.cell_size_m
     for sigma in (0.0, 0.5, 1.0):
         field = vol if sigma == 0.0 else ndimage.gaussian_filter(vol, (0.0, sigma, sigma), mode="nearest")
-        field[field == 0.0] = tiny
-        mesh = _mesh_from_volume(field, grid, cell_size_m, z_levels)
+        field[field == 0.0] = 1e-9 * h
+        mesh = _mesh_from_volume(field, grid, h, z_levels)
         if _problems(mesh) == []:
             break
     _check(mesh)
@@ -258,11 +275,6 @@ def _normalise_sections(sections: Iterable) -> list[tuple[float, MultiPolygon]]:
     return out
 
 
-def _union_bounds(regions: list[MultiPolygon]) -> tuple[float, float, float, float]:
-    b = np.array([r.bounds for r in regions if not r.is_empty], dtype=float)
-    return (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
-
-
 def _z_slices(zs: np.ndarray, dz_target: float) -> tuple[np.ndarray, list[tuple[int, float]]]:
     """Slice elevations and, for each, ``(section i, weight t of section i+1)``."""
     span = float(zs[-1] - zs[0])
@@ -286,45 +298,31 @@ def _z_slices(zs: np.ndarray, dz_target: float) -> tuple[np.ndarray, list[tuple[
 def _section_sdf(grid: Grid, region: MultiPolygon) -> np.ndarray | None:
     """Signed distance (m, positive inside) of ``region`` on ``grid``; None if empty.
 
-    The raster EDT is replaced by exact distances to the polygon boundary in a
-    band of :data:`EXACT_BAND_CELLS` cells around it (sign from exact point in
-    polygon), so the zero level follows the polygon, not its pixels.
+    :func:`core.geometry.sdf.region_signed_distance` with exact distances in a
+    band of :data:`EXACT_BAND_CELLS` cells around the boundary, so the zero
+    level follows the polygon, not its pixels.
     """
     if region.is_empty:
         return None
-    # Same rule as Grid.rasterize (cells whose centres lie inside, holes
-    # honoured) but through prepared shapely geometry, which is much faster
-    # for finely digitised contours and agrees with the exact sign below.
-    X, Y = grid.cell_centres()
-    shapely.prepare(region)
-    mask = shapely.contains_xy(region, X, Y)
-    sdf = signed_distance(mask, grid.cell_size_m)
-    band = np.abs(sdf) <= EXACT_BAND_CELLS * grid.cell_size_m
-    if not mask.any():
-        # Region thinner than a cell: place it by exact distances near its location.
-        rc = np.rint(grid.xy_to_rc(np.array(region.representative_point().coords))).astype(int)[0]
-        r0, c0 = np.clip(rc, 0, np.array(grid.shape) - 1)
-        band = np.zeros(grid.shape, dtype=bool)
-        band[max(r0 - 3, 0) : r0 + 4, max(c0 - 3, 0) : c0 + 4] = True
-        sdf = np.full(grid.shape, -3.0 * grid.cell_size_m)
-    xs, ys = X[band], Y[band]
-    inside = shapely.contains_xy(region, xs, ys)
-    dist = shapely.distance(region.boundary, shapely.points(xs, ys))
-    sdf = sdf.copy()
-    sdf[band] = np.where(inside, dist, -dist)
-    return sdf
+    return region_signed_distance(grid, region, EXACT_BAND_CELLS)
 
 
-def _fill_empty_sections(sdfs: list, regions: list, cell_size_m: float) -> None:
-    """Give empty sections a uniform outside value so bodies pinch out about halfway."""
+def _fill_empty_sections(sdfs: list[np.ndarray | None], cell_size_m: float) -> list[np.ndarray]:
+    """Signed distances with empty sections (``None``) given a uniform outside value.
+
+    The value is minus the largest inside depth of the neighbouring sections,
+    so the thickest part of a body reaches about halfway to the empty section.
+    """
     shape = next(s.shape for s in sdfs if s is not None)
     depth = [float(np.max(s)) if s is not None else None for s in sdfs]
+    out = []
     for i, s in enumerate(sdfs):
-        if s is not None:
-            continue
-        near = [depth[j] for j in (i - 1, i + 1) if 0 <= j < len(sdfs) and depth[j] is not None]
-        m = max(near) if near else cell_size_m
-        sdfs[i] = np.full(shape, -(max(m, 0.0) + 0.5 * cell_size_m))
+        if s is None:
+            near = [d for j in (i - 1, i + 1) if 0 <= j < len(sdfs) and (d := depth[j]) is not None]
+            m = max(near) if near else cell_size_m
+            s = np.full(shape, -(max(m, 0.0) + 0.5 * cell_size_m))
+        out.append(s)
+    return out
 
 
 def _repair(mesh: trimesh.Trimesh) -> trimesh.Trimesh:

@@ -278,13 +278,9 @@ def backtrack_trajectories(
     xy, ring, _, _ = ring_samples(target, 0.25 * h)
     if not len(xy) or not np.isfinite(arrival_time).any():
         return list(trajectories)
-    if trajectories:
-        ends = np.array([tr.xy[-1] for tr in trajectories])
-        d, _ = cKDTree(ends).query(xy)
-    else:
-        d = np.full(len(xy), np.inf)
-    every = max(int(round(seed_spacing_cells / 0.25)), 1)
-    seeds = _run_seeds(d > cover_radius_cells * h, ring, every)
+    seeds = _uncovered_seeds(
+        trajectories, xy, ring, cover_radius_cells * h, max(int(round(seed_spacing_cells / 0.25)), 1)
+    )
     if not seeds.size:
         return list(trajectories)
 
@@ -293,43 +289,73 @@ def backtrack_trajectories(
     hist, t_hist, last, reached = _descend(xy[seeds], grid, T, v_row, v_col, source_sdf, step_cells, max_steps)
     hist_xy = grid.rc_to_xy(hist.reshape(-1, 2)).reshape(hist.shape)
 
-    # existing trajectories as possible trunks
     all_trajs = list(trajectories)
-    raster = _OwnerRaster(grid)
+    raster = _trunk_raster(grid, all_trajs)
     hist_cells = raster.cells_rc(hist)
-    if all_trajs:
-        pts = np.vstack([tr.xy for tr in all_trajs])
-        own = np.concatenate([np.full(len(tr.xy), k) for k, tr in enumerate(all_trajs)])
+    boundary = source.boundary
+    for s in np.argsort(-t_hist[0], kind="stable"):
+        n = last[s] + 1
+        track = _joined_track(hist_xy[:n, s], t_hist[:n, s], hist_cells[:n, s], raster, all_trajs, reached[s], boundary)
+        if track is None:
+            continue
+        new_xy, new_t, start, new_cells = track
+        all_trajs.append(_thinned(new_xy, np.maximum.accumulate(np.maximum(new_t, 0.0)), start))
+        raster.mark(new_cells, len(all_trajs) - 1)
+    return remove_crossings(all_trajs, checked_prefix=len(trajectories))
+
+
+def _uncovered_seeds(
+    trajectories: list[Trajectory], xy: np.ndarray, ring: np.ndarray, cover_radius_m: float, every: int
+) -> np.ndarray:
+    """Seeds (indices into the target boundary samples ``xy``) along the stretches no trajectory ends near."""
+    if trajectories:
+        ends = np.array([tr.xy[-1] for tr in trajectories])
+        d, _ = cKDTree(ends).query(xy)
+    else:
+        d = np.full(len(xy), np.inf)
+    return _run_seeds(d > cover_radius_m, ring, every)
+
+
+def _trunk_raster(grid: Grid, trajectories: list[Trajectory]) -> _OwnerRaster:
+    """Owner raster with every trajectory (vertices and segment midpoints) marked: the possible trunks."""
+    raster = _OwnerRaster(grid)
+    if trajectories:
+        pts = np.vstack([tr.xy for tr in trajectories])
+        own = np.concatenate([np.full(len(tr.xy), k) for k, tr in enumerate(trajectories)])
         same = own[:-1] == own[1:]
         mids = 0.5 * (pts[:-1] + pts[1:])[same]
         cells = raster.cells_rc(grid.xy_to_rc(np.vstack([pts, mids])))
         raster.mark(cells, np.concatenate([own, own[:-1][same]]))
+    return raster
 
-    boundary = source.boundary
-    for s in np.argsort(-t_hist[0], kind="stable"):
-        n = last[s] + 1
-        path_xy = hist_xy[:n, s]
-        path_t = t_hist[:n, s]
-        cells = hist_cells[:n, s]
-        owners = raster.lookup(cells)
-        hits = np.flatnonzero(owners >= 0)
-        if hits.size:
-            j = int(hits[0])
-            trunk = all_trajs[int(owners[j])]
-            v = int(np.argmin(np.hypot(*(trunk.xy - path_xy[j]).T)))
-            new_xy = np.vstack([trunk.xy[: v + 1], path_xy[j::-1]])
-            new_t = np.concatenate([trunk.t[: v + 1], path_t[j::-1]])
-            start = v
-            new_cells = cells[: j + 1]
-        elif reached[s]:
-            foot = shapely.get_coordinates(shapely.shortest_line(boundary, shapely.points(path_xy[-1])))[0]
-            new_xy = np.vstack([foot, path_xy[::-1]])
-            new_t = np.concatenate([[0.0], path_t[::-1]])
-            start = 0
-            new_cells = cells
-        else:
-            continue
-        new_t = np.maximum.accumulate(np.maximum(new_t, 0.0))
-        all_trajs.append(_thinned(new_xy, new_t, start))
-        raster.mark(new_cells, len(all_trajs) - 1)
-    return remove_crossings(all_trajs, checked_prefix=len(trajectories))
+
+def _joined_track(
+    path_xy: np.ndarray,
+    path_t: np.ndarray,
+    cells: np.ndarray,
+    raster: _OwnerRaster,
+    trunks: list[Trajectory],
+    reached: bool,
+    source_boundary,
+) -> tuple[np.ndarray, np.ndarray, int, np.ndarray] | None:
+    """A track descended from the target boundary, as a source -> target path (Algorithms 11-12).
+
+    Where the track first comes near a trunk (``raster``), the path is the
+    trunk up to its nearest vertex followed by the track reversed; a track
+    that reached the source contour without meeting one starts at its foot
+    on ``source_boundary``; any other track is dropped (``None``). Returns the
+    path's points and times, the index of its last trunk vertex, and the
+    half-cells of the new part.
+    """
+    owners = raster.lookup(cells)
+    hits = np.flatnonzero(owners >= 0)
+    if hits.size:
+        j = int(hits[0])
+        trunk = trunks[int(owners[j])]
+        v = int(np.argmin(np.hypot(*(trunk.xy - path_xy[j]).T)))
+        new_xy = np.vstack([trunk.xy[: v + 1], path_xy[j::-1]])
+        return new_xy, np.concatenate([trunk.t[: v + 1], path_t[j::-1]]), v, cells[: j + 1]
+    if reached:
+        foot = shapely.get_coordinates(shapely.shortest_line(source_boundary, shapely.points(path_xy[-1])))[0]
+        return np.vstack([foot, path_xy[::-1]]), np.concatenate([[0.0], path_t[::-1]]), 0, cells
+    return None

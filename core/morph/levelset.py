@@ -26,12 +26,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 from scipy import ndimage
+from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Point, Polygon
 
 from core.errors import BGMInputError
 from core.geometry.grid import Grid, as_multipolygon
-from core.geometry.sdf import signed_distance
+from core.geometry.sdf import region_signed_distance
+from core.morph.backtracking import backtrack_trajectories
 from core.morph.trajectories import (
+    ParticleState,
     Trajectory,
     advect_particles,
     bilinear,
@@ -48,6 +51,8 @@ from core.morph.trajectories import (
 MARGIN_CELLS = 4
 #: Radius (cells) of the disc seeded for a pod appearing / pinching out.
 SEED_DISC_RADIUS_CELLS = 2.0
+#: Morph times (and fronts) are recorded every this many level-set steps.
+RECORD_EVERY_STEPS = 2
 
 
 @dataclass
@@ -112,25 +117,13 @@ class MorphResult:
 def region_sdf(grid: Grid, region: Polygon | MultiPolygon, band_cells: float = 2.0) -> np.ndarray:
     """Signed distance (metres, positive inside) of a polygonal region on ``grid``.
 
-    Exact Euclidean distance transform of the rasterised region
-    (:func:`core.geometry.sdf.signed_distance`, paper Algorithm 3) everywhere, replaced
-    within ``band_cells`` of the boundary by the exact distance to the
-    polygon boundary, so that the zero set lies on the true contour to
-    sub-cell accuracy (particles start and stop on the real contours).
+    :func:`core.geometry.sdf.region_signed_distance` of the region's
+    :meth:`Grid.rasterize` cells (the raster every stage's masks use): exact
+    within ``band_cells`` of the boundary, so that the zero set lies on the
+    true contour to sub-cell accuracy (particles start and stop on the real
+    contours).
     """
-    h = grid.cell_size_m
-    mask = grid.rasterize(region)
-    sdf = signed_distance(mask, h)
-    if region.is_empty:
-        return sdf
-    band = np.abs(sdf) <= band_cells * h
-    r, c = np.nonzero(band)
-    xy = grid.rc_to_xy(np.column_stack([r, c]))
-    boundary = region.boundary
-    d = shapely.distance(shapely.points(xy), boundary)
-    inside = shapely.contains_xy(region, xy[:, 0], xy[:, 1])
-    sdf[r, c] = np.where(inside, d, -d)
-    return sdf
+    return region_signed_distance(grid, region, band_cells, mask=grid.rasterize(region))
 
 
 def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = None) -> np.ndarray:
@@ -150,13 +143,7 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
     """
     h = cell_size_m
     inside = phi > 0
-    edge = np.zeros_like(inside)
-    dh = inside[:, 1:] != inside[:, :-1]
-    edge[:, 1:] |= dh
-    edge[:, :-1] |= dh
-    dv = inside[1:, :] != inside[:-1, :]
-    edge[1:, :] |= dv
-    edge[:-1, :] |= dv
+    edge = _interface_cells(inside)
     if not edge.any():
         big = float(np.hypot(*phi.shape)) * h if band_m is None else band_m + 2 * h
         return np.where(inside, big, -big)
@@ -170,25 +157,14 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
         r0, r1 = max(int(r.min()) - pad, 0), min(int(r.max()) + pad + 1, rows)
         c0, c1 = max(int(c.min()) - pad, 0), min(int(c.max()) + pad + 1, cols)
         out = np.where(inside, band_m + 2 * h, -(band_m + 2 * h))
-    up, dn = np.minimum(r + 1, rows - 1), np.maximum(r - 1, 0)
-    rt, lt = np.minimum(c + 1, cols - 1), np.maximum(c - 1, 0)
-    gy = (phi[up, c] - phi[dn, c]) / ((up - dn) * h)
-    gx = (phi[r, rt] - phi[r, lt]) / ((rt - lt) * h)
-    g2 = np.maximum(gx * gx + gy * gy, 1e-12)
-    v = phi[r, c]
-    # Newton step in cells, limited to one cell
-    dr = -v * gy / g2 / h
-    dc = -v * gx / g2 / h
-    n = np.hypot(dr, dc)
-    lim = np.where(n > 1.0, 1.0 / np.maximum(n, 1e-12), 1.0)
     shape = (r1 - r0, c1 - c0)
-    g = np.sqrt(g2)
     # per interface cell: foot point and unit normal (row, col components)
+    foot_r, foot_c, normal_r, normal_c = _foot_and_normal(phi, r, c, h)
     info = np.zeros((4,) + shape)
-    info[0, r - r0, c - c0] = r - r0 + dr * lim
-    info[1, r - r0, c - c0] = c - c0 + dc * lim
-    info[2, r - r0, c - c0] = gy / g
-    info[3, r - r0, c - c0] = gx / g
+    info[0, r - r0, c - c0] = r - r0 + foot_r
+    info[1, r - r0, c - c0] = c - c0 + foot_c
+    info[2, r - r0, c - c0] = normal_r
+    info[3, r - r0, c - c0] = normal_c
     ir, ic = ndimage.distance_transform_edt(~edge[r0:r1, c0:c1], return_distances=False, return_indices=True)
     fr, fc, nr, nc = info[:, ir, ic]
     rr, cc = np.indices(shape)
@@ -201,6 +177,39 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
     d = np.sqrt(dn * dn + dt * dt) * h
     out[r0:r1, c0:c1] = np.where(inside[r0:r1, c0:c1], d, -d)
     return out
+
+
+def _interface_cells(inside: np.ndarray) -> np.ndarray:
+    """Cells with a 4-neighbour on the other side of the front."""
+    edge = np.zeros_like(inside)
+    dh = inside[:, 1:] != inside[:, :-1]
+    edge[:, 1:] |= dh
+    edge[:, :-1] |= dh
+    dv = inside[1:, :] != inside[:-1, :]
+    edge[1:, :] |= dv
+    edge[:-1, :] |= dv
+    return edge
+
+
+def _foot_and_normal(phi: np.ndarray, r: np.ndarray, c: np.ndarray, h: float) -> np.ndarray:
+    """``(4, n)``: offset in cells (row, col) of each cell's foot on the zero set, and the unit normal there.
+
+    One Newton step ``-phi grad(phi) / |grad(phi)|^2`` (central differences,
+    one-sided at the grid edge), limited to one cell.
+    """
+    rows, cols = phi.shape
+    up, dn = np.minimum(r + 1, rows - 1), np.maximum(r - 1, 0)
+    rt, lt = np.minimum(c + 1, cols - 1), np.maximum(c - 1, 0)
+    gy = (phi[up, c] - phi[dn, c]) / ((up - dn) * h)
+    gx = (phi[r, rt] - phi[r, lt]) / ((rt - lt) * h)
+    g2 = np.maximum(gx * gx + gy * gy, 1e-12)
+    v = phi[r, c]
+    dr = -v * gy / g2 / h
+    dc = -v * gx / g2 / h
+    n = np.hypot(dr, dc)
+    lim = np.where(n > 1.0, 1.0 / np.maximum(n, 1e-12), 1.0)
+    g = np.sqrt(g2)
+    return np.stack([dr * lim, dc * lim, gy / g, gx / g])
 
 
 class _NarrowBand:
@@ -286,7 +295,7 @@ def _deepest_disc(region: MultiPolygon, cell_size_m: float) -> MultiPolygon:
 # ---------------------------------------------------------------------------
 
 
-def morph_regions(  # noqa: C901 - to be split into named steps
+def morph_regions(
     sources,
     targets,
     *,
@@ -334,11 +343,48 @@ def morph_regions(  # noqa: C901 - to be split into named steps
 
     Notes
     -----
-    Stopping rule: every cell farther than a tenth of a cell from the target
-    contour has the right sign (pixel-exact match; IoU then exceeds 0.99 for
-    any region a few cells wide) and no particle is still moving; or no cell
-    changed sign for ``2 ln(c / 0.05 h) + 4`` time units (front stalled, e.g.
-    a target part not reachable from the source); or ``max_steps``.
+    Steps: regions and grid, signed distances, particles on the source
+    contour, level-set evolution (:func:`_evolve_front`), trajectories.
+    """
+    src, tgt, grid = _morph_frame(sources, targets, cell_size_m, speed_clamp_m, max_cells)
+    h = grid.cell_size_m
+    c = 3.0 * h if speed_clamp_m is None else float(speed_clamp_m)
+    phi0 = region_sdf(grid, src)
+    gamma = region_sdf(grid, tgt)
+    speed = np.clip(gamma, -c, c)
+    dt = 0.5 * h / max(float(np.max(np.abs(speed))), 1e-12)  # CFL: the front moves at most h/2 a step
+    if max_steps is None:  # enough to cross the grid diagonal twice
+        max_steps = int(np.ceil(2 * (float(np.hypot(*grid.shape)) * h / max(c, 1e-12) + _stall_time(c, h)) / dt))
+    particles = _seeded_particles(src, tgt, grid, gamma)
+    run = _evolve_front(phi0, gamma, speed, particles, grid, dt, c, max_steps, reinit_every_steps, keep_fronts)
+    phi = reinitialise(run.phi, h)
+    trajs, cov0, cov = _trajectories(particles, dt, run.arrival_time, grid, phi0, src, tgt, backtrack)
+    return MorphResult(
+        grid=grid,
+        phi_final=phi,
+        target_sdf=gamma,
+        arrival_time=run.arrival_time,
+        times=np.asarray(run.times),
+        dt=dt,
+        n_steps=run.n_steps,
+        fronts=run.fronts,
+        iou=_iou(phi > 0, gamma > 0),
+        source=src,
+        target=tgt,
+        trajectories=trajs,
+        coverage_before_backtracking=cov0,
+        target_boundary_coverage=cov,
+    )
+
+
+def _morph_frame(
+    sources, targets, cell_size_m: float | None, speed_clamp_m: float | None, max_cells: int
+) -> tuple[MultiPolygon, MultiPolygon, Grid]:
+    """The source and target regions (a seed disc for an empty side) and the morph grid.
+
+    Checks the input (not both regions empty, a positive speed clamp); the
+    cell size defaults to the longer side of both regions over ``max_cells``
+    cells, margin included.
     """
     src = _as_region(sources)
     tgt = _as_region(targets)
@@ -356,111 +402,169 @@ def morph_regions(  # noqa: C901 - to be split into named steps
         src = _deepest_disc(tgt, h)
     elif tgt.is_empty:
         tgt = _deepest_disc(src, h)
-    grid = Grid.covering(src.union(tgt).bounds, h, MARGIN_CELLS)
-    c = 3.0 * h if speed_clamp_m is None else float(speed_clamp_m)
+    return src, tgt, Grid.covering(src.union(tgt).bounds, h, MARGIN_CELLS)
 
-    phi = region_sdf(grid, src)
-    gamma = region_sdf(grid, tgt)
-    speed = np.clip(gamma, -c, c)
-    speed_pos = speed > 0
-    vmax = float(np.max(np.abs(speed)))
-    dt = 0.5 * h / max(vmax, 1e-12)
-    if max_steps is None:
-        diag = float(np.hypot(*grid.shape)) * h
-        max_steps = int(np.ceil(2 * (diag / max(c, 1e-12) + 2 * np.log(max(c / (0.05 * h), 2.0)) + 4) / dt))
 
-    phi0 = phi.copy()
-    inside0 = (phi0 > 0).ravel()
-    target_mask = gamma > 0
-    check = np.abs(gamma) > 0.1 * h
-    arrival = np.full(grid.shape, np.nan)
-    arrival_flat = arrival.ravel()
+def _stall_time(speed_clamp_m: float, cell_size_m: float) -> float:
+    """Morph time without any cell changing sign after which the front counts as stalled."""
+    return 2 * np.log(max(speed_clamp_m / (0.05 * cell_size_m), 2.0)) + 4
+
+
+def _seeded_particles(src: MultiPolygon, tgt: MultiPolygon, grid: Grid, target_sdf: np.ndarray) -> ParticleState:
+    """Particles along the source contour, those already on the target contour finished.
+
+    Spacing: a cell, closer where the target contour is the shorter one (down
+    to a quarter cell), so the target boundary still gets about one per cell.
+    """
+    h = grid.cell_size_m
     src_len = sum(p.length for p in src.geoms)
     tgt_len = sum(p.length for p in tgt.geoms)
-    spacing = h * float(np.clip(src_len / max(tgt_len, 1e-12), 0.25, 1.0))
-    particles = seed_particles(src, spacing)
+    particles = seed_particles(src, h * float(np.clip(src_len / max(tgt_len, 1e-12), 0.25, 1.0)))
     if len(particles.xy):
-        g0 = bilinear(gamma, grid.xy_to_rc(particles.xy))
+        g0 = bilinear(target_sdf, grid.xy_to_rc(particles.xy))
         done0 = np.abs(g0) < 0.5 * h
         particles.status[done0] = 1
         particles.end_step[done0] = 0
+    return particles
 
-    record_every = 2
-    times = [0.0]
-    fronts = [grid.polygons_from_field(phi, 0.0)] if keep_fronts else []
-    patience = int(np.ceil((2 * np.log(max(c / (0.05 * h), 2.0)) + 4) / dt))
-    # the front moves at most max|F| dt = h/2 per step
-    band_m = (0.5 * reinit_every_steps + 2.0) * h
-    phi = reinitialise(phi, h, band_m)
-    flat = phi.ravel()
-    band = _NarrowBand(phi, band_m)
-    speed_flat, pos_flat = speed.ravel(), speed_pos.ravel()
-    speed_b, pos_b, inside0_b = speed_flat[band.idx], pos_flat[band.idx], inside0[band.idx]
-    last_change = 0
-    t = 0.0
-    step = 0
-    for step in range(1, max_steps + 1):
-        gnorm = advect_particles(particles, grid, phi, gamma, dt, c, step - 1)
-        old_b = flat[band.idx]
-        new_b = _band_step(flat, band, speed_b, pos_b, dt, h)
-        crossed = ((new_b > 0) != inside0_b) & np.isnan(arrival_flat[band.idx])
+
+class _BandedFront:
+    """The level set during the evolution, updated on its narrow band, and its time-of-arrival map.
+
+    ``phi`` is re-initialised (:func:`reinitialise`) on a band of ``band_m``
+    and the band rebuilt every few steps (:meth:`reinitialise`); between
+    those, :meth:`advance` moves the band cells by one upwind step and records
+    when each cell first changes sign from its initial one.
+    """
+
+    def __init__(self, phi0: np.ndarray, speed: np.ndarray, cell_size_m: float, band_m: float):
+        self.h = cell_size_m
+        self.band_m = band_m
+        self.arrival_time = np.full(phi0.shape, np.nan)
+        self._arrival_flat = self.arrival_time.ravel()
+        self._speed, self._positive = speed.ravel(), (speed > 0).ravel()
+        self._inside0 = (phi0 > 0).ravel()
+        self.phi = phi0
+        self.reinitialise()
+
+    def reinitialise(self) -> None:
+        self.phi = reinitialise(self.phi, self.h, self.band_m)
+        self._flat = self.phi.ravel()
+        self.band = _NarrowBand(self.phi, self.band_m)
+        idx = self.band.idx
+        self._speed_b, self._positive_b, self._inside0_b = self._speed[idx], self._positive[idx], self._inside0[idx]
+
+    def advance(self, t: float, dt: float) -> bool:
+        """One step from time ``t``; whether any cell crossed the front for the first time."""
+        idx = self.band.idx
+        old_b = self._flat[idx]
+        new_b = _band_step(self._flat, self.band, self._speed_b, self._positive_b, dt, self.h)
+        crossed = ((new_b > 0) != self._inside0_b) & np.isnan(self._arrival_flat[idx])
         if crossed.any():
-            o, n_ = old_b[crossed], new_b[crossed]
-            arrival_flat[band.idx[crossed]] = t + np.clip(o / (o - n_), 0.0, 1.0) * dt
+            o, n = old_b[crossed], new_b[crossed]
+            self._arrival_flat[idx[crossed]] = t + np.clip(o / (o - n), 0.0, 1.0) * dt
+        self._flat[idx] = new_b
+        return bool(crossed.any())
+
+
+@dataclass
+class _Evolution:
+    """What :func:`_evolve_front` leaves: the last ``phi`` (not re-initialised), arrival times, recorded times."""
+
+    phi: np.ndarray
+    arrival_time: np.ndarray
+    times: list[float]
+    fronts: list[MultiPolygon]
+    n_steps: int
+
+
+def _evolve_front(
+    phi0: np.ndarray,
+    gamma: np.ndarray,
+    speed: np.ndarray,
+    particles: ParticleState,
+    grid: Grid,
+    dt: float,
+    speed_clamp_m: float,
+    max_steps: int,
+    reinit_every_steps: int,
+    keep_fronts: bool,
+) -> _Evolution:
+    """Evolve ``phi`` from ``phi0`` at ``speed`` (``gamma`` clamped to ``speed_clamp_m``), advecting ``particles``.
+
+    Stopping rule: every cell farther than a tenth of a cell from the target
+    contour has the right sign (pixel-exact match; IoU then exceeds 0.99 for
+    any region a few cells wide) and no particle is still moving; or no cell
+    changed sign for ``2 ln(c / 0.05 h) + 4`` time units (front stalled, e.g.
+    a target part not reachable from the source); or ``max_steps``. Times
+    (and fronts, if ``keep_fronts``) are recorded every
+    :data:`RECORD_EVERY_STEPS` steps and at the end.
+    """
+    h, c = grid.cell_size_m, speed_clamp_m
+    target_mask = gamma > 0
+    wrong_sign_matters = np.abs(gamma) > 0.1 * h
+    times = [0.0]
+    fronts = [grid.polygons_from_field(phi0, 0.0)] if keep_fronts else []
+    patience = int(np.ceil(_stall_time(c, h) / dt))
+    # the front moves at most max|F| dt = h/2 per step
+    front = _BandedFront(phi0, speed, h, (0.5 * reinit_every_steps + 2.0) * h)
+    last_change, t, step = 0, 0.0, 0
+    for step in range(1, max_steps + 1):
+        gnorm = advect_particles(particles, grid, front.phi, gamma, dt, c, step - 1)
+        if front.advance(t, dt):
             last_change = step
-        flat[band.idx] = new_b
         t += dt
-        drop_lost_particles(particles, grid, phi, gnorm)
+        drop_lost_particles(particles, grid, front.phi, gnorm)
         if step % 2 == 0:
             merge_close_particles(particles, 0.2 * h)
-        if step % record_every == 0:
+        if step % RECORD_EVERY_STEPS == 0:
             times.append(t)
             if keep_fronts:
-                fronts.append(grid.polygons_from_field(phi, 0.0))
+                fronts.append(grid.polygons_from_field(front.phi, 0.0))
         if step % reinit_every_steps == 0:
-            if not np.any(particles.status == 0) and not np.any(((phi > 0) != target_mask) & check):
+            if not np.any(particles.status == 0) and not np.any(((front.phi > 0) != target_mask) & wrong_sign_matters):
                 break
-            phi = reinitialise(phi, h, band_m)
-            flat = phi.ravel()
-            band = _NarrowBand(phi, band_m)
-            speed_b, pos_b, inside0_b = speed_flat[band.idx], pos_flat[band.idx], inside0[band.idx]
+            front.reinitialise()
         if step - last_change > patience:
             break
-    n_steps = step
     if times[-1] != t:
         times.append(t)
         if keep_fronts:
-            fronts.append(grid.polygons_from_field(phi, 0.0))
-    phi = reinitialise(phi, h)
-    region = phi > 0
-    union = np.count_nonzero(region | target_mask)
-    iou = float(np.count_nonzero(region & target_mask) / union) if union else 1.0
+            fronts.append(grid.polygons_from_field(front.phi, 0.0))
+    return _Evolution(front.phi, front.arrival_time, times, fronts, step)
 
+
+def _iou(region: np.ndarray, target: np.ndarray) -> float:
+    """Intersection over union of two cell masks (1 when both are empty)."""
+    union = np.count_nonzero(region | target)
+    return float(np.count_nonzero(region & target) / union) if union else 1.0
+
+
+def _trajectories(
+    particles: ParticleState,
+    dt: float,
+    arrival_time: np.ndarray,
+    grid: Grid,
+    source_sdf: np.ndarray,
+    src: MultiPolygon,
+    tgt: MultiPolygon,
+    backtrack: bool,
+) -> tuple[list[Trajectory], float, float]:
+    """Source-to-target trajectories and the target boundary coverage before and after backtracking.
+
+    The particles' paths, crossings removed; where they leave part of the
+    target boundary uncovered (and ``backtrack``), curvelet backtracking
+    (:func:`core.morph.backtracking.backtrack_trajectories`) adds tracks. Sorted
+    along the source contour (:func:`_sort_along_source`).
+    """
+    h = grid.cell_size_m
     trajs = remove_crossings(finished_trajectories(particles, dt, h))
     cov0 = boundary_coverage(trajs, tgt, h)
     cov = cov0
     if backtrack and cov0 < 1.0:
-        from core.morph.backtracking import backtrack_trajectories
-
-        trajs = backtrack_trajectories(trajs, arrival, grid, phi0, src, tgt)
+        trajs = backtrack_trajectories(trajs, arrival_time, grid, source_sdf, src, tgt)
         cov = boundary_coverage(trajs, tgt, h)
-    trajs = _sort_along_source(trajs, src, h)
-    return MorphResult(
-        grid=grid,
-        phi_final=phi,
-        target_sdf=gamma,
-        arrival_time=arrival,
-        times=np.asarray(times),
-        fronts=fronts,
-        iou=iou,
-        trajectories=trajs,
-        coverage_before_backtracking=cov0,
-        target_boundary_coverage=cov,
-        source=src,
-        target=tgt,
-        dt=dt,
-        n_steps=n_steps,
-    )
+    return _sort_along_source(trajs, src, h), cov0, cov
 
 
 def _sort_along_source(trajs: list[Trajectory], src: MultiPolygon, h: float) -> list[Trajectory]:
@@ -470,8 +574,6 @@ def _sort_along_source(trajs: list[Trajectory], src: MultiPolygon, h: float) -> 
     xy, ring, arc, _ = ring_samples(src, 0.25 * h)
     if not len(xy):
         return trajs
-    from scipy.spatial import cKDTree
-
     starts = np.array([tr.xy[0] for tr in trajs])
     _, k = cKDTree(xy).query(starts)
     order = np.lexsort((np.array([tr.backtracked for tr in trajs]), arc[k], ring[k]))

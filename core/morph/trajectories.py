@@ -362,8 +362,8 @@ def crossing_pairs(trajectories: list[Trajectory], checked_prefix: int = 0) -> n
     much faster when a few trajectories are added to a checked set).
 
     Identical segments (the trunk part a backtracked trajectory shares with
-    its trunk) are tested once. Segments longer than the median length
-    are split into collinear pieces, candidate pairs are pieces whose
+    its trunk) are tested once. Segments longer than the 95th percentile
+    length are split into collinear pieces, candidate pairs are pieces whose
     midpoints lie within one piece length (cKDTree), and candidates are
     tested exactly with orientation signs: a crossing
     needs each segment's end points strictly on opposite sides of the other.
@@ -378,60 +378,29 @@ def crossing_pairs(trajectories: list[Trajectory], checked_prefix: int = 0) -> n
     if len(a) < 2:
         return np.zeros((0, 2), dtype=int)
     if any(tr.backtracked for tr in trajectories):
-        # merge identical segments (shared trunks); owners grouped per segment
-        rows = np.ascontiguousarray(np.hstack([a, b]))
-        key = rows.view(np.dtype((np.void, rows.dtype.itemsize * 4))).ravel()
-        _, first, inv = np.unique(key, return_index=True, return_inverse=True)
-        a, b = a[first], b[first]
-        order = np.argsort(inv, kind="stable")
-        owner_sorted = owner[order]
-        bounds = np.searchsorted(inv[order], np.arange(len(first) + 1))
+        a, b, owner_sorted, bounds = _merge_identical_segments(a, b, owner)
     else:
-        owner_sorted = owner
-        bounds = np.arange(len(owner) + 1)
-    # split long segments so every piece is short: then two pieces can only
-    # intersect if their midpoints are within one piece length
-    length = np.hypot(*(b - a).T)
-    piece = max(1.01 * float(np.quantile(length, 0.95)), 1e-12)
-    k = np.maximum(np.ceil(length / piece).astype(int), 1)
-    parent = np.repeat(np.arange(len(a)), k)
-    sub = np.arange(len(parent)) - np.repeat(np.cumsum(k) - k, k)
-    f0 = (sub / k[parent])[:, None]
-    f1 = ((sub + 1) / k[parent])[:, None]
-    d = b[parent] - a[parent]
-    pa, pb = a[parent] + f0 * d, a[parent] + f1 * d
+        owner_sorted, bounds = owner, np.arange(len(owner) + 1)
+    pa, pb, parent, piece = _short_pieces(a, b)
     mid = 0.5 * (pa + pb)
-    tree = cKDTree(mid)
     if checked_prefix > 0:
-        # segments all of whose owners are new, against every segment
-        min_owner = np.minimum.reduceat(owner_sorted, bounds[:-1])
-        new_seg = min_owner >= checked_prefix
+        # pieces of segments all of whose owners are new, against every piece
+        new_seg = np.minimum.reduceat(owner_sorted, bounds[:-1]) >= checked_prefix
         qi = np.flatnonzero(new_seg[parent])
         if not qi.size:
             return np.zeros((0, 2), dtype=int)
-        sub_tree = cKDTree(mid[qi])
-        dm = sub_tree.sparse_distance_matrix(tree, piece, output_type="ndarray")
+        dm = cKDTree(mid[qi]).sparse_distance_matrix(cKDTree(mid), piece, output_type="ndarray")
         i, j = qi[dm["i"]], dm["j"].astype(np.intp)
     else:
-        pairs_ = tree.query_pairs(piece, output_type="ndarray")
-        if not len(pairs_):
+        near = cKDTree(mid).query_pairs(piece, output_type="ndarray")
+        if not len(near):
             return np.zeros((0, 2), dtype=int)
-        i, j = pairs_[:, 0], pairs_[:, 1]
+        i, j = near[:, 0], near[:, 1]
     sel = parent[i] != parent[j]
     i, j = i[sel], j[sel]
-    a, b = pa, pb
     if not i.size:
         return np.zeros((0, 2), dtype=int)
-    p1, p2, p3, p4 = a[i], b[i], a[j], b[j]
-
-    def orient(p, q, r):
-        return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
-
-    tol = 1e-9 * np.hypot(*(p2 - p1).T) * np.hypot(*(p4 - p3).T)
-    o1, o2 = orient(p1, p2, p3), orient(p1, p2, p4)
-    o3, o4 = orient(p3, p4, p1), orient(p3, p4, p2)
-    cross = ((o1 > tol) & (o2 < -tol)) | ((o1 < -tol) & (o2 > tol))
-    cross &= ((o3 > tol) & (o4 < -tol)) | ((o3 < -tol) & (o4 > tol))
+    cross = _properly_cross(pa[i], pb[i], pa[j], pb[j])
     pairs = set()
     for u, v in zip(parent[i[cross]], parent[j[cross]]):
         for x in owner_sorted[bounds[u] : bounds[u + 1]]:
@@ -441,6 +410,52 @@ def crossing_pairs(trajectories: list[Trajectory], checked_prefix: int = 0) -> n
     if not pairs:
         return np.zeros((0, 2), dtype=int)
     return np.array(sorted(pairs), dtype=int)
+
+
+def _merge_identical_segments(
+    a: np.ndarray, b: np.ndarray, owner: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Identical segments (shared trunks) once each, with their owners grouped.
+
+    Returns the unique segments ``a -> b``, the owners sorted by segment and
+    the bounds of each segment's run in them (``owners[bounds[u]:bounds[u + 1]]``).
+    """
+    rows = np.ascontiguousarray(np.hstack([a, b]))
+    key = rows.view(np.dtype((np.void, rows.dtype.itemsize * 4))).ravel()
+    _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    order = np.argsort(inv, kind="stable")
+    return a[first], b[first], owner[order], np.searchsorted(inv[order], np.arange(len(first) + 1))
+
+
+def _short_pieces(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Segments split into collinear pieces no longer than about the 95th percentile length.
+
+    Then two pieces can only intersect if their midpoints are within one
+    piece length. Returns the pieces ``pa -> pb``, each piece's segment, and
+    the piece length.
+    """
+    length = np.hypot(*(b - a).T)
+    piece = max(1.01 * float(np.quantile(length, 0.95)), 1e-12)
+    k = np.maximum(np.ceil(length / piece).astype(int), 1)
+    parent = np.repeat(np.arange(len(a)), k)
+    sub = np.arange(len(parent)) - np.repeat(np.cumsum(k) - k, k)
+    f0 = (sub / k[parent])[:, None]
+    f1 = ((sub + 1) / k[parent])[:, None]
+    d = b[parent] - a[parent]
+    return a[parent] + f0 * d, a[parent] + f1 * d, parent, piece
+
+
+def _properly_cross(p1: np.ndarray, p2: np.ndarray, p3: np.ndarray, p4: np.ndarray) -> np.ndarray:
+    """Whether segments ``p1 -> p2`` and ``p3 -> p4`` cross: each one's ends strictly on both sides of the other."""
+
+    def orient(p, q, r):
+        return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+
+    tol = 1e-9 * np.hypot(*(p2 - p1).T) * np.hypot(*(p4 - p3).T)
+    o1, o2 = orient(p1, p2, p3), orient(p1, p2, p4)
+    o3, o4 = orient(p3, p4, p1), orient(p3, p4, p2)
+    cross = ((o1 > tol) & (o2 < -tol)) | ((o1 < -tol) & (o2 > tol))
+    return cross & (((o3 > tol) & (o4 < -tol)) | ((o3 < -tol) & (o4 > tol)))
 
 
 def remove_crossings(trajectories: list[Trajectory], checked_prefix: int = 0) -> list[Trajectory]:

@@ -16,6 +16,7 @@ drilled on some benches, a little label noise), as a mine would.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -102,7 +103,7 @@ class SyntheticMine:
     as ``z / metres_per_unit``.
     """
 
-    geozones: dict[str, list[Solid]]
+    geozones: Mapping[str, Sequence[Solid]]
     extent_m: tuple[float, float, float, float]
     bench_levels_m: np.ndarray
     origin: tuple[float, float] = (0.0, 0.0)

@@ -398,7 +398,7 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
             tuple(hinge), axis, np.radians(rng.uniform(20.0, 50.0)), float(rng.uniform(1.0, 35.0)), half_length
         )
         velocity = tuple(migration * along + lateral * across)
-        geozones = []
+        geozones: list[Geozone] = []
         start = 0  # first layer of the run of layers in contact that layer i belongs to
         for i in range(n_layers):
             if i > 0 and gaps[i - 1] > 0:
