@@ -320,37 +320,19 @@ def _morph(inputs: PipelineInputs, res: PipelineResult) -> MorphRecord | None:
 
 def _predict(inputs: PipelineInputs, res: PipelineResult) -> list:
     """The selected geozone half a bench and one bench below the deepest bench (core.model.prediction)."""
-    from core.model.pipeline import (
-        GeozoneModel,
-        ModelParameters,
-        bench_pairs,
-        beyond_frontiers,
-        correspond,
-        drilling_frontiers,
-        morph,
-    )
+    from core.model.pipeline import GeozoneModel, ModelParameters, geozone_fields
     from core.model.prediction import predict_geozone
 
     holes, sel = inputs.holes, inputs.selection
     contours = [c for b in sorted(res.contours) for c in res.contours[b]]
-    pairs = bench_pairs(holes, contours, sel.geozone, 3)
-    if not pairs or not pairs[-1].targets:
-        return []
-    used = pairs[-2:] if len(pairs) > 1 and pairs[-2].lower == pairs[-1].upper else pairs[-1:]
-    for p in used:
-        correspond(p, holes)
-        morph(p, hole_spacing_m=holes.hole_spacing_m)
-    last = used[-1]
     own = [c for c in contours if c.geozone == sel.geozone]
-    model = GeozoneModel(
-        sel.geozone,
-        own,
-        used,
-        frontiers=drilling_frontiers(holes, {last.lower}),
-        beyond_frontier=beyond_frontiers(holes, sel.geozone, {last.lower}, ModelParameters().frontier_reach_spacings),
-    )
-    height = last.source_z_m - last.target_z_m
-    out = predict_geozone(model, [last.target_z_m - f * height for f in (0.5, 1.0)], holes.hole_spacing_m)
+    if not own or holes.n_benches < 2:
+        return []
+    fields = geozone_fields(holes, own, ModelParameters().frontier_reach_spacings)
+    model = GeozoneModel(sel.geozone, own, [], fields=fields)
+    height = float(holes.bench_levels_m[-2] - holes.bench_levels_m[-1])
+    deepest = float(holes.bench_levels_m[-1])
+    out = predict_geozone(model, [deepest - f * height for f in (0.5, 1.0)], holes.hole_spacing_m)
     return [(sel.geozone, z, poly) for z, region in out.items() for poly in region.geoms]
 
 

@@ -90,15 +90,12 @@ def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelPa
     def predict(known: Blastholes, geozone: str, z_targets_m: list[float]):
         k = int(known.bench.max())
         pairs = [p for p in model.pairs if p.lower <= k]
-        if not pairs or pairs[-1].lower != k:
-            return {z: shapely.MultiPolygon() for z in z_targets_m}
         partial = GeozoneModel(
             model.geozone,
             [c for c in model.contours if c.bench <= k],
             pairs,
             model.minor,
-            frontiers=model.frontiers,
-            beyond_frontier=model.beyond_frontier,
+            fields=None if model.fields is None else model.fields.down_to(float(holes.bench_levels_m[k])),
         )
         return predict_geozone(partial, list(z_targets_m), holes.hole_spacing_m, params)
 

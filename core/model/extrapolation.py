@@ -36,7 +36,7 @@ benches that were drilled there.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,15 +45,17 @@ from shapely.geometry import MultiPolygon
 
 from core.geometry.grid import Grid
 
-#: Candidate (memory, damping) pairs tried by the backtest.
-MEMORIES: tuple[float, ...] = (0.05, 0.4, 1.0)
-DAMPINGS: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
-#: Used when the geozone has too few benches to backtest (fewer than three):
-#: half the trend, the choice whose worst loss over the possible dampings is smallest.
-DEFAULT_TREND = (0.4, 0.5)
+#: Neighbourhood over which the persistence of movement is measured, in hole spacings.
+PERSISTENCE_SPACINGS = 3.0
 #: Signed distances are capped at this many hole spacings: a boundary far away
 #: says nothing about how the one nearby moves.
 CAP_SPACINGS = 8.0
+#: Shallowest dip taken as movement of a boundary (degrees). A change of the
+#: signed distance faster than ``1 / tan(dip)`` bench heights per bench is a
+#: body appearing or vanishing (a pod, a new lens), not a boundary moving: the
+#: trend is held there. 34 degrees is 1.5 bench heights per bench, the bound
+#: of the linear reference (:class:`core.model.evaluation.LinearSDF`).
+MIN_DIP_DEG = 34.0
 
 
 @dataclass
@@ -79,9 +81,14 @@ class BenchFields:
     weight: np.ndarray
     drilled: np.ndarray
 
-    def upto(self, n: int) -> BenchFields:
-        """The first ``n`` benches only (what was known when bench ``n - 1`` was the deepest)."""
+    def down_to(self, z_m: float) -> BenchFields:
+        """The benches at or above ``z_m`` only (what was known when the bench at ``z_m`` was the deepest)."""
+        n = int(np.sum(self.z_m >= z_m - 1e-6))
         return BenchFields(self.grid, self.z_m[:n], self.distance[:n], self.weight[:n], self.drilled[:n])
+
+    def reversed(self) -> BenchFields:
+        """Bottom bench first: extrapolating from it extrapolates upwards."""
+        return BenchFields(self.grid, self.z_m[::-1], self.distance[::-1], self.weight[::-1], self.drilled[::-1])
 
 
 def bench_distance(region: np.ndarray, drilled: np.ndarray, cell_size_m: float, cap_m: float, reach_m: float):
@@ -93,23 +100,31 @@ def bench_distance(region: np.ndarray, drilled: np.ndarray, cell_size_m: float, 
         The geozone's region and the drilled area of one bench.
     cell_size_m, cap_m, reach_m : float
         Cell size; the cap on ``|F|``; how far past the drilled area the
-        bench's evidence reaches (beyond it the geozone is taken as absent).
+        bench's evidence reaches at most. It reaches no further than the
+        drilled patch it comes from is wide (its equivalent radius): a
+        handful of isolated holes says nothing about the ground around them.
 
     Returns
     -------
     distance, off_drilled : (rows, cols) float
         ``F = d(other side) - d(own side)`` measured to drilled cells only
         (exact signed distance inside the drilled area; nearest-evidence
-        extension past it), and the distance of each cell to the drilled area.
+        extension past it, falling to "absent" beyond the reach), and the
+        distance of each cell to the drilled area.
     """
+    big = 2 * cap_m
+    if not drilled.any():
+        return np.full(region.shape, -cap_m), np.full(region.shape, big)
     inside = region & drilled
     outside = drilled & ~region
-    big = 2 * cap_m
     d_in = ndimage.distance_transform_edt(~inside) * cell_size_m if inside.any() else np.full(region.shape, big)
     d_out = ndimage.distance_transform_edt(~outside) * cell_size_m if outside.any() else np.full(region.shape, big)
-    off = ndimage.distance_transform_edt(~drilled) * cell_size_m if drilled.any() else np.full(region.shape, big)
-    distance = np.minimum(d_out - d_in, reach_m - off)
-    return np.clip(distance, -cap_m, cap_m), off
+    off, (rows, cols) = ndimage.distance_transform_edt(~drilled, return_indices=True)
+    patches, n = ndimage.label(drilled)
+    radius = np.sqrt(np.bincount(patches.ravel(), minlength=n + 1) / np.pi) * cell_size_m
+    reach = np.minimum(reach_m, radius[patches[rows, cols]])
+    distance = np.minimum(d_out - d_in, reach - off * cell_size_m)
+    return np.clip(distance, -cap_m, cap_m), off * cell_size_m
 
 
 def bench_fields(
@@ -139,47 +154,110 @@ def bench_fields(
     )
 
 
-def fit_trend(fields: BenchFields, memory: float, bench_height_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-cell weighted least-squares line of the signed distance against height above the deepest bench.
+def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
+    """How much of the last bench-to-bench change carries on at each cell, in [0, 1].
+
+    The agreement of the last change of the signed distance (``d1 = F_k -
+    F_k-1``) with the one before (``d2 = F_k-1 - F_k-2``) over a Gaussian
+    neighbourhood of ``smoothing_m``::
+
+        rho = 2 sum(d1 d2) / sum(d1^2 + d2^2)   in [-1, 1]
+
+    is 1 for a boundary that keeps moving the same way at the same rate, -1
+    for one whose movement reverses, 0 for changes that do not repeat
+    (shape noise). The persistence is ``clip(2 rho, 0, 1)``: full where the
+    repeated movement is at least as large as what does not repeat (section
+    noise lowers ``rho`` of a steady boundary towards 1/2 when it is as
+    large as the movement), none where the movement reverses or is noise.
+    Where fewer than three benches observed a cell it is 1 (nothing says the
+    movement does not carry on). Changes faster than a boundary moves
+    (:data:`MIN_DIP_DEG`) are left out: they are bodies appearing.
+    """
+    if len(fields.z_m) < 3:
+        return np.ones(fields.grid.shape)
+    d1 = fields.distance[-1] - fields.distance[-2]
+    d2 = fields.distance[-2] - fields.distance[-3]
+    seen = np.prod(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0).astype(float)
+    h = float(abs(fields.z_m[-2] - fields.z_m[-1]))
+    fastest = h / np.tan(np.radians(MIN_DIP_DEG))
+    w = seen * ((np.abs(d1) <= fastest) & (np.abs(d2) <= fastest))
+    sigma = smoothing_m / fields.grid.cell_size_m
+    agree = ndimage.gaussian_filter(w * d1 * d2, sigma)
+    energy = ndimage.gaussian_filter(w * (d1**2 + d2**2), sigma)
+    rho = 2 * agree / np.maximum(energy, 1e-9)
+    support = ndimage.gaussian_filter(w, sigma)
+    return np.where((support > 0.05) & (energy > 0), np.clip(2 * rho, 0.0, 1.0), 1.0)
+
+
+#: A bench observed a cell when the cell lies within this weight of its drilled
+#: area (``exp(-d / s)``: about half a hole spacing past its outermost holes' discs).
+OBSERVED_WEIGHT = 0.5
+
+
+def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell, the index of the deepest bench that observed it and of the one before (-1 if none)."""
+    seen = fields.weight >= OBSERVED_WEIGHT
+    last = np.full(fields.grid.shape, -1)
+    before = np.full(fields.grid.shape, -1)
+    for j in range(len(fields.z_m)):  # top down: later benches replace earlier ones
+        before = np.where(seen[j], last, before)
+        last = np.where(seen[j], j, last)
+    return last, before
+
+
+def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per cell, the last observed signed distance, where it was observed and its change with depth.
+
+    Each cell's trend rests on the last two benches drilled there (the
+    deepest one, ``j1``, and the one above it that was drilled there,
+    ``j2``): the change from ``F_j2`` to ``F_j1`` per bench height. A cell
+    drilled by one bench only has no change; a cell none drilled takes the
+    deepest bench's nearest evidence, with no change.
 
     Returns
     -------
-    a, b : (rows, cols) float
-        ``F(u) ~ a + b u`` with ``u = (z - z_deepest) / bench_height_m``: ``a``
-        is the fitted distance at the deepest bench and ``-b`` its change per
-        bench height downwards. ``b`` is 0 where fewer than two benches carry weight.
+    f_last, z_last, rate : (rows, cols) float
+        ``F_j1``, the elevation of ``j1`` (metres) and the change of ``F`` per
+        bench height downwards.
     """
-    u = (fields.z_m - fields.z_m[-1]) / bench_height_m
-    w = fields.weight * (memory**u)[:, None, None]
-    s0 = w.sum(axis=0)
-    s1 = np.tensordot(u, w, axes=1)
-    s2 = np.tensordot(u**2, w, axes=1)
-    t0 = (w * fields.distance).sum(axis=0)
-    t1 = np.tensordot(u, w * fields.distance, axes=1)
-    det = s0 * s2 - s1**2
-    # Two benches of full weight give det ~ 1; a second bench seen only from far away gives ~0.
-    ok = det > 1e-3 * np.maximum(s0, 1e-12) ** 2
-    b = np.where(ok, (s0 * t1 - s1 * t0) / np.where(ok, det, 1.0), 0.0)
-    a = (t0 - b * s1) / np.maximum(s0, 1e-12)
-    return a, b
+    last, before = last_observations(fields)
+    z = fields.z_m
+
+    def take(idx: np.ndarray) -> np.ndarray:
+        return np.take_along_axis(fields.distance, np.maximum(idx, 0)[None], axis=0)[0]
+
+    f1, f2 = take(last), take(before)
+    z1, z2 = z[np.maximum(last, 0)], z[np.maximum(before, 0)]
+    two = (last >= 0) & (before >= 0)
+    rate = np.where(two, (f1 - f2) / np.where(two, z2 - z1, 1.0), 0.0) * bench_height_m
+    # Held where the change is no movement (see MIN_DIP_DEG).
+    rate = np.where(np.abs(rate) > bench_height_m / np.tan(np.radians(MIN_DIP_DEG)), 0.0, rate)
+    observed = last >= 0
+    return np.where(observed, f1, fields.distance[-1]), np.where(observed, z1, z[-1]), rate
 
 
 @dataclass
 class DepthTrend:
-    """A geozone's signed distance at the deepest bench and its trend with depth (see the module docstring)."""
+    """A geozone's signed distance below its deepest bench (see the module docstring).
+
+    Per cell: the signed distance ``f_last`` at the deepest bench that
+    observed the cell (elevation ``z_last``), its change per bench height
+    downwards ``rate`` and how much of it carries on, ``persistence``; so
+    ``F(z) = f_last + persistence * rate * (z_last - z) / bench_height_m`` (``rate`` is
+    the change per bench height from ``z_last`` in the direction of extrapolation).
+    """
 
     grid: Grid
     z_ref_m: float  #: elevation of the deepest known bench
     bench_height_m: float
-    a: np.ndarray
-    b: np.ndarray
-    memory: float
-    damping: float
+    f_last: np.ndarray
+    z_last: np.ndarray
+    rate: np.ndarray
+    persistence: np.ndarray
 
     def field(self, z_m: float) -> np.ndarray:
-        """Signed distance to the predicted boundary at elevation ``z_m`` (below the deepest bench)."""
-        f = max((self.z_ref_m - z_m) / self.bench_height_m, 0.0)
-        return self.a - self.damping * self.b * f
+        """Signed distance to the predicted boundary at elevation ``z_m`` (past the deepest bench)."""
+        return self.f_last + self.persistence * self.rate * (self.z_last - z_m) / self.bench_height_m
 
     def region(self, z_m: float) -> MultiPolygon:
         field = self.field(z_m)
@@ -188,60 +266,8 @@ class DepthTrend:
         return self.grid.polygons_from_field(field, 0.0)
 
 
-def backtest_scores(
-    fields: BenchFields, bench_height_m: float, memories: Sequence[float] | None = None, dampings=None
-) -> np.ndarray:
-    """Intersection, predicted and true areas (cells) of every candidate, summed over the backtests.
-
-    Bench ``j`` (for every ``j >= 2``) is predicted from benches ``0..j-1``
-    and compared with its own region inside its drilled area.
-
-    Returns
-    -------
-    (len(memories), len(dampings), 3) float
-    """
-    memories = MEMORIES if memories is None else memories
-    dampings = DAMPINGS if dampings is None else dampings
-    out = np.zeros((len(memories), len(dampings), 3))
-    for j in range(2, len(fields.z_m)):
-        known = fields.upto(j)
-        f = (known.z_m[-1] - fields.z_m[j]) / bench_height_m
-        within = fields.drilled[j]
-        truth = (fields.distance[j] > 0) & within
-        for m, memory in enumerate(memories):
-            a, b = fit_trend(known, memory, bench_height_m)
-            for d, damping in enumerate(dampings):
-                pred = ((a - damping * b * f) > 0) & within
-                out[m, d] += (np.sum(pred & truth), pred.sum(), truth.sum())
-    return out
-
-
-def choose_trend(
-    fields: BenchFields, bench_height_m: float, memories: Sequence[float] | None = None, dampings=None
-) -> tuple[float, float]:
-    """The (memory, damping) whose backtest F1 over the geozone's own benches is best.
-
-    Ties go to the least trend (smaller damping), then the longest memory:
-    with nothing to choose between them, extrapolating less is the safer
-    bet. Too few benches to backtest: :data:`DEFAULT_TREND`.
-    """
-    memories = MEMORIES if memories is None else memories
-    dampings = DAMPINGS if dampings is None else dampings
-    if len(memories) * len(dampings) == 1:
-        return float(memories[0]), float(dampings[0])
-    scores = backtest_scores(fields, bench_height_m, memories, dampings)
-    inter, pred, true = scores[..., 0], scores[..., 1], scores[..., 2]
-    if true.max() <= 0 and pred.max() <= 0:
-        return DEFAULT_TREND
-    f1 = 2 * inter / np.maximum(pred + true, 1e-12)
-    best = np.max(f1)
-    m_idx, d_idx = np.nonzero(f1 >= best - 1e-9)
-    order = np.lexsort((-np.asarray(memories)[m_idx], np.asarray(dampings)[d_idx]))
-    return float(memories[m_idx[order[0]]]), float(dampings[d_idx[order[0]]])
-
-
-def depth_trend(fields: BenchFields, bench_height_m: float) -> DepthTrend:
-    """The geozone's :class:`DepthTrend`, its memory and damping chosen by :func:`choose_trend`."""
-    memory, damping = choose_trend(fields, bench_height_m)
-    a, b = fit_trend(fields, memory, bench_height_m)
-    return DepthTrend(fields.grid, float(fields.z_m[-1]), bench_height_m, a, b, memory, damping)
+def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
+    """The geozone's :class:`DepthTrend` from its benches' :class:`BenchFields`."""
+    f_last, z_last, rate = fit_trend(fields, bench_height_m)
+    persistence = local_persistence(fields, PERSISTENCE_SPACINGS * hole_spacing_m)
+    return DepthTrend(fields.grid, float(fields.z_m[-1]), bench_height_m, f_last, z_last, rate, persistence)
