@@ -486,7 +486,7 @@ def test_feet_give_the_same_contours_scaled(table, base_contours, tmp_path):
         assert f["properties"]["holes"] == g["properties"]["holes"]
         a = shapely.affinity.scale(shape(f["geometry"]), 0.3048, 0.3048, origin=(0, 0))
         b = shape(g["geometry"])
-        assert a.hausdorff_distance(b) < 0.1  # metres: the same contour up to grid discretisation
+        assert a.hausdorff_distance(b) < 0.25  # metres: the same contour up to grid discretisation (cells ~1.3 m)
         assert "area_ft2" in f["properties"] and f["properties"]["area_ft2"] == pytest.approx(
             g["properties"]["area_m2"] / 0.3048**2, rel=5e-3
         )
