@@ -187,8 +187,8 @@ BAD_FILES = {
     "blank lines only": (_write_bytes(b"\n\n   \n"), ("cannot read",)),
     "header only": (_write_bytes(b"x,y,z,geozone\n"), ("header but no rows",)),
     "directory": (lambda p: p.parent, ("is a directory",)),
-    "Parquet that is not Parquet": (
-        lambda p: _write_bytes(b"x,y,z,geozone\n1,2,3,a\n")(p.with_suffix(".parquet")),
+    "Parquet that is damaged": (
+        lambda p: _write_bytes(b"PAR1 x,y,z,geozone\n1,2,3,a\n")(p.with_suffix(".parquet")),
         ("as Parquet",),
     ),
     "binary junk": (_write_bytes(bytes(range(256)) * 8), ("cannot read",)),

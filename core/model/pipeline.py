@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 from shapely import affinity
 
 from core.correspondence.pair import MorphInstance, PairCorrespondence, correspond_pair
+from core.errors import Range, check_ranges
 from core.extraction.contours import Contour, ExtractionParameters, extract_contours
 from core.io.blastholes import Blastholes
 from core.morph.levelset import MorphResult, morph_regions
@@ -43,6 +44,26 @@ class ModelParameters:
     #: How far past a bench's drilling frontier a geozone is assumed to go on
     #: where no bench above was drilled, in hole spacings (see :func:`beyond_frontiers`).
     frontier_reach_spacings: float = 10.0
+
+    def validate(self) -> ModelParameters:
+        """Raise :class:`core.errors.BGMInputError` naming the first parameter out of range; returns self."""
+        self.extraction.validate()
+        check_ranges(self, MODEL_RANGES)
+        return self
+
+
+#: Valid values of each :class:`ModelParameters` field.
+MODEL_RANGES = {
+    "mu_lower_m": Range(0, low_open=True, optional=True),
+    "correspondence_cell_size_m": Range(0, low_open=True, optional=True),
+    "morph_max_cells": Range(16, 4096, integer=True),
+    "min_component_holes": Range(1, integer=True),
+    "smoothing_spacings": Range(0),
+    "deformation_weight": Range(0),
+    "translation_weight": Range(0),
+    "speed_clamp_m": Range(0, low_open=True, optional=True),
+    "frontier_reach_spacings": Range(0),
+}
 
 
 @dataclass
@@ -246,6 +267,17 @@ def model_geozone(
     )
 
 
+def _in_patches_of(grid, drilled: np.ndarray, xy: np.ndarray, min_holes: float) -> np.ndarray:
+    """Which holes lie in a connected patch of the drilled area holding at least ``min_holes`` holes."""
+    from scipy import ndimage
+
+    patches, _ = ndimage.label(drilled.reshape(grid.shape))
+    rc = np.clip(np.round(grid.xy_to_rc(xy)).astype(int), 0, np.array(grid.shape) - 1)
+    patch = patches[rc[:, 0], rc[:, 1]]
+    counts = np.bincount(patch)
+    return (patch > 0) & (counts[patch] >= min_holes)
+
+
 def drilling_frontiers(holes: Blastholes, benches) -> dict:
     """Outline of the drilled area of each bench (bench index -> boundary line, local metres)."""
     return {k: holes.drilled_area(k).boundary for k in sorted(benches)}
@@ -259,7 +291,9 @@ def beyond_frontiers(holes: Blastholes, geozone: str, benches, reach_spacings: f
     nearest hole of the deepest bench above ``k`` that was drilled there (the
     best knowledge of that ground), and failing any, of the nearest hole of
     bench ``k`` itself up to ``reach_spacings`` hole spacings away (a lateral
-    zero-order hold, the guess the nil reference makes vertically).
+    zero-order hold, the guess the nil reference makes vertically). Only
+    holes in a drilled patch of at least ``reach_spacings`` holes hold their
+    label sideways: a handful of isolated holes never grows a body.
     Predictions beyond bench ``k`` join the part that falls to the geozone, so
     a bench drilled further out than the one above it is not predicted empty
     there. Only benches ``<= k`` are used: nothing below leaks in.
@@ -321,11 +355,14 @@ def beyond_frontiers(holes: Blastholes, geozone: str, benches, reach_spacings: f
             sel = todo & drilled_j
             mask[sel] = label_j[sel]
             todo &= ~drilled_j
-        if todo.any() and inside.any():
-            dist, nearest = cKDTree(holes.xy[on]).query(cells[todo], distance_upper_bound=reach)
+        # A handful of isolated holes is no ground to hold a label sideways from:
+        # only drilled patches of at least ``reach_spacings`` holes seed the hold.
+        seed = _in_patches_of(grid, drilled_k, holes.xy[on], max(reach_spacings, 1.0))
+        if todo.any() and inside[seed].any():
+            dist, nearest = cKDTree(holes.xy[on][seed]).query(cells[todo], distance_upper_bound=reach)
             reached = np.isfinite(dist)
             rest = np.zeros(int(todo.sum()), bool)
-            rest[reached] = inside[nearest[reached]]
+            rest[reached] = inside[seed][nearest[reached]]
             mask[todo] = rest
         region = grid.polygons_from_mask(mask.reshape(grid.shape)) if mask.any() else shapely.MultiPolygon()
         out[k] = as_multipolygon(region.difference(holes.drilled_area(k))) if not region.is_empty else region
