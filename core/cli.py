@@ -449,7 +449,7 @@ def evaluate(
 ) -> None:
     """Precision and recall of predictions below withheld benches, against nil, linear and implicit references."""
     from core.extraction.contours import extract_contours
-    from core.io.atomic import atomic_write_text, check_output
+    from core.io.atomic import atomic_write_text, check_output, make_folder
     from core.model.build import load_truth, predictor_from_model
     from core.model.evaluation import evaluate_geozone, format_table, plot_precision_recall, summary_table
     from core.model.pipeline import ModelParameters, model_geozone
@@ -458,6 +458,7 @@ def evaluate(
     check_output(out, folder=True)
     for name in names:
         _outputs(out / name, input)
+    make_folder(out)  # now, not after minutes of work
     holes = table.read(input)
     geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 3:
@@ -632,9 +633,21 @@ def _import_uninterrupted() -> None:
 
 
 def main() -> None:
-    """Entry point of the ``bgm`` console script."""
+    """Entry point of the ``bgm`` console script: run the command, print at most one line, exit."""
     with contextlib.suppress(ValueError):  # not the main thread: Python's default handling
         signal.signal(signal.SIGINT, _on_ctrl_c)
+    code = _run()
+    if code == 130 or (_INTERRUPTS and code != 0):  # typer turns Ctrl-C into exit status 130 without a word
+        _say("bgm: interrupted; files being written were left as they were")
+        code = 130
+    # The work is done (or abandoned): a Ctrl-C while the interpreter shuts down changes nothing.
+    with contextlib.suppress(ValueError):
+        signal.signal(signal.SIGINT, _remember_ctrl_c)
+    sys.exit(code)
+
+
+def _run() -> int:
+    """Run the command line; returns the exit status after printing any error in one line."""
     from core.errors import BGMWarning
 
     try:  # typer 0.2x carries its own copy of click
@@ -648,41 +661,34 @@ def main() -> None:
     warnings.filterwarnings("always", category=BGMWarning)
     try:
         _import_uninterrupted()
-        code = 130 if _INTERRUPTS else app(prog_name="bgm", standalone_mode=False)
+        return 130 if _INTERRUPTS else (app(prog_name="bgm", standalone_mode=False) or 0)
     except click.NoArgsIsHelpError:
         app(["--help"], prog_name="bgm", standalone_mode=False)
-        sys.exit(2)
+        return 2
     except click.UsageError as exc:  # a missing or malformed option
         where = f" (see {exc.ctx.command_path} --help)" if exc.ctx is not None else ""
         _say(f"bgm: error: {_one_line(exc.format_message())}{where}")
-        sys.exit(2)
+        return 2
     except typer.Abort:  # end of input while prompting
         _say("bgm: error: input ended unexpectedly")
-        sys.exit(2)
+        return 2
+    except KeyboardInterrupt:
+        return 130
     except BGMInputError as exc:
         if _INTERRUPTS:
-            code = 130
-        else:
-            _say(f"bgm: error: {_one_line(exc)}")
-            sys.exit(2)
-    except KeyboardInterrupt:
-        code = 130
+            return 130
+        _say(f"bgm: error: {_one_line(exc)}")
+        return 2
     except MemoryError:
         _say("bgm: error: out of memory; try fewer geozones or benches at a time")
-        sys.exit(3)
+        return 3
     except Exception as exc:  # a bug: say so plainly, traceback only on request
-        if not _INTERRUPTS:  # else a library left broken by a swallowed Ctrl-C
-            if os.environ.get("BGM_DEBUG"):
-                raise
-            _say(
-                f"bgm: internal error: {type(exc).__name__}: {_one_line(exc, 300)} (set BGM_DEBUG=1 for the traceback)"
-            )
-            sys.exit(3)
-        code = 130
-    if code == 130 or _INTERRUPTS:  # typer turns Ctrl-C into exit status 130 without a word
-        _say("bgm: interrupted; files being written were left as they were")
-        sys.exit(130)
-    sys.exit(code or 0)
+        if _INTERRUPTS:  # a library left broken by a Ctrl-C it swallowed
+            return 130
+        if os.environ.get("BGM_DEBUG"):
+            raise
+        _say(f"bgm: internal error: {type(exc).__name__}: {_one_line(exc, 300)} (set BGM_DEBUG=1 for the traceback)")
+        return 3
 
 
 _LOADING.__exit__(None, None, None)

@@ -123,6 +123,16 @@ def check_output(
     return path
 
 
+def make_folder(folder: str | os.PathLike) -> Path:
+    """Create ``folder`` (and its parents) or say in one sentence why it cannot be."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BGMInputError(f"cannot write the folder {str(folder)!r}: {exc.strerror or exc}") from None
+    return folder
+
+
 @contextlib.contextmanager
 def replaced_folder(out_dir: str | os.PathLike) -> Iterator[Path]:
     """Yield a staging folder that replaces ``out_dir`` whole when the block succeeds.

@@ -50,9 +50,6 @@ COINCIDENT_M = 1e-3
 MIN_BENCH_GAP = 2.0
 #: Coordinates larger than this (input units) are rejected as not coordinates.
 MAX_COORDINATE = 1e12
-#: Benches whose measured levels all lie within this fraction of a bench
-#: height of a regular ladder are taken to be regular (the rest is scatter).
-LADDER_TOLERANCE = 0.05
 #: More holes than this share between bench levels: z does not form benches.
 MAX_OFF_BENCH_SHARE = 0.25
 #: A single cluster of elevations thicker than this many hole spacings is not one bench.
@@ -569,12 +566,9 @@ def detect_benches(
     Holes of one bench scatter by a few units around its level; a few sit far
     off any level. Elevations are split into clusters at gaps wider than a
     third of the widest gap; clusters holding at least 1% of the holes (or 10
-    holes) are benches, at their median elevation. Benches need not be evenly
-    spaced (10 m, then 15 m): levels are taken as measured. Only when every
-    level lies within ``LADDER_TOLERANCE`` of a bench height of a regular
-    ladder are the differences sampling scatter, and the levels the fitted
-    ladder's rungs (shown to 0.1 unit); smaller clusters on a rung then count
-    as benches too.
+    holes) are benches, at their median elevation (shown to 0.1 unit when the
+    holes scatter). Benches need not be evenly spaced (10 m, then 15 m): levels
+    are taken as measured, not fitted to a regular ladder.
 
     Parameters
     ----------
@@ -656,21 +650,16 @@ def _elevation_clusters(zs: np.ndarray) -> list[np.ndarray]:
 
 
 def _bench_levels(big: list[np.ndarray], small: list[np.ndarray]) -> np.ndarray:
-    """Levels of the benches (ascending): a regular ladder where one fits, else the cluster medians."""
+    """Levels of the benches (ascending): each bench at its own measured level.
+
+    A cluster too small to be a bench on its own (a bench being opened, or
+    sparsely sampled) is one when it lies at least ``1 - OFF_BENCH_FRACTION``
+    of a typical bench height from every bench; nearer, it is stray holes.
+    """
     centres = np.array([float(np.median(c)) for c in big])
     height = float(np.median(np.diff(centres)))
-    k = np.round((centres - centres[0]) / height)
-    if len(np.unique(k)) == len(k):
-        slope, z0 = np.polyfit(k, centres, 1)
-        if np.abs(centres - (z0 + k * slope)).max() <= LADDER_TOLERANCE * slope:
-            slope = round(slope, 1) if slope >= 1 else slope
-            z0 = float(np.median(centres - k * slope))
-            return _ladder(np.concatenate(big + small), z0, slope)
-    # Uneven benches: each at its own measured level; a small cluster beyond
-    # the top or bottom bench is a bench being opened, one between two benches is stray holes.
     levels = [_level(c) for c in big]
-    reach = (1 - OFF_BENCH_FRACTION) * float(np.min(np.diff(centres)))
-    levels += [_level(c) for c in small if np.median(c) < centres[0] - reach or np.median(c) > centres[-1] + reach]
+    levels += [_level(c) for c in small if np.abs(centres - np.median(c)).min() >= (1 - OFF_BENCH_FRACTION) * height]
     return np.sort(levels)
 
 

@@ -232,6 +232,7 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
         if progress:
             progress(f"geozone {summary.geozone[:40]}", done, len(wanted))
     summaries.sort(key=lambda s: wanted.index(s.geozone))
+    evaluations.sort(key=lambda rows: wanted.index(rows["geozone"].iloc[0]))  # the same file whatever finished first
     table = None
     if evaluations:
         results = pd.concat(evaluations, ignore_index=True)
@@ -457,7 +458,7 @@ def _dask_map(func, ctx, items: list, scheduler: str):
         client = Client(scheduler, timeout="10s")
     except Exception as exc:  # a bad address raises ValueError, TypeError, OSError... all the user's to fix
         raise BGMInputError(
-            f"cannot use the dask scheduler {quoted(scheduler)}: {' '.join(str(exc).split())[:200]}"
+            f"cannot reach the dask scheduler at {quoted(scheduler)}: {' '.join(str(exc).split())[:200]}"
         ) from None
     try:
         shared = client.scatter(ctx, broadcast=True)
