@@ -568,7 +568,8 @@ def detect_benches(
     third of the widest gap; clusters holding at least 1% of the holes (or 10
     holes) are benches, at their median elevation (shown to 0.1 unit when the
     holes scatter). Benches need not be evenly spaced (10 m, then 15 m): levels
-    are taken as measured, not fitted to a regular ladder.
+    are taken as measured, and put on a regular ladder only where the medians
+    themselves say the benches are regular (see :func:`_bench_levels`).
 
     Parameters
     ----------
@@ -650,17 +651,29 @@ def _elevation_clusters(zs: np.ndarray) -> list[np.ndarray]:
 
 
 def _bench_levels(big: list[np.ndarray], small: list[np.ndarray]) -> np.ndarray:
-    """Levels of the benches (ascending): each bench at its own measured level.
+    """Levels of the benches (ascending): each at its measured level, or on a ladder where one fits.
 
-    A cluster too small to be a bench on its own (a bench being opened, or
+    A bench's measured level is the median elevation of its holes. When
+    three or more benches lie on a regular ladder to within three standard
+    errors of their medians, the differences are sampling noise and the
+    ladder's rungs are the levels (regular benches read as 685, 675, 665, not
+    685.0, 675.1, 664.9); otherwise (10 m, then 15 m) the medians are. A
+    cluster too small to be a bench on its own (a bench being opened, or
     sparsely sampled) is one when it lies at least ``1 - OFF_BENCH_FRACTION``
     of a typical bench height from every bench; nearer, it is stray holes.
     """
     centres = np.array([float(np.median(c)) for c in big])
     height = float(np.median(np.diff(centres)))
-    levels = [_level(c) for c in big]
-    levels += [_level(c) for c in small if np.abs(centres - np.median(c)).min() >= (1 - OFF_BENCH_FRACTION) * height]
-    return np.sort(levels)
+    levels = np.array([_level(c) for c in big])
+    k = np.round((centres - centres[0]) / height)
+    if len(big) >= 3 and len(np.unique(k)) == len(k):
+        noise = np.array([1.2533 * np.std(c) / np.sqrt(len(c)) for c in big])  # standard error of a median
+        slope, z0 = np.polyfit(k, centres, 1, w=1 / (noise + 1e-9 * height))
+        rungs = z0 + k * slope
+        if np.all(np.abs(centres - rungs) <= 3 * noise + 1e-9 * height):
+            levels = np.where([np.ptp(c) <= 0.1 for c in big], centres, np.round(rungs, 1 if slope >= 1 else 6))
+    extra = [_level(c) for c in small if np.abs(centres - np.median(c)).min() >= (1 - OFF_BENCH_FRACTION) * height]
+    return np.sort(np.concatenate([levels, extra]))
 
 
 def _level(members: np.ndarray) -> float:
