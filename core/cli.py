@@ -640,9 +640,18 @@ def main() -> None:
     if code == 130 or (_INTERRUPTS and code != 0):  # typer turns Ctrl-C into exit status 130 without a word
         _say("bgm: interrupted; files being written were left as they were")
         code = 130
-    # The work is done (or abandoned): a Ctrl-C while the interpreter shuts down changes nothing.
+    # The work is done (or abandoned): a Ctrl-C while the interpreter shuts down changes
+    # nothing. Ignored, not handled: Python resets its own handlers to the default
+    # (die by SIGINT) while it shuts down.
     with contextlib.suppress(ValueError):
-        signal.signal(signal.SIGINT, _remember_ctrl_c)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if _INTERRUPTS and code == 130:
+        # Every file is closed and every staging folder gone; the interpreter's own
+        # shutdown, with worker-pool threads cut short, can crash ("Fatal Python
+        # error") and would add a second message: leave now.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
     sys.exit(code)
 
 

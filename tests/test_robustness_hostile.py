@@ -414,6 +414,10 @@ def user_error_cases(csv: Path, tmp_path: Path) -> list[tuple]:
             }
         )
     )
+    view_project = tmp_path / "view.json"
+    ratio = str(rng.choice(["Infinity", "-Infinity", "0", "-2", "1e300"]))
+    view = '{"vertical_exaggeration": RATIO}'.replace("RATIO", ratio)  # JSON as Python writes it: Infinity too
+    view_project.write_text(f'{{"format": "bgm-project", "version": 1, "parameters": {{"viewer": {view}}}}}')
     proc = f"/proc/{_garbage(rng, 5)}/out"
     vertical = f"0,0,{rng.uniform(-5, 5):.3f}"
     return [
@@ -430,6 +434,7 @@ def user_error_cases(csv: Path, tmp_path: Path) -> list[tuple]:
         (("view", csv, "--screenshot", tmp_path / "s.png", "--camera", vertical), "--camera"),
         (("view", csv, "--screenshot", tmp_path / "s.png", "--exaggeration", "inf"), "--exaggeration"),
         (("view", csv, "--screenshot", tmp_path / "s.png", "--exaggeration", -rng.uniform(0, 9)), "--exaggeration"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--project", view_project), "vertical_exaggeration"),
         (("build", csv, "--out", tmp_path / "m1", "--scheduler", _garbage(rng)), "scheduler"),
         (("build", csv, "--out", tmp_path / "m2", "--scheduler", f"{_garbage(rng)}://::"), "scheduler"),
         (("correspond", csv, "--geozone", "g1", "--project", project, "--out", tmp_path / "c.json"), "override 0"),

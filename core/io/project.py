@@ -30,7 +30,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from core.errors import BGMInputError, listing, quoted
+from core.errors import BGMInputError, Range, listing, quoted
 from core.io.atomic import atomic_write_text
 
 FORMAT = "bgm-project"
@@ -199,6 +199,7 @@ def _check_parameters(path: Path, parameters: dict) -> None:
         if name == "viewer":
             if value is not None and not isinstance(value, dict):
                 raise BGMInputError(f'project file {path}: "viewer" must be an object.')
+            _check_viewer(path, value or {})
             continue
         if name in ranges and not ranges[name].holds(value):
             raise BGMInputError(
@@ -208,6 +209,24 @@ def _check_parameters(path: Path, parameters: dict) -> None:
             raise BGMInputError(
                 f"project file {path}: parameter {quoted(name)} must be a finite number, got {value!r}."
             )
+
+
+#: The viewer's saved view: what each setting may hold.
+VIEWER_RANGES = {
+    "bench": Range(0, integer=True, optional=True),
+    "component": Range(0, integer=True, optional=True),
+    "vertical_exaggeration": Range(0, 100, low_open=True, optional=True),
+}
+
+
+def _check_viewer(path: Path, viewer: dict) -> None:
+    for name, valid in VIEWER_RANGES.items():
+        if name in viewer and not valid.holds(viewer[name]):
+            raise BGMInputError(
+                f"project file {path}: viewer setting {name} must be {valid.describe()}, got {viewer[name]!r}."
+            )
+    if viewer.get("geozone") is not None and not isinstance(viewer["geozone"], str):
+        raise BGMInputError(f"project file {path}: viewer setting geozone must be a string.")
 
 
 def check_project(
