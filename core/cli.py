@@ -394,9 +394,7 @@ def predict(
 ) -> None:
     """Predict the geozone's region at any elevation (paper: contour prediction)."""
     from core.io.export import write_geojson
-    from core.io.reporting import to_input_geometry
     from core.model.pipeline import model_geozone
-    from core.model.prediction import predict_geozone
 
     levels = _elevations(elevations)
     _outputs(out, input, project)
@@ -411,6 +409,21 @@ def predict(
     proj = _load_project(project, holes, [geozone], "predict")
     with progress_bar(f"morph {geozone[:40]}") as update:
         model = model_geozone(holes, geozone, project=proj, stages=("correspond", "morph"), progress=update)
+    features = _prediction_features(holes, geozone, levels, model)
+    write_geojson([f for f in features if not f["geometry"].is_empty], out)
+    empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
+    if empty:
+        _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
+    typer.echo(
+        json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)})
+    )
+
+
+def _prediction_features(holes, geozone: str, levels: list[float], model) -> list[dict]:
+    """One feature per elevation (input units), empty geometry where the geozone is predicted absent."""
+    from core.io.reporting import to_input_geometry
+    from core.model.prediction import predict_geozone
+
     z_m = [float(holes.frame.z_to_local(v)) for v in levels]
     regions = predict_geozone(model, z_m, holes.hole_spacing_m)
     features = []
@@ -419,23 +432,9 @@ def predict(
         geometry = to_input_geometry(region, holes)
         if len(region.geoms) == 1:
             geometry = geometry.geoms[0]
-        features.append(
-            {
-                "geometry": geometry,
-                "properties": {
-                    "geozone": geozone,
-                    "z": level,
-                    f"area_{holes.frame.length_unit}2": round(geometry.area, 3),
-                },
-            }
-        )
-    write_geojson([f for f in features if not f["geometry"].is_empty], out)
-    empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
-    if empty:
-        _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
-    typer.echo(
-        json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)})
-    )
+        area = {f"area_{holes.frame.length_unit}2": round(geometry.area, 3)}
+        features.append({"geometry": geometry, "properties": {"geozone": geozone, "z": level, **area}})
+    return features
 
 
 @app.command()

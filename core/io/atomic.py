@@ -145,6 +145,8 @@ def replaced_folder(out_dir: str | os.PathLike) -> Iterator[Path]:
     process (its pid no longer runs) are removed on the next call.
     """
     out = Path(out_dir)
+    if out.is_symlink():  # replace what the link points to; the link stays
+        out = out.resolve()
     if out.exists() and not out.is_dir():
         raise BGMInputError(f"cannot write a folder at {str(out)!r}: it is a file")
     parent = out.absolute().parent

@@ -402,22 +402,8 @@ def blastholes_from_table(
         role: _coordinates(table[cols[role]], cols[role], role, delimiter, first_line) for role in ("x", "y", "z")
     }
     _refuse_degrees(coords["x"], coords["y"], source)
-    labels = _label_strings(table[cols["geozone"]])
-    blank = np.flatnonzero(labels == "")
-    if len(blank):
-        raise BGMInputError(
-            f"column {quoted(cols['geozone'])} (geozone) is empty on {len(blank)} row(s): "
-            f"data line(s) {_rows(blank, first_line=first_line)}"
-        )
     notes: list[str] = []
-    labels, renamed = merge_number_spellings(labels)
-    if renamed:
-        msg = (
-            f"geozone labels {listing(sorted(renamed), 5)} spell the same number as other labels and were merged "
-            f"into {listing(sorted(set(renamed.values())), 5)}"
-        )
-        notes.append(msg)
-        warnings.warn(msg, BGMWarning, stacklevel=2)
+    labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], first_line, notes)
     hole_id = table[cols["hole_id"]].astype(str).to_numpy(dtype=object) if "hole_id" in cols else None
 
     if len(labels) < 3:
@@ -463,6 +449,26 @@ def blastholes_from_table(
             f"cannot measure the hole spacing of {source or 'the input'}: no bench has two distinct holes"
         )
     return holes
+
+
+def _geozone_labels(raw: pd.Series, column: str, first_line: int, notes: list[str]) -> np.ndarray:
+    """Labels as strings, none blank, spellings of one number merged (said in ``notes`` and a warning)."""
+    labels = _label_strings(raw)
+    blank = np.flatnonzero(labels == "")
+    if len(blank):
+        raise BGMInputError(
+            f"column {quoted(column)} (geozone) is empty on {len(blank)} row(s): "
+            f"data line(s) {_rows(blank, first_line=first_line)}"
+        )
+    labels, renamed = merge_number_spellings(labels)
+    if renamed:
+        msg = (
+            f"geozone labels {listing(sorted(renamed), 5)} spell the same number as other labels and were merged "
+            f"into {listing(sorted(set(renamed.values())), 5)}"
+        )
+        notes.append(msg)
+        warnings.warn(msg, BGMWarning, stacklevel=4)
+    return labels
 
 
 def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, first_line: int) -> np.ndarray:

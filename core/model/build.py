@@ -495,12 +495,10 @@ def _extract_one_bench(ctx, k: int):
 
 def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFrame | None]:
     """Everything ``bgm build`` writes for one geozone, under ``out_dir/<geozone>/``."""
-    from core.io.export import export_all, write_geojson
+    from core.io.export import write_geojson
     from core.model.evaluation import evaluate_geozone
-    from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
 
     holes, params, out_dir = ctx.holes, ctx.params, ctx.out_dir
-    mpu = holes.frame.metres_per_unit
     tg = time.perf_counter()
     model = model_geozone(holes, g, contours=ctx.contours, params=params, project=ctx.project)
     gdir = out_dir / (ctx.folders.get(g) or geozone_folders([g])[g])
@@ -544,23 +542,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         if not region.is_empty
     ]
     write_geojson(features, gdir / "prediction.geojson")
-    try:
-        # Half a hole spacing resolves all the data can tell; finer only adds faces.
-        mesh = surface_from_sections(
-            surface_sections(model, holes, params), cell_size_m=surface_cell_size(model, holes)
-        )
-        info = mesh_summary(mesh)
-        surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
-        exported = export_all(surface, gdir, "surface", ctx.formats)
-        summary.volume = info["volume_m3"] / mpu**3
-        summary.area = info["area_m2"] / mpu**2
-        summary.watertight = bool(info["watertight"])
-        summary.files = {k: str(Path(v).relative_to(out_dir)) for k, v in exported.items()}
-        summary.formats = written_formats(exported, surface, summary.watertight)
-    except (BGMInputError, RuntimeError) as exc:
-        # e.g. every section empty, or a mesh that would not close even after repair: the
-        # geozone's other outputs stand, and the report says why it has no surface.
-        summary.note = f"no surface: {exc}"
+    _write_surface(summary, model, ctx, gdir)
     if ctx.evaluate and holes.n_benches >= 3:
         rows = evaluate_geozone(
             holes, g, predictor_from_model(model, holes, params), truth=ctx.truth, contours=ctx.contours
@@ -569,6 +551,31 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
             rows.insert(0, "geozone", g)
     summary.seconds = time.perf_counter() - tg
     return summary, rows
+
+
+def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildContext, gdir: Path) -> None:
+    """The geozone's closed surface in every format; its figures (or why there is none) go into ``summary``."""
+    from core.io.export import export_all
+    from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
+
+    holes, mpu = ctx.holes, ctx.holes.frame.metres_per_unit
+    try:
+        # Half a hole spacing resolves all the data can tell; finer only adds faces.
+        mesh = surface_from_sections(
+            surface_sections(model, holes, ctx.params), cell_size_m=surface_cell_size(model, holes)
+        )
+        info = mesh_summary(mesh)
+        surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
+        exported = export_all(surface, gdir, "surface", ctx.formats)
+        summary.volume = info["volume_m3"] / mpu**3
+        summary.area = info["area_m2"] / mpu**2
+        summary.watertight = bool(info["watertight"])
+        summary.files = {k: str(Path(v).relative_to(ctx.out_dir)) for k, v in exported.items()}
+        summary.formats = written_formats(exported, surface, summary.watertight)
+    except (BGMInputError, RuntimeError) as exc:
+        # e.g. every section empty, or a mesh that would not close even after repair: the
+        # geozone's other outputs stand, and the report says why it has no surface.
+        summary.note = f"no surface: {exc}"
 
 
 def written_formats(exported: dict, surface, watertight: bool) -> dict:
