@@ -363,7 +363,8 @@ def _check_reach(levels: list[float], holes) -> None:
     far = [v for v in levels if v > top + reach or v < bottom - reach]
     if far:
         raise BGMInputError(
-            f"--elevations {', '.join(f'{v:g}' for v in far[:5])} lie more than {MAX_PREDICTION_BENCHES:g} bench "
+            f"--elevations {', '.join(f'{v:g}' for v in far[:5])} {'is' if len(far) == 1 else 'are'} more than "
+            f"{MAX_PREDICTION_BENCHES:g} bench "
             f"heights ({reach:.4g} {holes.frame.length_unit}) outside the benches ({bottom:g} to {top:g}); a "
             "prediction that far is a guess: pass --force to make it anyway"
         )
