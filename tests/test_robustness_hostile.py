@@ -356,6 +356,28 @@ def test_interrupted_build_keeps_the_previous_model(table, tmp_path, monkeypatch
     unchanged(before, snapshot(tmp_path))  # previous model as it was, no staging folder left
 
 
+def test_folder_swap_without_an_atomic_exchange(tmp_path, monkeypatch):
+    """Where the system cannot exchange two folders in one step, two renames still replace the folder whole."""
+    import core.io.atomic as atomic
+
+    for exchange in (True, False):
+        out = tmp_path / f"model-{exchange}"
+        out.mkdir()
+        (out / "old.txt").write_text("old")
+        if not exchange:
+            monkeypatch.setattr(atomic, "_exchange", lambda a, b: False)
+        with atomic.replaced_folder(out) as staging:
+            (staging / "new.txt").write_text("new")
+            assert sorted(p.name for p in out.iterdir()) == ["old.txt"]  # untouched until the end
+        assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+        assert sorted(p.name for p in tmp_path.iterdir() if ".bgm-" in p.name) == []
+        with pytest.raises(RuntimeError), atomic.replaced_folder(out) as staging:
+            (staging / "half.txt").write_text("half")
+            raise RuntimeError("failed half way")
+        assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+        assert sorted(p.name for p in tmp_path.iterdir() if ".bgm-" in p.name) == []
+
+
 # --------------------------------------------------------------------------- exit codes
 
 
