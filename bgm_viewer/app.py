@@ -678,7 +678,10 @@ class MainWindow(QtWidgets.QMainWindow):
         return self._guard(lambda: self.model.save_project(path))
 
     def export_screenshot(self, path) -> None:
-        self.plotter.screenshot(str(path))
+        from core.io.atomic import atomic_path
+
+        with atomic_path(path) as tmp:
+            self.plotter.screenshot(str(tmp))
 
     def export_screenshot_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Export screenshot", "bgm.png", "PNG (*.png)")

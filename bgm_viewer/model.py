@@ -19,6 +19,7 @@ import contextlib
 import copy
 import math
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -27,6 +28,7 @@ import numpy as np
 import shapely
 from shapely import affinity
 
+from core.errors import BGMInputError, BGMWarning
 from core.extraction.contours import Contour, ExtractionParameters, extract_bench
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 
@@ -595,8 +597,17 @@ class ViewerModel:
         params = dict(proj.parameters)
         viewer = params.pop("viewer", {}) or {}
         for name, value in params.items():
-            if name in PARAM_BY_NAME and isinstance(value, (int, float)) and not isinstance(value, bool):
-                spec = PARAM_BY_NAME[name]
+            spec = PARAM_BY_NAME.get(name)
+            if spec is None:
+                warnings.warn(
+                    f"project parameter {name!r} is not a viewer parameter; not used", BGMWarning, stacklevel=2
+                )
+            elif not spec.minimum <= value <= spec.maximum:  # a finite number: load_project checked
+                raise BGMInputError(
+                    f"project file {path}: parameter {name} must be between {spec.minimum:g} and {spec.maximum:g}, "
+                    f"got {value!r}"
+                )
+            else:
                 self.params[name] = int(round(value)) if spec.integer else float(value)
         if isinstance(viewer, dict):
             with contextlib.suppress(ValueError, TypeError):

@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 import pyvista as pv
 
+from core.errors import BGMInputError
+from core.io.atomic import atomic_path
+
 from . import _vtkenv  # noqa: F401  (before pyvista)
 from .builders import build_scene, parse_layers
 from .model import STAGES, ViewerModel
@@ -121,11 +124,15 @@ def render_screenshot(
             visible=parse_layers(layers),
             vertical_exaggeration=vertical_exaggeration or model.vertical_exaggeration,
         )
+    if not any(layer.visible and layer.build(scene.view) for layer in scene.layers):
+        raise BGMInputError("the picture would be blank: the chosen layers hold nothing for this selection")
     out_png = Path(out_png)
-    out_png.parent.mkdir(parents=True, exist_ok=True)
     plotter, _ = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)
     try:
-        plotter.screenshot(str(out_png))
+        with atomic_path(out_png) as tmp:
+            image = np.asarray(plotter.screenshot(str(tmp), return_img=True))
+            if image.size == 0 or np.ptp(image[..., :3]) == 0:  # a render failure leaves one colour
+                raise BGMInputError(f"the picture came out blank (one colour); {out_png} was not written")
     finally:
         plotter.close()
     return out_png

@@ -1,24 +1,68 @@
 """The ``bgm`` command line: the engine for batch use.
 
-Every command reads a blasthole table (CSV or Parquet), finds its columns and
-benches, and writes results in the input's own coordinates. Bad input ends in
-one line naming the problem and exit status 2, never a traceback.
+Every command reads a blasthole table (CSV or Parquet, a file or ``-`` for
+standard input), finds its columns and benches, and writes results in the
+input's own coordinates. Exit status: 0 done; 2 for any problem with the
+input, options or output paths, told in one line (``bgm: error: ...``); 130
+when interrupted (Ctrl-C), also one line; 3 only for a bug in BGM. Outputs
+never replace an input, a device or anything outside ``--out``, and every file
+is written atomically.
 """
 
+# ruff: noqa: E402  (Ctrl-C is held before the imports below)
 from __future__ import annotations
 
+import contextlib
+import signal
+
+_INTERRUPTS: list[int] = []  # Ctrl-Cs this process received while the command line ran
+
+
+def _remember_ctrl_c(signum, frame):
+    _INTERRUPTS.append(signum)
+
+
+def _on_ctrl_c(signum, frame):
+    # Remembered as well as raised: some libraries catch BaseException (trimesh's
+    # import guards), and an interrupt they swallow must still end the command.
+    _INTERRUPTS.append(signum)
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _ctrl_c_held():
+    """Ctrl-C inside is remembered, not raised (imports that must not be cut in half)."""
+    try:
+        previous = signal.signal(signal.SIGINT, _remember_ctrl_c)
+    except ValueError:  # not the main thread
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+# Ctrl-C while this module loads ends the command with one line (see main), not a traceback.
+_LOADING = _ctrl_c_held()
+_LOADING.__enter__()
+
+import functools
+import inspect
 import json
+import math
 import os
 import sys
 import time
 import warnings
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Annotated
 
 import numpy as np
 import typer
 
-from core.errors import BGMInputError
+from core.errors import BGMInputError, quoted
 
 app = typer.Typer(
     name="bgm",
@@ -30,55 +74,115 @@ app = typer.Typer(
 
 ASSETS = Path(__file__).resolve().parent.parent / "assets"
 DEMO_CSV = ASSETS / "demo_blastholes.csv"
+#: ``predict`` refuses elevations farther than this many bench heights outside the benches (unless --force).
+MAX_PREDICTION_BENCHES = 3.0
 
-# Options shared by every command that reads blastholes.
-XOpt = Annotated[str | None, typer.Option("--x", help="Column holding x (default: x/east/easting, any case).")]
-YOpt = Annotated[str | None, typer.Option("--y", help="Column holding y (default: y/north/northing).")]
-ZOpt = Annotated[str | None, typer.Option("--z", help="Column holding elevation (default: z/rl/elevation/elev/mid_z).")]
-GeozoneColOpt = Annotated[
-    str | None,
-    typer.Option(
-        "--geozone-column", help="Column holding the geozone label (default: geozone/domain/lookup_domain/label/zone)."
-    ),
+InputArg = Annotated[
+    Path, typer.Argument(help="Blasthole table (CSV or Parquet; - for standard input).", show_default=False)
 ]
-BenchHeightOpt = Annotated[
-    float | None, typer.Option("--bench-height", help="Bench height in input units (default: detected from z).")
+GeozoneOpt = Annotated[str, typer.Option("--geozone", help="Geozone to model (as written in the input, e.g. 3310).")]
+ProjectOpt = Annotated[
+    Path | None, typer.Option("--project", help="Project file with manual alignment overrides (JSON).")
 ]
-UnitsOpt = Annotated[
-    str | None,
-    typer.Option("--units", help="Length unit of the input, m or ft (default: guessed from the bench height)."),
-]
-InputArg = Annotated[Path, typer.Argument(help="Blasthole table (CSV or Parquet).", show_default=False)]
+
+
+# --------------------------------------------------------------------------- options shared by every reading command
+
+
+@dataclass(frozen=True)
+class TableOptions:
+    """How to read the blasthole table: the options every command that reads one takes."""
+
+    x: Annotated[str | None, typer.Option("--x", help="Column holding x (default: x/east/easting, any case).")] = None
+    y: Annotated[str | None, typer.Option("--y", help="Column holding y (default: y/north/northing).")] = None
+    z: Annotated[
+        str | None, typer.Option("--z", help="Column holding elevation (default: z/rl/elevation/elev/mid_z).")
+    ] = None
+    geozone_column: Annotated[
+        str | None,
+        typer.Option(
+            "--geozone-column",
+            help="Column holding the geozone label (default: geozone/domain/lookup_domain/label/zone).",
+        ),
+    ] = None
+    bench_height: Annotated[
+        float | None, typer.Option("--bench-height", help="Bench height in input units (default: detected from z).")
+    ] = None
+    units: Annotated[
+        str | None,
+        typer.Option("--units", help="Length unit of the input, m or ft (default: guessed from the bench height)."),
+    ] = None
+
+    def read(self, input: Path):
+        """Read ``input`` with these options and say in one line what was found."""
+        from core.io.blastholes import read_blastholes
+
+        holes = read_blastholes(
+            input,
+            x=self.x,
+            y=self.y,
+            z=self.z,
+            geozone=self.geozone_column,
+            bench_height=self.bench_height,
+            length_unit=self.units,
+        )
+        _say(f"{holes.source}: {len(holes.xy)} holes, {len(holes.geozones)} geozones, {_benches(holes)}")
+        return holes
+
+
+def reads_table(command):
+    """Give ``command`` the :class:`TableOptions` options, passed to it as one ``table`` argument.
+
+    The options are defined once (the fields of :class:`TableOptions`) and
+    appear last in every command's ``--help``, as they always have.
+    """
+    signature = inspect.signature(command, eval_str=True)
+    own = [p for p in signature.parameters.values() if p.name != "table"]
+    names = [f.name for f in fields(TableOptions)]
+    types = inspect.get_annotations(TableOptions, eval_str=True)
+    added = [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=None, annotation=types[n]) for n in names]
+
+    @functools.wraps(command)
+    def run(*args, **kwargs):
+        return command(*args, table=TableOptions(**{n: kwargs.pop(n) for n in names}), **kwargs)
+
+    run.__signature__ = signature.replace(parameters=[*own, *added])  # what typer reads
+    run.__annotations__ = {p.name: p.annotation for p in [*own, *added]}
+    return run
+
+
+def _benches(holes) -> str:
+    unit = holes.frame.length_unit
+    spacing = f"hole spacing {holes.frame.length_to_input(holes.hole_spacing_m):.2f} {unit}"
+    if holes.n_benches == 1:
+        return f"1 bench at {holes.bench_z_input(0)} {unit}, {spacing}"
+    heights = -np.diff(holes.frame.z_to_input(holes.bench_levels_m))
+    height = f"bench height {heights[0]:.1f} {unit}"
+    if np.ptp(heights) > 0.01 * heights.max():
+        height = f"bench heights {heights.min():.1f} to {heights.max():.1f} {unit}"
+    return (
+        f"{holes.n_benches} benches ({holes.bench_z_input(0)} to {holes.bench_z_input(holes.n_benches - 1)} "
+        f"{unit}, {height}), {spacing}"
+    )
+
+
+# --------------------------------------------------------------------------- helpers
 
 
 def _say(message: str) -> None:
     typer.echo(message, err=True)
 
 
-def _load(input: Path, x, y, z, geozone_column, bench_height, units):
-    from core.io.blastholes import read_blastholes
+@contextlib.contextmanager
+def progress_bar(description: str):
+    """A progress bar on stderr (on a terminal, or with BGM_PROGRESS=1).
 
-    holes = read_blastholes(input, x=x, y=y, z=z, geozone=geozone_column, bench_height=bench_height, length_unit=units)
-    unit = holes.frame.length_unit
-    spacing = f"hole spacing {holes.frame.length_to_input(holes.hole_spacing_m):.2f} {unit}"
-    if holes.n_benches == 1:
-        benches = f"1 bench at {holes.bench_z_input(0)} {unit}"
-    else:
-        height = holes.frame.length_to_input(holes.bench_height_m)
-        benches = (
-            f"{holes.n_benches} benches ({holes.bench_z_input(0)} to {holes.bench_z_input(holes.n_benches - 1)} {unit}, "
-            f"bench height {height:.1f} {unit})"
-        )
-    _say(f"{input}: {len(holes.xy)} holes, {len(holes.geozones)} geozones, {benches}, {spacing}")
-    return holes
-
-
-def _progress(description: str, total: int):
-    """A rich progress bar on stderr; returns (callback, context manager)."""
+    Yields ``update(done, total, description=None)``.
+    """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    progress = Progress(
+    bar = Progress(
         TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
@@ -87,15 +191,47 @@ def _progress(description: str, total: int):
         transient=False,
         disable=not sys.stderr.isatty() and os.environ.get("BGM_PROGRESS") != "1",
     )
-    task = progress.add_task(description, total=total)
+    task = bar.add_task(description, total=1)
 
-    def advance(done: int, total_: int) -> None:
-        progress.update(task, completed=done, total=total_)
+    def update(done: int, total: int, description: str | None = None) -> None:
+        if description is None:
+            bar.update(task, completed=done, total=max(total, 1))
+        else:
+            bar.update(task, completed=done, total=max(total, 1), description=description)
 
-    return advance, progress
+    with bar:
+        yield update
+
+
+def _positive(option: str, value: float | None) -> None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise BGMInputError(f"{option} must be a positive number, got {value}")
+
+
+def _outputs(out: Path, input: Path, *others, folder: bool = False) -> None:
+    """Refuse an output that is an input, a device or (for a folder) holds an input, before any work."""
+    from core.io.atomic import check_output
+    from core.model.build import truth_sidecar
+
+    sidecar = None if str(input) == "-" else truth_sidecar(Path(input))
+    check_output(out, [input, sidecar, *others], folder=folder)
+
+
+def _load_project(project: Path | None, holes, geozones: list[str], command: str):
+    from core.io.project import check_project, load_project
+
+    if project is None:
+        return None
+    proj = load_project(project)
+    check_project(proj, holes, geozones, command=f"bgm {command}")
+    return proj
+
+
+# --------------------------------------------------------------------------- commands
 
 
 @app.command()
+@reads_table
 def contours(
     input: InputArg,
     out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("contours.geojson"),
@@ -113,12 +249,8 @@ def contours(
             "(by default they are taken as label noise and reported as isolated_holes).",
         ),
     ] = False,
-    x: XOpt = None,
-    y: YOpt = None,
-    z: ZOpt = None,
-    geozone_column: GeozoneColOpt = None,
-    bench_height: BenchHeightOpt = None,
-    units: UnitsOpt = None,
+    *,
+    table: TableOptions,
 ) -> None:
     """Extract closed geozone contours on every bench (paper section 2).
 
@@ -129,16 +261,17 @@ def contours(
     from core.io.export import write_geojson
     from core.io.reporting import containment_summary, contour_feature
 
-    holes = _load(input, x, y, z, geozone_column, bench_height, units)
+    _positive("--search-radius", search_radius)
+    _outputs(out, input)
+    holes = table.read(input)
     wanted = holes.check_geozones(geozone)
     params = ExtractionParameters(
         search_radius_m=None if search_radius is None else float(holes.frame.length_to_local(search_radius)),
         keep_isolated_holes=keep_isolated,
-    )
+    ).validate()
     start = time.perf_counter()
-    advance, bar = _progress("extracting contours", holes.n_benches)
-    with bar:
-        result = extract_contours(holes, wanted, params=params, progress=advance)
+    with progress_bar("extracting contours") as update:
+        result = extract_contours(holes, wanted, params=params, progress=update)
     elapsed = time.perf_counter() - start
     features = [contour_feature(c, holes) for c in result]
     write_geojson(features, out)
@@ -150,50 +283,39 @@ def contours(
     typer.echo(json.dumps(summary, indent=2))
 
 
-GeozoneOpt = Annotated[str, typer.Option("--geozone", help="Geozone to model (as written in the input, e.g. 3310).")]
-ProjectOpt = Annotated[
-    Path | None, typer.Option("--project", help="Project file with manual alignment overrides (JSON).")
-]
-
-
-def _model(input, geozone, project, stages, x, y, z, geozone_column, bench_height, units):
-    from core.io.project import load_project
+def _model(input, geozone, project, stages, table: TableOptions, command: str):
+    """Read the input and model one geozone up to ``stages``; returns (holes, label, model, seconds)."""
     from core.model.pipeline import model_geozone
 
-    holes = _load(input, x, y, z, geozone_column, bench_height, units)
-    holes.check_geozones([geozone])
+    holes = table.read(input)
+    geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 2:
         raise BGMInputError(
             f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
         )
-    proj = load_project(project) if project is not None else None
+    proj = _load_project(project, holes, [geozone], command)
     start = time.perf_counter()
-    advance, bar = _progress(f"{stages[-1]} {geozone}", holes.n_benches - 1)
-    with bar:
-        model = model_geozone(holes, geozone, project=proj, stages=stages, progress=advance)
-    return holes, model, time.perf_counter() - start
+    with progress_bar(f"{stages[-1]} {geozone[:40]}") as update:
+        model = model_geozone(holes, geozone, project=proj, stages=stages, progress=update)
+    return holes, geozone, model, time.perf_counter() - start
 
 
 @app.command()
+@reads_table
 def correspond(
     input: InputArg,
     geozone: GeozoneOpt,
     out: Annotated[Path, typer.Option("--out", help="JSON file to write.")] = Path("correspondence.json"),
     project: ProjectOpt = None,
-    x: XOpt = None,
-    y: YOpt = None,
-    z: ZOpt = None,
-    geozone_column: GeozoneColOpt = None,
-    bench_height: BenchHeightOpt = None,
-    units: UnitsOpt = None,
+    *,
+    table: TableOptions,
 ) -> None:
     """Associate components between successive benches and estimate their translations (paper section 3)."""
     from core.io.atomic import atomic_write_text
     from core.model.pipeline import correspondence_json
 
-    holes, model, elapsed = _model(
-        input, geozone, project, ("correspond",), x, y, z, geozone_column, bench_height, units
-    )
+    _outputs(out, input, project)
+    holes, geozone, model, elapsed = _model(input, geozone, project, ("correspond",), table, "correspond")
     data = correspondence_json(model, holes)
     atomic_write_text(out, json.dumps(data, indent=1))
     typer.echo(
@@ -202,25 +324,21 @@ def correspond(
 
 
 @app.command()
+@reads_table
 def morph(
     input: InputArg,
     geozone: GeozoneOpt,
     out: Annotated[Path, typer.Option("--out", help="JSON file to write.")] = Path("morph.json"),
     project: ProjectOpt = None,
-    x: XOpt = None,
-    y: YOpt = None,
-    z: ZOpt = None,
-    geozone_column: GeozoneColOpt = None,
-    bench_height: BenchHeightOpt = None,
-    units: UnitsOpt = None,
+    *,
+    table: TableOptions,
 ) -> None:
     """Morph each bench's regions into the next bench's and trace the boundary's trajectories (paper section 4)."""
     from core.io.atomic import atomic_write_text
     from core.model.pipeline import morph_json
 
-    holes, model, elapsed = _model(
-        input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units
-    )
+    _outputs(out, input, project)
+    holes, geozone, model, elapsed = _model(input, geozone, project, ("correspond", "morph"), table, "morph")
     data = morph_json(model, holes)
     atomic_write_text(out, json.dumps(data))
     cov = [p["target_boundary_coverage"] for p in data["pairs"] if p["target_boundary_coverage"] is not None]
@@ -241,7 +359,33 @@ def morph(
     )
 
 
+def _elevations(text: str) -> list[float]:
+    try:
+        levels = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
+    except ValueError:
+        raise BGMInputError(f"--elevations must be numbers separated by commas, got {quoted(text)}") from None
+    if not levels or not all(np.isfinite(levels)):
+        raise BGMInputError(f"--elevations needs at least one finite number, got {quoted(text)}")
+    return levels
+
+
+def _check_reach(levels: list[float], holes) -> None:
+    """Refuse elevations more than ``MAX_PREDICTION_BENCHES`` bench heights above or below the benches."""
+    top, bottom = holes.bench_z_input(0), holes.bench_z_input(holes.n_benches - 1)
+    height = float(np.min(-np.diff(holes.frame.z_to_input(holes.bench_levels_m))))
+    reach = MAX_PREDICTION_BENCHES * height
+    far = [v for v in levels if v > top + reach or v < bottom - reach]
+    if far:
+        raise BGMInputError(
+            f"--elevations {', '.join(f'{v:g}' for v in far[:5])} {'is' if len(far) == 1 else 'are'} more than "
+            f"{MAX_PREDICTION_BENCHES:g} bench "
+            f"heights ({reach:.4g} {holes.frame.length_unit}) outside the benches ({bottom:g} to {top:g}); a "
+            "prediction that far is a guess: pass --force to make it anyway"
+        )
+
+
 @app.command()
+@reads_table
 def predict(
     input: InputArg,
     geozone: GeozoneOpt,
@@ -253,45 +397,34 @@ def predict(
     ],
     out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("prediction.geojson"),
     project: ProjectOpt = None,
-    x: XOpt = None,
-    y: YOpt = None,
-    z: ZOpt = None,
-    geozone_column: GeozoneColOpt = None,
-    bench_height: BenchHeightOpt = None,
-    units: UnitsOpt = None,
+    force: Annotated[
+        bool,
+        typer.Option(
+            "--force",
+            help=f"Predict even more than {MAX_PREDICTION_BENCHES:g} bench heights above or below the benches.",
+        ),
+    ] = False,
+    *,
+    table: TableOptions,
 ) -> None:
     """Predict the geozone's region at any elevation (paper: contour prediction)."""
     from core.io.export import write_geojson
-    from core.io.reporting import to_input_geometry
-    from core.model.prediction import predict_geozone
+    from core.model.pipeline import model_geozone
 
-    try:
-        levels = [float(v) for v in elevations.replace(";", ",").split(",") if v.strip()]
-    except ValueError:
-        raise BGMInputError(f"--elevations must be numbers separated by commas, got {elevations!r}") from None
-    if not levels or not all(np.isfinite(levels)):
-        raise BGMInputError(f"--elevations needs at least one finite number, got {elevations!r}")
-    holes, model, elapsed = _model(
-        input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units
-    )
-    z_m = [float(holes.frame.z_to_local(v)) for v in levels]
-    regions = predict_geozone(model, z_m, holes.hole_spacing_m)
-    features = []
-    for level, zm in zip(levels, z_m):
-        region = regions[zm]
-        geometry = to_input_geometry(region, holes)
-        if len(region.geoms) == 1:
-            geometry = geometry.geoms[0]
-        features.append(
-            {
-                "geometry": geometry,
-                "properties": {
-                    "geozone": geozone,
-                    "z": level,
-                    f"area_{holes.frame.length_unit}2": round(geometry.area, 3),
-                },
-            }
+    levels = _elevations(elevations)
+    _outputs(out, input, project)
+    holes = table.read(input)
+    geozone = holes.check_geozones([geozone])[0]
+    if holes.n_benches < 2:
+        raise BGMInputError(
+            f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
         )
+    if not force:
+        _check_reach(levels, holes)
+    proj = _load_project(project, holes, [geozone], "predict")
+    with progress_bar(f"morph {geozone[:40]}") as update:
+        model = model_geozone(holes, geozone, project=proj, stages=("correspond", "morph"), progress=update)
+    features = _prediction_features(holes, geozone, levels, model)
     write_geojson([f for f in features if not f["geometry"].is_empty], out)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty:
@@ -301,26 +434,47 @@ def predict(
     )
 
 
+def _prediction_features(holes, geozone: str, levels: list[float], model) -> list[dict]:
+    """One feature per elevation (input units), empty geometry where the geozone is predicted absent."""
+    from core.io.reporting import to_input_geometry
+    from core.model.prediction import predict_geozone
+
+    z_m = [float(holes.frame.z_to_local(v)) for v in levels]
+    regions = predict_geozone(model, z_m, holes.hole_spacing_m)
+    features = []
+    for level, zm in zip(levels, z_m):
+        region = regions[zm]
+        geometry = to_input_geometry(region, holes)
+        if len(region.geoms) == 1:
+            geometry = geometry.geoms[0]
+        area = {f"area_{holes.frame.length_unit}2": round(geometry.area, 3)}
+        features.append({"geometry": geometry, "properties": {"geozone": geozone, "z": level, **area}})
+    return features
+
+
 @app.command()
+@reads_table
 def evaluate(
     input: InputArg,
     geozone: GeozoneOpt,
     out: Annotated[Path, typer.Option("--out", help="Folder for the table (CSV) and plot (PNG).")] = Path("evaluation"),
-    x: XOpt = None,
-    y: YOpt = None,
-    z: ZOpt = None,
-    geozone_column: GeozoneColOpt = None,
-    bench_height: BenchHeightOpt = None,
-    units: UnitsOpt = None,
+    *,
+    table: TableOptions,
 ) -> None:
     """Precision and recall of predictions below withheld benches, against nil, linear and implicit references."""
     from core.extraction.contours import extract_contours
+    from core.io.atomic import atomic_write_text, check_output, make_folder
     from core.model.build import load_truth, predictor_from_model
     from core.model.evaluation import evaluate_geozone, format_table, plot_precision_recall, summary_table
     from core.model.pipeline import ModelParameters, model_geozone
 
-    holes = _load(input, x, y, z, geozone_column, bench_height, units)
-    holes.check_geozones([geozone])
+    names = ("evaluation_rows.csv", "evaluation.csv", "precision_recall.png")
+    check_output(out, folder=True)
+    for name in names:
+        _outputs(out / name, input)
+    make_folder(out)  # now, not after minutes of work
+    holes = table.read(input)
+    geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 3:
         raise BGMInputError(f"{input} has {holes.n_benches} bench(es); evaluation needs at least three")
     truth = load_truth(input, holes)
@@ -331,47 +485,29 @@ def evaluate(
     rows = evaluate_geozone(holes, geozone, predictor_from_model(model, holes, params), truth=truth, contours=contours)
     if rows.empty:
         raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
-    table = summary_table(rows)
-    out.mkdir(parents=True, exist_ok=True)
-    from core.io.atomic import atomic_write_text
-
-    atomic_write_text(out / "evaluation_rows.csv", rows.to_csv(index=False))
-    atomic_write_text(out / "evaluation.csv", table.to_csv(index=False))
-    plot_precision_recall(table, out / "precision_recall.png", title=f"{geozone}: model vs references")
+    summary = summary_table(rows)
+    atomic_write_text(out / names[0], rows.to_csv(index=False))
+    atomic_write_text(out / names[1], summary.to_csv(index=False))
+    plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references")
     _say(
         f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s"
     )
-    typer.echo(format_table(table))
+    typer.echo(format_table(summary))
 
 
 def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None) -> dict:
-    from core.io.project import load_project
     from core.model.build import build
 
-    proj = load_project(project) if project is not None else None
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-    bar = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TimeElapsedColumn(),
-        console=Console(stderr=True),
-        disable=not sys.stderr.isatty() and os.environ.get("BGM_PROGRESS") != "1",
-    )
-    task = bar.add_task("building", total=1)
-
-    def progress(stage: str, done: int, total: int) -> None:
-        bar.update(task, description=stage, completed=done, total=max(total, 1))
-
-    with bar:
+    wanted = holes.check_geozones(geozone)
+    proj = _load_project(project, holes, wanted, "build")
+    with progress_bar("building") as update:
         summary = build(
             holes,
             out,
-            geozones=geozone,
+            geozones=wanted,
             project=proj,
             truth=truth,
-            progress=progress,
+            progress=lambda stage, done, total: update(done, total, stage),
             workers=workers,
             scheduler=scheduler,
         )
@@ -380,6 +516,7 @@ def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None
 
 
 @app.command()
+@reads_table
 def build(
     input: InputArg,
     out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-out"),
@@ -389,17 +526,17 @@ def build(
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Address of a dask.distributed scheduler to run on instead.")
     ] = None,
-    x: XOpt = None,
-    y: YOpt = None,
-    z: ZOpt = None,
-    geozone_column: GeozoneColOpt = None,
-    bench_height: BenchHeightOpt = None,
-    units: UnitsOpt = None,
+    *,
+    table: TableOptions,
 ) -> None:
     """The whole pipeline for every geozone: contours, correspondence, trajectories, predictions, surfaces, evaluation, report."""
-    from core.model.build import load_truth
+    from core.model.build import check_model_folder, load_truth
 
-    holes = _load(input, x, y, z, geozone_column, bench_height, units)
+    if workers is not None and workers < 1:
+        raise BGMInputError(f"--workers must be 1 or more, got {workers}")
+    _outputs(out, input, project, folder=True)
+    check_model_folder(out)
+    holes = table.read(input)
     if holes.n_benches < 2:
         raise BGMInputError(f"{input} has a single bench; building a model needs two or more benches")
     summary = _run_build(holes, out, geozone, project, load_truth(input, holes), workers, scheduler)
@@ -413,8 +550,10 @@ def demo(
 ) -> None:
     """Build the whole model on the bundled synthetic demo data (assets/demo_blastholes.csv)."""
     from core.io.blastholes import read_blastholes
-    from core.model.build import load_truth
+    from core.model.build import check_model_folder, load_truth
 
+    _outputs(out, DEMO_CSV, folder=True)
+    check_model_folder(out)
     holes = read_blastholes(DEMO_CSV)
     _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes))
     typer.echo((out / "report.md").read_text())
@@ -455,8 +594,10 @@ def view(
         raise BGMInputError(
             f"the viewer is not installed ({exc}); install it with: pip install -e '.[viewer]'"
         ) from None
-    if input is not None and not Path(input).exists():
+    if input is not None and str(input) != "-" and not Path(input).exists():
         raise BGMInputError(f"input file {str(input)!r} does not exist")
+    if screenshot is not None:
+        _outputs(screenshot, input if input is not None else DEMO_CSV, project)
     code = view_command(
         input, project, screenshot, layers, camera, geozone=geozone, bench=bench, vertical_exaggeration=exaggeration
     )
@@ -475,11 +616,15 @@ def make_demo_data(
     ] = None,
 ) -> None:
     """Regenerate the bundled synthetic demo blastholes (assets/demo_blastholes.csv), or a synthetic family's."""
-    from core.io.atomic import atomic_path, atomic_write_text
+    from core.io.atomic import atomic_write_text, check_output
     from core.model.build import truth_sidecar
     from core.synthetic.blobs import demo_dataset
     from core.synthetic.scenarios import scenario
 
+    if seed < 0:
+        raise BGMInputError(f"--seed must be 0 or more, got {seed}")
+    check_output(out)
+    check_output(truth_sidecar(out))
     if family is None:
         _, table = demo_dataset(seed)
         spec = {"generator": "core.synthetic.demo_dataset", "seed": seed}
@@ -489,42 +634,100 @@ def make_demo_data(
         except ValueError as exc:
             raise BGMInputError(str(exc)) from None
         spec = {"generator": "core.synthetic.scenario", "family": family, "seed": seed}
-    with atomic_path(out) as tmp:
-        table.to_csv(tmp, index=False)
+    atomic_write_text(out, table.to_csv(index=False))
     # The generator knows the true sections: record how to regenerate them for evaluation.
     atomic_write_text(truth_sidecar(out), json.dumps(spec))
     _say(f"wrote {len(table)} holes to {out} (truth in {truth_sidecar(out).name})")
 
 
+# --------------------------------------------------------------------------- entry point
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    _say(f"bgm: warning: {message}")
+    _say(f"bgm: warning: {_one_line(message)}")
+
+
+def _one_line(message, limit: int = 1000) -> str:
+    """A message on one line, cut to ``limit`` characters (user text in it can be megabytes)."""
+    text = " ".join(str(message).split())
+    return text if len(text) <= limit else text[:limit] + f"... ({len(text)} characters)"
+
+
+def _import_uninterrupted() -> None:
+    """Import the libraries that swallow Ctrl-C during their own import, with Ctrl-C held until done."""
+    with _ctrl_c_held():
+        import trimesh  # noqa: F401  (its optional-import guards catch BaseException)
 
 
 def main() -> None:
-    """Entry point of the ``bgm`` console script."""
-    from core.io.blastholes import BGMWarning
+    """Entry point of the ``bgm`` console script: run the command, print at most one line, exit."""
+    with contextlib.suppress(ValueError):  # not the main thread: Python's default handling
+        signal.signal(signal.SIGINT, _on_ctrl_c)
+    code = _run()
+    if code == 130 or (_INTERRUPTS and code != 0):  # typer turns Ctrl-C into exit status 130 without a word
+        _say("bgm: interrupted; files being written were left as they were")
+        code = 130
+    # The work is done (or abandoned): a Ctrl-C while the interpreter shuts down changes
+    # nothing. Ignored, not handled: Python resets its own handlers to the default
+    # (die by SIGINT) while it shuts down.
+    with contextlib.suppress(ValueError):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if _INTERRUPTS and code == 130:
+        # Every file is closed and every staging folder gone; the interpreter's own
+        # shutdown, with worker-pool threads cut short, can crash ("Fatal Python
+        # error") and would add a second message: leave now.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
+    sys.exit(code)
+
+
+def _run() -> int:
+    """Run the command line; returns the exit status after printing any error in one line."""
+    from core.errors import BGMWarning
+
+    try:  # typer 0.2x carries its own copy of click
+        from typer._click import exceptions as click
+    except ImportError:
+        from click import exceptions as click  # type: ignore[no-redef]  # older typer uses click itself
 
     # Users see the engine's own warnings (repairs to their data), not library chatter.
     warnings.showwarning = _show_warning
     warnings.filterwarnings("ignore")
     warnings.filterwarnings("always", category=BGMWarning)
     try:
-        app(prog_name="bgm")
-    except BGMInputError as exc:
-        _say(f"bgm: error: {exc}")
-        sys.exit(2)
+        _import_uninterrupted()
+        return 130 if _INTERRUPTS else (app(prog_name="bgm", standalone_mode=False) or 0)
+    except click.NoArgsIsHelpError:
+        app(["--help"], prog_name="bgm", standalone_mode=False)
+        return 2
+    except click.UsageError as exc:  # a missing or malformed option
+        where = f" (see {exc.ctx.command_path} --help)" if exc.ctx is not None else ""
+        _say(f"bgm: error: {_one_line(exc.format_message())}{where}")
+        return 2
+    except typer.Abort:  # end of input while prompting
+        _say("bgm: error: input ended unexpectedly")
+        return 2
     except KeyboardInterrupt:
-        _say("bgm: interrupted; files being written were left as they were")
-        sys.exit(130)
+        return 130
+    except BGMInputError as exc:
+        if _INTERRUPTS:
+            return 130
+        _say(f"bgm: error: {_one_line(exc)}")
+        return 2
     except MemoryError:
         _say("bgm: error: out of memory; try fewer geozones or benches at a time")
-        sys.exit(3)
+        return 3
     except Exception as exc:  # a bug: say so plainly, traceback only on request
+        if _INTERRUPTS:  # a library left broken by a Ctrl-C it swallowed
+            return 130
         if os.environ.get("BGM_DEBUG"):
             raise
-        _say(f"bgm: internal error: {type(exc).__name__}: {exc} (set BGM_DEBUG=1 for the traceback)")
-        sys.exit(3)
+        _say(f"bgm: internal error: {type(exc).__name__}: {_one_line(exc, 300)} (set BGM_DEBUG=1 for the traceback)")
+        return 3
 
+
+_LOADING.__exit__(None, None, None)
 
 if __name__ == "__main__":
     main()

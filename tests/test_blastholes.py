@@ -85,7 +85,7 @@ def test_missing_empty_directory_and_binary_inputs(tmp_path):
     with pytest.raises(BGMInputError):
         read_blastholes(tmp_path / "bin.csv")
     (tmp_path / "bad.parquet").write_text("not parquet")
-    with pytest.raises(BGMInputError, match="Parquet"):
+    with pytest.warns(BGMWarning, match="named .parquet but is not Parquet"), pytest.raises(BGMInputError):
         read_blastholes(tmp_path / "bad.parquet")
 
 

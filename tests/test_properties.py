@@ -6,7 +6,10 @@
 * the morph never produces NaN (``arrival_time`` is nan only where the
   documentation says: cells the front never had to cross);
 * trajectories never cross;
-* exported meshes are watertight and re-read with the same faces.
+* exported meshes are watertight and re-read with the same faces;
+* reading: geozone labels merge exactly when they spell one number, columns
+  are found whatever their case, spaces and order, two candidates for one
+  role are refused, decimal commas and thousands separators read as numbers.
 
 Example counts keep the whole file well under 90 s (about 20 s here).
 """
@@ -15,6 +18,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from decimal import Decimal
 
 import numpy as np
 import pandas as pd
@@ -27,9 +31,20 @@ from shapely import affinity
 from shapely.geometry import MultiPolygon, Polygon
 
 from core.correspondence.pair import correspond_pair, fft_translation
+from core.errors import BGMInputError
 from core.extraction.contours import extract_contours
 from core.geometry.sdf import signed_distance
-from core.io.blastholes import BGMWarning, blastholes_from_table
+from core.io.blastholes import (
+    COLUMN_ALIASES,
+    BGMWarning,
+    _without_digit_grouping,
+    blastholes_from_table,
+    find_column,
+    label_number,
+    merge_number_spellings,
+    number_label,
+    table_columns,
+)
 from core.io.export import export_surface
 from core.io.reporting import containment, to_input_geometry
 from core.model.surfaces import surface_from_sections
@@ -295,3 +310,157 @@ def test_exported_meshes_are_watertight(tmp_path_factory, sections, fmt):
     assert back.is_watertight and back.is_winding_consistent
     assert back.volume == pytest.approx(mesh.volume, rel=1e-6)
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name]  # no temporary files left
+
+
+# ---------------------------------------------------------------------------
+# Reading: column and label normalisation (issue 15)
+
+
+@st.composite
+def number_spelling(draw, value: Decimal) -> str:
+    """One of the ways programs write ``value``: 3310, 3310.0, 3310.00, 03310, +3310, 3.31e3, 33100e-1."""
+    sign = "-" if value < 0 else draw(st.sampled_from(["", "+"]))
+    v = abs(value)
+    text = format(v.normalize(), "f") if v != 0 else "0"
+    form = draw(st.integers(0, 4))
+    if form == 1:
+        text += ("" if "." in text else ".") + "0" * draw(st.integers(1, 3))
+    elif form == 2:
+        text = "0" * draw(st.integers(1, 3)) + text
+    elif form == 3 and v != 0:
+        mantissa, exponent = f"{v:e}".split("e")
+        text = f"{Decimal(mantissa).normalize()}e{int(exponent)}"
+    elif form == 4:
+        shift = draw(st.integers(1, 3))
+        text = f"{format((v * 10**shift).normalize(), 'f')}e-{shift}"
+    return sign + text
+
+
+@st.composite
+def labelled_codes(draw):
+    """Labels of a table: domain codes written several ways, and words that are not numbers."""
+    values = draw(
+        st.lists(
+            st.one_of(
+                st.decimals(min_value=-99999, max_value=99999, places=draw(st.integers(0, 2)), allow_nan=False),
+                st.integers(10**15, 10**20).map(Decimal),  # hole-id-like codes past float precision
+            ),
+            min_size=1,
+            max_size=5,
+            unique_by=lambda d: d.normalize(),
+        )
+    )
+    words = draw(st.lists(st.text("abcxyz_-/. ", min_size=1, max_size=6).map(str.strip).filter(bool), max_size=3))
+    words = [w for w in words if label_number(w) is None]
+    labels = []
+    for v in values:
+        labels += [draw(number_spelling(v)) for _ in range(draw(st.integers(1, 3)))]
+    labels += words
+    return draw(st.permutations(labels)), values, words
+
+
+@settings(max_examples=200, **SETTINGS)
+@given(labelled_codes())
+def test_labels_merge_exactly_when_they_spell_one_number(case):
+    labels, values, words = case
+    merged, renamed = merge_number_spellings(np.array(labels, dtype=object))
+    assert len(merged) == len(labels)
+    for a, ma in zip(labels, merged):
+        for b, mb in zip(labels, merged):
+            na, nb = label_number(a), label_number(b)
+            same_number = na is not None and nb is not None and na == nb
+            assert (ma == mb) == (a == b or same_number), (a, b, ma, mb)
+    # Words are never touched; a number written one way only keeps its spelling.
+    for a, ma in zip(labels, merged):
+        if label_number(a) is None or len({b for b in labels if label_number(b) == label_number(a)}) == 1:
+            assert ma == a
+        else:
+            assert ma == number_label(label_number(a)) and renamed.get(a, a) == ma
+    # Merging again changes nothing.
+    again, renamed_again = merge_number_spellings(merged)
+    assert list(again) == list(merged) and not renamed_again
+
+
+@settings(max_examples=40, **SETTINGS)
+@given(labelled_codes())
+def test_a_table_has_one_geozone_per_number_and_any_spelling_selects_it(case):
+    labels, values, words = case
+    n = 3 * len(labels)
+    table = pd.DataFrame(
+        {
+            "x": np.tile(np.arange(n, dtype=float) * 5.0, 2),
+            "y": np.repeat([0.0, 5.0], n),
+            "z": 100.0,
+            "geozone": np.tile(np.array(labels * 3, dtype=object), 2),
+        }
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = blastholes_from_table(table)
+    assert len(holes.geozones) == len(values) + len(set(words))
+    for a in labels:
+        (found,) = holes.check_geozones([a])
+        for b in labels:
+            if label_number(a) is not None and label_number(a) == label_number(b):
+                assert holes.check_geozones([b]) == [found]  # any spelling selects the one geozone
+
+
+role_names = st.sampled_from([(role, alias) for role, aliases in COLUMN_ALIASES.items() for alias in aliases])
+
+
+@st.composite
+def header(draw):
+    """A header naming each role once (any alias, any case, stray spaces) among unrelated columns."""
+    names = {}
+    for role, aliases in COLUMN_ALIASES.items():
+        alias = draw(st.sampled_from(aliases))
+        cased = "".join(c.upper() if draw(st.booleans()) else c for c in alias)
+        names[role] = draw(st.sampled_from(["", " "])) + cased + draw(st.sampled_from(["", " ", "  "]))
+    taken = {a for aliases in COLUMN_ALIASES.values() for a in aliases} | {"holeid", "hole_id", "hole", "id"}
+    others = draw(
+        st.lists(
+            st.text("ABCdefq0123_ ", min_size=1, max_size=8).filter(lambda s: s.strip().lower() not in taken),
+            max_size=6,
+            unique=True,
+        )
+    )
+    return names, draw(st.permutations([*names.values(), *others]))
+
+
+@settings(max_examples=200, **SETTINGS)
+@given(header())
+def test_columns_are_found_by_name_whatever_the_case_spaces_and_order(case):
+    names, columns = case
+    assert table_columns(columns) == names
+    # Named explicitly, in any case and with spaces around, a column is found too.
+    for role, name in names.items():
+        assert find_column(columns, role, f" {name.strip().swapcase()} ") == name
+
+
+@settings(max_examples=100, **SETTINGS)
+@given(header(), st.sampled_from(list(COLUMN_ALIASES)), st.data())
+def test_two_candidates_for_one_role_are_refused_naming_both(case, role, data):
+    names, columns = case
+    spare = [a for a in COLUMN_ALIASES[role] if a != names[role].strip().lower()]
+    assume(spare)
+    second = data.draw(st.sampled_from(spare)).upper()
+    with pytest.raises(BGMInputError, match=f"ambiguous {role} column") as info:
+        table_columns([*columns, second])
+    assert names[role] in str(info.value) and second in str(info.value)
+
+
+@settings(max_examples=200, **SETTINGS)
+@given(
+    st.lists(st.floats(-1e7, 1e7, allow_nan=False).map(lambda v: round(v, 3)), min_size=1, max_size=20),
+    st.sampled_from([";", "\t"]),
+    st.integers(1, 3),
+)
+def test_decimal_commas_read_as_the_numbers_they_spell(values, sep, places):
+    written = [float(f"{v:.{places}f}") for v in values]
+    text = pd.Series([f"{v:.{places}f}".replace(".", ",") for v in values])
+    parsed = pd.to_numeric(_without_digit_grouping(text, sep), errors="coerce").to_numpy()
+    assert np.array_equal(parsed, written)
+    # Thousands separators (quoted in a comma-separated file) read as the same numbers.
+    grouped = pd.Series([f"{v:,.{places}f}" for v in values])
+    parsed = pd.to_numeric(_without_digit_grouping(grouped, ","), errors="coerce").to_numpy()
+    assert np.array_equal(parsed, written)

@@ -267,15 +267,25 @@ def test_mine_grid_coordinates_keep_sub_millimetre_precision(small_mesh, tmp_pat
         assert err == 0.0  # float64 end to end
 
 
-def test_stl_is_float32_and_warns_at_mine_grid_magnitudes(small_mesh, tmp_path):
+def test_stl_at_mine_grid_magnitudes_is_written_in_a_local_frame(small_mesh, tmp_path):
+    """float32 cannot hold y ~ 7 400 000 (0.5 m steps): the STL gets a local frame, its offset recorded."""
     world = to_input_frame(small_mesh, MINE_ORIGIN, 1.0)
-    with pytest.warns(UserWarning, match="float32"):
-        path = export_surface(world, tmp_path / "g1.stl")
+    path = export_surface(world, tmp_path / "g1.stl")
     verts, n = read_back(path)
     assert n == len(world.faces)
-    # STL repeats vertices per face; the coordinates are quantised to float32
-    err = np.abs(verts.reshape(-1, 3, 3) - world.vertices[world.faces]).max()
-    assert 0.0 < err <= 0.5
+    side = json.loads((tmp_path / "g1.stl.json").read_text())
+    offset = np.array(side["offset"])
+    assert np.allclose(offset, [*MINE_ORIGIN, 0.0], atol=1000)
+    assert path.read_bytes()[:80].decode().startswith(f"BGM add offset x={offset[0]:.0f} y={offset[1]:.0f}")
+    # Offset added back, the vertices are the input's to float32 precision of local numbers.
+    err = np.abs(verts.reshape(-1, 3, 3) + offset - world.vertices[world.faces]).max()
+    assert err < 1e-3
+    # Read as readers read it (vertices merged), the surface is as closed as the mesh.
+    assert trimesh.load(path, force="mesh").is_watertight
+    # A surface near the origin needs no frame: no offset, no sidecar (a stale one is removed).
+    export_surface(small_mesh, path)
+    assert not (tmp_path / "g1.stl.json").exists()
+    assert trimesh.load(path, force="mesh").is_watertight
 
 
 def test_unknown_format_names_the_supported_ones(small_mesh, tmp_path):

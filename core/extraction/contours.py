@@ -44,6 +44,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 from shapely.geometry import Polygon
 
+from core.errors import Range, check_ranges
 from core.extraction.boundary import entropy_boundary, gap_boundary, local_entropy, neighbour_table
 from core.extraction.gvf import gvf_steady_state
 from core.extraction.noise import FIRST_RING_SPACINGS, absorbed_labels, isolated_holes
@@ -85,9 +86,30 @@ class ExtractionParameters:
     snake_step: float = 1.0  #: cells per iteration at unit force
     snake_max_iterations: int = 600
 
+    def validate(self) -> ExtractionParameters:
+        """Raise :class:`core.errors.BGMInputError` naming the first parameter out of range; returns self."""
+        check_ranges(self, EXTRACTION_RANGES)
+        return self
+
     def radius_m(self, hole_spacing_m: float) -> float:
         """The search radius r actually used."""
         return self.search_radius_m if self.search_radius_m else 1.6 * hole_spacing_m
+
+
+#: Valid values of each :class:`ExtractionParameters` field (grids need a few cells to hold a snake).
+EXTRACTION_RANGES = {
+    "search_radius_m": Range(0, low_open=True, optional=True),
+    "entropy_threshold": Range(0),
+    "gap_angle_rad": Range(0, 2 * np.pi, low_open=True),
+    "gap_neighbours": Range(2, 1000, integer=True),
+    "smoothing_spacings": Range(0, 10),
+    "edge_map_cells": Range(16, 4096, integer=True),
+    "gvf_mu": Range(0, 100, low_open=True),
+    "snake_alpha": Range(0),
+    "snake_beta": Range(0),
+    "snake_step": Range(0, 100, low_open=True),
+    "snake_max_iterations": Range(1, 1_000_000, integer=True),
+}
 
 
 @dataclass

@@ -1,20 +1,37 @@
 """Atomic file writing: a crash or Ctrl-C while saving leaves the old file intact.
 
-Everything the engine saves goes through :func:`atomic_path`: the content is
-written to a temporary file in the destination folder, flushed to disk, and
-renamed over the destination in one step (``os.replace`` is atomic on POSIX
-and Windows when both paths are on one file system).
+Everything the engine and the viewer save goes through this module (a test
+fails when a module writes a user-visible file any other way):
+
+* :func:`atomic_path` for one file: the content is written to a temporary
+  file in the destination folder, flushed to disk, and renamed over the
+  destination in one step (``os.replace`` is atomic on POSIX and Windows when
+  both paths are on one file system);
+* :func:`replaced_folder` for a whole folder (``bgm build``): everything is
+  written into a staging folder next to it, which is swapped in whole at the
+  end, so an interrupted build leaves the previous folder untouched;
+* :func:`check_output` before any work starts: an output is never one of the
+  inputs, a device or a folder where a file is expected.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import errno
 import os
+import shutil
+import stat
+import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from core.errors import BGMInputError
+
+#: Marks the staging and retired folders of :func:`replaced_folder` (``.<name>.bgm-staging-<pid>-<random>``).
+STAGING_TAG = ".bgm-staging-"
+RETIRED_TAG = ".bgm-old-"
 
 
 @contextlib.contextmanager
@@ -28,18 +45,15 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
 
     If the block raises (or is interrupted), the temporary file is removed and
     ``path`` is untouched. ``suffix`` defaults to the destination's suffix so
-    that writers choosing a format by extension still work.
+    that writers choosing a format by extension still work. A symbolic link is
+    written through (the link stays, its target gets the new content); a
+    device, pipe or folder is refused with :class:`BGMInputError`.
     """
-    path = Path(path)
-    # An output path that is a folder, or a folder that cannot be created or
-    # written to, is the user's to fix: say so in one line (BGMInputError)
-    # instead of an internal error from os.replace / mkstemp.
-    if path.is_dir():
-        raise BGMInputError(f"cannot write {str(path)!r}: it is a directory; give a file name")
+    path = _writable_file(Path(path))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp_name = tempfile.mkstemp(
-            dir=path.parent, prefix=f".{path.name}.", suffix=suffix if suffix is not None else path.suffix
+            dir=path.parent, prefix=f".{path.name[:64]}.", suffix=suffix if suffix is not None else path.suffix
         )
     except OSError as exc:
         raise BGMInputError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
@@ -69,11 +83,196 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         tmp.write_bytes(data)
 
 
+def check_output(
+    path: str | os.PathLike, inputs: Iterable[str | os.PathLike | None] = (), *, folder: bool = False, what="--out"
+) -> Path:
+    """Refuse an output path that would destroy input or cannot hold the output.
+
+    Parameters
+    ----------
+    path : path-like
+        Where a command will write: a file, or a folder when ``folder``.
+    inputs : paths
+        Files the command reads (``None`` and ``-`` for stdin are skipped). A
+        file output may not be one of them (also through a link); a folder
+        output may not hold one of them, since it is replaced whole.
+    what : str
+        How the message names the output (an option name).
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    if folder:
+        if path.exists() and not path.is_dir():
+            raise BGMInputError(f"{what} {str(path)!r} is a file; give a folder to write into")
+    else:
+        _writable_file(path)
+    for source in inputs:
+        if source is None or str(source) == "-" or not Path(source).exists():
+            continue
+        source = Path(source)
+        if folder and _inside(source, path):
+            raise BGMInputError(
+                f"{what} {str(path)!r} holds the input {str(source)!r} and would be replaced whole; "
+                "write the output to another folder"
+            )
+        if not folder and _same_file(path, source):
+            raise BGMInputError(f"{what} {str(path)!r} is the input {str(source)!r}; it would be overwritten")
+    return path
+
+
+def make_folder(folder: str | os.PathLike) -> Path:
+    """Create ``folder`` (and its parents) or say in one sentence why it cannot be."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BGMInputError(f"cannot write the folder {str(folder)!r}: {exc.strerror or exc}") from None
+    return folder
+
+
+@contextlib.contextmanager
+def replaced_folder(out_dir: str | os.PathLike) -> Iterator[Path]:
+    """Yield a staging folder that replaces ``out_dir`` whole when the block succeeds.
+
+    The staging folder sits next to ``out_dir`` (same file system). On success
+    it is swapped with ``out_dir`` in one step (``renameat2(RENAME_EXCHANGE)``
+    on Linux; elsewhere two renames a moment apart) and the previous folder is
+    deleted. If the block raises or is interrupted, the staging folder is
+    deleted and ``out_dir`` is as it was. Staging folders left by a killed
+    process (its pid no longer runs) are removed on the next call.
+    """
+    out = Path(out_dir)
+    if out.is_symlink():  # replace what the link points to; the link stays
+        out = out.resolve()
+    if out.exists() and not out.is_dir():
+        raise BGMInputError(f"cannot write a folder at {str(out)!r}: it is a file")
+    parent = out.absolute().parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        _remove_stale(parent, out.name)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out.name[:64]}{STAGING_TAG}{os.getpid()}-", dir=parent))
+    except OSError as exc:
+        raise BGMInputError(f"cannot write the folder {str(out)!r}: {exc.strerror or exc}") from None
+    try:
+        os.chmod(staging, out.stat().st_mode & 0o7777 if out.is_dir() else 0o777 & ~_umask())
+        yield staging
+        _swap_in(staging, out)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _writable_file(path: Path) -> Path:
+    """``path`` (a link's target for a link) if a regular file may be written there."""
+    lead = f"cannot write {str(path)!r}:"
+    if path.is_symlink():
+        path = path.resolve()
+    if path.is_dir():
+        raise BGMInputError(f"{lead} it is a directory; give a file name")
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        return path
+    except OSError as exc:
+        raise BGMInputError(f"{lead} {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        raise BGMInputError(f"{lead} it is a device, pipe or socket, not a regular file")
+    return path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+def _inside(item: Path, folder: Path) -> bool:
+    return item.resolve().is_relative_to(folder.resolve())
+
+
+def _swap_in(staging: Path, out: Path) -> None:
+    """Put ``staging`` where ``out`` is, in one step where the system allows; delete the old ``out``."""
+    if not out.exists():
+        os.rename(staging, out)
+    elif _exchange(staging, out):
+        shutil.rmtree(staging, ignore_errors=True)  # now the previous folder
+    else:
+        retired = Path(tempfile.mkdtemp(prefix=f".{out.name[:64]}{RETIRED_TAG}{os.getpid()}-", dir=staging.parent))
+        os.rename(out, retired / out.name)
+        os.rename(staging, out)
+        shutil.rmtree(retired, ignore_errors=True)
+    _fsync_dir(out.absolute().parent)
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically exchange two paths (Linux ``renameat2``); False where unsupported."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return False
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    at_fdcwd, rename_exchange = -100, 2
+    if renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP):
+        return False  # a file system without exchange: fall back to two renames
+    raise OSError(err, os.strerror(err), str(b))
+
+
+def _remove_stale(parent: Path, name: str) -> None:
+    """Delete staging and retired folders of ``name`` whose process no longer runs."""
+    for tag in (STAGING_TAG, RETIRED_TAG):
+        for entry in parent.glob(f".{glob_escape(name[:64])}{tag}*"):
+            pid = entry.name[len(name[:64]) + 1 + len(tag) :].split("-", 1)[0]
+            if pid.isdigit() and not _running(int(pid)):
+                shutil.rmtree(entry, ignore_errors=True)
+
+
+def glob_escape(text: str) -> str:
+    """``text`` with glob wildcards escaped."""
+    return "".join(f"[{c}]" if c in "*?[]" else c for c in text)
+
+
+def _running(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _fsync_dir(folder: Path) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _umask() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask
+
+
 def _mode_for(path: Path) -> int:
     """Keep an existing file's permissions; new files get the usual umask default."""
     try:
         return path.stat().st_mode & 0o777
     except FileNotFoundError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
+        return 0o666 & ~_umask()

@@ -4,8 +4,13 @@ The paper's input (section 1.2) is a set of blastholes per horizontal
 cross-section (bench), each with x, y and a geozone label. This module turns a
 CSV or Parquet table into :class:`Blastholes`:
 
-* columns are found by name, case-insensitively (or named explicitly);
-* benches are found by clustering elevations, and the bench height detected;
+* columns are found by name, case-insensitively (or named explicitly), and
+  only those columns are parsed (see :mod:`core.io.tables` for file formats);
+* numbers may use decimal commas or thousands separators; geozone labels that
+  spell one number two ways (``3310``, ``3310.0``) are merged, with a warning;
+* coordinates in degrees of latitude and longitude are refused;
+* benches are found by clustering elevations, at the levels as measured
+  (uneven bench heights are fine); z that does not form benches is refused;
 * lengths are converted to metres in a local frame centred on the data, so
   mine-grid coordinates (x ~ 650,000, y ~ 7,400,000) keep full precision and
   feet data works with the same metre-based defaults; everything reported goes
@@ -16,16 +21,17 @@ Bad input raises :class:`core.errors.BGMInputError` with one clear sentence.
 
 from __future__ import annotations
 
-import csv
+import re
 import warnings
 from dataclasses import dataclass, field
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
 
-from core.errors import BGMInputError
+from core.errors import BGMInputError, BGMWarning, listing, quoted
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "x": ("x", "east", "easting"),
@@ -44,10 +50,23 @@ COINCIDENT_M = 1e-3
 MIN_BENCH_GAP = 2.0
 #: Coordinates larger than this (input units) are rejected as not coordinates.
 MAX_COORDINATE = 1e12
+#: More holes than this share between bench levels: z does not form benches.
+MAX_OFF_BENCH_SHARE = 0.25
+#: A single cluster of elevations thicker than this many hole spacings is not one bench.
+MAX_BENCH_THICKNESS_SPACINGS = 5.0
+#: More benches than this from an explicit bench height is a unit mistake.
+MAX_BENCHES = 10_000
+#: x and y both spanning less than this many units (and within +-180, +-90) are degrees.
+MAX_DEGREES_SPREAD = 1.0
+#: Column names (any case) taken as the hole identifier.
+HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id")
+#: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
+NUMBER_LABEL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,3})?")
+#: Numbers with decimal commas, and with thousands separators.
+DECIMAL_COMMA = r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?"
+THOUSANDS = r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d*)?(?:[eE][+-]?\d+)?"
 
-
-class BGMWarning(UserWarning):
-    """Something in the input was repaired; the message says what."""
+__all__ = ["BGMWarning", "Blastholes", "LocalFrame", "blastholes_from_table", "detect_benches", "read_blastholes"]
 
 
 @dataclass(frozen=True)
@@ -161,17 +180,23 @@ class Blastholes:
         return np.flatnonzero(sel)
 
     def check_geozones(self, requested: list[str] | None) -> list[str]:
-        """Validate requested geozones; all of them when ``requested`` is empty."""
+        """Validate requested geozones; all of them when ``requested`` is empty.
+
+        A request that spells a present label's number another way (``3310.0``
+        for ``3310``) is that label.
+        """
         present = self.geozones
         if not requested:
             return present
-        missing = [g for g in requested if g not in present]
+        by_number = {label_number(g): g for g in present if label_number(g) is not None}
+        found = [g if g in present else by_number.get(label_number(str(g))) for g in requested]
+        missing = [g for g, f in zip(requested, found) if f is None]
         if missing:
             raise BGMInputError(
-                f"geozone {', '.join(map(repr, missing))} is not in {self.source or 'the input'}; "
-                f"geozones present: {', '.join(present)}"
+                f"geozone {', '.join(map(quoted, missing[:5]))} is not in {self.source or 'the input'}; "
+                f"geozones present: {listing(present)}"
             )
-        return list(requested)
+        return list(dict.fromkeys(f for f in found if f is not None))
 
     def drilled_area(self, k: int):
         """Area drilled on bench ``k`` (see :func:`drilled_area`), computed once per bench."""
@@ -203,48 +228,18 @@ class Blastholes:
 # Reading tables
 
 
-def read_table(path: str | Path) -> pd.DataFrame:
-    """Read a CSV (any common delimiter) or Parquet file into a DataFrame of strings/numbers."""
-    path = Path(path)
-    if not path.exists():
-        raise BGMInputError(f"input file {str(path)!r} does not exist")
-    if path.is_dir():
-        raise BGMInputError(f"input {str(path)!r} is a directory, not a CSV or Parquet file")
-    if path.stat().st_size == 0:
-        raise BGMInputError(f"input file {str(path)!r} is empty")
-    suffix = path.suffix.lower()
-    try:
-        if suffix in (".parquet", ".pq"):
-            return pd.read_parquet(path)
-        with open(path, encoding="utf-8-sig", errors="strict") as fh:
-            head = fh.read(64 * 1024)
-        if "\x00" in head:
-            raise BGMInputError(
-                f"cannot read {str(path)!r}: it looks binary; BGM reads CSV and Parquet (.parquet) tables"
-            )
-        try:
-            sep = csv.Sniffer().sniff(head.splitlines()[0] if head else "", delimiters=",;\t|").delimiter
-        except csv.Error:
-            sep = ","
-        return pd.read_csv(path, sep=sep, dtype=str, keep_default_na=False, encoding="utf-8-sig")
-    except BGMInputError:
-        raise
-    except UnicodeDecodeError:
-        raise BGMInputError(
-            f"cannot read {str(path)!r}: it is not UTF-8 text; BGM reads CSV and Parquet tables"
-        ) from None
-    except Exception as exc:  # pandas/pyarrow raise many types for unreadable files
-        kind = "Parquet" if suffix in (".parquet", ".pq") else "CSV"
-        raise BGMInputError(f"cannot read {str(path)!r} as {kind}: {exc}") from None
-
-
 def find_column(columns: list[str], role: str, explicit: str | None = None) -> str:
-    """The column playing ``role`` (x, y, z or geozone), found by name case-insensitively."""
+    """The column playing ``role`` (x, y, z or geozone), found by name case-insensitively.
+
+    Names are compared with surrounding spaces removed; an explicit name is
+    matched exactly first, then ignoring case and spaces.
+    """
     if explicit:
-        matches = [c for c in columns if c == explicit] or [c for c in columns if str(c).lower() == explicit.lower()]
+        key = explicit.strip().lower()
+        matches = [c for c in columns if c == explicit] or [c for c in columns if str(c).strip().lower() == key]
         if not matches:
             raise BGMInputError(
-                f"column {explicit!r} given for {role} is not in the table; columns are: {', '.join(map(str, columns))}"
+                f"column {quoted(explicit)} given for {role} is not in the table; columns are: {listing(columns)}"
             )
         return matches[0]
     aliases = COLUMN_ALIASES[role]
@@ -252,14 +247,30 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
     if not matches:
         raise BGMInputError(
             f"no {role} column: looked for {', '.join(aliases)} (any case); columns are: "
-            f"{', '.join(map(str, columns))}; name it with --{role} COLUMN"
+            f"{listing(columns)}; name it with --{role} COLUMN"
         )
     if len(matches) > 1:
         raise BGMInputError(
-            f"ambiguous {role} column: {', '.join(map(repr, matches))} could all be {role}; "
-            f"choose one with --{role} COLUMN"
+            f"ambiguous {role} column: {listing(map(repr, matches))} could all be {role}; choose one with --{role} COLUMN"
         )
     return matches[0]
+
+
+def table_columns(columns: list[str], x=None, y=None, z=None, geozone=None) -> dict[str, str]:
+    """Column of each role (x, y, z, geozone and, when present, hole_id)."""
+    columns = [str(c) for c in columns]
+    cols = {
+        "x": find_column(columns, "x", x),
+        "y": find_column(columns, "y", y),
+        "z": find_column(columns, "z", z),
+        "geozone": find_column(columns, "geozone", geozone),
+    }
+    if len(set(cols.values())) < 4:
+        raise BGMInputError(f"one column is used for two roles: {cols}")
+    hole = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES and c not in cols.values()), None)
+    if hole is not None:
+        cols["hole_id"] = hole
+    return cols
 
 
 def _label_strings(values: pd.Series) -> np.ndarray:
@@ -272,9 +283,47 @@ def _label_strings(values: pd.Series) -> np.ndarray:
     return np.array([("" if pd.isna(a) else str(a).strip()) for a in values], dtype=object)
 
 
-def _rows(idx: np.ndarray, limit: int = 10) -> str:
-    """Data row numbers as a file shows them (header is line 1, first row is 2)."""
-    shown = ", ".join(str(int(i) + 2) for i in idx[:limit])
+def label_number(label: str) -> Decimal | None:
+    """The number a geozone label spells (``3310``, ``3310.0``, ``3.31e3``...), exactly; None if none."""
+    if len(label) > 40 or not NUMBER_LABEL.fullmatch(label):
+        return None
+    return Decimal(label)
+
+
+def number_label(value: Decimal) -> str:
+    """Plain spelling of a number: ``3310``, ``0.5``, ``-12.25`` (no exponent, no trailing zeros)."""
+    return "0" if value == 0 else format(value.normalize(), "f")
+
+
+def merge_number_spellings(labels: np.ndarray) -> tuple[np.ndarray, dict[str, str]]:
+    """Make labels that spell the same number differently one label.
+
+    ``3310`` and ``3310.0`` in one file are one geozone written by two
+    programs, not two geozones. Labels that spell a number no other label
+    spells stay as written.
+
+    Returns
+    -------
+    labels : (n,) object
+    renamed : dict
+        Spelling -> the plain spelling it became (empty when nothing merged).
+    """
+    by_value: dict[Decimal, list[str]] = {}
+    for label in pd.unique(np.asarray(labels, dtype=object)):
+        value = label_number(label)
+        if value is not None:
+            by_value.setdefault(value, []).append(label)
+    renamed = {s: number_label(v) for v, spellings in by_value.items() if len(spellings) > 1 for s in spellings}
+    renamed = {s: t for s, t in renamed.items() if s != t}
+    if not renamed:
+        return np.asarray(labels, dtype=object), {}
+    merged = pd.Series(labels, dtype=object).replace(renamed).to_numpy(dtype=object)
+    return merged, renamed
+
+
+def _rows(idx: np.ndarray, limit: int = 10, first_line: int = 2) -> str:
+    """Data row numbers as a file shows them (the first row is on line ``first_line``)."""
+    shown = ", ".join(str(int(i) + first_line) for i in idx[:limit])
     more = f" and {len(idx) - limit} more" if len(idx) > limit else ""
     return f"{shown}{more}"
 
@@ -294,7 +343,8 @@ def read_blastholes(
     Parameters
     ----------
     path : str or Path
-        CSV (comma, semicolon, tab or pipe separated) or Parquet file.
+        CSV (comma, semicolon, tab or pipe separated; plain or compressed) or
+        Parquet file, or ``-`` for standard input (see :mod:`core.io.tables`).
     x, y, z, geozone : str, optional
         Column names; by default found among :data:`COLUMN_ALIASES`.
     bench_height : float, optional
@@ -308,16 +358,24 @@ def read_blastholes(
     -------
     Blastholes
     """
-    table = read_table(path)
+    from core.io.tables import read_table
+
+    cols: dict[str, str] = {}
+
+    def choose(header: list[str]) -> list[int]:
+        cols.update(table_columns(header, x, y, z, geozone))
+        return [header.index(c) for c in cols.values()]
+
+    table = read_table(path, choose)
     return blastholes_from_table(
         table,
-        x=x,
-        y=y,
-        z=z,
-        geozone=geozone,
+        x=cols["x"],
+        y=cols["y"],
+        z=cols["z"],
+        geozone=cols["geozone"],
         bench_height=bench_height,
         length_unit=length_unit,
-        source=str(path),
+        source="standard input" if str(path) == "-" else str(path),
     )
 
 
@@ -335,60 +393,28 @@ def blastholes_from_table(
     """:func:`read_blastholes` on a table already in memory."""
     if len(table) == 0:
         raise BGMInputError(f"{source or 'the input'} has a header but no rows")
-    columns = [str(c) for c in table.columns]
-    table = table.copy()
-    table.columns = columns
-    cols = {
-        "x": find_column(columns, "x", x),
-        "y": find_column(columns, "y", y),
-        "z": find_column(columns, "z", z),
-        "geozone": find_column(columns, "geozone", geozone),
+    first_line = int(table.attrs.get("first_data_line", 2))
+    delimiter = table.attrs.get("delimiter")
+    cols = table_columns(list(table.columns), x, y, z, geozone)
+    table = table[list(cols.values())].copy()
+    table.columns = list(cols.values())
+    coords = {
+        role: _coordinates(table[cols[role]], cols[role], role, delimiter, first_line) for role in ("x", "y", "z")
     }
-    used = list(cols.values())
-    if len(set(used)) < 4:
-        raise BGMInputError(f"one column is used for two roles: {cols}")
-
-    coords = {}
-    for role in ("x", "y", "z"):
-        raw = table[cols[role]]
-        if raw.dtype == object:
-            raw = raw.astype(str).str.strip().str.replace(",", "", regex=False)
-        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(values))
-        if len(bad):
-            raise BGMInputError(
-                f"column {cols[role]!r} ({role}) has {len(bad)} missing, non-numeric or infinite "
-                f"value(s), on data line(s) {_rows(bad)}"
-            )
-        # Finite but absurd magnitudes (1e300) overflow distance computations
-        # (kD-tree) deep in the engine; no mine grid comes near 1e12 units, and
-        # past it float64 cannot hold sub-millimetre positions anyway.
-        huge = np.flatnonzero(np.abs(values) > MAX_COORDINATE)
-        if len(huge):
-            raise BGMInputError(
-                f"column {cols[role]!r} ({role}) has {len(huge)} value(s) beyond {MAX_COORDINATE:.0e} in "
-                f"magnitude, too large to be coordinates, on data line(s) {_rows(huge)}"
-            )
-        coords[role] = values
-    labels = _label_strings(table[cols["geozone"]])
-    blank = np.flatnonzero(labels == "")
-    if len(blank):
-        raise BGMInputError(
-            f"column {cols['geozone']!r} (geozone) is empty on {len(blank)} row(s): data line(s) {_rows(blank)}"
-        )
-    hole_col = next((c for c in columns if c.lower() in ("holeid", "hole_id", "hole", "id")), None)
-    hole_id = table[hole_col].astype(str).to_numpy(dtype=object) if hole_col else None
+    _refuse_degrees(coords["x"], coords["y"], source)
+    notes: list[str] = []
+    labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], first_line, notes)
+    hole_id = table[cols["hole_id"]].astype(str).to_numpy(dtype=object) if "hole_id" in cols else None
 
     if len(labels) < 3:
         raise BGMInputError(f"{source or 'the input'} has only {len(labels)} hole(s); BGM needs at least 3")
 
-    notes: list[str] = []
     zin = coords["z"]
-    levels_in, bench, height_in, off = detect_benches(zin, bench_height)
+    levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=np.column_stack([coords["x"], coords["y"]]))
     if off.any():
         msg = (
             f"{int(off.sum())} hole(s) lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from "
-            f"every bench level (data line(s) {_rows(np.flatnonzero(off))}) and were left out"
+            f"every bench level (data line(s) {_rows(np.flatnonzero(off), first_line=first_line)}) and were left out"
         )
         notes.append(msg)
         warnings.warn(msg, BGMWarning, stacklevel=2)
@@ -416,13 +442,105 @@ def blastholes_from_table(
         source=source,
         notes=notes,
     )
-    holes = _deduplicate(holes, np.flatnonzero(keep))
+    holes = _deduplicate(holes, np.flatnonzero(keep), first_line)
     holes.hole_spacing_m = median_hole_spacing(holes.xy, holes.bench)
     if not np.isfinite(holes.hole_spacing_m) or holes.hole_spacing_m <= 0:
         raise BGMInputError(
             f"cannot measure the hole spacing of {source or 'the input'}: no bench has two distinct holes"
         )
     return holes
+
+
+def _geozone_labels(raw: pd.Series, column: str, first_line: int, notes: list[str]) -> np.ndarray:
+    """Labels as strings, none blank, spellings of one number merged (said in ``notes`` and a warning)."""
+    labels = _label_strings(raw)
+    blank = np.flatnonzero(labels == "")
+    if len(blank):
+        raise BGMInputError(
+            f"column {quoted(column)} (geozone) is empty on {len(blank)} row(s): "
+            f"data line(s) {_rows(blank, first_line=first_line)}"
+        )
+    labels, renamed = merge_number_spellings(labels)
+    if renamed:
+        msg = (
+            f"geozone labels {listing(sorted(renamed), 5)} spell the same number as other labels and were merged "
+            f"into {listing(sorted(set(renamed.values())), 5)}"
+        )
+        notes.append(msg)
+        warnings.warn(msg, BGMWarning, stacklevel=4)
+    return labels
+
+
+def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, first_line: int) -> np.ndarray:
+    """A coordinate column as finite floats, or one sentence naming the rows that are not."""
+    if pd.api.types.is_numeric_dtype(raw) and not pd.api.types.is_bool_dtype(raw):
+        values = raw.to_numpy(dtype=float)
+        text = None
+    else:
+        text = _without_digit_grouping(raw.astype(str).str.strip(), delimiter)
+        values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
+    bad = np.flatnonzero(~np.isfinite(values))
+    if len(bad):
+        example = "" if text is None else f" (e.g. {quoted(raw.iloc[bad[0]], 30)})"
+        hint = ""
+        if text is not None and raw.iloc[bad].astype(str).str.contains(",", regex=False).any():
+            hint = "; commas there are neither all decimal commas nor all thousands separators"
+        raise BGMInputError(
+            f"column {quoted(column)} ({role}) has {len(bad)} missing, non-numeric or infinite "
+            f"value(s), on data line(s) {_rows(bad, first_line=first_line)}{example}{hint}"
+        )
+    # Finite but absurd magnitudes (1e300) overflow distance computations
+    # (kD-tree) deep in the engine; no mine grid comes near 1e12 units, and
+    # past it float64 cannot hold sub-millimetre positions anyway.
+    huge = np.flatnonzero(np.abs(values) > MAX_COORDINATE)
+    if len(huge):
+        raise BGMInputError(
+            f"column {quoted(column)} ({role}) has {len(huge)} value(s) beyond {MAX_COORDINATE:.0e} in "
+            f"magnitude, too large to be coordinates, on data line(s) {_rows(huge, first_line=first_line)}"
+        )
+    return values
+
+
+def _without_digit_grouping(text: pd.Series, delimiter: str | None) -> pd.Series:
+    """Numbers written with decimal commas (``650053,80``) or thousands separators (``650,053.80``) in plain form.
+
+    Decided per column: commas that can only be decimal commas, or only
+    thousands separators, are read as such; where every comma could be either
+    (``1,234``), a semicolon- or tab-separated file is taken to use decimal
+    commas and a comma-separated one (quoted fields) thousands separators.
+    A column mixing both is left alone and reported as non-numeric.
+    """
+    comma = text.str.contains(",", regex=False)
+    if not comma.any():
+        return text
+    decimal = text.str.fullmatch(DECIMAL_COMMA)
+    grouped = text.str.fullmatch(THOUSANDS)
+    if (comma & ~decimal & ~grouped).any():
+        return text
+    decimal_only = (comma & decimal & ~grouped).any()
+    grouped_only = (comma & grouped & ~decimal).any()
+    if decimal_only and grouped_only:
+        return text
+    use_decimal = decimal_only or (not grouped_only and delimiter not in (",", None))
+    return text.str.replace(",", "." if use_decimal else "", regex=False)
+
+
+def _refuse_degrees(x: np.ndarray, y: np.ndarray, source: str) -> None:
+    """Refuse longitudes and latitudes: BGM needs lengths (metres or feet) on a projected grid.
+
+    Holes in degrees span a few thousandths of a unit, so nearly all of them
+    would be merged as duplicates and a meaningless model built from the rest.
+    """
+    spread = max(float(np.ptp(x)), float(np.ptp(y)))
+    if not 0 < spread < MAX_DEGREES_SPREAD:
+        return
+    for lon, lat in ((x, y), (y, x)):
+        if np.abs(lon).max() <= 180 and np.abs(lat).max() <= 90:
+            raise BGMInputError(
+                f"x and y of {source or 'the input'} look like degrees of longitude and latitude "
+                f"(x {x.min():.6g} to {x.max():.6g}, y {y.min():.6g} to {y.max():.6g}: all holes within "
+                f"{spread:.3g} units); BGM needs projected coordinates in metres or feet (a mine grid or UTM)"
+            )
 
 
 def _guess_unit(bench_height: float, length_unit: str | None) -> str:
@@ -447,23 +565,27 @@ def _guess_unit(bench_height: float, length_unit: str | None) -> str:
 
 
 def detect_benches(
-    z: np.ndarray, bench_height: float | None = None
+    z: np.ndarray, bench_height: float | None = None, xy: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-    """Group sample elevations into benches.
+    """Group sample elevations into benches, at the levels the holes were drilled.
 
     Holes of one bench scatter by a few units around its level; a few sit far
     off any level. Elevations are split into clusters at gaps wider than a
     third of the widest gap; clusters holding at least 1% of the holes (or 10
-    holes) define bench levels (their medians), the bench height is the median
-    spacing of successive levels, and a regular ladder of levels is fitted to
-    them so benches with few holes still get a level on the ladder.
+    holes) are benches, at their median elevation (shown to 0.1 unit when the
+    holes scatter). Benches need not be evenly spaced (10 m, then 15 m): levels
+    are taken as measured, and put on a regular ladder only where the medians
+    themselves say the benches are regular (see :func:`_bench_levels`).
 
     Parameters
     ----------
     z : (n,) float
         Elevations, input units.
     bench_height : float, optional
-        Known bench height (input units); skips its detection.
+        Known bench height (input units): a regular ladder of that height.
+    xy : (n, 2) float, optional
+        Hole positions (input units), to tell one bench from elevations spread
+        continuously (which is refused).
 
     Returns
     -------
@@ -472,79 +594,164 @@ def detect_benches(
     bench : (n,) int
         Bench index of each hole (-1 for off-bench holes).
     height : float
-        Bench height (nan when there is a single bench).
+        Bench height: the median distance between successive levels (nan for a
+        single bench).
     off : (n,) bool
-        Holes farther than ``OFF_BENCH_FRACTION * height`` from every level.
+        Holes farther than ``OFF_BENCH_FRACTION`` of the distance to the next
+        level from their nearest level.
+
+    Raises
+    ------
+    BGMInputError
+        When z does not form benches: one elevation cluster far thicker than
+        the hole spacing, or more than ``MAX_OFF_BENCH_SHARE`` of the holes
+        between levels.
     """
     z = np.asarray(z, float)
     if bench_height is not None and not (np.isfinite(bench_height) and bench_height > 0):
         raise BGMInputError(f"bench height must be a positive number, got {bench_height}")
     zs = np.sort(z)
-    gaps = np.diff(zs)
-    if len(gaps) == 0 or gaps.max() == 0:
-        return np.array([float(np.median(z))]), np.zeros(len(z), int), np.nan, np.zeros(len(z), bool)
-
-    min_count = max(10, int(0.01 * len(z)))
+    if zs[-1] == zs[0]:
+        return np.array([zs[0]]), np.zeros(len(z), int), np.nan, np.zeros(len(z), bool)
     if bench_height is None:
-        # A gap between benches is wide next to the widest gap and far wider than
-        # the typical step between sorted elevations (which rounding can make
-        # all equal on a single bench).
-        typical = np.median(gaps[gaps > 0])
-        cut = (gaps > gaps.max() / 3.0) & (gaps > 20.0 * typical)
-        # Benches given at exact levels (z is the bench RL, no scatter): the only
-        # positive gaps are then the bench gaps themselves, so ``typical`` is a
-        # bench gap and nothing was cut (all benches merged into one and their
-        # holes into "duplicates"). A wide gap of at least MIN_BENCH_GAP units is
-        # a bench break too; rounding steps are smaller, and splits inside a
-        # scattered bench are merged back just below.
-        cut |= (gaps > gaps.max() / 3.0) & (gaps >= MIN_BENCH_GAP)
-        labels = _merge_scatter_splits(zs, np.concatenate([[0], np.cumsum(cut)]))
-        centres = []
-        for k in range(labels[-1] + 1):
-            members = zs[labels == k]
-            if len(members) >= min(min_count, max(3, len(z) // 4)):
-                centres.append(float(np.median(members)))
-        centres = np.array(sorted(centres))
-        if len(centres) < 2:
-            level = float(np.median(z))
-            spread = float(np.percentile(np.abs(z - level), 95))
-            return np.array([level]), np.zeros(len(z), int), np.nan, np.abs(z - level) > max(spread, 1e-9) * 3
-        height = float(np.median(np.diff(centres)))
-        anchor = centres
+        clusters = _elevation_clusters(zs)
+        min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
+        big = [c for c in clusters if len(c) >= min_count]
+        if len(big) < 2:
+            return _single_bench(z, xy)
+        levels = _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
     else:
-        height = float(bench_height)
-        # Anchor the ladder on the densest elevation: the mode of z in bins of height/10.
-        bins = np.arange(zs[0], zs[-1] + height / 10, height / 10)
-        if len(bins) < 2:
-            bins = np.array([zs[0] - 0.5, zs[-1] + 0.5])
-        hist, edges = np.histogram(z, bins=bins)
-        k = int(np.argmax(hist))
-        anchor = np.array([float(np.median(z[(z >= edges[k]) & (z <= edges[k + 1])]))])
+        if np.ptp(zs) / bench_height > MAX_BENCHES:
+            raise BGMInputError(
+                f"bench height {bench_height:g} would cut the elevations ({zs[0]:g} to {zs[-1]:g}) into more "
+                f"than {MAX_BENCHES} benches; give the bench height in the input's units"
+            )
+        levels = _ladder(zs, _densest_elevation(z, float(bench_height)), float(bench_height))
+    levels, bench, off = _assign_levels(z, levels)
+    if off.mean() > MAX_OFF_BENCH_SHARE:
+        raise BGMInputError(
+            f"z does not form benches: {int(off.sum())} of {len(z)} holes lie between the bench levels found "
+            f"({', '.join(f'{v:g}' for v in levels[:8])}{'...' if len(levels) > 8 else ''}); "
+            "BGM needs samples grouped by bench"
+        )
+    height = float(bench_height) if bench_height is not None else float(np.median(-np.diff(levels)))
+    return levels, bench, (height if len(levels) >= 2 else np.nan), off
 
-    # Fit a regular ladder z0 + k * height through the anchors; levels are shown
-    # to 0.1 unit, finer than any bench scatter.
-    k_anchor = np.round((anchor - anchor[0]) / height)
-    if bench_height is None and len(np.unique(k_anchor)) >= 2:
-        height = float(np.polyfit(k_anchor, anchor, 1)[0])
-        height = round(height, 1) if height >= 1 else height
-    z0 = float(np.median(anchor - k_anchor * height))
-    z0 = round(z0, 1) if height >= 1 else z0
-    k_hole = np.round((z - z0) / height)
-    residual = z - (z0 + k_hole * height)
-    off = np.abs(residual) > OFF_BENCH_FRACTION * height
-    ks = np.unique(k_hole[~off])
-    # Drop ladder rungs with too few holes to be a bench (isolated stray holes).
-    counts = np.array([(k_hole[~off] == k).sum() for k in ks])
-    sparse = ks[counts < 3]
-    off |= np.isin(k_hole, sparse)
-    ks = np.unique(k_hole[~off])[::-1]
-    levels = z0 + ks * height
-    index = {k: i for i, k in enumerate(ks)}
-    bench = np.array([index.get(k, -1) for k in k_hole], dtype=int)
-    bench[off] = -1
-    if len(levels) < 2:
-        height = np.nan
-    return levels, bench, height, off
+
+def _elevation_clusters(zs: np.ndarray) -> list[np.ndarray]:
+    """Sorted elevations split at the gaps between benches."""
+    gaps = np.diff(zs)
+    # A gap between benches is wide next to the widest gap and far wider than
+    # the typical step between sorted elevations (which rounding can make
+    # all equal on a single bench).
+    typical = np.median(gaps[gaps > 0])
+    cut = (gaps > gaps.max() / 3.0) & (gaps > 20.0 * typical)
+    # Benches given at exact levels (z is the bench RL, no scatter): the only
+    # positive gaps are then the bench gaps themselves, so ``typical`` is a
+    # bench gap and nothing was cut. A wide gap of at least MIN_BENCH_GAP units
+    # is a bench break too; rounding steps are smaller, and splits inside a
+    # scattered bench are merged back just below.
+    cut |= (gaps > gaps.max() / 3.0) & (gaps >= MIN_BENCH_GAP)
+    labels = _merge_scatter_splits(zs, np.concatenate([[0], np.cumsum(cut)]))
+    return np.split(zs, np.flatnonzero(np.diff(labels)) + 1)
+
+
+def _bench_levels(big: list[np.ndarray], small: list[np.ndarray]) -> np.ndarray:
+    """Levels of the benches (ascending): each at its measured level, or on a ladder where one fits.
+
+    A bench's measured level is the median elevation of its holes. When
+    three or more benches lie on a regular ladder to within three standard
+    errors of their medians, the differences are sampling noise and the
+    ladder's rungs are the levels (regular benches read as 685, 675, 665, not
+    685.0, 675.1, 664.9); otherwise (10 m, then 15 m) the medians are. A
+    cluster too small to be a bench on its own (a bench being opened, or
+    sparsely sampled) is one when it lies at least ``1 - OFF_BENCH_FRACTION``
+    of a typical bench height from every bench; nearer, it is stray holes.
+    """
+    centres = np.array([float(np.median(c)) for c in big])
+    height = float(np.median(np.diff(centres)))
+    levels = np.array([_level(c) for c in big])
+    k = np.round((centres - centres[0]) / height)
+    if len(big) >= 3 and len(np.unique(k)) == len(k):
+        noise = np.array([1.2533 * np.std(c) / np.sqrt(len(c)) for c in big])  # standard error of a median
+        slope, z0 = np.polyfit(k, centres, 1, w=1 / (noise + 1e-9 * height))
+        rungs = z0 + k * slope
+        if np.all(np.abs(centres - rungs) <= 3 * noise + 1e-9 * height):
+            levels = np.where([np.ptp(c) <= 0.1 for c in big], centres, np.round(rungs, 1 if slope >= 1 else 6))
+    extra = [_level(c) for c in small if np.abs(centres - np.median(c)).min() >= (1 - OFF_BENCH_FRACTION) * height]
+    return np.sort(np.concatenate([levels, extra]))
+
+
+def _level(members: np.ndarray) -> float:
+    """A cluster's elevation: its median, shown to 0.1 unit unless the holes sit at one exact level."""
+    m = float(np.median(members))
+    return m if np.ptp(members) <= 0.1 else round(m, 1)
+
+
+def _densest_elevation(z: np.ndarray, height: float) -> float:
+    """Median elevation of the densest slice of ``height / 10``: a level of a known-height ladder."""
+    bins = np.arange(z.min(), z.max() + height / 10, height / 10)
+    if len(bins) < 2:
+        bins = np.array([z.min() - 0.5, z.max() + 0.5])
+    hist, edges = np.histogram(z, bins=bins)
+    k = int(np.argmax(hist))
+    return float(np.median(z[(z >= edges[k]) & (z <= edges[k + 1])]))
+
+
+def _ladder(z: np.ndarray, anchor: float, height: float) -> np.ndarray:
+    """Every rung ``anchor + k height`` from below the lowest to above the highest elevation (ascending)."""
+    anchor = round(anchor, 1) if height >= 1 else anchor
+    k = np.arange(np.floor((z.min() - anchor) / height) - 1, np.ceil((z.max() - anchor) / height) + 2)
+    return anchor + k * height
+
+
+def _assign_levels(z: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each hole's nearest level; holes too far from it are off-bench; levels with under 3 holes are dropped.
+
+    A hole is off-bench beyond ``OFF_BENCH_FRACTION`` of the distance from
+    its level to the nearest other level (of the levels first given).
+
+    Returns the kept levels (descending), each hole's bench index in them (-1 off) and the off mask.
+    """
+    levels = np.sort(np.asarray(levels, float))
+    gaps = np.diff(levels)
+    reach = OFF_BENCH_FRACTION * np.minimum(np.r_[np.inf, gaps], np.r_[gaps, np.inf])
+    while True:
+        nearest = _nearest(z, levels)
+        off = np.abs(z - levels[nearest]) > reach[nearest]
+        keep = np.bincount(nearest[~off], minlength=len(levels)) >= 3
+        if keep.all() or not keep.any():
+            break
+        levels, reach = levels[keep], reach[keep]
+    if not keep.any():
+        return np.array([]), np.full(len(z), -1), np.ones(len(z), bool)
+    bench = np.where(off, -1, len(levels) - 1 - nearest)
+    return levels[::-1], bench, off
+
+
+def _nearest(z: np.ndarray, levels: np.ndarray) -> np.ndarray:
+    """Index of the nearest of the ascending ``levels`` for each elevation."""
+    i = np.clip(np.searchsorted(levels, z), 1, max(len(levels) - 1, 1))
+    if len(levels) == 1:
+        return np.zeros(len(z), int)
+    return np.where(np.abs(z - levels[i - 1]) <= np.abs(levels[i] - z), i - 1, i)
+
+
+def _single_bench(z: np.ndarray, xy: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """One bench at the median elevation; refused when the elevations are spread far thicker than a bench."""
+    level = float(np.median(z))
+    thickness = float(np.percentile(z, 95) - np.percentile(z, 5))
+    if xy is not None and len(xy) >= 2:
+        d, _ = cKDTree(xy).query(xy, k=2)
+        spacing = float(np.median(d[:, 1][d[:, 1] > 0])) if (d[:, 1] > 0).any() else 0.0
+        if thickness > MAX_BENCH_THICKNESS_SPACINGS * spacing:
+            raise BGMInputError(
+                f"z does not form benches: elevations spread continuously over {thickness:.4g} units "
+                f"(5th to 95th percentile), {thickness / max(spacing, 1e-12):.0f} hole spacings, with no gap "
+                "between benches; BGM needs samples grouped by bench (give --bench-height if they are)"
+            )
+    spread = float(np.percentile(np.abs(z - level), 95))
+    return np.array([level]), np.zeros(len(z), int), np.nan, np.abs(z - level) > max(spread, 1e-9) * 3
 
 
 def _merge_scatter_splits(zs: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -569,7 +776,7 @@ def _merge_scatter_splits(zs: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return labels
 
 
-def _deduplicate(holes: Blastholes, rows: np.ndarray) -> Blastholes:
+def _deduplicate(holes: Blastholes, rows: np.ndarray, first_line: int = 2) -> Blastholes:
     """Merge holes at the same position on the same bench, warning about it."""
     key = np.column_stack([holes.bench, np.round(holes.xy / COINCIDENT_M).astype(np.int64)])
     _, first, inverse, counts = np.unique(key, axis=0, return_index=True, return_inverse=True, return_counts=True)
@@ -585,7 +792,7 @@ def _deduplicate(holes: Blastholes, rows: np.ndarray) -> Blastholes:
         lines = rows[np.flatnonzero(inverse == g)]
         msg += (
             f"; {len(conflicting)} of those positions carry conflicting geozone labels "
-            f"(e.g. data lines {_rows(lines, 4)}: {sorted(set(holes.geozone[inverse == g].tolist()))})"
+            f"(e.g. data lines {_rows(lines, 4, first_line)}: {listing(sorted(set(holes.geozone[inverse == g].tolist())), 5)})"
         )
     warnings.warn(msg, BGMWarning, stacklevel=3)
     keep = np.sort(first)

@@ -10,8 +10,9 @@ fmt   writer                                  vertex precision
 ===== ======================================= ===============================
 obj   trimesh (text, 10 decimals)             float64 (to 1e-10 units)
 ply   own binary little-endian writer         float64 (``property double``)
-stl   trimesh (binary)                        float32 by the STL standard:
-                                              ~0.5 m at y ~ 7 400 000!
+stl   trimesh (binary)                        float32 by the STL standard;
+                                              mine-grid coordinates go to a
+                                              local frame (see below)
 vtp   own VTK XML PolyData writer (raw        float64 (``Float64`` points)
       appended data, UInt64 headers)
 dxf   own ASCII DXF R12 writer, one 3DFACE    float64 (shortest round-trip
@@ -19,6 +20,13 @@ dxf   own ASCII DXF R12 writer, one 3DFACE    float64 (shortest round-trip
 omf   optional ``omf`` package (OMF v1,       float64
       ``SurfaceElement``)
 ===== ======================================= ===============================
+
+STL can only store float32, which resolves y ~ 7 400 000 to 0.5 m: vertices
+a cell apart merge and the surface read back is not closed. So an STL whose
+coordinates exceed ``STL_PLAIN_MAX`` is written in a local frame: the offset
+(a round number per axis, :func:`stl_offset`) is subtracted before writing,
+and recorded in the file's 80-byte header and in ``<name>.stl.json`` next to
+it; add it back to get input coordinates.
 
 trimesh's own PLY exporter stores float32 vertices, which is why PLY is
 written here. The VTP writer does not need VTK (no vtk/pyvista import in
@@ -31,7 +39,6 @@ the install hint.
 from __future__ import annotations
 
 import json
-import math
 import re
 import warnings
 from collections.abc import Iterable, Mapping
@@ -49,6 +56,18 @@ from core.io.atomic import atomic_path
 SURFACE_FORMATS = ("obj", "ply", "stl", "vtp", "dxf", "omf")
 #: Formats :func:`export_all` writes unless told otherwise (OMF needs an extra package).
 DEFAULT_FORMATS = ("obj", "ply", "stl", "vtp", "dxf")
+#: What each format stores, as ``report.md`` says it.
+FORMAT_NOTES = {
+    "obj": "text, 10 decimals, input coordinates",
+    "ply": "binary float64, input coordinates",
+    "stl": "binary float32 (the STL standard): mine-grid coordinates are written in a local frame, "
+    "its offset in the file's header and in surface.stl.json (add it back)",
+    "vtp": "VTK XML, float64, input coordinates",
+    "dxf": "R12 3DFACEs, float64, input coordinates",
+    "omf": "OMF v1, float64, input coordinates",
+}
+#: Largest coordinate magnitude an STL holds as is: float32 resolves it to 1e-3 units.
+STL_PLAIN_MAX = 8192.0
 
 _ALIASES = {"vtkpolydata": "vtp", "vtk-polydata": "vtp"}
 
@@ -57,6 +76,8 @@ __all__ = [
     "SURFACE_FORMATS",
     "export_all",
     "export_surface",
+    "json_default",
+    "stl_offset",
     "omf_available",
     "write_geojson",
 ]
@@ -102,17 +123,43 @@ def export_surface(
 
     if fmt == "omf":
         _require_omf()
-    if fmt == "stl" and np.abs(vertices).max(initial=0.0) > 1e5:
-        warnings.warn(
-            f"STL stores float32 coordinates: at magnitudes near {np.abs(vertices).max():.0f} "
-            "they are only resolved to about "
-            f"{np.spacing(np.float32(np.abs(vertices).max())):.2g} units; prefer ply, vtp, obj or dxf",
-            stacklevel=2,
-        )
 
     with atomic_path(path) as tmp:
         _WRITERS[fmt](tmp, vertices, faces, name, mesh)
+    if fmt == "stl":
+        _record_stl_offset(path, stl_offset(vertices))
     return path
+
+
+def stl_offset(vertices: np.ndarray) -> np.ndarray:
+    """What is subtracted from an STL's vertices so float32 holds them to 1e-3 units.
+
+    Zero on axes whose coordinates stay within ``STL_PLAIN_MAX``; elsewhere the
+    middle of the vertices' range rounded to a multiple of 1000 (a number a
+    person can add back).
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    if len(v) == 0:
+        return np.zeros(3)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    needed = np.maximum(np.abs(lo), np.abs(hi)) > STL_PLAIN_MAX
+    return np.where(needed, np.round((lo + hi) / 2, -3), 0.0)
+
+
+def _record_stl_offset(path: Path, offset: np.ndarray) -> None:
+    """``<name>.stl.json`` beside an STL written in a local frame (a stale one removed otherwise)."""
+    side = path.with_name(path.name + ".json")
+    if not offset.any():
+        side.unlink(missing_ok=True)
+        return
+    from core.io.atomic import atomic_write_text
+
+    note = {
+        "format": "stl",
+        "offset": [float(o) for o in offset],
+        "note": "the STL's vertices are in a local frame: add offset to each vertex to get input coordinates",
+    }
+    atomic_write_text(side, json.dumps(note, indent=1) + "\n")
 
 
 def export_all(
@@ -175,7 +222,7 @@ def write_geojson(
         collection["name"] = name
     collection["features"] = out
     try:
-        text = json.dumps(collection, default=_json_default, allow_nan=False, indent=None)
+        text = json.dumps(collection, default=json_default, allow_nan=False, indent=None)
     except (TypeError, ValueError) as exc:
         raise BGMInputError(f"GeoJSON properties must be finite JSON values: {exc}") from None
     path = Path(path)
@@ -223,8 +270,15 @@ def _write_obj(tmp: Path, vertices, faces, name, mesh) -> None:
 
 
 def _write_stl(tmp: Path, vertices, faces, name, mesh) -> None:
-    m = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-    tmp.write_bytes(trimesh.exchange.stl.export_stl(m))
+    """Binary STL, in a local frame when float32 cannot hold the coordinates (offset in the header)."""
+    offset = stl_offset(vertices)
+    m = trimesh.Trimesh(vertices=vertices - offset, faces=faces, process=False)
+    data = bytearray(trimesh.exchange.stl.export_stl(m))
+    header = f"BGM {_one_line(name)[:20]}"
+    if offset.any():
+        header = f"BGM add offset x={offset[0]:.0f} y={offset[1]:.0f} z={offset[2]:.0f}"
+    data[:80] = header.encode("ascii", "replace")[:80].ljust(80, b" ")
+    tmp.write_bytes(bytes(data))
 
 
 def _write_ply(tmp: Path, vertices, faces, name, mesh) -> None:
@@ -469,12 +523,14 @@ def _plain(obj):
     return obj
 
 
-def _json_default(obj):
+def json_default(obj):
+    """``json.dumps(default=...)`` for what the engine writes: numpy scalars and arrays, paths.
+
+    Non-finite numbers come out as the floats they are; write with
+    ``allow_nan=False`` to refuse them, or replace them first.
+    """
     if isinstance(obj, np.generic):
-        value = obj.item()
-        if isinstance(value, float) and not math.isfinite(value):
-            raise ValueError(f"non-finite value {value}")
-        return value
+        return obj.item()
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, Path):

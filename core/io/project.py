@@ -26,10 +26,11 @@ from __future__ import annotations
 import json
 import math
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from core.errors import BGMInputError
+from core.errors import BGMInputError, Range, listing, quoted
 from core.io.atomic import atomic_write_text
 
 FORMAT = "bgm-project"
@@ -137,6 +138,7 @@ def load_project(path: str | os.PathLike) -> Project:
     parameters = data.get("parameters", {})
     if not isinstance(parameters, dict):
         raise BGMInputError(f'project file {path}: "parameters" must be an object.')
+    _check_parameters(path, parameters)
     input_path = data.get("input_path")
     if input_path is not None and not isinstance(input_path, str):
         raise BGMInputError(f'project file {path}: "input_path" must be a string.')
@@ -181,6 +183,108 @@ def _parse_override(path: Path, i: int, o) -> AlignmentOverride:
             raise BGMInputError(f"{where}: associate must map target indices to true/false.")
         associate[t] = v
     return AlignmentOverride(geozone, float(source_z), source, translation, associate)
+
+
+def _check_parameters(path: Path, parameters: dict) -> None:
+    """Every parameter is a finite number; those the engine knows by name are in their range.
+
+    Names the engine does not know (the viewer's own settings such as
+    ``search_radius_spacings``) are checked by the viewer when it applies them.
+    """
+    from core.extraction.contours import EXTRACTION_RANGES
+    from core.model.pipeline import MODEL_RANGES
+
+    ranges = {**EXTRACTION_RANGES, **MODEL_RANGES}
+    for name, value in parameters.items():
+        if name == "viewer":
+            if value is not None and not isinstance(value, dict):
+                raise BGMInputError(f'project file {path}: "viewer" must be an object.')
+            _check_viewer(path, value or {})
+            continue
+        if name in ranges and not ranges[name].holds(value):
+            raise BGMInputError(
+                f"project file {path}: parameter {name} must be {ranges[name].describe()}, got {value!r}."
+            )
+        if name not in ranges and not _is_number(value):
+            raise BGMInputError(
+                f"project file {path}: parameter {quoted(name)} must be a finite number, got {value!r}."
+            )
+
+
+#: The viewer's saved view: what each setting may hold.
+VIEWER_RANGES = {
+    "bench": Range(0, integer=True, optional=True),
+    "component": Range(0, integer=True, optional=True),
+    "vertical_exaggeration": Range(0, 100, low_open=True, optional=True),
+}
+
+
+def _check_viewer(path: Path, viewer: dict) -> None:
+    for name, valid in VIEWER_RANGES.items():
+        if name in viewer and not valid.holds(viewer[name]):
+            raise BGMInputError(
+                f"project file {path}: viewer setting {name} must be {valid.describe()}, got {viewer[name]!r}."
+            )
+    if viewer.get("geozone") is not None and not isinstance(viewer["geozone"], str):
+        raise BGMInputError(f"project file {path}: viewer setting geozone must be a string.")
+
+
+def check_project(
+    project: Project,
+    holes,
+    geozones: list[str] | None = None,
+    command: str = "this command",
+    uses_parameters: bool = False,
+) -> None:
+    """Refuse overrides the input cannot honour, and warn about every one left unused.
+
+    An override is unused when its geozone is not in the input (or not among
+    ``geozones``, the ones being modelled), or no bench pair has its upper
+    bench at ``source_z``. A locked translation longer than the whole input
+    is refused: it cannot be a correction. Project parameters are the
+    viewer's settings; the command line does not use them, which is said too.
+
+    Parameters
+    ----------
+    project : Project
+    holes : core.io.blastholes.Blastholes
+    geozones : list of str, optional
+        Geozones the command models (default: all in the input).
+    command : str
+        How the warnings name the command.
+    uses_parameters : bool
+        The command applies the project's parameters (the viewer does).
+    """
+    import numpy as np
+
+    from core.errors import BGMWarning
+
+    extent = float(holes.frame.length_to_input(np.ptp(holes.xy, axis=0).max())) if len(holes.xy) else 0.0
+    uppers = [holes.bench_z_input(k) for k in range(holes.n_benches - 1)]
+    modelled = set(geozones if geozones is not None else holes.geozones)
+    for i, o in enumerate(project.overrides):
+        where = f"project override {i} ({quoted(o.geozone)} at {o.source_z:g}, source {o.source})"
+        if o.translation is not None and max(abs(o.translation[0]), abs(o.translation[1])) > max(extent, 1.0):
+            raise BGMInputError(
+                f"{where} moves its component by ({o.translation[0]:.6g}, {o.translation[1]:.6g}), more than "
+                f"the whole input spans ({extent:.6g} {holes.frame.length_unit}); fix or remove it"
+            )
+        reason = None
+        if o.geozone not in holes.geozones:
+            reason = f"geozone {quoted(o.geozone)} is not in the input"
+        elif o.geozone not in modelled:
+            reason = f"{command} does not model geozone {quoted(o.geozone)}"
+        elif not any(_same_z(o.source_z, z) for z in uppers):
+            reason = f"no bench pair has its upper bench at {o.source_z:g} (upper benches: {listing(uppers, 8)})"
+        if reason:
+            warnings.warn(f"{where} is not used: {reason}", BGMWarning, stacklevel=2)
+    settings = sorted(k for k in project.parameters if k != "viewer")
+    if settings and not uses_parameters:
+        warnings.warn(
+            f"project parameters {listing(settings, 8)} are viewer settings; {command} does not use them",
+            BGMWarning,
+            stacklevel=2,
+        )
 
 
 def _is_number(x) -> bool:

@@ -8,8 +8,14 @@ paper's precision/recall evaluation against three references, and a
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
+import re
+import signal
+import threading
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,10 +24,10 @@ import numpy as np
 import pandas as pd
 import shapely
 
-from core.errors import BGMInputError
+from core.errors import BGMInputError, listing, quoted
 from core.extraction.contours import Contour
 from core.geometry.grid import as_multipolygon
-from core.io.atomic import atomic_write_text
+from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
 from core.io.reporting import containment_summary, contour_feature, to_input_geometry
 from core.model.pipeline import (
@@ -38,6 +44,19 @@ from core.model.prediction import predict_geozone, region_between
 PREDICTION_FRACTIONS = tuple(k / 8 for k in range(1, 9))
 #: Iso-contours per bench interval used to build surfaces.
 SURFACE_STEPS_PER_BENCH = 4
+#: What ``bgm build`` writes at the top of its folder (besides one folder per geozone).
+TOP_LEVEL_FILES = (
+    "contours.geojson",
+    "evaluation.csv",
+    "evaluation_rows.csv",
+    "precision_recall.png",
+    "report.md",
+    "summary.json",
+)
+#: Longest geozone folder name (characters), before its distinguishing suffix.
+MAX_FOLDER_CHARS = 48
+#: Folder names Windows reserves whatever the extension.
+_RESERVED = re.compile(r"(con|prn|aux|nul|com\d|lpt\d)(\..*)?", re.IGNORECASE)
 
 
 def truth_sidecar(path: Path) -> Path:
@@ -144,6 +163,9 @@ class GeozoneSummary:
     files: dict = field(default_factory=dict)
     seconds: float = 0.0
     note: str = ""
+    folder: str = ""  #: where its files are, under the build folder (see :func:`geozone_folders`)
+    #: Per surface format: ``watertight`` as written (STL read back), and the STL's local-frame ``offset``.
+    formats: dict = field(default_factory=dict)
 
 
 def build(
@@ -169,25 +191,42 @@ def build(
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
-    from core.io.export import DEFAULT_FORMATS, write_geojson
+    from core.io.export import DEFAULT_FORMATS
+
+    params = (params or ModelParameters()).validate()
+    out_dir = check_output(out_dir, [holes.source], folder=True)
+    check_model_folder(out_dir)
+    wanted = holes.check_geozones(geozones)
+    with replaced_folder(out_dir) as staging:
+        ctx = BuildContext(
+            holes,
+            [],
+            params,
+            project,
+            truth,
+            staging,
+            tuple(formats or DEFAULT_FORMATS),
+            evaluate,
+            geozone_folders(wanted),
+        )
+        return _build_into(ctx, wanted, progress, workers, scheduler)
+
+
+def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, scheduler) -> dict:
+    """Everything :func:`build` writes, into ``ctx.out_dir`` (its staging folder)."""
+    from core.io.export import FORMAT_NOTES, json_default, write_geojson
     from core.model.evaluation import plot_precision_recall, summary_table
 
-    params = params or ModelParameters()
-    formats = formats or DEFAULT_FORMATS
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    wanted = holes.check_geozones(geozones)
-    unit = holes.frame.length_unit
+    holes, out_dir = ctx.holes, ctx.out_dir
     t0 = time.perf_counter()
-
-    contours = extract_all_benches(holes, params, workers, scheduler, progress)
-    write_geojson([contour_feature(c, holes) for c in contours if c.geozone in wanted], out_dir / "contours.geojson")
-    containment = containment_summary([c for c in contours if c.geozone in wanted], holes)
+    ctx.contours = extract_all_benches(holes, ctx.params, workers, scheduler, progress)
+    mine = [c for c in ctx.contours if c.geozone in wanted]
+    write_geojson([contour_feature(c, holes) for c in mine], out_dir / "contours.geojson")
+    containment = containment_summary(mine, holes)
     t_contours = time.perf_counter() - t0
 
     for k in range(holes.n_benches):
         holes.drilled_area(k)  # once, before the workers fork, so they all share it
-    ctx = BuildContext(holes, contours, params, project, truth, out_dir, tuple(formats), evaluate)
     summaries: list[GeozoneSummary] = []
     evaluations = []
     for done, (summary, rows) in enumerate(_map_geozones(ctx, wanted, workers, scheduler), start=1):
@@ -195,12 +234,13 @@ def build(
         if rows is not None and len(rows):
             evaluations.append(rows)
         if progress:
-            progress(f"geozone {summary.geozone}", done, len(wanted))
+            progress(f"geozone {summary.geozone[:40]}", done, len(wanted))
     summaries.sort(key=lambda s: wanted.index(s.geozone))
+    evaluations.sort(key=lambda rows: wanted.index(rows["geozone"].iloc[0]))  # the same file whatever finished first
     table = None
     if evaluations:
         results = pd.concat(evaluations, ignore_index=True)
-        results.to_csv(out_dir / "evaluation_rows.csv", index=False)
+        _write_csv(results, out_dir / "evaluation_rows.csv")
         table = summary_table(results)
         _write_csv(table, out_dir / "evaluation.csv")
         plot_precision_recall(table, out_dir / "precision_recall.png", title=f"{holes.source}: all geozones")
@@ -209,18 +249,113 @@ def build(
         "input": holes.source,
         "holes": int(len(holes.xy)),
         "benches": [holes.bench_z_input(k) for k in range(holes.n_benches)],
-        "units": unit,
+        "units": holes.frame.length_unit,
         "hole_spacing": float(holes.frame.length_to_input(holes.hole_spacing_m)),
-        "truth": "synthetic generator" if truth is not None else "next bench's holes",
+        "truth": "synthetic generator" if ctx.truth is not None else "next bench's holes",
         "contours_seconds": round(t_contours, 2),
         "seconds": round(time.perf_counter() - t0, 2),
         "containment": containment,
         "geozones": [s.__dict__ for s in summaries],
         "evaluation": None if table is None else table.round(4).to_dict(orient="records"),
+        "formats": {f: FORMAT_NOTES[f] for f in ctx.formats},
     }
-    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=1, default=_json_default))
+    text = json.dumps(_finite(summary), indent=1, default=json_default, allow_nan=False)
+    atomic_write_text(out_dir / "summary.json", text)
     atomic_write_text(out_dir / "report.md", report_markdown(summary, table))
     return summary
+
+
+def check_model_folder(out_dir: Path) -> None:
+    """Refuse an output folder that holds anything ``bgm build`` did not write.
+
+    The build replaces its folder whole; a folder that is new, empty, or a
+    previous model (with nothing added) can be replaced without loss.
+    """
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return
+    entries = sorted(e.name for e in out_dir.iterdir())
+    if not entries:
+        return
+    known = _model_entries(out_dir)
+    if known is None:
+        raise BGMInputError(
+            f"{str(out_dir)!r} is a folder holding other files ({listing(map(quoted, entries), 3)}), not a BGM "
+            "model; the build replaces its output folder whole, so give a new or empty folder"
+        )
+    foreign = [e for e in entries if e not in known]
+    if foreign:
+        raise BGMInputError(
+            f"{str(out_dir)!r} holds {listing(map(quoted, foreign), 3)}, which bgm build did not write; the "
+            "build replaces the folder whole, so move that out or choose another folder"
+        )
+
+
+def _model_entries(out_dir: Path) -> set[str] | None:
+    """Names a previous build wrote at the top of ``out_dir`` (None if it is not a BGM model)."""
+    try:
+        summary = json.loads((out_dir / "summary.json").read_text(encoding="utf-8"))
+        geozones = summary["geozones"]
+        summary["input"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    known = set(TOP_LEVEL_FILES)
+    for g in geozones if isinstance(geozones, list) else []:
+        if not isinstance(g, dict):
+            continue
+        if isinstance(g.get("folder"), str):
+            known.add(g["folder"])
+        for f in (g.get("files") or {}).values():
+            known.add(Path(str(f)).parts[0])
+        if isinstance(g.get("geozone"), str):  # builds before folders were recorded
+            known.add(_legacy_folder(g["geozone"]))
+    return known
+
+
+def geozone_folders(labels: list[str]) -> dict[str, str]:
+    """A safe, unique folder name for each geozone label.
+
+    Labels are free text (``..``, ``a/b``, 300 characters, ``CON``). A folder
+    name keeps letters, digits, ``-`` and ``_`` (and inner dots), at most
+    ``MAX_FOLDER_CHARS`` of them; a label changed on the way, or whose name
+    would collide with another's (``A`` and ``a`` on a case-insensitive disk)
+    or with a file of the build, gets the first 8 hex digits of its SHA-1, so
+    distinct labels never share a folder. ``summary.json`` and ``report.md``
+    map the folders back to the labels.
+    """
+    bases = {g: _folder_base(g) for g in labels}
+    clean = Counter(g.casefold() for g, base in bases.items() if base == g)
+    taken = {f.casefold() for f in TOP_LEVEL_FILES}
+    folders = {}
+    for g, base in bases.items():
+        kept = base == g and clean[g.casefold()] == 1 and g.casefold() not in taken and not _RESERVED.fullmatch(g)
+        folders[g] = base if kept else f"{base}-{hashlib.sha1(g.encode()).hexdigest()[:8]}"
+    if len({f.casefold() for f in folders.values()}) < len(folders):  # 8 hex digits clashed: use them all
+        folders = {g: f"{bases[g]}-{hashlib.sha1(g.encode()).hexdigest()}" for g in labels}
+    return folders
+
+
+def _folder_base(label: str) -> str:
+    name = "".join(ch if (ch.isascii() and ch.isalnum()) or ch in "-_." else "_" for ch in label)
+    name = name[:MAX_FOLDER_CHARS].strip(".") or "geozone"  # no "..", no hidden folders, no trailing dot
+    return name
+
+
+def _legacy_folder(name: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in name) or "geozone"
+
+
+def _finite(obj):
+    """``obj`` with every non-finite float replaced by None (JSON has no NaN)."""
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
+    if isinstance(obj, np.floating):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
 
 
 @dataclass
@@ -235,12 +370,17 @@ class BuildContext:
     out_dir: Path
     formats: tuple
     evaluate: bool
+    folders: dict = field(default_factory=dict)  #: geozone label -> its folder (see :func:`geozone_folders`)
 
 
 _WORKER_CONTEXT: BuildContext | None = None  # set once per worker process by _init_worker
 
 
 def _init_worker(ctx: BuildContext) -> None:
+    # Ctrl-C reaches every process of the terminal's group: the parent alone
+    # handles it (one line, exit 130) and stops the workers.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     global _WORKER_CONTEXT
     _WORKER_CONTEXT = ctx
 
@@ -253,7 +393,11 @@ def _map_geozones(ctx: BuildContext, geozones: list[str], workers: int | None, s
 
 
 def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | None):
-    """``func(ctx, item)`` for every item: serially, on local processes, or on a dask cluster."""
+    """``func(ctx, item)`` for every item: serially, on local processes, or on a dask cluster.
+
+    Local workers ignore Ctrl-C; when the caller stops early (an error, an
+    interrupt) they are terminated rather than left to finish their jobs.
+    """
     import multiprocessing
     import os
     from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -266,15 +410,47 @@ def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | 
         for item in items:
             yield func(ctx, item)
         return
-    with ProcessPoolExecutor(
+    pool = ProcessPoolExecutor(
         max_workers=min(workers, len(items)),
         mp_context=multiprocessing.get_context("fork"),
         initializer=_init_worker,
         initargs=(ctx,),
-    ) as pool:
-        futures = [pool.submit(_call_in_worker, func, item) for item in items]
+    )
+    try:
+        # Workers are forked on the first submit: with SIGINT blocked they are
+        # born ignoring it, and a Ctrl-C meanwhile reaches the parent just after.
+        with _sigint_blocked():
+            futures = [pool.submit(_call_in_worker, func, item) for item in items]
         for fut in as_completed(futures):
             yield fut.result()
+    except BaseException:
+        _stop_workers(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _sigint_blocked():
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _stop_workers(pool) -> None:
+    """Terminate a process pool's workers now (``ProcessPoolExecutor.terminate_workers`` from Python 3.14)."""
+    stop = getattr(pool, "terminate_workers", None)
+    if stop is not None:
+        stop()
+        return
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        with contextlib.suppress(Exception):
+            process.terminate()
 
 
 def _dask_map(func, ctx, items: list, scheduler: str):
@@ -284,8 +460,10 @@ def _dask_map(func, ctx, items: list, scheduler: str):
         raise BGMInputError("--scheduler needs dask.distributed: pip install -e '.[dask]'") from None
     try:
         client = Client(scheduler, timeout="10s")
-    except (OSError, TimeoutError) as exc:
-        raise BGMInputError(f"cannot reach the dask scheduler at {scheduler}: {exc}") from None
+    except Exception as exc:  # a bad address raises ValueError, TypeError, OSError... all the user's to fix
+        raise BGMInputError(
+            f"cannot reach the dask scheduler at {quoted(scheduler)}: {' '.join(str(exc).split())[:200]}"
+        ) from None
     try:
         shared = client.scatter(ctx, broadcast=True)
         futures = [client.submit(func, shared, item, pure=False) for item in items]
@@ -321,16 +499,15 @@ def _extract_one_bench(ctx, k: int):
 
 def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFrame | None]:
     """Everything ``bgm build`` writes for one geozone, under ``out_dir/<geozone>/``."""
-    from core.io.export import export_all, write_geojson
+    from core.io.export import write_geojson
     from core.model.evaluation import evaluate_geozone
-    from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
 
     holes, params, out_dir = ctx.holes, ctx.params, ctx.out_dir
-    mpu = holes.frame.metres_per_unit
     tg = time.perf_counter()
     model = model_geozone(holes, g, contours=ctx.contours, params=params, project=ctx.project)
-    gdir = out_dir / _safe(g)
+    gdir = out_dir / (ctx.folders.get(g) or geozone_folders([g])[g])
     gdir.mkdir(exist_ok=True)
+    folder = gdir.name
     atomic_write_text(gdir / "correspondence.json", json.dumps(correspondence_json(model, holes), indent=1))
     atomic_write_text(gdir / "morph.json", json.dumps(morph_json(model, holes)))
     cov = [pair_coverage(p) for p in model.pairs if p.morphs]
@@ -345,10 +522,15 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         volume=None,
         area=None,
         watertight=None,
+        folder=folder,
     )
     rows = None
     if not model.pairs:
-        summary.note = "on one bench only: no bench pair to model"
+        benches = len(set(holes.bench[holes.geozone == g].tolist()))
+        summary.note = (
+            f"on {'one bench' if benches == 1 else f'{benches} benches'}, never in a component of "
+            f"{params.min_component_holes} or more holes: no bench pair to model"
+        )
         summary.seconds = time.perf_counter() - tg
         return summary, rows
     deepest = model.pairs[-1]
@@ -364,23 +546,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         if not region.is_empty
     ]
     write_geojson(features, gdir / "prediction.geojson")
-    try:
-        # Half a hole spacing resolves all the data can tell; finer only adds faces.
-        mesh = surface_from_sections(
-            surface_sections(model, holes, params), cell_size_m=surface_cell_size(model, holes)
-        )
-        info = mesh_summary(mesh)
-        exported = export_all(
-            to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu), gdir, "surface", ctx.formats
-        )
-        summary.volume = info["volume_m3"] / mpu**3
-        summary.area = info["area_m2"] / mpu**2
-        summary.watertight = bool(info["watertight"])
-        summary.files = {k: str(Path(v).relative_to(out_dir)) for k, v in exported.items()}
-    except (BGMInputError, RuntimeError) as exc:
-        # e.g. every section empty, or a mesh that would not close even after repair: the
-        # geozone's other outputs stand, and the report says why it has no surface.
-        summary.note = f"no surface: {exc}"
+    _write_surface(summary, model, ctx, gdir)
     if ctx.evaluate and holes.n_benches >= 3:
         rows = evaluate_geozone(
             holes, g, predictor_from_model(model, holes, params), truth=ctx.truth, contours=ctx.contours
@@ -391,20 +557,53 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     return summary, rows
 
 
-def _safe(name: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in name) or "geozone"
+def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildContext, gdir: Path) -> None:
+    """The geozone's closed surface in every format; its figures (or why there is none) go into ``summary``."""
+    from core.io.export import export_all
+    from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
+
+    holes, mpu = ctx.holes, ctx.holes.frame.metres_per_unit
+    try:
+        # Half a hole spacing resolves all the data can tell; finer only adds faces.
+        mesh = surface_from_sections(
+            surface_sections(model, holes, ctx.params), cell_size_m=surface_cell_size(model, holes)
+        )
+        info = mesh_summary(mesh)
+        surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
+        exported = export_all(surface, gdir, "surface", ctx.formats)
+        summary.volume = info["volume_m3"] / mpu**3
+        summary.area = info["area_m2"] / mpu**2
+        summary.watertight = bool(info["watertight"])
+        summary.files = {k: str(Path(v).relative_to(ctx.out_dir)) for k, v in exported.items()}
+        summary.formats = written_formats(exported, surface, summary.watertight)
+    except (BGMInputError, RuntimeError) as exc:
+        # e.g. every section empty, or a mesh that would not close even after repair: the
+        # geozone's other outputs stand, and the report says why it has no surface.
+        summary.note = f"no surface: {exc}"
+
+
+def written_formats(exported: dict, surface, watertight: bool) -> dict:
+    """What each surface file holds: closed as written, and for STL the offset of its local frame.
+
+    The float64 formats hold the mesh exactly, so they are as closed as it is;
+    the STL is read back (its float32 vertices merged as every reader merges
+    them) and checked.
+    """
+    import trimesh
+
+    from core.io.export import stl_offset
+
+    formats: dict[str, dict] = {}
+    for fmt, path in exported.items():
+        formats[fmt] = {"watertight": watertight}
+        if fmt == "stl":
+            formats[fmt]["watertight"] = bool(trimesh.load(path, force="mesh").is_watertight)  # type: ignore[attr-defined]  # a Trimesh with force="mesh"
+            formats[fmt]["offset"] = [float(v) for v in stl_offset(surface.vertices)]
+    return formats
 
 
 def _write_csv(df: pd.DataFrame, path: Path) -> None:
     atomic_write_text(path, df.to_csv(index=False))
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, float) and not np.isfinite(o):
-        return None
-    return str(o)
 
 
 def report_markdown(summary: dict, table: pd.DataFrame | None) -> str:
@@ -429,21 +628,7 @@ def report_markdown(summary: dict, table: pd.DataFrame | None) -> str:
             f"({c['contours_with_at_most_5pct_other']:.0%} of contours at most 5%).",
             "",
         ]
-    lines += [
-        "## Geozones",
-        "",
-        f"| geozone | components | bench pairs | coverage before / after backtracking | volume ({unit}³) | area ({unit}²) | watertight | time (s) | note |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    for g in summary["geozones"]:
-        vol = "" if g["volume"] is None else f"{g['volume']:.4g}"
-        area = "" if g["area"] is None else f"{g['area']:.4g}"
-        cov = f"{_pct(g['coverage_before'])} / {_pct(g['coverage_after'])}"
-        lines.append(
-            f"| {g['geozone']} | {g['components']} | {g['bench_pairs']} | {cov} | {vol} | {area} | "
-            f"{'' if g['watertight'] is None else g['watertight']} | {g['seconds']:.1f} | {g['note']} |"
-        )
-    lines += ["", "Surfaces: `<geozone>/surface.{obj,ply,stl,vtp,dxf}`; trajectories: `<geozone>/morph.json`.", ""]
+    lines += _geozone_table(summary) + _surfaces_section(summary)
     if table is not None:
         lines += [
             "## Predictive value",
@@ -458,6 +643,55 @@ def report_markdown(summary: dict, table: pd.DataFrame | None) -> str:
             "",
         ]
     return "\n".join(lines)
+
+
+def _geozone_table(summary: dict) -> list[str]:
+    """The geozones section of ``report.md``: one row per geozone, with the folder holding its files."""
+    unit = summary["units"]
+    lines = [
+        "## Geozones",
+        "",
+        f"| geozone | components | bench pairs | coverage before / after backtracking | volume ({unit}³) | area ({unit}²) "
+        "| watertight | time (s) | note | folder |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for g in summary["geozones"]:
+        vol = "" if g["volume"] is None else f"{g['volume']:.4g}"
+        area = "" if g["area"] is None else f"{g['area']:.4g}"
+        cov = f"{_pct(g['coverage_before'])} / {_pct(g['coverage_after'])}"
+        open_in = [f for f, w in g.get("formats", {}).items() if w["watertight"] != g["watertight"]]
+        closed = "" if g["watertight"] is None else str(g["watertight"])
+        if open_in:
+            closed += f" ({', '.join(open_in)}: {not g['watertight']})"
+        lines.append(
+            f"| {_cell(g['geozone'])} | {g['components']} | {g['bench_pairs']} | {cov} | {vol} | {area} | "
+            f"{closed} | {g['seconds']:.1f} | {_cell(g['note'], 200)} | `{g.get('folder', '')}` |"
+        )
+    return lines
+
+
+def _surfaces_section(summary: dict) -> list[str]:
+    """Where the surfaces are and what each format holds, STL's local frame included."""
+    formats = summary.get("formats", {})
+    lines = [
+        "",
+        f"Surfaces: `<folder>/surface.{{{','.join(formats)}}}`; trajectories: `<folder>/morph.json`. "
+        "Watertight: as written to every format.",
+        "",
+    ]
+    lines += [f"- {fmt}: {note}" for fmt, note in formats.items()]
+    offsets = {tuple(g["formats"]["stl"]["offset"]) for g in summary["geozones"] if "stl" in g.get("formats", {})} - {
+        (0.0, 0.0, 0.0)
+    }
+    for offset in sorted(offsets):
+        lines.append(f"  STL offset: add ({', '.join(f'{v:.0f}' for v in offset)}) {summary['units']} to x, y, z.")
+    return [*lines, ""]
+
+
+def _cell(text, limit: int = 60) -> str:
+    """User text in a markdown table cell: one line, no column breaks, shortened."""
+    text = " ".join(str(text).split()).replace("|", "\\|")
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _pct(v) -> str:

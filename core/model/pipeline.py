@@ -16,6 +16,7 @@ import shapely
 from shapely import affinity
 
 from core.correspondence.pair import MorphInstance, PairCorrespondence, correspond_pair
+from core.errors import Range, check_ranges
 from core.extraction.contours import Contour, ExtractionParameters, extract_contours
 from core.io.blastholes import Blastholes
 from core.model.extrapolation import BenchFields, bench_fields
@@ -40,6 +41,23 @@ class ModelParameters:
     #: spacings (and never further than the drilled patch is wide); see
     #: :mod:`core.model.extrapolation`.
     frontier_reach_spacings: float = 10.0
+
+    def validate(self) -> ModelParameters:
+        """Raise :class:`core.errors.BGMInputError` naming the first parameter out of range; returns self."""
+        self.extraction.validate()
+        check_ranges(self, MODEL_RANGES)
+        return self
+
+
+#: Valid values of each :class:`ModelParameters` field.
+MODEL_RANGES = {
+    "mu_lower_m": Range(0, low_open=True, optional=True),
+    "correspondence_cell_size_m": Range(0, low_open=True, optional=True),
+    "morph_max_cells": Range(16, 4096, integer=True),
+    "min_component_holes": Range(1, integer=True),
+    "speed_clamp_m": Range(0, low_open=True, optional=True),
+    "frontier_reach_spacings": Range(0),
+}
 
 
 @dataclass

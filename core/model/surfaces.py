@@ -177,6 +177,11 @@ def _closed_mesh(vol: np.ndarray, grid: Grid, z_levels: np.ndarray) -> trimesh.T
 
 def _mesh_from_volume(vol: np.ndarray, grid: Grid, cell_size_m: float, z_levels: np.ndarray) -> trimesh.Trimesh:
     """Marching cubes of the padded (slice, row, col) volume, in local metres, outward-oriented."""
+    # A value (almost) exactly 0 at a node puts the vertices of every edge
+    # through it a hair apart: a float32 export (STL) then merges them and the
+    # mesh no longer closes. Kept a thousandth of a cell away from 0.
+    eps = 1e-3 * cell_size_m
+    vol = np.where(np.abs(vol) < eps, np.where(vol < 0, -eps, eps), vol)
     verts, faces, _normals, _values = measure.marching_cubes(vol, level=0.0, allow_degenerate=False)
     verts = verts.astype(np.float64)
 

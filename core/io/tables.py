@@ -1,0 +1,277 @@
+"""Reading one table file: CSV or Parquet, compressed or not, from a path or standard input.
+
+What a file holds is decided from its content, not its name: a Parquet file
+named ``.csv`` is read as Parquet, a gzip, bz2, xz or single-file zip archive
+is decompressed on the fly, and ``-`` (or ``/dev/stdin``, a named pipe) is read
+from the stream. CSV delimiters (comma, semicolon, tab, pipe) are found from
+the header line; comment lines before the header (``#``, ``//``, ``%``) are
+skipped. Only the columns a caller asks for are parsed, so a header of 100,000
+columns costs no more than the bytes it takes.
+
+Every file that cannot be read raises :class:`core.errors.BGMInputError` with
+one sentence naming the cause (Excel workbooks, UTF-16 text, binary junk...).
+"""
+
+from __future__ import annotations
+
+import bz2
+import csv
+import gzip
+import io
+import lzma
+import re
+import sys
+import warnings
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import pandas as pd
+
+from core.errors import BGMInputError, BGMWarning
+
+#: First bytes of the formats recognised by content.
+MAGIC = {
+    b"PAR1": "parquet",
+    b"\x1f\x8b": "gzip",
+    b"BZh": "bz2",
+    b"\xfd7zXZ\x00": "xz",
+    b"(\xb5/\xfd": "zstd",
+    b"PK\x03\x04": "zip",
+    b"\xd0\xcf\x11\xe0": "xls",
+}
+#: Lines before the header starting with one of these are comments.
+COMMENT_PREFIXES = ("#", "//", "%")
+DELIMITERS = ",;\t|"
+#: Bytes inspected to tell text from binary.
+HEAD_BYTES = 64 * 1024
+STDIN_NAMES = ("-",)
+
+#: Chooses the columns to parse from the header names: returns their indices (None = all).
+ColumnChooser = Callable[[list[str]], list[int] | None]
+
+
+def read_table(path: str | Path, choose: ColumnChooser | None = None) -> pd.DataFrame:
+    """Read a CSV or Parquet table into a DataFrame (CSV values as strings).
+
+    Parameters
+    ----------
+    path : path-like
+        A file, ``-`` for standard input, or a pipe or device to read to its end.
+    choose : callable, optional
+        ``choose(header) -> indices`` of the columns to parse; all when omitted.
+
+    Returns
+    -------
+    DataFrame
+        ``attrs["first_data_line"]`` is the file line of the first row (1-based),
+        so messages can point at lines as an editor shows them.
+    """
+    name, data = _content(path)
+    kind = _kind(name, data)
+    if kind == "parquet":
+        return _read_parquet(name, data, choose)
+    opener = _opener(name, data, kind)
+    with opener() as fh:
+        head = fh.read(8)
+    if head.startswith(b"PAR1"):  # a compressed Parquet file
+        with opener() as fh:
+            return _read_parquet(name, fh.read(), choose)
+    return _read_csv(name, opener, choose)
+
+
+def display_name(path: str | Path) -> str:
+    """How messages name an input (standard input for ``-``)."""
+    return "standard input" if str(path) in STDIN_NAMES else repr(str(path))
+
+
+# --------------------------------------------------------------------------- what the file is
+
+
+def _content(path: str | Path) -> tuple[str, Path | bytes]:
+    """The input's display name and either its path (regular files) or all its bytes (streams)."""
+    name = display_name(path)
+    if str(path) in STDIN_NAMES:
+        if sys.stdin is None or sys.stdin.isatty():
+            raise BGMInputError("no table on standard input: pipe one in, e.g. bgm contours - < holes.csv")
+        data = sys.stdin.buffer.read()
+        if not data:
+            raise BGMInputError("standard input is empty: nothing was piped in")
+        return name, data
+    path = Path(path)
+    if not path.exists():
+        raise BGMInputError(f"input file {name} does not exist")
+    if path.is_dir():
+        raise BGMInputError(f"input {name} is a directory, not a CSV or Parquet file")
+    try:
+        if path.is_file():
+            if path.stat().st_size == 0:
+                raise BGMInputError(f"input file {name} is empty")
+            return name, path
+        with open(path, "rb") as fh:  # a pipe or device: read it to its end once
+            data = fh.read()
+    except OSError as exc:
+        raise BGMInputError(f"cannot read {name}: {exc.strerror or exc}") from None
+    if not data:
+        raise BGMInputError(f"input {name} is empty")
+    return name, data
+
+
+def _head(data: Path | bytes, n: int = 8) -> bytes:
+    if isinstance(data, bytes):
+        return data[:n]
+    try:
+        with open(data, "rb") as fh:
+            return fh.read(n)
+    except OSError as exc:
+        raise BGMInputError(f"cannot read {str(data)!r}: {exc.strerror or exc}") from None
+
+
+def _kind(name: str, data: Path | bytes) -> str:
+    """``parquet``, ``csv`` or a compression; refuses spreadsheets and unsupported archives."""
+    head = _head(data)
+    kind = next((k for magic, k in MAGIC.items() if head.startswith(magic)), "csv")
+    if kind == "xls":
+        raise BGMInputError(f"cannot read {name}: it is an Excel workbook; save the sheet as CSV")
+    if kind == "zip":
+        with zipfile.ZipFile(data if isinstance(data, Path) else io.BytesIO(data)) as z:
+            members = [m for m in z.namelist() if not m.endswith("/") and not m.startswith("__MACOSX")]
+        if any(m.startswith("xl/") for m in members):
+            raise BGMInputError(f"cannot read {name}: it is an Excel workbook; save the sheet as CSV")
+        if len(members) != 1:
+            raise BGMInputError(
+                f"cannot read {name}: a zip archive must hold exactly one table, it holds {len(members)}"
+            )
+    if kind == "zstd":
+        try:
+            import zstandard  # noqa: F401
+        except ImportError:
+            raise BGMInputError(
+                f"cannot read {name}: it is zstd-compressed; decompress it first (or pip install zstandard)"
+            ) from None
+    suffix = data.suffix.lower() if isinstance(data, Path) else ""
+    if kind == "csv" and suffix in (".parquet", ".pq"):
+        warnings.warn(f"{name} is named {suffix} but is not Parquet; reading it as CSV text", BGMWarning, stacklevel=4)
+    return kind
+
+
+def _opener(name: str, data: Path | bytes, kind: str) -> Callable[[], io.BufferedIOBase]:
+    """A function returning a fresh binary stream of the (decompressed) content."""
+
+    def raw():
+        return open(data, "rb") if isinstance(data, Path) else io.BytesIO(data)
+
+    if kind == "csv":
+        return raw
+    if kind == "zip":
+
+        def unzip():
+            z = zipfile.ZipFile(raw())
+            member = next(m for m in z.namelist() if not m.endswith("/") and not m.startswith("__MACOSX"))
+            return z.open(member)
+
+        return unzip
+    if kind == "zstd":
+        import zstandard
+
+        return lambda: zstandard.ZstdDecompressor().stream_reader(raw(), closefd=True)
+    module = {"gzip": gzip, "bz2": bz2, "xz": lzma}[kind]
+    return lambda: module.open(raw())
+
+
+# --------------------------------------------------------------------------- Parquet
+
+
+def _read_parquet(name: str, data: Path | bytes, choose: ColumnChooser | None) -> pd.DataFrame:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    source = data if isinstance(data, Path) else pa.BufferReader(data)
+    try:
+        names = [str(n) for n in pq.read_schema(source).names]
+        wanted = choose(names) if choose else None
+        table = pq.read_table(source, columns=None if wanted is None else [names[i] for i in wanted])
+        frame = table.to_pandas()
+    except BGMInputError:
+        raise
+    except Exception as exc:  # pyarrow raises many types for damaged files
+        raise BGMInputError(f"cannot read {name} as Parquet: {_one_line(exc)}") from None
+    frame.attrs["first_data_line"] = 2
+    return frame
+
+
+# --------------------------------------------------------------------------- CSV
+
+
+def _read_csv(name: str, opener, choose: ColumnChooser | None) -> pd.DataFrame:
+    with opener() as fh:
+        head = _decompressed(name, fh.read, HEAD_BYTES)
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise BGMInputError(f"cannot read {name}: it is UTF-16 text, not UTF-8; save it as UTF-8 CSV")
+    if b"\x00" in head:
+        raise BGMInputError(f"cannot read {name}: it looks binary; BGM reads CSV and Parquet (.parquet) tables")
+    skip, header_line = _header_line(name, opener)
+    sep = max(DELIMITERS, key=header_line.count) if any(d in header_line for d in DELIMITERS) else ","
+    try:
+        header = next(csv.reader([header_line.rstrip("\r\n")], delimiter=sep))
+    except csv.Error as exc:
+        raise BGMInputError(f"cannot read the header of {name}: {_one_line(exc)}") from None
+    wanted = choose(header) if choose else None
+    try:
+        with opener() as fh:
+            frame = pd.read_csv(
+                fh,
+                sep=sep,
+                dtype=str,
+                keep_default_na=False,
+                encoding="utf-8-sig",
+                skiprows=skip,
+                usecols=None if wanted is None else sorted(wanted),
+                index_col=False,
+            )
+    except UnicodeDecodeError:
+        raise BGMInputError(f"cannot read {name}: it is not UTF-8 text; BGM reads CSV and Parquet tables") from None
+    except Exception as exc:  # pandas raises many types for unreadable files
+        raise BGMInputError(f"cannot read {name} as CSV: {_parser_message(exc, skip)}") from None
+    frame.columns = [header[i] for i in sorted(wanted)] if wanted is not None else header[: frame.shape[1]]
+    frame.attrs["first_data_line"] = skip + 2
+    frame.attrs["delimiter"] = sep
+    return frame
+
+
+def _decompressed(name: str, read, n: int) -> bytes:
+    try:
+        return read(n)
+    except (OSError, EOFError, lzma.LZMAError, zipfile.BadZipFile) as exc:
+        raise BGMInputError(f"cannot read {name}: the compressed data is damaged ({_one_line(exc)})") from None
+
+
+def _header_line(name: str, opener) -> tuple[int, str]:
+    """Number of comment or blank lines before the header, and the header line."""
+    try:
+        with opener() as fh:
+            text = io.TextIOWrapper(fh, encoding="utf-8-sig", errors="strict", newline="")
+            for skip, line in enumerate(text):
+                if line.strip() and not line.lstrip().startswith(COMMENT_PREFIXES):
+                    return skip, line
+    except UnicodeDecodeError:
+        raise BGMInputError(f"cannot read {name}: it is not UTF-8 text; BGM reads CSV and Parquet tables") from None
+    except (OSError, EOFError, lzma.LZMAError) as exc:
+        raise BGMInputError(f"cannot read {name}: the compressed data is damaged ({_one_line(exc)})") from None
+    raise BGMInputError(f"cannot read {name}: it holds no table, only blank or comment lines")
+
+
+_FIELDS = re.compile(r"Expected (\d+) fields in line (\d+), saw (\d+)")
+
+
+def _parser_message(exc: Exception, skip: int) -> str:
+    found = _FIELDS.search(str(exc))
+    if found:
+        expected, line, saw = found.groups()
+        return f"line {int(line) + skip} has {saw} fields where the header has {expected}"
+    return _one_line(exc)
+
+
+def _one_line(exc) -> str:
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 200 else text[:200] + "..."

@@ -1,0 +1,779 @@
+"""Hostile and careless input, class by class (issue 15), on generated cases.
+
+Every class of failure the issue lists has at least two cases here, drawn
+from seeded random generators rather than picked by hand: hostile geozone
+labels, output paths that are inputs or devices, options that used to end as
+"internal error", labels spelling one number two ways, coordinates in degrees,
+uneven benches, elevations far outside the model, unused project overrides,
+out-of-range parameters, degenerate cameras and blank pictures, isolated holes
+and the frontier fill, STL precision, wide headers, decimal commas, comment
+lines, compressed and mis-named files, standard input, huge labels.
+
+Each case asserts the exit status, one ``bgm: error:`` line and no traceback
+(or a correct result, with the warning where one is due), and that no file
+that existed before changed. The command line runs in this process
+(tests/clirun.py) to keep the suite fast; the kill test is in
+test_robustness_kill.py.
+
+Class -> tests:
+
+* unsafe geozone folders, report/summary mapping: test_hostile_labels_get_safe_unique_folders
+* outputs that are inputs, devices, outside --out: test_outputs_never_replace_inputs_or_devices,
+  test_build_never_replaces_a_folder_it_did_not_write
+* every write atomic: test_no_module_writes_outside_the_atomic_helper, test_a_build_opens_files_only_through_atomic_writes
+* interrupted build keeps the previous model: test_interrupted_build_keeps_the_previous_model (and the kill test)
+* Ctrl-C: exit 130, one line, workers included: test_ctrl_c_on_a_parallel_build_is_one_line (and the kill test)
+* user errors that were exit 3: test_user_errors_exit_2_with_one_line
+* labels 3310 / 3310.0: test_number_spellings_of_one_label_are_merged_with_a_warning (and test_properties.py)
+* degrees: test_degrees_are_refused
+* uneven benches, z without benches: test_uneven_benches_are_taken_as_measured, test_z_that_forms_no_benches_is_refused
+* far elevations: test_far_elevations_need_force
+* unused overrides: test_unused_overrides_are_named
+* parameter ranges: test_out_of_range_parameters_are_refused
+* degenerate cameras, blank render: test_user_errors_exit_2_with_one_line, test_blank_pictures_are_errors
+* frontier fill from isolated holes: test_isolated_holes_grow_no_body
+* STL truth: test_hostile_labels_get_safe_unique_folders (STL read back), test_surfaces.py
+* wide headers: test_wide_headers_parse_only_the_needed_columns
+* decimal commas, comment lines, compressed/mis-named files, stdin, huge labels:
+  test_decimal_commas_read_as_numbers, test_comment_lines_before_the_header, test_compressed_and_misnamed_files,
+  test_standard_input, test_huge_labels_are_shortened_in_messages
+* "on one bench only" said of geozones on several benches: test_hostile_labels_get_safe_unique_folders
+"""
+
+from __future__ import annotations
+
+import ast
+import builtins
+import bz2
+import contextlib
+import gzip
+import hashlib
+import io
+import json
+import lzma
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import shapely
+import trimesh
+from clirun import BGM, bgm, error_line, no_traceback, snapshot, succeeds, unchanged, warnings_of
+
+from core.errors import BGMWarning
+from core.io.blastholes import blastholes_from_table, read_blastholes
+from core.synthetic.blobs import make_mine, sample_blastholes
+
+ROOT = Path(__file__).resolve().parent.parent
+ORIGIN = (650_000.0, 7_400_000.0)
+
+
+def rng_for(*key) -> np.random.Generator:
+    """A generator seeded by ``key`` (the same cases on every run and machine)."""
+    return np.random.default_rng(int(hashlib.sha1(repr(("issue-15", *key)).encode()).hexdigest()[:12], 16))
+
+
+@pytest.fixture(scope="module")
+def table() -> pd.DataFrame:
+    """A small 3-bench synthetic mine in mine-grid coordinates (about 250 holes, 4 geozones)."""
+    mine = make_mine(seed=11, n_benches=3, extent_m=(60.0, 45.0), origin=ORIGIN)
+    return sample_blastholes(mine, seed=12)
+
+
+@pytest.fixture
+def csv(table, tmp_path) -> Path:
+    path = tmp_path / "in" / "holes.csv"
+    path.parent.mkdir()
+    table.to_csv(path, index=False)
+    return path
+
+
+def quiet_read(path_or_table, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        if isinstance(path_or_table, pd.DataFrame):
+            return blastholes_from_table(path_or_table, **kw)
+        return read_blastholes(path_or_table, **kw)
+
+
+# --------------------------------------------------------------------------- data loss
+
+
+def hostile_labels(rng) -> list[str]:
+    """Four labels that break naive folder names: traversal, a separator and its look-alike, length or reserved names."""
+    word = "".join(rng.choice(list("abkxz"), 3))
+    traversal = str(rng.choice(["..", ".", f"../{word}", f"..\\{word}", f"/{word}"]))
+    tail = "".join(rng.choice(list("pqr"), 2))
+    big = str(rng.choice(["CON", "nul", "com1", "summary.json", "Report.MD", "x" * int(rng.integers(256, 400))]))
+    return [traversal, f"{word}/{tail}", f"{word}_{tail}", big]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hostile_labels_get_safe_unique_folders(table, tmp_path, seed):
+    labels = hostile_labels(rng_for("labels", seed))
+    mapping = dict(zip(sorted(set(table.geozone)), labels))
+    t = table.assign(geozone=table.geozone.map(mapping))
+    # A fifth geozone of lone holes on every bench: never a component to model.
+    lone = t.groupby((t.z - t.z.max()).round(-1)).head(1).index
+    t.loc[lone, "geozone"] = "lone"
+    path = tmp_path / "holes.csv"
+    t.to_csv(path, index=False)
+    out = tmp_path / "out" / "model"
+    out.parent.mkdir()
+    before = snapshot(tmp_path)
+    succeeds(bgm("build", path, "--out", out, "--workers", 2))
+    unchanged(before, snapshot(tmp_path), allow_new=[out])  # nothing outside --out
+    summary = json.loads((out / "summary.json").read_text())
+    by_label = {g["geozone"]: g for g in summary["geozones"]}
+    assert set(by_label) == {*labels, "lone"}
+    folders = [g["folder"] for g in by_label.values()]
+    assert len({f.casefold() for f in folders}) == len(folders)  # unique, even on a case-insensitive disk
+    report = (out / "report.md").read_text()
+    for label, g in by_label.items():
+        folder = out / g["folder"]
+        assert folder.parent == out and folder.is_dir() and g["folder"] not in (".", "..")
+        assert len(g["folder"]) <= 64 and "/" not in g["folder"] and "\\" not in g["folder"]
+        assert f"`{g['folder']}`" in report and label[:40].replace("|", "\\|") in report
+        if g["volume"] is None:
+            continue
+        # The report's volume is this folder's surface, not another geozone's.
+        ply = trimesh.load(out / g["files"]["ply"], force="mesh")
+        assert Path(g["files"]["ply"]).parts[0] == g["folder"]
+        assert ply.volume == pytest.approx(g["volume"], rel=1e-6)
+        # STL holds mine-grid coordinates only in a local frame, and is closed as written.
+        stl = trimesh.load(out / g["files"]["stl"], force="mesh")
+        assert stl.is_watertight == g["formats"]["stl"]["watertight"] == g["watertight"], (
+            label,
+            stl.is_watertight,
+            g["formats"]["stl"],
+            g["watertight"],
+        )
+        assert np.allclose(stl.bounds.mean(axis=0)[:2] + g["formats"]["stl"]["offset"][:2], ORIGIN, atol=500)
+    assert "on 3 benches" in by_label["lone"]["note"] and "one bench" not in by_label["lone"]["note"]
+
+
+def _link(kind: str, source: Path, where: Path) -> Path:
+    target = where / f"{kind}-{source.name}"
+    if kind == "same":
+        return source
+    if kind == "symlink":
+        target.symlink_to(source)
+    elif kind == "hardlink":
+        os.link(source, target)
+    elif kind == "device":
+        return Path(os.devnull)
+    elif kind == "folder":
+        target.mkdir()
+    return target
+
+
+OUTPUT_COMMANDS = {
+    "contours": lambda inp, out: ("contours", inp, "--out", out),
+    "correspond": lambda inp, out: ("correspond", inp, "--geozone", "g1", "--out", out),
+    "morph": lambda inp, out: ("morph", inp, "--geozone", "g1", "--out", out),
+    "predict": lambda inp, out: ("predict", inp, "--geozone", "g1", "--elevations", "660", "--out", out),
+    "screenshot": lambda inp, out: ("view", inp, "--screenshot", out),
+    "demo data": lambda inp, out: ("make-demo-data", "--out", out),
+}
+
+
+@pytest.mark.parametrize("command", list(OUTPUT_COMMANDS))
+@pytest.mark.parametrize("kind", ["same", "symlink", "hardlink", "device", "folder"])
+def test_outputs_never_replace_inputs_or_devices(csv, tmp_path, command, kind):
+    if command == "demo data" and kind in ("same", "symlink", "hardlink"):
+        pytest.skip("make-demo-data reads no input")
+    if command == "screenshot":
+        pytest.importorskip("pyvista")
+    out = _link(kind, csv, tmp_path)
+    before = snapshot(tmp_path, Path(os.devnull))
+    line = error_line(bgm(*OUTPUT_COMMANDS[command](csv, out)))
+    assert any(w in line for w in ("is the input", "device", "directory")), line
+    unchanged(before, snapshot(tmp_path, Path(os.devnull)))
+
+
+@pytest.mark.parametrize("case", ["input inside", "a file", "foreign files", "model plus a file"])
+def test_build_never_replaces_a_folder_it_did_not_write(csv, tmp_path, case):
+    if case == "input inside":
+        out = csv.parent
+    elif case == "a file":
+        out = tmp_path / "plain.txt"
+        out.write_text("keep me")
+    else:
+        out = tmp_path / "folder"
+        out.mkdir()
+        (out / "notes.txt").write_text(str(rng_for(case).random()))
+        if case == "model plus a file":
+            (out / "summary.json").write_text(json.dumps({"input": "x.csv", "geozones": []}))
+    before = snapshot(tmp_path)
+    error_line(bgm("build", csv, "--out", out))
+    unchanged(before, snapshot(tmp_path))
+
+
+ATOMIC_ALLOWED = {"atomic.py"}  # the helper itself
+WRITERS = {
+    "write_text",
+    "write_bytes",
+    "to_csv",
+    "to_parquet",
+    "to_json",
+    "to_excel",
+    "to_pickle",
+    "to_file",
+    "write_table",
+    "savefig",
+    "imsave",
+    "save",
+    "savez",
+    "savez_compressed",
+    "savetxt",
+    "screenshot",
+    "export",
+}
+
+
+def _unsafe_writes(path: Path) -> list[str]:
+    """Calls in ``path`` that write a file not given them by ``atomic_path``.
+
+    A write is safe when its target is a name bound by ``with atomic_path(...) as NAME`` (or a
+    writer's ``tmp`` parameter, which only ever receives one); ``to_csv(index=False)`` returning a
+    string and ``screenshot(None, ...)`` returning an image write nothing.
+    """
+    tree = ast.parse(path.read_text())
+    safe = {"tmp"} | {
+        item.optional_vars.id
+        for node in ast.walk(tree)
+        if isinstance(node, ast.With)
+        for item in node.items
+        if isinstance(item.context_expr, ast.Call)
+        and getattr(item.context_expr.func, "id", getattr(item.context_expr.func, "attr", "")) == "atomic_path"
+        and isinstance(item.optional_vars, ast.Name)
+    }
+    bad = []
+    for node in ast.walk(tree):
+        target = _write_target(node) if isinstance(node, ast.Call) else None
+        if target is None or (isinstance(target, ast.Constant) and target.value is None):
+            continue
+        if _root_name(target) not in safe:
+            bad.append(f"{path}:{node.lineno}: {ast.unparse(node)[:80]}")
+    return bad
+
+
+def _write_target(call: ast.Call):
+    """The path a call writes to, or None when it writes no file."""
+    func = call.func
+    if isinstance(func, ast.Name) and func.id == "open":
+        mode = call.args[1] if len(call.args) > 1 else next((k.value for k in call.keywords if k.arg == "mode"), None)
+        writes = isinstance(mode, ast.Constant) and any(c in str(mode.value) for c in "wax+")
+        return call.args[0] if writes else None
+    if not (isinstance(func, ast.Attribute) and func.attr in WRITERS):
+        return None
+    if func.attr in ("write_text", "write_bytes"):
+        return func.value
+    return call.args[0] if call.args else None
+
+
+def _root_name(expr) -> str | None:
+    """The variable an expression starts from: ``tmp`` in ``str(tmp)``, ``tmp.parent``, ``tmp[0]``."""
+    while isinstance(expr, (ast.Call, ast.Attribute, ast.Subscript)):
+        expr = expr.args[0] if isinstance(expr, ast.Call) and expr.args else getattr(expr, "value", None)
+    return expr.id if isinstance(expr, ast.Name) else None
+
+
+def test_no_module_writes_outside_the_atomic_helper(tmp_path):
+    sources = [p for d in ("core", "bgm_viewer") for p in (ROOT / d).rglob("*.py") if p.name not in ATOMIC_ALLOWED]
+    assert len(sources) > 30
+    bad = [b for p in sources for b in _unsafe_writes(p)]
+    assert not bad, "\n".join(bad)
+    # The scan finds direct writes (it is not a test that cannot fail).
+    probe = tmp_path / "probe.py"
+    probe.write_text(
+        "def f(df, fig, plotter, out):\n"
+        "    df.to_csv(out / 'a.csv')\n    out.write_text('x')\n    fig.savefig(str(out))\n"
+        "    plotter.screenshot(out)\n    open(out, 'w')\n"
+        "    with atomic_path(out) as t:\n        df.to_csv(t)\n        t.write_text('ok')\n"
+    )
+    assert len(_unsafe_writes(probe)) == 5
+
+
+def _recording_opens(monkeypatch) -> list[str]:
+    """Record every file opened for writing through Python (``open``, ``io.open``, ``Path.write_*``)."""
+    opened: list[str] = []
+    real_open = builtins.open
+
+    def recording_open(file, mode="r", *args, **kwargs):
+        if isinstance(file, (str, os.PathLike)) and any(c in mode for c in "wax+"):
+            opened.append(os.fspath(file))
+        return real_open(file, mode, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", recording_open)
+    monkeypatch.setattr(io, "open", recording_open)
+    return opened
+
+
+def test_a_build_opens_files_only_through_atomic_writes(table, tmp_path, monkeypatch):
+    holes = quiet_read(table, source=str(tmp_path / "x.csv"))
+    opened = _recording_opens(monkeypatch)
+    from core.model.build import build
+
+    build(holes, tmp_path / "model", workers=1)
+    monkeypatch.undo()
+    assert opened
+    staged = [p for p in opened if ".bgm-staging-" in p]
+    assert staged == opened  # everything went into the staging folder first
+    # ...and each file there through a temporary name next to its destination.
+    assert all(Path(p).name.startswith(".") for p in opened), [p for p in opened if not Path(p).name.startswith(".")]
+    assert not [p for p in tmp_path.iterdir() if ".bgm-" in p.name]  # staging swapped in and gone
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_interrupted_build_keeps_the_previous_model(table, tmp_path, monkeypatch, seed):
+    import core.io.atomic as atomic
+    from core.model.build import build
+
+    holes = quiet_read(table, source=str(tmp_path / "x.csv"))
+    out = tmp_path / "model"
+    real = atomic.atomic_path
+    calls = {"n": 0, "stop": 0}
+
+    def counted(path, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == calls["stop"]:
+            raise KeyboardInterrupt
+        return real(path, *a, **k)
+
+    users = [m for m in list(sys.modules.values()) if getattr(m, "atomic_path", None) is real]
+    for module in users:
+        monkeypatch.setattr(module, "atomic_path", counted)
+    build(holes, out, workers=1, formats=("ply", "stl"))
+    before = snapshot(tmp_path)
+    # Interrupt the next build at a random one of its writes (the last is the report).
+    calls["stop"] = calls["n"] + int(rng_for("interrupt", seed).integers(1, calls["n"] + 1))
+    with pytest.raises(KeyboardInterrupt):
+        build(holes, out, workers=1, formats=("ply", "stl"))
+    monkeypatch.undo()
+    unchanged(before, snapshot(tmp_path))  # previous model as it was, no staging folder left
+
+
+def test_folder_swap_without_an_atomic_exchange(tmp_path, monkeypatch):
+    """Where the system cannot exchange two folders in one step, two renames still replace the folder whole."""
+    import core.io.atomic as atomic
+
+    for exchange in (True, False):
+        out = tmp_path / f"model-{exchange}"
+        out.mkdir()
+        (out / "old.txt").write_text("old")
+        if not exchange:
+            monkeypatch.setattr(atomic, "_exchange", lambda a, b: False)
+        with atomic.replaced_folder(out) as staging:
+            (staging / "new.txt").write_text("new")
+            assert sorted(p.name for p in out.iterdir()) == ["old.txt"]  # untouched until the end
+        assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+        assert sorted(p.name for p in tmp_path.iterdir() if ".bgm-" in p.name) == []
+        with pytest.raises(RuntimeError), atomic.replaced_folder(out) as staging:
+            (staging / "half.txt").write_text("half")
+            raise RuntimeError("failed half way")
+        assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+        assert sorted(p.name for p in tmp_path.iterdir() if ".bgm-" in p.name) == []
+
+
+# --------------------------------------------------------------------------- exit codes
+
+
+def test_ctrl_c_on_a_parallel_build_is_one_line(csv, tmp_path):
+    """SIGINT to the whole process group (as a terminal sends it) during a 2-worker build."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env.pop("BGM_DEBUG", None)
+    interrupted = 0
+    for k, delay in enumerate(rng_for("ctrl-c").uniform(1.5, 3.0, 2)):
+        out = tmp_path / f"model{k}"
+        proc = subprocess.Popen(
+            [*BGM, "build", csv, "--out", out, "--workers", "2"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+            env=env,
+        )
+        time.sleep(delay)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        if proc.returncode == 0:  # finished before the signal
+            continue
+        interrupted += 1
+        assert proc.returncode == 130, err
+        lines = [line for line in err.splitlines() if line.strip()]
+        assert "Traceback" not in err and lines[-1].startswith("bgm: interrupted"), err
+        assert len([line for line in lines if line.startswith("bgm:")]) == 1, err
+        # No half model: none at all, or (a Ctrl-C a library swallowed) a whole one.
+        assert not out.exists() or json.loads((out / "summary.json").read_text())["geozones"]
+        assert not [p for p in tmp_path.iterdir() if ".bgm-" in p.name]
+    assert interrupted
+
+
+def _garbage(rng, n=8) -> str:
+    return "".join(rng.choice(list("abcdefghij-_#@"), n))
+
+
+def user_error_cases(csv: Path, tmp_path: Path) -> list[tuple]:
+    """(args, phrase) of the user errors that used to end as "internal error" (exit 3), with random values."""
+    rng = rng_for("user errors")
+    a_file = tmp_path / "afile.txt"
+    a_file.write_text("x")
+    folder = tmp_path / "shots"
+    folder.mkdir()
+    project = tmp_path / "project.json"
+    shift = float(10.0 ** rng.uniform(7, 300))
+    project.write_text(
+        json.dumps(
+            {
+                "format": "bgm-project",
+                "version": 1,
+                "overrides": [{"geozone": "g1", "source_z": 685.0, "source": 0, "translation": [shift, 0.0]}],
+            }
+        )
+    )
+    view_project = tmp_path / "view.json"
+    ratio = str(rng.choice(["Infinity", "-Infinity", "0", "-2", "1e300"]))
+    view = '{"vertical_exaggeration": RATIO}'.replace("RATIO", ratio)  # JSON as Python writes it: Infinity too
+    view_project.write_text(f'{{"format": "bgm-project", "version": 1, "parameters": {{"viewer": {view}}}}}')
+    proc = f"/proc/{_garbage(rng, 5)}/out"
+    vertical = f"0,0,{rng.uniform(-5, 5):.3f}"
+    return [
+        (("build", csv, "--out", a_file), "is a file"),
+        (("evaluate", csv, "--geozone", "g1", "--out", a_file), "is a file"),
+        (("build", csv, "--out", proc), "cannot write"),
+        (("evaluate", csv, "--geozone", "g1", "--out", proc), "cannot write"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--layers", _garbage(rng)), "--layers"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--camera", _garbage(rng)), "--camera"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--geozone", _garbage(rng)), "not in"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--bench", int(rng.integers(2, 999))), "--bench"),
+        (("view", csv, "--screenshot", folder), "directory"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--camera", "0,0,0"), "--camera"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--camera", vertical), "--camera"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--exaggeration", "inf"), "--exaggeration"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--exaggeration", -rng.uniform(0, 9)), "--exaggeration"),
+        (("view", csv, "--screenshot", tmp_path / "s.png", "--project", view_project), "vertical_exaggeration"),
+        (("build", csv, "--out", tmp_path / "m1", "--scheduler", _garbage(rng)), "scheduler"),
+        (("build", csv, "--out", tmp_path / "m2", "--scheduler", f"{_garbage(rng)}://::"), "scheduler"),
+        (("correspond", csv, "--geozone", "g1", "--project", project, "--out", tmp_path / "c.json"), "override 0"),
+        (("build", csv, "--out", tmp_path / "m3", "--project", project), "override 0"),
+        (("build", csv, "--out", tmp_path / "m4", "--workers", -int(rng.integers(0, 9))), "--workers"),
+    ]
+
+
+def test_user_errors_exit_2_with_one_line(csv, tmp_path):
+    pytest.importorskip("pyvista")
+    cases = user_error_cases(csv, tmp_path)
+    before = snapshot(tmp_path)
+    for args, phrase in cases:
+        error_line(bgm(*args), phrase)
+    unchanged(before, snapshot(tmp_path))
+
+
+def test_blank_pictures_are_errors(csv, tmp_path):
+    pytest.importorskip("pyvista")
+    t = pd.read_csv(csv)
+    bench0 = t.z > t.z.max() - 5
+    counts = t[~bench0 & (t.geozone != "g0")].geozone.value_counts()
+    absent = counts.index[0]
+    # A geozone taken off the top bench: the stage layers of bench pair 0 have nothing to show.
+    t.loc[bench0 & (t.geozone == absent), "geozone"] = "g0"
+    t.to_csv(csv, index=False)
+    for layers in ("edge-map", "gvf,snake"):
+        out = tmp_path / f"{layers}.png"
+        error_line(
+            bgm("view", csv, "--screenshot", out, "--layers", layers, "--geozone", absent, "--bench", 0), "blank"
+        )
+        assert not out.exists()
+
+
+# --------------------------------------------------------------------------- silently wrong results
+
+
+def spellings(rng, value: int) -> list[str]:
+    forms = [str(value), f"{value}.0", f"{value}.00", f"0{value}", f"+{value}", f"{value}e0", f"{value * 10}e-1"]
+    return list(rng.choice(forms, 2, replace=False))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_number_spellings_of_one_label_are_merged_with_a_warning(table, tmp_path, seed):
+    rng = rng_for("spellings", seed)
+    codes = {g: int(rng.integers(100, 99999)) for g in sorted(set(table.geozone))}
+    t = table.assign(geozone=table.geozone.map(codes).astype(str))
+    target = str(codes["g1"])
+    forms = spellings(rng, codes["g1"])
+    rows = np.flatnonzero(t.geozone == target)
+    t.loc[rows, "geozone"] = rng.choice(forms, len(rows))
+    path = tmp_path / "codes.csv"
+    t.to_csv(path, index=False)
+    out = tmp_path / "c.geojson"
+    proc = succeeds(bgm("contours", path, "--out", out, "--geozone", forms[0]))
+    assert any("merged" in w for w in warnings_of(proc)), proc.stderr
+    labels = {f["properties"]["geozone"] for f in json.loads(out.read_text())["features"]}
+    assert labels == {target}  # one geozone, under its plain spelling
+    assert "4 geozones" in proc.stderr
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_degrees_are_refused(table, tmp_path, seed):
+    rng = rng_for("degrees", seed)
+    lon, lat = rng.uniform(-179, 179), rng.uniform(-70, 70)
+    x = lon + (table.x - ORIGIN[0]) / (111_320 * np.cos(np.radians(lat)))
+    y = lat + (table.y - ORIGIN[1]) / 110_540
+    t = table.assign(x=y, y=x) if seed % 2 else table.assign(x=x, y=y)  # latitude first in one case
+    path = tmp_path / "degrees.csv"
+    t.to_csv(path, index=False)
+    before = snapshot(tmp_path)
+    error_line(bgm("contours", path, "--out", tmp_path / "o.geojson"), "degrees", "longitude and latitude")
+    unchanged(before, snapshot(tmp_path))
+
+
+def bench_table(levels, rng, scatter=0.5, n_side=12) -> pd.DataFrame:
+    rows = []
+    for z in levels:
+        g = np.arange(n_side) * 5.0
+        gx, gy = np.meshgrid(g, g)
+        xy = np.column_stack([gx.ravel(), gy.ravel()]) + rng.normal(0, 0.4, (gx.size, 2))
+        for (x, y), dz in zip(xy, rng.uniform(-scatter, scatter, len(xy))):
+            rows.append((ORIGIN[0] + x, ORIGIN[1] + y, z + dz, "ore" if x < 30 else "waste"))
+    return pd.DataFrame(rows, columns=["x", "y", "z", "geozone"])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_uneven_benches_are_taken_as_measured(tmp_path, seed):
+    rng = rng_for("uneven", seed)
+    heights = rng.uniform(6.0, 18.0, int(rng.integers(2, 4)))
+    levels = np.round(700.0 - np.concatenate([[0], np.cumsum(heights)]), 1)
+    path = tmp_path / "uneven.csv"
+    bench_table(levels, rng).to_csv(path, index=False)
+    out = tmp_path / "o.geojson"
+    succeeds(bgm("contours", path, "--out", out))
+    found = sorted({f["properties"]["bench"] for f in json.loads(out.read_text())["features"]}, reverse=True)
+    assert np.allclose(found, levels, atol=0.15), (found, levels)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_z_that_forms_no_benches_is_refused(tmp_path, seed):
+    rng = rng_for("continuous", seed)
+    t = bench_table([0.0], rng)
+    t["z"] = rng.uniform(500, 500 + rng.uniform(60, 150), len(t))
+    path = tmp_path / "continuous.csv"
+    t.to_csv(path, index=False)
+    before = snapshot(tmp_path)
+    error_line(bgm("contours", path, "--out", tmp_path / "o.geojson"), "does not form benches")
+    error_line(bgm("contours", path, "--out", tmp_path / "o.geojson", "--bench-height", 10), "does not form benches")
+    unchanged(before, snapshot(tmp_path))
+
+
+def test_far_elevations_need_force(csv, tmp_path):
+    rng = rng_for("far")
+    far = [665 - 10 * float(rng.uniform(3.5, 500)), float(10 ** rng.uniform(5, 300)), -5000.0]
+    before = snapshot(tmp_path)
+    for z in far:
+        error_line(
+            bgm("predict", csv, "--geozone", "g1", "--elevations", z, "--out", tmp_path / "p.geojson"), "--force"
+        )
+    unchanged(before, snapshot(tmp_path))
+    out = tmp_path / "p.geojson"
+    succeeds(bgm("predict", csv, "--geozone", "g1", "--elevations", f"{far[0]},660", "--out", out, "--force"))
+    assert out.exists()
+
+
+def test_unused_overrides_are_named(csv, tmp_path):
+    rng = rng_for("overrides")
+    project = tmp_path / "p.json"
+    missing = _garbage(rng)
+    top = quiet_read(csv).bench_z_input(0)
+    project.write_text(
+        json.dumps(
+            {
+                "format": "bgm-project",
+                "version": 1,
+                "parameters": {"gvf_mu": 0.2},
+                "overrides": [
+                    {"geozone": missing, "source_z": top, "source": 0, "translation": [1.0, 0.0]},
+                    {"geozone": "g1", "source_z": top + float(rng.uniform(1, 9)), "source": 0, "translation": [1, 0]},
+                    {"geozone": "g1", "source_z": top, "source": 0, "translation": [0.5, 0.0]},
+                ],
+            }
+        )
+    )
+    proc = succeeds(bgm("correspond", csv, "--geozone", "g1", "--project", project, "--out", tmp_path / "c.json"))
+    found = warnings_of(proc)
+    assert any("override 0" in w and missing in w for w in found), found
+    assert any("override 1" in w and "no bench pair" in w for w in found), found
+    assert not any("override 2" in w for w in found), found
+    assert any("gvf_mu" in w and "not use" in w for w in found), found
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_out_of_range_parameters_are_refused(csv, tmp_path, seed):
+    rng = rng_for("parameters", seed)
+    name, bad = [("gvf_mu", -1), ("snake_max_iterations", -5), ("edge_map_cells", 0), ("snake_step", 0)][seed % 4]
+    bad = bad - float(rng.integers(0, 5))
+    project = tmp_path / "p.json"
+    project.write_text(json.dumps({"format": "bgm-project", "version": 1, "parameters": {name: bad}}))
+    before = snapshot(tmp_path)
+    error_line(bgm("correspond", csv, "--geozone", "g1", "--project", project, "--out", tmp_path / "c.json"), name)
+    radius = ["-5", "nan", "inf", "0", "-inf"][int(rng.integers(0, 5))]
+    error_line(bgm("contours", csv, "--search-radius", radius, "--out", tmp_path / "o.geojson"), "--search-radius")
+    unchanged(before, snapshot(tmp_path))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_isolated_holes_grow_no_body(table, seed):
+    """A handful of holes far from everything: the prediction holds them, it does not grow a body from them."""
+    from core.model.pipeline import model_geozone
+    from core.model.prediction import predict_geozone
+
+    rng = rng_for("isolated", seed)
+    n = int(rng.integers(3, 7))
+    deepest = table.z.min() + 1
+    far = table.x.max() + rng.uniform(200, 400)
+    xs = far + 5.0 * np.arange(n) + rng.normal(0, 0.3, n)
+    extra = pd.DataFrame({"x": xs, "y": table.y.mean() + rng.normal(0, 2, n), "z": deepest, "geozone": "iso"})
+    holes = quiet_read(pd.concat([table, extra], ignore_index=True))
+    model = model_geozone(holes, "iso")
+    z = holes.bench_levels_m[-1] - 0.5 * holes.bench_height_m
+    region = predict_geozone(model, [z], holes.hole_spacing_m)[z]
+    spacing = holes.hole_spacing_m
+    # At most the holes' own footprint (a disc of two spacings around each), not a reach of 10 spacings.
+    assert region.area <= n * np.pi * (2 * spacing) ** 2, region.area
+    local = holes.frame.to_local(extra.x, extra.y)
+    assert shapely.MultiPoint(local).buffer(3 * spacing).contains(region)
+
+
+# --------------------------------------------------------------------------- hangs and unclear messages
+
+
+@pytest.mark.parametrize("n_columns", [20_000, 100_000])
+def test_wide_headers_parse_only_the_needed_columns(table, tmp_path, monkeypatch, n_columns):
+    rng = rng_for("wide", n_columns)
+    small = table.iloc[::4].reset_index(drop=True)
+    header = [f"c{i}" for i in range(n_columns)]
+    where = {}
+    for name in ("x", "y", "z", "geozone"):
+        where[name] = int(rng.integers(0, len(header) + 1))
+        header.insert(where[name], name)
+    rows = [",".join(header)]
+    for _, r in small.iterrows():
+        cells = ["1"] * n_columns
+        for name in ("x", "y", "z", "geozone"):
+            cells.insert(where[name], str(r[name]))
+        rows.append(",".join(cells))
+    path = tmp_path / "wide.csv"
+    path.write_text("\n".join(rows) + "\n")
+    parsed = []
+    real = pd.read_csv
+
+    def spy(*args, **kwargs):
+        parsed.append(kwargs.get("usecols"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pd, "read_csv", spy)
+    holes = quiet_read(path)
+    assert len(holes.xy) == len(small) and parsed and all(u is not None and len(u) <= 5 for u in parsed)
+    monkeypatch.undo()
+    # A missing column is named without listing 100,000 others.
+    line = error_line(bgm("contours", path, "--z", "nope", "--out", tmp_path / "o.geojson"), "nope", "more")
+    assert len(line) < 1200
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_decimal_commas_read_as_numbers(table, tmp_path, seed):
+    rng = rng_for("commas", seed)
+    sep = [";", "\t", ","][seed % 3]
+    t = table.drop(columns=["hole_id"])
+    path = tmp_path / "commas.csv"
+    if sep == ",":  # quoted thousands separators
+        text = t.to_csv(index=False, float_format="%.2f")
+        rows = [text.splitlines()[0]]
+        for _, r in t.iterrows():
+            rows.append(f'"{r.x:,.2f}","{r.y:,.2f}",{r.z:.2f},{r.geozone}')
+        path.write_text("\n".join(rows) + "\n")
+    else:
+        t.to_csv(path, index=False, sep=sep, decimal=",", float_format=f"%.{int(rng.integers(2, 4))}f")
+    holes = quiet_read(path)
+    reference = quiet_read(t)
+    assert len(holes.xy) == len(reference.xy)
+    assert np.allclose(holes.frame.to_input(holes.xy), reference.frame.to_input(reference.xy), atol=0.006)
+    succeeds(bgm("contours", path, "--out", tmp_path / "o.geojson", "--geozone", "g1"))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_comment_lines_before_the_header(table, tmp_path, seed):
+    rng = rng_for("comments", seed)
+    n = int(rng.integers(1, 6))
+    lines = [f"{rng.choice(['#', '//', '%'])} exported {_garbage(rng)}, columns: x;y" for _ in range(n)]
+    path = tmp_path / "commented.csv"
+    bad_row = int(rng.integers(0, len(table)))
+    t = table.astype({"x": object})
+    path.write_text("\n".join(lines) + "\n" + t.to_csv(index=False))
+    assert len(quiet_read(path).xy) == len(quiet_read(table).xy)
+    t.loc[bad_row, "x"] = "12a"
+    path.write_text("\n".join(lines) + "\n" + t.to_csv(index=False))
+    # The file line named is the one an editor shows: comments, header, then the row.
+    error_line(bgm("contours", path, "--out", tmp_path / "o.geojson"), f"line(s) {bad_row + n + 2}")
+
+
+def test_compressed_and_misnamed_files(table, tmp_path):
+    text = table.to_csv(index=False).encode()
+    files = {
+        "gzip.csv.gz": gzip.compress(text),
+        "bzip.csv.bz2": bz2.compress(text),
+        "xz.csv": lzma.compress(text),  # compressed and not named so
+        "text.parquet": text,  # CSV named .parquet
+    }
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    with zipfile.ZipFile(tmp_path / "zipped.zip", "w") as z:
+        z.writestr("holes.csv", text)
+    table.to_parquet(tmp_path / "parquet.csv")  # Parquet named .csv
+    n = len(quiet_read(table).xy)
+    for path in sorted(tmp_path.iterdir()):
+        assert len(quiet_read(path).xy) == n, path.name
+    proc = succeeds(bgm("contours", tmp_path / "text.parquet", "--out", tmp_path / "o.geojson", "--geozone", "g1"))
+    assert any("not Parquet" in w for w in warnings_of(proc))
+    # A spreadsheet is named as one.
+    with zipfile.ZipFile(tmp_path / "book.xlsx", "w") as z:
+        z.writestr("xl/workbook.xml", "<workbook/>")
+        z.writestr("[Content_Types].xml", "<Types/>")
+    error_line(bgm("contours", tmp_path / "book.xlsx", "--out", tmp_path / "x.geojson"), "Excel")
+
+
+def test_standard_input(csv, tmp_path):
+    data = csv.read_bytes()
+    out = tmp_path / "o.geojson"
+    proc = succeeds(bgm("contours", "-", "--out", out, "--geozone", "g1", stdin=data))
+    assert "standard input" in proc.stderr and out.exists()
+    error_line(bgm("contours", "-", "--out", tmp_path / "e.geojson", stdin=b""), "standard input is empty")
+    # /dev/stdin is a pipe here: read to its end like a file.
+    proc = subprocess.run(
+        [*BGM, "contours", "/dev/stdin", "--out", tmp_path / "p.geojson", "--geozone", "g1"],
+        input=data,
+        capture_output=True,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        timeout=300,
+    )
+    no_traceback(proc)
+    assert proc.returncode == 0 and (tmp_path / "p.geojson").exists(), proc.stderr
+
+
+def test_huge_labels_are_shortened_in_messages(csv, tmp_path):
+    t = pd.read_csv(csv)
+    t.loc[0, "geozone"] = "Q" * 50_000_000  # a broken export: a 50 MB label
+    big = tmp_path / "big.csv"
+    t.to_csv(big, index=False)
+    line = error_line(bgm("contours", big, "--geozone", "nope", "--out", tmp_path / "o.geojson"), "nope", "characters")
+    assert len(line) < 1200
+    line = error_line(bgm("contours", csv, "--geozone", "W" * 5_000_000, "--out", tmp_path / "o.geojson"), "not in")
+    assert len(line) < 1200

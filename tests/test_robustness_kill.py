@@ -1,0 +1,130 @@
+"""The kill test: ``bgm build`` into an existing model, stopped at random moments.
+
+A model is built once; then the same build is started again into that folder
+and stopped 22 times, at moments drawn at random over the build's whole run:
+by Ctrl-C (SIGINT to the process group, as a terminal sends it: the workers
+get it too) or by SIGKILL (of the main process alone, or of the whole group).
+After every stop the folder must hold the previous model, complete and valid
+(or, for a stop after the new model was swapped in, the new one, which is
+the same model), a Ctrl-C must end in exit status 130 with one line and no
+traceback, and the staging folders a SIGKILL leaves behind must be cleared by
+the next build.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from clirun import BGM
+
+from core.synthetic.blobs import make_mine, sample_blastholes
+
+ROOT = Path(__file__).resolve().parent.parent
+KILLS = 22
+#: Moments start after the interpreter's own start-up (before it no BGM code runs to catch anything).
+EARLIEST_S = 0.2
+TIMED = ("seconds", "contours_seconds")
+
+
+def start(csv: Path, out: Path) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env.pop("BGM_DEBUG", None)
+    return subprocess.Popen(
+        [*BGM, "build", str(csv), "--out", str(out), "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env=env,
+    )
+
+
+def files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def untimed(summary: dict) -> dict:
+    """A summary without its timings (the only thing two builds of one input differ in)."""
+    out = {k: v for k, v in summary.items() if k not in TIMED}
+    out["geozones"] = [{k: v for k, v in g.items() if k != "seconds"} for g in summary["geozones"]]
+    return out
+
+
+def assert_valid_model(out: Path, reference: dict[str, bytes]) -> None:
+    now = files(out)
+    assert set(now) == set(reference), sorted(set(now) ^ set(reference))[:5]
+    for name, data in now.items():
+        if name == "summary.json":
+            assert untimed(json.loads(data)) == untimed(json.loads(reference[name]))
+        elif name == "report.md":
+            assert data.decode().startswith("# BGM build report") and data.count(b"\n") == reference[name].count(b"\n")
+        else:
+            assert data == reference[name], name
+
+
+@pytest.fixture(scope="module")
+def small_csv(tmp_path_factory) -> Path:
+    mine = make_mine(seed=21, n_benches=3, extent_m=(50.0, 40.0), origin=(650_000.0, 7_400_000.0))
+    path = tmp_path_factory.mktemp("kill") / "holes.csv"
+    sample_blastholes(mine, seed=22).to_csv(path, index=False)
+    return path
+
+
+def test_build_killed_at_random_moments_leaves_the_previous_model(small_csv, tmp_path):
+    out = tmp_path / "model"
+    t0 = time.perf_counter()
+    first = start(small_csv, out)
+    _, err = first.communicate(timeout=600)
+    whole = time.perf_counter() - t0
+    assert first.returncode == 0, err
+    reference = files(out)
+    assert "summary.json" in reference and any(name.endswith("surface.stl") for name in reference)
+
+    rng = np.random.default_rng(15)
+    outcomes = {"interrupted": 0, "killed": 0, "finished": 0}
+    for i in range(KILLS):
+        how = ("ctrl-c", "kill main", "kill group")[i % 3]
+        moment = rng.uniform(EARLIEST_S, 1.1 * whole)
+        proc = start(small_csv, out)
+        time.sleep(moment)
+        with contextlib.suppress(ProcessLookupError):
+            if how == "ctrl-c":
+                os.killpg(proc.pid, signal.SIGINT)
+            elif how == "kill main":
+                os.kill(proc.pid, signal.SIGKILL)
+            else:
+                os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=600)
+        with contextlib.suppress(ProcessLookupError):  # orphaned workers of a killed main process hold the pipes
+            os.killpg(proc.pid, signal.SIGKILL)
+        _, err = proc.communicate(timeout=600)
+        context = f"stop {i} ({how} at {moment:.2f} s of {whole:.2f} s): exit {proc.returncode}\n{err}"
+        if proc.returncode == 0:
+            outcomes["finished"] += 1
+        elif how == "ctrl-c":
+            outcomes["interrupted"] += 1
+            assert proc.returncode == 130, context
+            lines = [line for line in err.splitlines() if line.startswith("bgm:") or "Traceback" in line]
+            assert lines == ["bgm: interrupted; files being written were left as they were"], context
+        else:
+            outcomes["killed"] += 1
+            assert proc.returncode == -signal.SIGKILL, context
+        assert_valid_model(out, reference)
+        if how == "ctrl-c":  # a Ctrl-C cleans up after itself (a kill cannot: the next build does)
+            assert not [p.name for p in tmp_path.iterdir() if f".bgm-staging-{proc.pid}-" in p.name], context
+    assert outcomes["interrupted"] >= 3 and outcomes["killed"] >= 6, outcomes
+
+    # The next build clears what the kills left behind, and writes the same model.
+    final = start(small_csv, out)
+    _, err = final.communicate(timeout=600)
+    assert final.returncode == 0, err
+    assert_valid_model(out, reference)
+    assert not [p.name for p in tmp_path.iterdir() if ".bgm-" in p.name]
