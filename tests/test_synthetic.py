@@ -76,8 +76,8 @@ def test_sections_are_valid_and_every_geozone_is_drilled(family):
         assert sum(r.area for r in regions) == pytest.approx(box(*mine.extent_m).area, rel=1e-6)
 
 
-def test_generating_and_drilling_is_fast_enough_to_sample_many_mines():
-    """Not a timing test: the drilling must not do more than a bench's worth of geometry per hole."""
+def test_a_scenario_is_drilled_on_every_bench_at_mine_scale():
+    """Thousands of holes per mine, a footprint recorded for every bench."""
     mine, table, _ = scenario("mix", SEEDS[0])
     assert 5_000 < len(table) < 30_000
     assert len(mine.footprints) == len(mine.bench_levels_m)
