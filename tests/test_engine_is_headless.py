@@ -6,6 +6,8 @@ import sys
 CORE_MODULES = [
     "core.io.blastholes",
     "core.synthetic.blobs",
+    "core.synthetic.scenarios",
+    "core.model.scoring",
     "core.extraction.contours",
     "core.correspondence.pair",
     "core.morph.levelset",

@@ -61,6 +61,7 @@ def test_sections_are_valid_and_every_geozone_is_drilled(family):
     for seed in SEEDS:
         mine, table, true = scenario(family, seed)
         assert 2 <= len(mine.geozones) <= 4 and HOST not in mine.geozones
+        assert set(mine.kinds) == set(mine.geozones)
         for g in mine.labels:
             drilled = 0.0
             for z in mine.bench_levels_m:
@@ -75,8 +76,8 @@ def test_sections_are_valid_and_every_geozone_is_drilled(family):
         assert sum(r.area for r in regions) == pytest.approx(box(*mine.extent_m).area, rel=1e-6)
 
 
-def test_generating_and_drilling_is_fast_enough_to_sample_many_mines():
-    """Not a timing test: the drilling must not do more than a bench's worth of geometry per hole."""
+def test_a_scenario_is_drilled_on_every_bench_at_mine_scale():
+    """Thousands of holes per mine, a footprint recorded for every bench."""
     mine, table, _ = scenario("mix", SEEDS[0])
     assert 5_000 < len(table) < 30_000
     assert len(mine.footprints) == len(mine.bench_levels_m)
@@ -406,3 +407,25 @@ def test_scenario_truth_sidecar_gives_the_generators_truth(tmp_path):
     for z in holes.bench_levels_m[[0, -1]]:
         for g in mine.labels:
             assert truth(g, float(z)).symmetric_difference(expected(g, float(z))).area < 1e-6
+
+
+def test_make_demo_data_writes_the_demo_by_default_and_a_family_on_request(tmp_path):
+    from conftest import DEMO_CSV
+    from test_cli import bgm
+
+    demo = tmp_path / "demo.csv"
+    bgm("make-demo-data", "--out", demo)
+    assert demo.read_bytes() == DEMO_CSV.read_bytes()  # the bundled demo is unchanged
+    assert json.loads(truth_sidecar(demo).read_text()) == {"generator": "core.synthetic.demo_dataset", "seed": 2019}
+    path = tmp_path / "pods.csv"
+    bgm("make-demo-data", "--family", "pods", "--seed", "3", "--out", path)
+    spec = json.loads(truth_sidecar(path).read_text())
+    assert spec == {"generator": "core.synthetic.scenario", "family": "pods", "seed": 3}
+    written = pd.read_csv(path)
+    _, table, _ = scenario("pods", 3)
+    assert list(written.columns) == list(table.columns)
+    assert (
+        np.allclose(written[["x", "y", "z"]], table[["x", "y", "z"]]) and (written["geozone"] == table["geozone"]).all()
+    )
+    bad = bgm("make-demo-data", "--family", "blobs", "--out", tmp_path / "x.csv", check=False)
+    assert bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "unknown family" in bad.stderr

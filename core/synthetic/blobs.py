@@ -109,6 +109,8 @@ class SyntheticMine:
     origin: tuple[float, float] = (0.0, 0.0)
     footprints: dict[float, Polygon] = field(default_factory=dict)
     metres_per_unit: float = 1.0
+    #: What each geozone is, in a geologist's words ("strip", "fold core", "pods"...), where the generator says.
+    kinds: dict[str, str] = field(default_factory=dict)
 
     def sections(self, z_m: float) -> dict[str, MultiPolygon]:
         """True region of every geozone (host included) at elevation ``z_m``, inside the extent."""

@@ -66,12 +66,15 @@ Geozone = list  # the solids of one geozone
 class Builder:
     """Draws one kind of geology: ``draw(rng, layout)`` returns its geozones (lists of solids), [] if it does not fit.
 
-    ``crossing`` kinds (layers, contacts, folds) run past the pit by design;
-    other bodies must lie mostly inside it. A builder of ``pods`` is drawn
-    that many times, one pod at a time, into a single geozone.
+    ``kinds`` names what each geozone drawn is, in order (e.g. ``("strip",)``
+    or ``("fold layer", "fold core")``). ``crossing`` kinds (layers, contacts,
+    folds) run past the pit by design; other bodies must lie mostly inside it.
+    A builder of ``pods`` is drawn that many times, one pod at a time, into a
+    single geozone.
     """
 
     draw: Callable[[np.random.Generator, Layout], list[Geozone]]
+    kinds: tuple[str, ...]
     crossing: bool = False
     pods: int = 0
 
@@ -243,7 +246,7 @@ def strips_builder(style: StripStyle, widths_m: tuple[float, ...]) -> Builder:
             [DippingLayer(trace, velocity, layout.top_m, 0.0, w2)],
         ]
 
-    return Builder(build, crossing=True)
+    return Builder(build, ("strip",) * len(widths_m), crossing=True)
 
 
 def contact_builder(style: StripStyle) -> Builder:
@@ -262,7 +265,7 @@ def contact_builder(style: StripStyle) -> Builder:
         side = tuple(normal * (1.0 if c + shift * layout.depth_m / 2 >= 0 else -1.0))
         return [[DippingContact(trace, tuple(shift * normal), layout.top_m, side)]]
 
-    return Builder(build, crossing=True)
+    return Builder(build, ("contact",), crossing=True)
 
 
 def make_strips(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
@@ -329,7 +332,7 @@ def growing_body_builder(sign: float) -> Builder:
         )
         return [[GrowingBody(outline, z_ref, sign * rate, tuple(drift))]]
 
-    return Builder(build)
+    return Builder(build, ("widening body" if sign > 0 else "narrowing body",))
 
 
 def wedge_builder(sign: float) -> Builder:
@@ -350,7 +353,7 @@ def wedge_builder(sign: float) -> Builder:
         layer = DippingLayer(trace, tuple(shift * normal), layout.top_m, top_width / 2, top_width / 2, sign * rate)
         return [[layer]]
 
-    return Builder(build, crossing=True)
+    return Builder(build, ("thickening layer" if sign > 0 else "thinning layer",), crossing=True)
 
 
 def make_widening(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
@@ -413,7 +416,7 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
             geozones.append([DippingContact(trace, velocity, layout.top_m, tuple(along))])
         return geozones
 
-    return Builder(build, crossing=True)
+    return Builder(build, ("fold layer",) * n_layers + (("fold core",) if with_core else ()), crossing=True)
 
 
 def make_folds(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
@@ -471,7 +474,7 @@ def lobes_builder(merging: bool) -> Builder:
             )
         return [lobes]
 
-    return Builder(build)
+    return Builder(build, ("merge" if merging else "split",))
 
 
 def dipping_body_builder() -> Builder:
@@ -495,7 +498,7 @@ def dipping_body_builder() -> Builder:
         )
         return [[body]]
 
-    return Builder(build)
+    return Builder(build, ("dipping body",))
 
 
 def make_splits(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
@@ -545,7 +548,7 @@ def pods_builder(n_pods: int) -> Builder:
         )
         return [[pod]]
 
-    return Builder(build, pods=n_pods)
+    return Builder(build, ("pods",), pods=n_pods)
 
 
 def make_pods(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
@@ -615,15 +618,15 @@ def compose(
     raise RuntimeError(f"could not place two geozones in {family} mine {seed}")
 
 
-def assemble(rng: np.random.Generator, layout: Layout, builders: list[Builder]) -> list[Geozone]:
-    """Geozones from ``builders``, each redrawn until it keeps :data:`GAP_M` from those already placed.
+def assemble(rng: np.random.Generator, layout: Layout, builders: list[Builder]) -> list[tuple[str, Geozone]]:
+    """``(kind, geozone)`` from ``builders``, each redrawn until it keeps :data:`GAP_M` from those already placed.
 
     A builder that cannot be placed in :data:`ATTEMPTS` tries is dropped.
     """
-    placed: list[Geozone] = []
+    placed: list[tuple[str, Geozone]] = []
     taken = [shapely.Polygon() for _ in layout.levels_m]  # union of placed bodies per bench
     for build in builders:
-        placed.extend(_place(rng, layout, build, taken))
+        placed.extend(zip(build.kinds, _place(rng, layout, build, taken)))
     return placed
 
 
@@ -674,7 +677,7 @@ def _fits_bench(region, pit: Polygon, other, crossing: bool, max_outside: float 
     return True, inside >= 30.0
 
 
-def _mine(rng: np.random.Generator, layout: Layout, geozones: list[Geozone], units: str) -> SyntheticMine:
+def _mine(rng: np.random.Generator, layout: Layout, geozones: list[tuple[str, Geozone]], units: str) -> SyntheticMine:
     if units not in UNITS:
         raise ValueError(f"unknown units {units!r}: use one of {', '.join(UNITS)}")
     origin = (
@@ -682,9 +685,10 @@ def _mine(rng: np.random.Generator, layout: Layout, geozones: list[Geozone], uni
         float(np.round(7_400_000.0 + rng.uniform(-20_000, 20_000))),
     )
     return SyntheticMine(
-        geozones={f"g{i}": list(g) for i, g in enumerate(geozones, start=1)},
+        geozones={f"g{i}": list(g) for i, (_, g) in enumerate(geozones, start=1)},
         extent_m=layout.extent_m,
         bench_levels_m=np.asarray(layout.levels_m, float),
         origin=origin,
         metres_per_unit=UNITS[units],
+        kinds={f"g{i}": kind for i, (kind, _) in enumerate(geozones, start=1)},
     )

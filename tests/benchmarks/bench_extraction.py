@@ -131,6 +131,7 @@ def run_job(job: tuple[str, int]) -> tuple[str, int, pd.DataFrame, pd.DataFrame,
                 holes, labels_by_hole(holes, true_labels), geozones, truth_from_mine(mine, holes.frame), footprint
             )
     for df in (scores, coverage):
+        df.insert(0, "kind", "real" if family == "kennecott" else df["geozone"].map(mine.kinds))
         df.insert(0, "seed", seed)
         df.insert(0, "family", family)
     return family, seed, scores, coverage, time.process_time() - start
@@ -162,6 +163,7 @@ def main() -> None:
     parser.add_argument("--families", nargs="*", default=list(FAMILIES), choices=FAMILIES)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-kennecott", action="store_true")
+    parser.add_argument("--save", type=Path, default=None, help="Also write every row scored to this CSV.")
     args = parser.parse_args()
 
     bench_gvf()
@@ -187,6 +189,10 @@ def main() -> None:
     coverage = pd.concat([c for _, _, c in synthetic], ignore_index=True)
     rows = [summary_row(f, scores[scores["family"] == f], coverage[coverage["family"] == f]) for f in args.families]
     rows.append(summary_row("all families", scores, coverage))
+    if args.save:
+        pd.concat([s for _, s, _ in results], ignore_index=True).to_csv(args.save, index=False)
+        coverage_path = args.save.with_name(args.save.stem + "_coverage.csv")
+        pd.concat([c for _, _, c in results], ignore_index=True).to_csv(coverage_path, index=False)
     kennecott = [r for r in results if r[0] == "kennecott"]
     if kennecott:
         rows.append(summary_row("Kennecott (file labels)", kennecott[0][1], kennecott[0][2]))
@@ -198,6 +204,12 @@ def main() -> None:
         "pair: target-boundary coverage after backtracking (min >= 0.99)."
     )
     print(pd.DataFrame(rows).to_string(index=False))
+    print("\nPer kind of geozone, all families:")
+    kinds = [
+        summary_row(k, scores[scores["kind"] == k], coverage[coverage["kind"] == k])
+        for k in sorted(set(scores["kind"]))
+    ]
+    print(pd.DataFrame(kinds).to_string(index=False))
     print(f"\nWall time {wall:.0f} s on {args.workers} processes")
 
 

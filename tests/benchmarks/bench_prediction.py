@@ -92,6 +92,7 @@ def run_scenario(job: tuple[str, int]) -> tuple[str, int, pd.DataFrame, float]:
             geozones = [g for g in holes.geozones if g != HOST]
             df = evaluate(holes, truth_from_mine(mine, holes.frame), geozones)
     if len(df):
+        df.insert(0, "kind", "real" if family == "kennecott" else df["geozone"].map(mine.kinds))
         df.insert(0, "seed", seed)
         df.insert(0, "family", family)
     return family, seed, df, time.process_time() - start
@@ -133,6 +134,19 @@ def print_tables(df: pd.DataFrame, families: list[str]) -> None:
         print(depth_table(part).to_string(index=False))
     print("\nAll families pooled (area-weighted):")
     print(depth_table(df).to_string(index=False))
+    print("\nPer kind of geozone, all families (F1, percent):")
+    rows = []
+    for kind, part in df.groupby("kind"):
+        summary = summary_table(part).set_index("fraction")
+        row = {"kind": kind, "cases": len(part) // (len(METHODS) * len(summary))}
+        for _, r in summary.iterrows():
+            d = f"{r['depth_m']:.0f} m"
+            scores = {m: f1(r[f"precision_{m}"], r[f"recall_{m}"]) for m in METHODS}
+            best = max(REFERENCES, key=lambda m: scores[m] if np.isfinite(scores[m]) else -1)
+            row.update({f"{m} {d}": round(100 * scores[m], 1) for m in METHODS})
+            row[f"margin {d}"] = round(100 * (scores["model"] - scores[best]), 1)
+        rows.append(row)
+    print(pd.DataFrame(rows).to_string(index=False))
 
 
 def print_kennecott(df: pd.DataFrame) -> None:
@@ -155,6 +169,7 @@ def main() -> None:
     parser.add_argument("--families", nargs="*", default=list(FAMILIES), choices=FAMILIES)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-kennecott", action="store_true")
+    parser.add_argument("--save", type=Path, default=None, help="Also write every row scored to this CSV.")
     args = parser.parse_args()
     seeds = list(HELD_OUT_SEEDS if args.seeds == "held-out" else TUNING_SEEDS)
     seeds = seeds[: args.limit or (len(HELD_OUT_SEEDS) if args.seeds == "tuning" else len(seeds))]
@@ -171,6 +186,8 @@ def main() -> None:
             results.append((family, df))
     wall = time.perf_counter() - start
     synthetic = pd.concat([df for f, df in results if f != "kennecott" and len(df)], ignore_index=True)
+    if args.save:
+        pd.concat([df for _, df in results if len(df)], ignore_index=True).to_csv(args.save, index=False)
     print_tables(synthetic, args.families)
     kennecott = [df for f, df in results if f == "kennecott"]
     if kennecott:
