@@ -147,6 +147,8 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
         out |= {"edge map", "GVF", "snake"}
     if result.morph is not previous.morph:
         out |= {"wavefront", "trajectories"}
+    if result.predicted is not previous.predicted:
+        out.add("predicted contours")
     if result.surface is not previous.surface:
         out.add("surfaces")
     return out

@@ -1,18 +1,71 @@
-"""What ``bgm view`` calls (the lead wires it into ``core.cli``; core never imports this).
+"""``bgm view``: the viewer's command, added to the engine's command line as a plug-in.
 
-``view_command(input, project, screenshot, layers, camera)``:
-
-* with ``screenshot``: render the scene off-screen to that PNG (no Qt, no display
-  needed) and return 0;
-* otherwise: open the Qt window (``run_viewer``) and return its exit code.
-
-Errors in the input or project are :class:`core.errors.BGMInputError` and are
-left for the CLI to report.
+``core.cli`` never imports the viewer: it loads the entry points of the group
+``bgm.commands`` (see :func:`core.cli.load_plugins`), and this package's
+pyproject entry ``view = "bgm_viewer.cli_hooks:register"`` adds the command.
+Nothing here imports Qt or PyVista until the command runs, so ``bgm`` works
+without them and ``bgm view`` says in one line what to install.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from core.errors import BGMInputError
+
+QT_MISSING = "the viewer needs Qt and PyVista ({}); install them with: pip install -e '.[viewer]'"
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``bgm view`` to the engine's typer app."""
+    app.command("view")(view)
+
+
+def view(
+    input: Annotated[
+        Path | None, typer.Argument(help="Blasthole table (default: the bundled demo).", show_default=False)
+    ] = None,
+    project: Annotated[
+        Path | None, typer.Option("--project", help="Project file with parameters and manual alignment overrides.")
+    ] = None,
+    screenshot: Annotated[
+        Path | None,
+        typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window."),
+    ] = None,
+    layers: Annotated[
+        str | None,
+        typer.Option(
+            help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."
+        ),
+    ] = None,
+    camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
+    geozone: Annotated[str | None, typer.Option("--geozone", help="Geozone to select.")] = None,
+    bench: Annotated[int | None, typer.Option(help="Bench index to select (0 = top).")] = None,
+    exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
+    no_cache: Annotated[
+        bool, typer.Option("--no-cache", help="Compute every stage afresh instead of reusing earlier runs' results.")
+    ] = False,
+) -> None:
+    """Open the 3D viewer (or render a screenshot with no display)."""
+    if input is not None and not Path(input).exists():
+        raise BGMInputError(f"input file {str(input)!r} does not exist")
+    code = view_command(
+        input,
+        project,
+        screenshot,
+        layers,
+        camera,
+        geozone=geozone,
+        bench=bench,
+        vertical_exaggeration=exaggeration,
+        cache=not no_cache,
+    )
+    if screenshot:
+        typer.echo(f"wrote {screenshot}", err=True)
+    raise typer.Exit(code or 0)
 
 
 def view_command(
@@ -25,13 +78,24 @@ def view_command(
     geozone: str | None = None,
     bench: int | None = None,
     vertical_exaggeration: float | None = None,
+    cache: bool = True,
 ) -> int:
-    """Entry point of ``bgm view [INPUT] [--project P] [--screenshot out.png] [--layers a,b] [--camera iso]``."""
-    if input is None and project is not None:
-        input = _project_input(project)
-    if screenshot:
-        from .screenshot import render_screenshot
+    """Render ``screenshot`` off-screen (no Qt, no display) and return 0, or open the window and return its exit code.
 
+    Errors in the input or project are :class:`core.errors.BGMInputError`, for the CLI to report.
+    """
+    try:
+        from .model import project_input
+
+        if screenshot:
+            from .screenshot import render_screenshot
+        else:
+            from .app import run_viewer
+    except ImportError as exc:
+        raise BGMInputError(QT_MISSING.format(exc)) from None
+    if input is None and project is not None:
+        input = project_input(project)
+    if screenshot:
         render_screenshot(
             input,
             screenshot,
@@ -41,21 +105,7 @@ def view_command(
             geozone=geozone,
             bench=bench,
             vertical_exaggeration=vertical_exaggeration,
+            cache=cache,
         )
         return 0
-    from .app import run_viewer
-
-    return run_viewer(input, project)
-
-
-def _project_input(project) -> str | None:
-    """The input named by a project file (relative to the project's folder)."""
-    from core.io.project import load_project
-
-    p = load_project(project).input_path
-    if not p:
-        return None
-    path = Path(p)
-    if not path.is_absolute():
-        path = Path(project).resolve().parent / path
-    return str(path)
+    return run_viewer(input, project, cache=cache)

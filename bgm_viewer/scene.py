@@ -9,10 +9,11 @@ the same renderer with a ``pyvistaqt.QtInteractor`` as the plotter.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from contextlib import contextmanager, suppress
 
 import numpy as np
+from psygnal import Signal
 
 from . import _vtkenv  # noqa: F401
 from .layers import Layer, ViewTransform
@@ -22,28 +23,22 @@ CAMERAS = ("iso", "top", "front", "side")
 
 
 class Scene:
-    """Ordered layers plus view settings; observers hear ``(layer_or_None, what)``."""
+    """Ordered layers plus view settings; ``changed(layer_or_None, what)`` after every change."""
+
+    changed = Signal(object, str)
 
     def __init__(self, layers: Iterable[Layer] = (), *, vertical_exaggeration: float = 2.0, z_ref: float = 0.0):
         self.layers: list[Layer] = []
-        self._listeners: list[Callable] = []
         self._view = ViewTransform(vertical_exaggeration, z_ref)
         for layer in layers:
             self.add(layer)
-
-    def connect(self, cb: Callable) -> None:
-        self._listeners.append(cb)
-
-    def _emit(self, layer, what: str) -> None:
-        for cb in list(self._listeners):
-            cb(layer, what)
 
     def add(self, layer: Layer) -> Layer:
         if layer.name in self.names():
             raise ValueError(f"a layer named {layer.name!r} is already in the scene")
         self.layers.append(layer)
-        layer.connect(self._emit)
-        self._emit(layer, "added")
+        layer.changed.connect(self.changed)
+        self.changed.emit(layer, "added")
         return layer
 
     def replace(self, layer: Layer) -> Layer:
@@ -52,10 +47,10 @@ class Scene:
         if old is None:
             return self.add(layer)
         layer._visible, layer._opacity = old.visible, old.opacity
-        old.disconnect(self._emit)
+        old.changed.disconnect(self.changed)
         self.layers[self.layers.index(old)] = layer
-        layer.connect(self._emit)
-        self._emit(layer, "data")
+        layer.changed.connect(self.changed)
+        self.changed.emit(layer, "data")
         return layer
 
     def get(self, name: str) -> Layer | None:
@@ -85,7 +80,7 @@ class Scene:
             raise ValueError("vertical exaggeration must be positive")
         if value != self._view.vertical_exaggeration:
             self._view = ViewTransform(value, self._view.z_ref)
-            self._emit(None, "view")
+            self.changed.emit(None, "view")
 
     def set_visible_only(self, names: Iterable[str]) -> None:
         """Show exactly the named layers (unknown names raise ``KeyError``)."""
@@ -135,7 +130,7 @@ class SceneRenderer:
         for layer in scene.layers:
             self._rebuild(layer)
         self._update_legend()
-        scene.connect(self._on_change)
+        scene.changed.connect(self._on_change)
 
     # -- updates -----------------------------------------------------------
     def _on_change(self, layer: Layer | None, what: str) -> None:

@@ -49,6 +49,12 @@ UnitsOpt = Annotated[
     typer.Option("--units", help="Length unit of the input, m or ft (default: guessed from the bench height)."),
 ]
 InputArg = Annotated[Path, typer.Argument(help="Blasthole table (CSV or Parquet).", show_default=False)]
+NoCacheOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-cache", help="Compute every stage afresh instead of reusing results kept from earlier runs on this input."
+    ),
+]
 
 
 def _say(message: str) -> None:
@@ -111,25 +117,27 @@ def contours(
     geozone_column: GeozoneColOpt = None,
     bench_height: BenchHeightOpt = None,
     units: UnitsOpt = None,
+    no_cache: NoCacheOpt = False,
 ) -> None:
     """Extract closed geozone contours on every bench (paper section 2).
 
     Writes one Polygon feature per bench, geozone and component with
     properties geozone, bench (elevation), component and containment figures.
     """
-    from core.extraction.contours import ExtractionParameters, extract_contours
     from core.io.export import write_geojson
     from core.io.reporting import containment_summary, contour_feature
+    from core.model.parameters import with_values
 
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     wanted = holes.check_geozones(geozone)
-    params = ExtractionParameters(
-        search_radius_m=None if search_radius is None else float(holes.frame.length_to_local(search_radius))
-    )
+    session = _session(holes, None, no_cache)
+    if search_radius is not None:
+        radius_m = float(holes.frame.length_to_local(search_radius))
+        session = session.updated(params=with_values(session.params, search_radius_m=radius_m))
     start = time.perf_counter()
     advance, bar = _progress("extracting contours", holes.n_benches)
     with bar:
-        result = extract_contours(holes, wanted, params=params, progress=advance)
+        result = [c for c in session.contours(progress=advance) if c.geozone in wanted]
     elapsed = time.perf_counter() - start
     features = [contour_feature(c, holes) for c in result]
     write_geojson(features, out)
@@ -144,22 +152,30 @@ ProjectOpt = Annotated[
 ]
 
 
-def _model(input, geozone, project, stages, x, y, z, geozone_column, bench_height, units):
+def _session(holes, project: Path | None, no_cache: bool):
+    """The pipeline on ``holes`` with the project's parameters and overrides, on the disk cache unless ``no_cache``."""
     from core.io.project import load_project
-    from core.model.pipeline import model_geozone
+    from core.model.parameters import parameters_from_dict
+    from core.model.session import ModelSession
 
+    proj = load_project(project) if project is not None else None
+    params = parameters_from_dict(proj.parameters) if proj is not None else None
+    return ModelSession.open(holes, params, proj, cache=not no_cache)
+
+
+def _model(input, geozone, project, stages, x, y, z, geozone_column, bench_height, units, no_cache=False):
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     holes.check_geozones([geozone])
     if holes.n_benches < 2:
         raise BGMInputError(
             f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
         )
-    proj = load_project(project) if project is not None else None
+    session = _session(holes, project, no_cache)
     start = time.perf_counter()
     advance, bar = _progress(f"{stages[-1]} {geozone}", holes.n_benches - 1)
     with bar:
-        model = model_geozone(holes, geozone, project=proj, stages=stages, progress=advance)
-    return holes, model, time.perf_counter() - start
+        model = session.geozone_model(geozone, stages=stages, progress=advance)
+    return session, model, time.perf_counter() - start
 
 
 @app.command()
@@ -174,15 +190,16 @@ def correspond(
     geozone_column: GeozoneColOpt = None,
     bench_height: BenchHeightOpt = None,
     units: UnitsOpt = None,
+    no_cache: NoCacheOpt = False,
 ) -> None:
     """Associate components between successive benches and estimate their translations (paper section 3)."""
     from core.io.atomic import atomic_write_text
     from core.model.pipeline import correspondence_json
 
-    holes, model, elapsed = _model(
-        input, geozone, project, ("correspond",), x, y, z, geozone_column, bench_height, units
+    session, model, elapsed = _model(
+        input, geozone, project, ("correspond",), x, y, z, geozone_column, bench_height, units, no_cache
     )
-    data = correspondence_json(model, holes)
+    data = correspondence_json(model, session.holes)
     atomic_write_text(out, json.dumps(data, indent=1))
     typer.echo(
         json.dumps({"geozone": geozone, "pairs": len(data["pairs"]), "seconds": round(elapsed, 2), "out": str(out)})
@@ -201,15 +218,16 @@ def morph(
     geozone_column: GeozoneColOpt = None,
     bench_height: BenchHeightOpt = None,
     units: UnitsOpt = None,
+    no_cache: NoCacheOpt = False,
 ) -> None:
     """Morph each bench's regions into the next bench's and trace the boundary's trajectories (paper section 4)."""
     from core.io.atomic import atomic_write_text
     from core.model.pipeline import morph_json
 
-    holes, model, elapsed = _model(
-        input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units
+    session, model, elapsed = _model(
+        input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units, no_cache
     )
-    data = morph_json(model, holes)
+    data = morph_json(model, session.holes)
     atomic_write_text(out, json.dumps(data))
     cov = [p["target_boundary_coverage"] for p in data["pairs"] if p["target_boundary_coverage"] is not None]
     before = [p["coverage_before_backtracking"] for p in data["pairs"] if p["coverage_before_backtracking"] is not None]
@@ -247,11 +265,11 @@ def predict(
     geozone_column: GeozoneColOpt = None,
     bench_height: BenchHeightOpt = None,
     units: UnitsOpt = None,
+    no_cache: NoCacheOpt = False,
 ) -> None:
     """Predict the geozone's region at any elevation (paper: contour prediction)."""
     from core.io.export import write_geojson
     from core.io.reporting import to_input_geometry
-    from core.model.prediction import predict_geozone
 
     try:
         levels = [float(v) for v in elevations.replace(";", ",").split(",") if v.strip()]
@@ -259,11 +277,12 @@ def predict(
         raise BGMInputError(f"--elevations must be numbers separated by commas, got {elevations!r}") from None
     if not levels or not all(np.isfinite(levels)):
         raise BGMInputError(f"--elevations needs at least one finite number, got {elevations!r}")
-    holes, model, elapsed = _model(
-        input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units
+    session, model, elapsed = _model(
+        input, geozone, project, ("correspond", "morph"), x, y, z, geozone_column, bench_height, units, no_cache
     )
+    holes = session.holes
     z_m = [float(holes.frame.z_to_local(v)) for v in levels]
-    regions = predict_geozone(model, z_m, holes.hole_spacing_m)
+    regions = session.predict(geozone, z_m, model)
     features = []
     for level, zm in zip(levels, z_m):
         region = regions[zm]
@@ -300,23 +319,23 @@ def evaluate(
     geozone_column: GeozoneColOpt = None,
     bench_height: BenchHeightOpt = None,
     units: UnitsOpt = None,
+    no_cache: NoCacheOpt = False,
 ) -> None:
     """Precision and recall of predictions below withheld benches, against nil, linear and implicit references."""
-    from core.extraction.contours import extract_contours
     from core.model.build import load_truth, predictor_from_model
     from core.model.evaluation import evaluate_geozone, format_table, plot_precision_recall, summary_table
-    from core.model.pipeline import ModelParameters, model_geozone
 
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     holes.check_geozones([geozone])
     if holes.n_benches < 3:
         raise BGMInputError(f"{input} has {holes.n_benches} bench(es); evaluation needs at least three")
     truth = load_truth(input, holes)
-    params = ModelParameters()
+    session = _session(holes, None, no_cache)
     start = time.perf_counter()
-    contours = extract_contours(holes, params=params.extraction)
-    model = model_geozone(holes, geozone, contours=contours, params=params)
-    rows = evaluate_geozone(holes, geozone, predictor_from_model(model, holes, params), truth=truth, contours=contours)
+    contours = session.contours()
+    model = session.geozone_model(geozone, contours=contours)
+    predictor = predictor_from_model(model, holes, session.params)
+    rows = evaluate_geozone(holes, geozone, predictor, truth=truth, contours=contours)
     if rows.empty:
         raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
     table = summary_table(rows)
@@ -332,11 +351,10 @@ def evaluate(
     typer.echo(format_table(table))
 
 
-def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None) -> dict:
-    from core.io.project import load_project
+def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None, no_cache=False) -> dict:
     from core.model.build import build
 
-    proj = load_project(project) if project is not None else None
+    session = _session(holes, project, no_cache)
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -357,11 +375,13 @@ def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None
             holes,
             out,
             geozones=geozone,
-            project=proj,
+            params=session.params,
+            project=session.project,
             truth=truth,
             progress=progress,
             workers=workers,
             scheduler=scheduler,
+            cache=session.store.cache,
         )
     _say(f"wrote {out}/report.md ({summary['seconds']:.1f} s)")
     return summary
@@ -383,6 +403,7 @@ def build(
     geozone_column: GeozoneColOpt = None,
     bench_height: BenchHeightOpt = None,
     units: UnitsOpt = None,
+    no_cache: NoCacheOpt = False,
 ) -> None:
     """The whole pipeline for every geozone: contours, correspondence, trajectories, predictions, surfaces, evaluation, report."""
     from core.model.build import load_truth
@@ -390,7 +411,7 @@ def build(
     holes = _load(input, x, y, z, geozone_column, bench_height, units)
     if holes.n_benches < 2:
         raise BGMInputError(f"{input} has a single bench; building a model needs two or more benches")
-    summary = _run_build(holes, out, geozone, project, load_truth(input, holes), workers, scheduler)
+    summary = _run_build(holes, out, geozone, project, load_truth(input, holes), workers, scheduler, no_cache)
     typer.echo(json.dumps({k: summary[k] for k in ("holes", "seconds")} | {"out": str(out)}))
 
 
@@ -398,59 +419,22 @@ def build(
 def demo(
     out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-demo"),
     view: Annotated[bool, typer.Option(help="Open the 3D viewer on the result when a display is available.")] = False,
+    no_cache: NoCacheOpt = False,
 ) -> None:
     """Build the whole model on the bundled synthetic demo data (assets/demo_blastholes.csv)."""
     from core.io.blastholes import read_blastholes
     from core.model.build import load_truth
 
     holes = read_blastholes(DEMO_CSV)
-    _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes))
+    _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes), no_cache=no_cache)
     typer.echo((out / "report.md").read_text())
-    if view:
-        from bgm_viewer.cli_hooks import view_command
-
-        view_command(DEMO_CSV, None, None, None, None)
-    else:
+    if not view:
         _say("open it in 3D with: bgm view")
-
-
-@app.command()
-def view(
-    input: Annotated[
-        Path | None, typer.Argument(help="Blasthole table (default: the bundled demo).", show_default=False)
-    ] = None,
-    project: ProjectOpt = None,
-    screenshot: Annotated[
-        Path | None,
-        typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window."),
-    ] = None,
-    layers: Annotated[
-        str | None,
-        typer.Option(
-            help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."
-        ),
-    ] = None,
-    camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
-    geozone: Annotated[str | None, typer.Option("--geozone", help="Geozone to select.")] = None,
-    bench: Annotated[int | None, typer.Option(help="Bench index to select (0 = top).")] = None,
-    exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
-) -> None:
-    """Open the 3D viewer (or render a screenshot with no display)."""
-    # The viewer is a separate package on top of the engine; only this command loads it.
-    try:
-        from bgm_viewer.cli_hooks import view_command
-    except ImportError as exc:
-        raise BGMInputError(
-            f"the viewer is not installed ({exc}); install it with: pip install -e '.[viewer]'"
-        ) from None
-    if input is not None and not Path(input).exists():
-        raise BGMInputError(f"input file {str(input)!r} does not exist")
-    code = view_command(
-        input, project, screenshot, layers, camera, geozone=geozone, bench=bench, vertical_exaggeration=exaggeration
-    )
-    if screenshot:
-        _say(f"wrote {screenshot}")
-    raise typer.Exit(code or 0)
+        return
+    viewer = next((c.callback for c in app.registered_commands if c.name == "view" and c.callback), None)
+    if viewer is None:
+        raise BGMInputError("the 3D viewer is not installed: pip install -e '.[viewer]'")
+    viewer(DEMO_CSV)
 
 
 @app.command("make-demo-data")
@@ -475,9 +459,38 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     _say(f"bgm: warning: {message}")
 
 
+#: Entry-point group through which other packages add commands (the viewer adds ``bgm view``):
+#: each entry point names a function ``register(app)`` that adds its commands to the typer app.
+PLUGIN_GROUP = "bgm.commands"
+
+
+def load_plugins(target: typer.Typer = app) -> list[str]:
+    """Let installed packages add their commands (entry points of :data:`PLUGIN_GROUP`); returns their names.
+
+    The engine knows no viewer: a package that adds one registers it here, so
+    ``bgm`` works with or without it installed.
+    """
+    from importlib.metadata import entry_points
+
+    present = {c.name for c in target.registered_commands}
+    loaded = []
+    for ep in entry_points(group=PLUGIN_GROUP):
+        if ep.name in present:
+            continue
+        try:
+            ep.load()(target)
+        except Exception as exc:  # a broken add-on must not take the engine's commands with it
+            _say(f"bgm: warning: the {ep.name!r} command could not be loaded ({type(exc).__name__}: {exc})")
+            continue
+        loaded.append(ep.name)
+    return loaded
+
+
 def main() -> None:
     """Entry point of the ``bgm`` console script."""
     from core.io.blastholes import BGMWarning
+
+    load_plugins()
 
     # Users see the engine's own warnings (repairs to their data), not library chatter.
     warnings.showwarning = _show_warning

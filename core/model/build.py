@@ -20,7 +20,6 @@ import shapely
 
 from core.errors import BGMInputError
 from core.extraction.contours import Contour
-from core.geometry.grid import as_multipolygon
 from core.io.atomic import atomic_write_text
 from core.io.blastholes import Blastholes
 from core.io.reporting import containment_summary, contour_feature, to_input_geometry
@@ -28,16 +27,20 @@ from core.model.pipeline import (
     GeozoneModel,
     ModelParameters,
     correspondence_json,
-    model_geozone,
     morph_json,
     pair_coverage,
 )
-from core.model.prediction import predict_geozone, region_between
+from core.model.prediction import predict_geozone
+from core.model.session import (  # noqa: F401 - the surface build's steps, long imported from here
+    SURFACE_STEPS_PER_BENCH,
+    ModelSession,
+    StageStore,
+    surface_cell_size,
+    surface_sections,
+)
 
 #: Depths below the deepest bench at which predictions are written, in bench heights.
 PREDICTION_FRACTIONS = tuple(k / 8 for k in range(1, 9))
-#: Iso-contours per bench interval used to build surfaces.
-SURFACE_STEPS_PER_BENCH = 4
 
 
 def truth_sidecar(path: Path) -> Path:
@@ -98,35 +101,6 @@ def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelPa
     return predict
 
 
-def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParameters, below_fraction: float = 1.0):
-    """Stacked regions (z metres, region) from the top bench to one bench below the deepest."""
-    sections = []
-    for p in model.pairs:
-        if p.correspondence is None:
-            continue
-        for s in range(SURFACE_STEPS_PER_BENCH):
-            f = s / SURFACE_STEPS_PER_BENCH
-            z = p.source_z_m + f * (p.target_z_m - p.source_z_m)
-            region = model.region_at_bench(p.upper) if s == 0 else region_between(p, f)
-            sections.append((z, as_multipolygon(region)))
-    if model.pairs:
-        last = model.pairs[-1]
-        sections.append((last.target_z_m, as_multipolygon(model.region_at_bench(last.lower))))
-        height = last.source_z_m - last.target_z_m
-        zs = [last.target_z_m - f * height for f in np.linspace(0.25, below_fraction, 4)]
-        sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
-    return sections
-
-
-def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 300) -> float:
-    """Half a hole spacing, coarsened so the surface grid stays under ``max_cells`` across."""
-    polys = [c.polygon for c in model.contours if not c.polygon.is_empty]
-    if not polys:
-        return 0.5 * holes.hole_spacing_m
-    xmin, ymin, xmax, ymax = shapely.union_all(polys).bounds
-    return max(0.5 * holes.hole_spacing_m, max(xmax - xmin, ymax - ymin) / max_cells)
-
-
 @dataclass
 class GeozoneSummary:
     geozone: str
@@ -155,13 +129,17 @@ def build(
     evaluate: bool = True,
     workers: int | None = None,
     scheduler: str | None = None,
+    cache=None,
 ) -> dict:
     """Run the whole pipeline and write every output under ``out_dir``.
 
     Benches (for contours) and geozones (for everything else) are
     independent: they run in parallel on ``workers`` local processes (all
     cores by default), or on a dask.distributed cluster when ``scheduler``
-    gives its address, with identical results.
+    gives its address, with identical results. Every stage runs through a
+    :class:`~core.model.session.ModelSession`, the viewer's pipeline; with a
+    :class:`~core.io.cache.StageCache` as ``cache`` its results are kept on
+    disk for the next run.
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
@@ -176,14 +154,15 @@ def build(
     unit = holes.frame.length_unit
     t0 = time.perf_counter()
 
-    contours = extract_all_benches(holes, params, workers, scheduler, progress)
+    session = ModelSession(holes, params, project, StageStore(cache))
+    contours = extract_all_benches(session, workers, scheduler, progress)
     write_geojson([contour_feature(c, holes) for c in contours if c.geozone in wanted], out_dir / "contours.geojson")
     containment = containment_summary([c for c in contours if c.geozone in wanted], holes)
     t_contours = time.perf_counter() - t0
 
     for k in range(holes.n_benches):
         holes.drilled_area(k)  # once, before the workers fork, so they all share it
-    ctx = BuildContext(holes, contours, params, project, truth, out_dir, tuple(formats), evaluate)
+    ctx = BuildContext(session, contours, truth, out_dir, tuple(formats), evaluate)
     summaries: list[GeozoneSummary] = []
     evaluations = []
     for done, (summary, rows) in enumerate(_map_geozones(ctx, wanted, workers, scheduler), start=1):
@@ -223,20 +202,18 @@ def build(
 class BuildContext:
     """What every geozone job needs (shared with worker processes by fork)."""
 
-    holes: Blastholes
+    session: ModelSession
     contours: list[Contour]
-    params: ModelParameters
-    project: object
     truth: object
     out_dir: Path
     formats: tuple
     evaluate: bool
 
 
-_WORKER_CONTEXT: BuildContext | None = None  # set once per worker process by _init_worker
+_WORKER_CONTEXT: object = None  # set once per worker process by _init_worker
 
 
-def _init_worker(ctx: BuildContext) -> None:
+def _init_worker(ctx) -> None:
     global _WORKER_CONTEXT
     _WORKER_CONTEXT = ctx
 
@@ -244,7 +221,7 @@ def _init_worker(ctx: BuildContext) -> None:
 def _map_geozones(ctx: BuildContext, geozones: list[str], workers: int | None, scheduler: str | None = None):
     """Yield ``build_geozone`` results as they finish, in parallel where it pays."""
     # Largest geozones first so the last job to start is a short one.
-    order = sorted(geozones, key=lambda g: -int(np.sum(ctx.holes.geozone == g)))
+    order = sorted(geozones, key=lambda g: -int(np.sum(ctx.session.holes.geozone == g)))
     yield from _parallel_map(build_geozone, ctx, order, workers, scheduler)
 
 
@@ -295,36 +272,36 @@ def _call_in_worker(func, item):
     return func(_WORKER_CONTEXT, item)
 
 
-def extract_all_benches(holes: Blastholes, params: ModelParameters, workers=None, scheduler=None, progress=None):
+def extract_all_benches(session: ModelSession, workers=None, scheduler=None, progress=None) -> list[Contour]:
     """Contours of every bench, benches in parallel; in bench order whatever order they finish in."""
-    ctx = (holes, params.extraction)
+    holes = session.holes
     by_bench = {}
     for done, (k, contours) in enumerate(
-        _parallel_map(_extract_one_bench, ctx, list(range(holes.n_benches)), workers, scheduler), start=1
+        _parallel_map(_extract_one_bench, session, list(range(holes.n_benches)), workers, scheduler), start=1
     ):
         by_bench[k] = contours
         if progress:
             progress("contours", done, holes.n_benches)
+    for k, contours in by_bench.items():  # from worker processes: remembered here (they cached them on disk)
+        session.store.put("contours", session._contours_key(k), contours, disk=False)
     return [c for k in sorted(by_bench) for c in by_bench[k]]
 
 
-def _extract_one_bench(ctx, k: int):
-    from core.extraction.contours import extract_bench
-
-    holes, extraction = ctx
-    return k, extract_bench(holes, k, None, extraction)
+def _extract_one_bench(session: ModelSession, k: int):
+    return k, session.bench_contours(k)
 
 
 def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFrame | None]:
     """Everything ``bgm build`` writes for one geozone, under ``out_dir/<geozone>/``."""
     from core.io.export import export_all, write_geojson
     from core.model.evaluation import evaluate_geozone
-    from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
+    from core.model.surfaces import mesh_summary, to_input_frame
 
-    holes, params, out_dir = ctx.holes, ctx.params, ctx.out_dir
+    session, out_dir = ctx.session, ctx.out_dir
+    holes, params = session.holes, session.params
     mpu = holes.frame.metres_per_unit
     tg = time.perf_counter()
-    model = model_geozone(holes, g, contours=ctx.contours, params=params, project=ctx.project)
+    model = session.geozone_model(g, contours=ctx.contours)
     gdir = out_dir / _safe(g)
     gdir.mkdir(exist_ok=True)
     atomic_write_text(gdir / "correspondence.json", json.dumps(correspondence_json(model, holes), indent=1))
@@ -350,7 +327,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     deepest = model.pairs[-1]
     height = deepest.source_z_m - deepest.target_z_m
     zs = [deepest.target_z_m - f * height for f in PREDICTION_FRACTIONS]
-    predictions = predict_geozone(model, zs, holes.hole_spacing_m, params)
+    predictions = session.predict(g, zs, model)
     features = [
         {
             "geometry": to_input_geometry(region, holes),
@@ -361,10 +338,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     ]
     write_geojson(features, gdir / "prediction.geojson")
     try:
-        # Half a hole spacing resolves all the data can tell; finer only adds faces.
-        mesh = surface_from_sections(
-            surface_sections(model, holes, params), cell_size_m=surface_cell_size(model, holes)
-        )
+        mesh = session.surface(g, model)
         info = mesh_summary(mesh)
         exported = export_all(
             to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu), gdir, "surface", ctx.formats
