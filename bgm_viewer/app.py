@@ -15,6 +15,7 @@ real display or ``xvfb-run``.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import threading
 import time
@@ -224,10 +225,17 @@ class MainWindow(QtWidgets.QMainWindow):
         m.addSeparator()
         m.addAction("&Quit", self.close, QtGui.QKeySequence.StandardKey.Quit)
         e = self.menuBar().addMenu("&Edit")
-        self.undo_action = e.addAction("&Undo alignment", self.undo, QtGui.QKeySequence.StandardKey.Undo)
+        self.undo_action = QtGui.QAction("&Undo alignment", self)
+        self.undo_action.setShortcut(QtGui.QKeySequence.StandardKey.Undo)
+        self.undo_action.triggered.connect(self.undo)
+        e.addAction(self.undo_action)
         v = self.menuBar().addMenu("&View")
         for cam in ("iso", "top", "front", "side"):
-            v.addAction(f"Camera: {cam}", lambda c=cam: (self.renderer.set_camera(c), self.plotter.render()))
+            v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam))
+
+    def set_camera(self, camera: str) -> None:
+        self.renderer.set_camera(camera)
+        self.plotter.render()
 
     def _dock(self, title: str, widget: QtWidgets.QWidget, area) -> QtWidgets.QDockWidget:
         dock = QtWidgets.QDockWidget(title, self)

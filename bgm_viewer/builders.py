@@ -172,5 +172,5 @@ def refresh_scene(
             continue
         old = scene.get(layer.name)
         if old is not None and old.n_frames == layer.n_frames and old.n_frames > 1:
-            layer._frame = old.frame
+            layer.frame = old.frame
         scene.replace(layer)

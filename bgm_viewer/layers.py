@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pyvista as pv
@@ -105,7 +106,7 @@ def _xyz(xy: np.ndarray, z: float) -> np.ndarray:
 
 
 def _line_style(width: float = 2.0, rgb: bool = True, color: RGB | None = None) -> dict:
-    style = {"line_width": width, "lighting": False, "show_scalar_bar": False}
+    style: dict[str, object] = {"line_width": width, "lighting": False, "show_scalar_bar": False}
     if rgb:
         style.update(scalars="rgb", rgb=True)
     elif color is not None:
@@ -680,7 +681,7 @@ class SurfaceLayer(Layer):
         self.colours = dict(colours) if colours else geozone_colours(g for g, _, _ in self.meshes)
 
     @classmethod
-    def from_trimesh(cls, items: Iterable[tuple[str, object]], colours=None, **kw) -> SurfaceLayer:
+    def from_trimesh(cls, items: Iterable[tuple[str, Any]], colours=None, **kw) -> SurfaceLayer:
         """From ``(geozone, trimesh.Trimesh)`` pairs (``core.model.surfaces.surface_from_sections``)."""
         return cls([(g, m.vertices, m.faces) for g, m in items], colours, **kw)
 

@@ -24,12 +24,14 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import functools
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+import trimesh
 from psygnal import Signal
 
 from core.extraction.contours import Contour
@@ -45,6 +47,7 @@ from core.model.parameters import (
 from core.model.parameters import STAGES as CORE_STAGES
 from core.model.pipeline import BenchPair, GeozoneModel, modelled_contours
 from core.model.session import ModelSession, StageStore
+from core.morph.levelset import MorphResult
 
 STEPS = ("contours", "snake", *CORE_STAGES[1:])
 #: Depths below the deepest bench at which the selected geozone is predicted, in bench heights.
@@ -86,7 +89,7 @@ class MorphRecord:
 
     source_ids: list[int]
     target_ids: list[int]
-    result: object  # core.morph.levelset.MorphResult
+    result: MorphResult
     shift_m: tuple[float, float]
     z_from_m: float
     z_to_m: float
@@ -100,7 +103,7 @@ class PipelineResult:
     pair: BenchPair | None = None  #: the selected bench pair of the selected geozone, corresponded and morphed
     morph: MorphRecord | None = None  #: the selected source's morph instance, with fronts
     model: GeozoneModel | None = None  #: the selected geozone's whole model
-    surface: object | None = None  #: the selected geozone's surface (trimesh), as ``bgm build`` exports it
+    surface: trimesh.Trimesh | None = None  #: the selected geozone's surface, as ``bgm build`` exports it
     predicted: list = field(default_factory=list)  #: (geozone, z_m, polygon) below the deepest bench
     min_component_holes: int = ModelParameters().min_component_holes
     timings: dict[str, float] = field(default_factory=dict)
@@ -216,7 +219,7 @@ def compute(
     others = [b for b in range(n) if b not in pair_benches]
     t0 = time.perf_counter()
     for i, b in enumerate(others, start=1):
-        res.contours[b] = run.step(f"contours of bench {b}", lambda b=b: session.bench_contours(b))
+        res.contours[b] = run.step(f"contours of bench {b}", functools.partial(session.bench_contours, b))
         yield f"contours of bench {b}", 0.5 + 0.3 * i / len(others), run.snapshot()
     res.timings["extraction (all)"] = time.perf_counter() - t0 + res.timings["extraction (pair)"]
     if last >= STEPS.index("prediction"):
@@ -229,25 +232,27 @@ def _pair_steps(run: _Run, benches: list[int], last: int) -> Iterator[Progress]:
     """Correspondence and morph of the selected bench pair, with the selected instance's fronts."""
     session, sel, res = run.session, run.sel, run.res
     contours = [c for b in benches for c in res.contours[b]]
-    res.pair = next((p for p in session.pairs(sel.geozone, contours) if p.upper == sel.bench), None)
-    if res.pair is None:
+    pair = res.pair = next((p for p in session.pairs(sel.geozone, contours) if p.upper == sel.bench), None)
+    if pair is None:
         return
-    run.step("correspondence", lambda: session.correspond(res.pair), "correspondence")
+    run.step("correspondence", lambda: session.correspond(pair), "correspondence")
     yield "correspondence", 0.35, run.snapshot()
-    if last >= STEPS.index("morph") and res.pair.correspondence is not None:
-        run.step("morph", lambda: session.morph(res.pair), "morph")
-        res.morph = run.step("morph fronts", lambda: _morph_record(session, res.pair, sel), "morph")
+    if last >= STEPS.index("morph") and pair.correspondence is not None:
+        run.step("morph", lambda: session.morph(pair), "morph")
+        res.morph = run.step("morph fronts", lambda: _morph_record(session, pair, sel), "morph")
         yield "morph", 0.45, run.snapshot()
 
 
 def _morph_record(session: ModelSession, pair: BenchPair, sel: Selection) -> MorphRecord | None:
-    instances = pair.correspondence.instances
-    index = next((i for i, inst in enumerate(instances) if sel.component in inst.source_ids), None)
-    if index is None:
+    corr = pair.correspondence
+    index = (
+        None if corr is None else next((i for i, m in enumerate(corr.instances) if sel.component in m.source_ids), None)
+    )
+    if corr is None or index is None:
         return None
     step = session.instance_fronts(pair, index)
     ids = list(step.instance.source_ids)
-    shift = np.mean(pair.correspondence.translations[ids], axis=0) if ids else np.zeros(2)
+    shift = np.mean(corr.translations[ids], axis=0) if ids else np.zeros(2)
     return MorphRecord(
         ids,
         list(step.instance.target_ids),

@@ -260,8 +260,8 @@ def display_to_plane(plotter, x_px: float, y_px: float, z_display: float) -> np.
 
 def drag_on_plane(plotter, start_px, end_px, z_display: float) -> np.ndarray | None:
     """World ``(dx, dy)`` of a mouse drag between two display pixels, measured on the plane ``z = z_display``."""
-    a = display_to_plane(plotter, *start_px, z_display)
-    b = display_to_plane(plotter, *end_px, z_display)
+    a = display_to_plane(plotter, start_px[0], start_px[1], z_display)
+    b = display_to_plane(plotter, end_px[0], end_px[1], z_display)
     if a is None or b is None:
         return None
     return b - a

@@ -45,7 +45,7 @@ def no_aa_theme():
 
 def plotter_for(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True):
     """An off-screen plotter with ``scene`` drawn and the camera set."""
-    plotter = pv.Plotter(off_screen=True, window_size=tuple(window_size), theme=no_aa_theme())
+    plotter = pv.Plotter(off_screen=True, window_size=[int(v) for v in window_size], theme=no_aa_theme())
     renderer = SceneRenderer(plotter, scene, legend=legend)
     renderer.set_camera(camera)
     return plotter, renderer

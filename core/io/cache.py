@@ -47,7 +47,11 @@ def default_cache_dir() -> Path:
 @functools.cache
 def engine_fingerprint() -> str:
     """Hash of the engine's source code (every ``core/**/*.py``): a code change invalidates the cache."""
-    root = Path(__file__).resolve().parents[1]
+    return source_fingerprint(Path(__file__).resolve().parents[1])
+
+
+def source_fingerprint(root: Path) -> str:
+    """Hash of the names and contents of the Python files under ``root``."""
     h = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         h.update(path.relative_to(root).as_posix().encode())

@@ -36,14 +36,17 @@ import re
 import warnings
 from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
-import trimesh
 from shapely.geometry import mapping, shape
 
 from core.errors import BGMInputError
 from core.io.atomic import atomic_path
+
+if TYPE_CHECKING:  # trimesh costs most of a second to import; only surface writers load it
+    import trimesh
 
 #: Formats :func:`export_surface` writes, by canonical name.
 SURFACE_FORMATS = ("obj", "ply", "stl", "vtp", "dxf", "omf")
@@ -215,6 +218,8 @@ def _canonical(fmt: str) -> str:
 
 
 def _write_obj(tmp: Path, vertices, faces, name, mesh) -> None:
+    import trimesh
+
     m = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     text = trimesh.exchange.obj.export_obj(
         m, include_normals=False, include_color=False, include_texture=False, digits=10
@@ -223,6 +228,8 @@ def _write_obj(tmp: Path, vertices, faces, name, mesh) -> None:
 
 
 def _write_stl(tmp: Path, vertices, faces, name, mesh) -> None:
+    import trimesh
+
     m = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     tmp.write_bytes(trimesh.exchange.stl.export_stl(m))
 

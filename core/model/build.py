@@ -204,7 +204,7 @@ class BuildContext:
 
     session: ModelSession
     contours: list[Contour]
-    truth: object
+    truth: Callable | None
     out_dir: Path
     formats: tuple
     evaluate: bool

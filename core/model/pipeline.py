@@ -66,6 +66,8 @@ class BenchPair:
 
     def aligned_source(self, i: int):
         """Source ``i`` moved by its estimated translation (local metres)."""
+        if self.correspondence is None:
+            raise ValueError("the pair has no correspondence yet")
         dx, dy = self.correspondence.translations[i]
         return affinity.translate(self.sources[i].polygon, dx, dy)
 
@@ -350,6 +352,8 @@ def correspondence_json(model: GeozoneModel, holes: Blastholes) -> dict:
     pairs = []
     for p in model.pairs:
         corr = p.correspondence
+        if corr is None:
+            raise ValueError(f"bench pair {p.upper}-{p.lower} of {model.geozone} has no correspondence yet")
         pairs.append(
             {
                 "source_z": holes.bench_z_input(p.upper),

@@ -33,6 +33,7 @@ from core.extraction.contours import Contour, extract_bench, snake_contour
 from core.geometry.grid import as_multipolygon
 from core.io.blastholes import Blastholes
 from core.io.cache import MISSING, StageCache, content_key, engine_fingerprint
+from core.io.project import Project, overrides_for
 from core.model.parameters import ModelParameters, stage_values
 from core.model.pipeline import (
     BenchPair,
@@ -109,7 +110,8 @@ class StageStore:
         return {"cache": self.cache, "max_entries": self.max_entries}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["cache"], state["max_entries"])
+        self.cache, self.max_entries = state["cache"], state["max_entries"]
+        self.counts, self._memory, self._lock = Counter(), OrderedDict(), threading.Lock()
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,7 +130,7 @@ class ModelSession:
 
     holes: Blastholes
     params: ModelParameters = field(default_factory=ModelParameters)
-    project: object = None
+    project: Project | None = None
     store: StageStore = field(default_factory=StageStore)
 
     @classmethod
@@ -220,6 +222,8 @@ class ModelSession:
         """
         from core.extraction.contours import bench_spacing
 
+        if contour.fields is None:
+            raise ValueError("a snake preview needs the contour's fields (see bench_contours_with_fields)")
         xy = self.holes.xy[self.holes.on_bench(contour.bench)]
         spacing = bench_spacing(xy, self.holes.hole_spacing_m)
         polygon, fields = snake_contour(
@@ -237,8 +241,6 @@ class ModelSession:
         """The project's overrides of one bench pair (input units), as :func:`correspond` takes them."""
         if self.project is None:
             return {}, set(), set()
-        from core.io.project import overrides_for
-
         return overrides_for(self.project, pair.geozone, self.holes.bench_z_input(pair.upper))
 
     def correspond(self, pair: BenchPair, keep_fields: bool = False):
@@ -264,6 +266,8 @@ class ModelSession:
 
     def instance_fronts(self, pair: BenchPair, index: int) -> MorphStep:
         """Morph instance ``index`` of a corresponded pair again with its fronts kept (for display)."""
+        if pair.correspondence is None:
+            raise ValueError("the pair has no correspondence yet")
         instance = pair.correspondence.instances[index]
         key = content_key("fronts", self._pair_keys(pair)[1], index)
         return self.store.get(
@@ -301,9 +305,17 @@ class ModelSession:
         big = [c for c in own if len(c.holes) >= self.params.min_component_holes]
         minor = [c for c in own if len(c.holes) < self.params.min_component_holes]
         benches = {c.bench for c in big}
+        for k in range(self.holes.n_benches):
+            self.drilled_area(k)
         return GeozoneModel(
             geozone, big, pairs, minor, drilling_frontiers(self.holes, benches), self.beyond_frontier(geozone, benches)
         )
+
+    def drilled_area(self, bench: int):
+        """The bench's drilled area (:meth:`Blastholes.drilled_area`), stored with the other results."""
+        area = self.store.get("drilled", self.bench_key(bench), lambda: self.holes.drilled_area(bench))
+        self.holes._drilled.setdefault(bench, area)  # what Blastholes.drilled_area would compute
+        return area
 
     def beyond_frontier(self, geozone: str, benches) -> dict:
         """:func:`core.model.pipeline.beyond_frontiers` of the geozone on the given benches."""
