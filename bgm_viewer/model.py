@@ -206,16 +206,24 @@ def compute(
             res.contours[sel.bench] = [new if x is c else x for x in res.contours[sel.bench]]
             yield "snake of the selected component", 0.1, run.snapshot()
     pair_benches = [b for b in (sel.bench, sel.bench + 1) if b < n]
-
-    def pair_contours() -> None:
-        res.contours[sel.bench] = session.bench_contours_with_fields(sel.bench, sel.geozone)
-        for b in pair_benches[1:]:
-            res.contours[b] = session.bench_contours(b)
-
-    run.step("extraction (pair)", pair_contours)
-    yield "contours of the bench pair", 0.3, run.snapshot()
+    t0 = time.perf_counter()
+    # The selected bench: with its fields if they are at hand or it must be extracted anyway
+    # (extraction keeps them at little cost); stored contours without them are shown first.
+    stored = session.stored_bench_contours(sel.bench, sel.geozone)
+    if stored is None:
+        stored = run.step("selected bench", lambda: session.bench_contours_with_fields(sel.bench, sel.geozone))
+    res.contours[sel.bench] = stored
+    yield "contours of the selected bench", 0.2, run.snapshot()
+    for b in pair_benches[1:]:
+        res.contours[b] = run.step("next bench", functools.partial(session.bench_contours, b))
+        yield "contours of the bench pair", 0.3, run.snapshot()
+    res.timings["extraction (pair)"] = time.perf_counter() - t0
     if last >= STEPS.index("correspondence"):
         yield from _pair_steps(run, pair_benches, last)
+    own = [c for c in res.contours[sel.bench] if c.geozone == sel.geozone]
+    if own and all(c.fields is None for c in own):
+        res.contours[sel.bench] = run.step("fields", lambda: session.bench_contours_with_fields(sel.bench, sel.geozone))
+        yield "edge map, GVF and snake of the selected bench", 0.4, run.snapshot()
     others = [b for b in range(n) if b not in pair_benches]
     t0 = time.perf_counter()
     for i, b in enumerate(others, start=1):
@@ -238,8 +246,9 @@ def _pair_steps(run: _Run, benches: list[int], last: int) -> Iterator[Progress]:
     run.step("correspondence", lambda: session.correspond(pair), "correspondence")
     yield "correspondence", 0.35, run.snapshot()
     if last >= STEPS.index("morph") and pair.correspondence is not None:
+        # The shown instance first, with its fronts: the pair's morph then reuses it.
+        res.morph = run.step("morph (selected instance)", lambda: _morph_record(session, pair, sel), "morph")
         run.step("morph", lambda: session.morph(pair), "morph")
-        res.morph = run.step("morph fronts", lambda: _morph_record(session, pair, sel), "morph")
         yield "morph", 0.45, run.snapshot()
 
 

@@ -25,6 +25,7 @@ import threading
 from collections import Counter, OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 import numpy as np
 import shapely
@@ -70,19 +71,24 @@ class StageStore:
 
     def get(self, stage: str, key: str, compute: Callable[[], object], *, disk: bool = True):
         """The stored result, or ``compute()`` stored (on disk too when ``disk`` and a cache is set)."""
+        value = self.peek(stage, key, disk=disk)
+        if value is not MISSING:
+            return value
+        value = compute()
+        self.counts[stage, "computed"] += 1
+        self.put(stage, key, value, disk=disk)
+        return value
+
+    def peek(self, stage: str, key: str, *, disk: bool = True):
+        """The stored result, or :data:`core.io.cache.MISSING` (nothing is computed)."""
         value = self._recall(stage, key)
         if value is not MISSING:
             self.counts[stage, "memory"] += 1
-            return value
-        if disk and self.cache is not None:
+        elif disk and self.cache is not None:
             value = self.cache.load(stage, key)
             if value is not MISSING:
                 self.counts[stage, "disk"] += 1
                 self._remember(stage, key, value)
-                return value
-        value = compute()
-        self.counts[stage, "computed"] += 1
-        self.put(stage, key, value, disk=disk)
         return value
 
     def put(self, stage: str, key: str, value, *, disk: bool = True) -> None:
@@ -183,11 +189,8 @@ class ModelSession:
     # -- contours (paper section 2) ------------------------------------------------------------
     def bench_contours(self, bench: int) -> list[Contour]:
         """Contours of every geozone on one bench."""
-        return self.store.get(
-            "contours",
-            self._contours_key(bench),
-            lambda: extract_bench(self.holes, bench, None, self.params.extraction),
-        )
+        key = self._contours_key(bench)
+        return self.store.get("contours", key, lambda: extract_bench(self.holes, bench, None, self.params.extraction))
 
     def bench_contours_with_fields(self, bench: int, geozone: str) -> list[Contour]:
         """:meth:`bench_contours`, with the edge map, GVF and snake history of ``geozone``'s contours.
@@ -196,13 +199,21 @@ class ModelSession:
         """
         key = self._contours_key(bench)
 
-        def compute() -> list[Contour]:
+        def extract() -> list[Contour]:
             full = extract_bench(self.holes, bench, None, self.params.extraction, keep_fields=True)
-            if self.store._recall("contours", key) is MISSING:
+            if self.store.peek("contours", key, disk=False) is MISSING:
                 self.store.put("contours", key, [replace(c, fields=None) for c in full])
             return [c if c.geozone == geozone else replace(c, fields=None) for c in full]
 
-        return self.store.get("fields", content_key(key, geozone), compute, disk=False)
+        return self.store.get("fields", content_key(key, geozone), extract, disk=False)
+
+    def stored_bench_contours(self, bench: int, geozone: str | None = None) -> list[Contour] | None:
+        """The bench's contours if they need no computing (with ``geozone``'s fields when at hand), else ``None``."""
+        key = self._contours_key(bench)
+        found = MISSING if geozone is None else self.store.peek("fields", content_key(key, geozone), disk=False)
+        if found is MISSING:
+            found = self.store.peek("contours", key)
+        return None if found is MISSING else cast(list, found)
 
     def contours(self, benches=None, progress: Callable[[int, int], None] | None = None) -> list[Contour]:
         """Contours of every geozone on the given benches (all by default), in bench order."""
@@ -261,11 +272,28 @@ class ModelSession:
         if keep_fronts:
             return morph(pair, self.params, keep_fronts=True, hole_spacing_m=spacing)
         _, key = self._pair_keys(pair)
-        pair.morphs = self.store.get("morph", key, lambda: morph(pair, self.params, hole_spacing_m=spacing))
+        pair.morphs = self.store.get("morph", key, lambda: self._morph_instances(pair, key))
         return pair.morphs
 
+    def _morph_instances(self, pair: BenchPair, key: str) -> list[MorphStep]:
+        """:func:`core.model.pipeline.morph`, reusing instances already morphed with their fronts."""
+        corr = pair.correspondence
+        if corr is None:
+            raise ValueError("the pair has no correspondence yet")
+        steps = []
+        for i, instance in enumerate(corr.instances):
+            shown = self.store.peek("fronts", content_key("fronts", key, i), disk=False)
+            if shown is MISSING:
+                steps.append(morph_instance(pair, instance, self.params, False, self.holes.hole_spacing_m))
+            else:  # recording fronts changes nothing else
+                steps.append(MorphStep(shown.instance, replace(shown.result, fronts=[])))
+        return steps
+
     def instance_fronts(self, pair: BenchPair, index: int) -> MorphStep:
-        """Morph instance ``index`` of a corresponded pair again with its fronts kept (for display)."""
+        """Morph instance ``index`` of a corresponded pair with its fronts kept (for display).
+
+        Asked before :meth:`morph`, the pair's morph reuses it instead of morphing that instance twice.
+        """
         if pair.correspondence is None:
             raise ValueError("the pair has no correspondence yet")
         instance = pair.correspondence.instances[index]
