@@ -197,43 +197,63 @@ def compute(
         raise ValueError(f"unknown step {from_step!r} or {until!r}; steps are {', '.join(STEPS)}")
     last = STEPS.index(until)
     run = _Run(inputs, previous, STEPS.index(from_step) if previous is not None else 0, cancelled)
-    session, sel, res = run.session, run.sel, run.res
-    n = session.holes.n_benches
     if from_step == "snake" and previous is not None:
-        c = previous.selected_contour(sel)
-        if c is not None and c.fields is not None:
-            new = run.step("selected snake", lambda: session.snake_preview(c))
-            res.contours[sel.bench] = [new if x is c else x for x in res.contours[sel.bench]]
-            yield "snake of the selected component", 0.1, run.snapshot()
-    pair_benches = [b for b in (sel.bench, sel.bench + 1) if b < n]
+        yield from _snake_preview(run, previous)
+    n = run.session.holes.n_benches
+    pair_benches = [b for b in (run.sel.bench, run.sel.bench + 1) if b < n]
+    yield from _bench_pair(run, pair_benches)
+    if last >= STEPS.index("correspondence"):
+        yield from _pair_steps(run, pair_benches, last)
+    yield from _selected_fields(run)
     t0 = time.perf_counter()
-    # The selected bench: with its fields if they are at hand or it must be extracted anyway
-    # (extraction keeps them at little cost); stored contours without them are shown first.
+    others = [b for b in range(n) if b not in pair_benches]
+    for i, b in enumerate(others, start=1):
+        run.res.contours[b] = run.step(f"contours of bench {b}", functools.partial(run.session.bench_contours, b))
+        yield f"contours of bench {b}", 0.5 + 0.3 * i / len(others), run.snapshot()
+    run.res.timings["extraction (all)"] = time.perf_counter() - t0 + run.res.timings["extraction (pair)"]
+    if last >= STEPS.index("prediction"):
+        yield from _geozone_steps(run, last)
+    run.res.complete = True
+    yield "done", 1.0, run.snapshot()
+
+
+def _snake_preview(run: _Run, previous: PipelineResult) -> Iterator[Progress]:
+    """The selected component's snake alone, on its own edge points (a snake parameter changed)."""
+    c = previous.selected_contour(run.sel)
+    if c is not None and c.fields is not None:
+        new = run.step("selected snake", lambda: run.session.snake_preview(c))
+        bench = run.res.contours[run.sel.bench]
+        run.res.contours[run.sel.bench] = [new if x is c else x for x in bench]
+        yield "snake of the selected component", 0.1, run.snapshot()
+
+
+def _bench_pair(run: _Run, benches: list[int]) -> Iterator[Progress]:
+    """Contours of the selected bench, then of the one below it.
+
+    The selected bench comes with its fields when they are at hand or it must
+    be extracted anyway (extraction keeps them at little cost); contours
+    stored without them are shown first (see :func:`_selected_fields`).
+    """
+    session, sel, res = run.session, run.sel, run.res
+    t0 = time.perf_counter()
     stored = session.stored_bench_contours(sel.bench, sel.geozone)
     if stored is None:
         stored = run.step("selected bench", lambda: session.bench_contours_with_fields(sel.bench, sel.geozone))
     res.contours[sel.bench] = stored
     yield "contours of the selected bench", 0.2, run.snapshot()
-    for b in pair_benches[1:]:
+    for b in benches[1:]:
         res.contours[b] = run.step("next bench", functools.partial(session.bench_contours, b))
         yield "contours of the bench pair", 0.3, run.snapshot()
     res.timings["extraction (pair)"] = time.perf_counter() - t0
-    if last >= STEPS.index("correspondence"):
-        yield from _pair_steps(run, pair_benches, last)
+
+
+def _selected_fields(run: _Run) -> Iterator[Progress]:
+    """Edge map, GVF and snake history of the selected geozone's contours on the selected bench, if missing."""
+    session, sel, res = run.session, run.sel, run.res
     own = [c for c in res.contours[sel.bench] if c.geozone == sel.geozone]
     if own and all(c.fields is None for c in own):
         res.contours[sel.bench] = run.step("fields", lambda: session.bench_contours_with_fields(sel.bench, sel.geozone))
         yield "edge map, GVF and snake of the selected bench", 0.4, run.snapshot()
-    others = [b for b in range(n) if b not in pair_benches]
-    t0 = time.perf_counter()
-    for i, b in enumerate(others, start=1):
-        res.contours[b] = run.step(f"contours of bench {b}", functools.partial(session.bench_contours, b))
-        yield f"contours of bench {b}", 0.5 + 0.3 * i / len(others), run.snapshot()
-    res.timings["extraction (all)"] = time.perf_counter() - t0 + res.timings["extraction (pair)"]
-    if last >= STEPS.index("prediction"):
-        yield from _geozone_steps(run, last)
-    res.complete = True
-    yield "done", 1.0, run.snapshot()
 
 
 def _pair_steps(run: _Run, benches: list[int], last: int) -> Iterator[Progress]:

@@ -136,8 +136,13 @@ class StageCache:
 
     def store(self, stage: str, key: str, value) -> None:
         """Keep ``value`` (atomically: a reader never sees half an entry)."""
+        path = self.path(stage, key)
+        if path.exists():  # keys name contents: another process stored the same result
+            with contextlib.suppress(OSError):
+                os.utime(path)
+            return
         try:
-            atomic_write_bytes(self.path(stage, key), pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
+            atomic_write_bytes(path, pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
         except Exception:  # full disk, read-only folder, unpicklable value: run uncached
             return
         self._stores += 1
