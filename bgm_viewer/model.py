@@ -105,6 +105,7 @@ class PipelineResult:
     model: GeozoneModel | None = None  #: the selected geozone's whole model
     surface: trimesh.Trimesh | None = None  #: the selected geozone's surface, as ``bgm build`` exports it
     predicted: list = field(default_factory=list)  #: (geozone, z_m, polygon) below the deepest bench
+    selection: Selection | None = None  #: what the pair, morph, model and surface were computed for
     min_component_holes: int = ModelParameters().min_component_holes
     timings: dict[str, float] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
@@ -142,16 +143,21 @@ Progress = tuple[str, float, PipelineResult]
 class _Run:
     """One run of :func:`compute`: the result being built, timings, errors, cancellation."""
 
-    def __init__(self, inputs: PipelineInputs, previous: PipelineResult | None, keep: int, cancelled):
+    def __init__(self, inputs: PipelineInputs, previous: PipelineResult | None, cancelled):
         self.session, self.sel, self.cancelled = inputs.session, inputs.selection, cancelled
         prev = previous or PipelineResult()
-        # Results of the steps before the change stay on screen until they are redone.
+        # What is on screen stays there until it is redone (a picture that empties and
+        # fills again at every slider step is harder to follow, and slower to draw);
+        # what belongs to another selection goes at once.
+        same = prev.selection == self.sel
         self.res = PipelineResult(
             contours=dict(prev.contours),
-            pair=prev.pair if keep > STEPS.index("correspondence") else None,
-            morph=prev.morph if keep > STEPS.index("morph") else None,
-            model=prev.model if keep > STEPS.index("morph") else None,
-            predicted=prev.predicted if keep > STEPS.index("prediction") else [],
+            pair=prev.pair if same else None,
+            morph=prev.morph if same else None,
+            model=prev.model if same else None,
+            surface=prev.surface if same else None,
+            predicted=prev.predicted if same else [],
+            selection=self.sel,
             min_component_holes=self.session.params.min_component_holes,
             timings=dict(prev.timings),
         )
@@ -196,7 +202,7 @@ def compute(
     if from_step not in STEPS or until not in STEPS:
         raise ValueError(f"unknown step {from_step!r} or {until!r}; steps are {', '.join(STEPS)}")
     last = STEPS.index(until)
-    run = _Run(inputs, previous, STEPS.index(from_step) if previous is not None else 0, cancelled)
+    run = _Run(inputs, previous, cancelled)
     if from_step == "snake" and previous is not None:
         yield from _snake_preview(run, previous)
     n = run.session.holes.n_benches
@@ -262,10 +268,13 @@ def _pair_steps(run: _Run, benches: list[int], last: int) -> Iterator[Progress]:
     contours = [c for b in benches for c in res.contours[b]]
     pair = res.pair = next((p for p in session.pairs(sel.geozone, contours) if p.upper == sel.bench), None)
     if pair is None:
+        res.morph = None
         return
     run.step("correspondence", lambda: session.correspond(pair), "correspondence")
     yield "correspondence", 0.35, run.snapshot()
-    if last >= STEPS.index("morph") and pair.correspondence is not None:
+    if pair.correspondence is None:
+        res.morph = None
+    elif last >= STEPS.index("morph"):
         # The shown instance first, with its fronts: the pair's morph then reuses it.
         res.morph = run.step("morph (selected instance)", lambda: _morph_record(session, pair, sel), "morph")
         run.step("morph", lambda: session.morph(pair), "morph")
@@ -299,6 +308,7 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
     yield "model of the geozone", 0.85, run.snapshot()
     model = res.model
     if model is None or not model.pairs:
+        res.predicted, res.surface = [], None
         return
     deepest = model.pairs[-1]
     height = deepest.source_z_m - deepest.target_z_m

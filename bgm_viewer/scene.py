@@ -90,11 +90,15 @@ class Scene:
         for layer in self.layers:
             layer.visible = layer.name in names
 
-    def legend_entries(self) -> list[tuple[str, tuple[int, int, int]]]:
-        """Legend of the visible layers: geozones first, then layer colours (no duplicates)."""
+    def legend_entries(self, is_empty=None) -> list[tuple[str, tuple[int, int, int]]]:
+        """Legend of the visible layers: geozones first, then layer colours (no duplicates).
+
+        ``is_empty(layer)`` says whether a layer draws nothing (default: build it and see).
+        """
+        is_empty = is_empty or (lambda layer: layer.is_empty)
         out, seen = [], set()
         for layer in self.layers:
-            if not layer.visible or layer.is_empty:
+            if not layer.visible or is_empty(layer):
                 continue
             for label, rgb in layer.legend():
                 if rgb is not None and label not in seen:
@@ -118,6 +122,7 @@ class SceneRenderer:
         self.actors: dict[str, list] = {}
         self._legend_shown: list | None = None
         self._batching = 0
+        self._legend_stale = False
         with suppress(Exception):
             plotter.disable_anti_aliasing()
         ren_win = getattr(plotter, "ren_win", None)
@@ -144,8 +149,14 @@ class SceneRenderer:
         else:
             self._rebuild(layer)
         if what in ("visible", "added", "data", "color") or layer is None:
+            self._legend_stale = True
+        if not self._batching:
+            self._refresh()
+
+    def _refresh(self) -> None:
+        if self._legend_stale:
             self._update_legend()
-        if self.auto_render and not self._batching:
+        if self.auto_render:
             self.plotter.render()
 
     @contextmanager
@@ -164,8 +175,8 @@ class SceneRenderer:
         finally:
             self.plotter.suppress_rendering = suppressed
             self._batching -= 1
-            if self.auto_render and not self._batching:
-                self.plotter.render()
+            if not self._batching:
+                self._refresh()  # the legend once for the whole batch, and one render
 
     def _rebuild(self, layer: Layer) -> None:
         for actor in self.actors.pop(layer.name, []):
@@ -180,7 +191,8 @@ class SceneRenderer:
         self.actors[layer.name] = actors
 
     def _update_legend(self) -> None:
-        entries = self.scene.legend_entries() if self.show_legend else []
+        self._legend_stale = False
+        entries = self.scene.legend_entries(lambda layer: not self.actors.get(layer.name)) if self.show_legend else []
         if entries == self._legend_shown:
             return  # rebuilding an unchanged legend costs a render
         self._legend_shown = entries
