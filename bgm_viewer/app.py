@@ -55,7 +55,7 @@ class ParamControl(QtWidgets.QWidget):
     def __init__(self, spec: ParameterSpec, value, holes, parent=None):
         super().__init__(parent)
         self.spec = spec
-        self._factor, unit = display_unit(spec, holes)
+        self._factor, self.unit = display_unit(spec, holes)
         self._derived = spec.resolved(None, holes.hole_spacing_m)
         lay = QtWidgets.QHBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
@@ -91,7 +91,8 @@ class ParamControl(QtWidgets.QWidget):
                 w.blockSignals(True)
         shown = self._derived if value is None else value
         if shown is not None:
-            self.slider.setValue(shown * self._factor)
+            v = shown * self._factor
+            self.slider.setValue(int(round(v)) if self.spec.integer else v)
         if self.auto is not None:
             self.auto.setChecked(value is None)
             self.slider.setEnabled(value is not None)
@@ -329,7 +330,7 @@ class MainWindow(QtWidgets.QMainWindow):
             for spec in (p for p in PARAMETERS if p.section == section):
                 ctl = ParamControl(spec, self.model.param(spec.name), self.model.holes)
                 ctl.valueChanged.connect(self.set_param)
-                label = QtWidgets.QLabel(spec.label)
+                label = QtWidgets.QLabel(f"{spec.label} ({ctl.unit})" if ctl.unit else spec.label)
                 label.setToolTip(ctl.toolTip())
                 form.addRow(label, ctl)
                 self.param_controls[spec.name] = ctl
