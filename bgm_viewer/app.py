@@ -76,9 +76,8 @@ class ParamControl(QtWidgets.QWidget):
             lay.addWidget(self.auto)
         default = spec.auto if spec.default is None else f"{spec.default * self._factor:g}"
         symbol = f" ({spec.symbol})" if spec.symbol else ""
-        self.setToolTip(
-            f"<b>{spec.label}{symbol}</b>{' in ' + unit if unit else ''}<br>{spec.help}<br>Default: {default}"
-        )
+        unit = f" in {self.unit}" if self.unit else ""
+        self.setToolTip(f"<b>{spec.label}{symbol}</b>{unit}<br>{spec.help}<br>Default: {default}")
         self.set_value(value)
         self.slider.valueChanged.connect(self._changed)
         if self.auto is not None:
