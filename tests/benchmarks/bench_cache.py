@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import sys
 import tempfile
 from pathlib import Path
@@ -41,9 +42,13 @@ def bench(path: Path, geozone: str, elevations: str) -> None:
             "morph after predict": [*BGM, "morph", str(path), "--geozone", geozone, "--out", f"{out}/m.json"],
         }
         for name, cmd in runs.items():
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
             r = run_measured(cmd)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
             status = "ok" if r["returncode"] == 0 else f"FAILED ({r['returncode']}): {r['stderr'][-300:]}"
-            print(f"{path.name}, geozone {geozone}: bgm {name}: {r['seconds']:.2f} s - {status}")
+            print(f"{path.name}, geozone {geozone}: bgm {name}: {r['seconds']:.2f} s ({cpu:.2f} s CPU) - {status}")
+        print(f"  load average while measuring: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
         same = Path(f"{out}/1.geojson").read_bytes() == Path(f"{out}/2.geojson").read_bytes()
         same &= Path(f"{out}/1.geojson").read_bytes() == Path(f"{out}/3.geojson").read_bytes()
         size = sum(p.stat().st_size for p in Path(cache).rglob("*.pkl")) / 1e6
