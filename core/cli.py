@@ -148,7 +148,10 @@ def contours(
 
 GeozoneOpt = Annotated[str, typer.Option("--geozone", help="Geozone to model (as written in the input, e.g. 3310).")]
 ProjectOpt = Annotated[
-    Path | None, typer.Option("--project", help="Project file with manual alignment overrides (JSON).")
+    Path | None,
+    typer.Option(
+        "--project", help="Project file (JSON) with parameters (see bgm parameters) and manual alignment overrides."
+    ),
 ]
 
 
@@ -435,6 +438,26 @@ def demo(
     if viewer is None:
         raise BGMInputError("the 3D viewer is not installed: pip install -e '.[viewer]'")
     viewer(DEMO_CSV)
+
+
+@app.command()
+def parameters() -> None:
+    """The model's parameters, by stage: what a project file's "parameters" may set, with defaults and ranges.
+
+    Lengths are metres (ranges in hole spacings), angles radians; a default of
+    "auto" is derived from the data as the last column says.
+    """
+    from rich.console import Console
+    from rich.table import Table
+
+    from core.model.parameters import PARAMETERS
+
+    table = Table("name", "stage", "symbol", "default", "typical range", "what it does", show_lines=False)
+    for p in PARAMETERS:
+        scale = " x spacing" if p.kind == "length" else ""
+        default = "auto: " + p.auto if p.default is None else f"{p.default:g}"
+        table.add_row(p.name, p.stage, p.symbol, default, f"{p.minimum:g} - {p.maximum:g}{scale}", p.help)
+    Console(width=200).print(table)
 
 
 @app.command("make-demo-data")

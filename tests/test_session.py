@@ -204,3 +204,9 @@ def test_a_second_command_reuses_the_cache_and_a_changed_file_is_not_served_stal
     bgm(*args, "--out", tmp_path / "4.json", "--no-cache")
     assert (tmp_path / "3.json").read_text() == (tmp_path / "4.json").read_text()
     assert (tmp_path / "3.json").read_text() != (tmp_path / "1.json").read_text()
+
+
+def test_bgm_parameters_lists_every_parameter_with_its_stage():
+    out = bgm("parameters").stdout
+    for spec in PARAMETERS:
+        assert spec.name in out, spec.name
