@@ -210,3 +210,15 @@ def test_bgm_parameters_lists_every_parameter_with_its_stage():
     out = bgm("parameters").stdout
     for spec in PARAMETERS:
         assert spec.name in out, spec.name
+
+
+def test_memory_keeps_the_newest_results_of_each_stage():
+    store = StageStore(max_entries=2)
+    for i in range(3):
+        store.get("contours", str(i), lambda i=i: i)
+    store.get("morph", "a", lambda: "a")
+    assert store.get("contours", "0", lambda: "again") == "again"  # the oldest contours were let go
+    assert store.get("contours", "2", lambda: "again") == 2 and store.get("morph", "a", lambda: "again") == "a"
+    for i in range(5):
+        store.get("fields", str(i), lambda i=i: i)  # display fields: only the latest few
+    assert store.get("fields", "0", lambda: "again") == "again"

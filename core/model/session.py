@@ -51,6 +51,9 @@ from core.model.prediction import predict_geozone, region_between
 
 #: Iso-contours per bench interval used to build surfaces.
 SURFACE_STEPS_PER_BENCH = 4
+#: Results kept in memory per stage, newest first; display fields (edge maps, GVF, snake
+#: histories, level-set fronts) run to tens of megabytes each, so only the latest few.
+MEMORY_ENTRIES = {"fields": 3, "fronts": 8}
 
 
 class StageStore:
@@ -62,11 +65,11 @@ class StageStore:
     was answered (``memory``, ``disk`` or ``computed``).
     """
 
-    def __init__(self, cache: StageCache | None = None, max_entries: int = 256):
+    def __init__(self, cache: StageCache | None = None, max_entries: int = 128):
         self.cache = cache
-        self.max_entries = max_entries
+        self.max_entries = max_entries  #: per stage, except the display stages of MEMORY_ENTRIES
         self.counts: Counter = Counter()
-        self._memory: OrderedDict = OrderedDict()
+        self._memory: dict[str, OrderedDict] = {}
         self._lock = threading.Lock()
 
     def get(self, stage: str, key: str, compute: Callable[[], object], *, disk: bool = True):
@@ -99,17 +102,19 @@ class StageStore:
 
     def _recall(self, stage: str, key: str):
         with self._lock:
-            if (stage, key) not in self._memory:
+            entries = self._memory.get(stage)
+            if entries is None or key not in entries:
                 return MISSING
-            self._memory.move_to_end((stage, key))
-            return self._memory[stage, key]
+            entries.move_to_end(key)
+            return entries[key]
 
     def _remember(self, stage: str, key: str, value) -> None:
         with self._lock:
-            self._memory[stage, key] = value
-            self._memory.move_to_end((stage, key))
-            while len(self._memory) > self.max_entries:
-                self._memory.popitem(last=False)
+            entries = self._memory.setdefault(stage, OrderedDict())
+            entries[key] = value
+            entries.move_to_end(key)
+            while len(entries) > MEMORY_ENTRIES.get(stage, self.max_entries):
+                entries.popitem(last=False)
 
     def __getstate__(self) -> dict:
         # Sent to other processes (dask workers): the disk cache travels, memory and lock do not.
@@ -117,7 +122,7 @@ class StageStore:
 
     def __setstate__(self, state: dict) -> None:
         self.cache, self.max_entries = state["cache"], state["max_entries"]
-        self.counts, self._memory, self._lock = Counter(), OrderedDict(), threading.Lock()
+        self.counts, self._memory, self._lock = Counter(), {}, threading.Lock()
 
 
 @dataclass(frozen=True, eq=False)
