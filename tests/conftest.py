@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import tempfile
 import warnings
 from pathlib import Path
@@ -24,6 +26,7 @@ os.environ.setdefault("QT_API", "pyside6")
 # Stage results are cached on disk (core.io.cache): the suite never reads or fills the user's
 # cache, and each test gets a cache of its own (fixture below); commands started by a test inherit it.
 os.environ["BGM_CACHE_DIR"] = tempfile.mkdtemp(prefix="bgm-test-cache-")
+atexit.register(shutil.rmtree, os.environ["BGM_CACHE_DIR"], ignore_errors=True)
 
 
 @pytest.fixture(autouse=True)
