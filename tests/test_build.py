@@ -48,6 +48,27 @@ def test_build_writes_every_output(built):
             assert (built / g / name).exists(), (g, name)
 
 
+def test_contours_and_predictions_open_as_3d_polylines_in_mine_software(built):
+    """The DXF strings hold the GeoJSON's rings vertex for vertex, closed, at their bench elevation."""
+    features = json.loads((built / "contours.geojson").read_text())["features"]
+    lines = ezdxf.readfile(built / "contours.dxf").modelspace().query("POLYLINE")
+    rings = [
+        r
+        for f in features
+        for p in getattr(shape(f["geometry"]), "geoms", [shape(f["geometry"])])
+        for r in (p.exterior, *p.interiors)
+    ]
+    assert len(lines) == len(rings) > 0
+    line, ring, feature = lines[0], rings[0], features[0]
+    points = [tuple(p) for p in line.points()]
+    assert line.is_closed and line.is_3d_polyline and line.dxf.layer == feature["properties"]["geozone"]
+    assert [p[:2] for p in points] == list(ring.coords)[:-1]  # exact: shortest round-trip floats
+    assert {p[2] for p in points} == {feature["properties"]["bench"]}
+    predicted = json.loads((built / "g1" / "prediction.geojson").read_text())["features"]
+    below = ezdxf.readfile(built / "g1" / "prediction.dxf").modelspace().query("POLYLINE")
+    assert {round(p[2], 3) for line in below for p in line.points()} == {f["properties"]["z"] for f in predicted}
+
+
 @pytest.mark.parametrize("geozone", ["g1", "g2"])
 def test_surfaces_are_watertight_and_reopen_with_the_same_faces(built, geozone):
     summary = json.loads((built / "summary.json").read_text())

@@ -363,86 +363,7 @@ def _write_dxf(tmp: Path, vertices, faces, name, mesh) -> None:
     (a triangle, as the DXF reference specifies).
     """
     layer = _dxf_layer_name(name)
-    lo = vertices.min(axis=0)
-    hi = vertices.max(axis=0)
-    head = [
-        "0",
-        "SECTION",
-        "2",
-        "HEADER",
-        "9",
-        "$ACADVER",
-        "1",
-        "AC1009",
-        "9",
-        "$EXTMIN",
-        "10",
-        repr(float(lo[0])),
-        "20",
-        repr(float(lo[1])),
-        "30",
-        repr(float(lo[2])),
-        "9",
-        "$EXTMAX",
-        "10",
-        repr(float(hi[0])),
-        "20",
-        repr(float(hi[1])),
-        "30",
-        repr(float(hi[2])),
-        "0",
-        "ENDSEC",
-        "0",
-        "SECTION",
-        "2",
-        "TABLES",
-        "0",
-        "TABLE",
-        "2",
-        "LTYPE",
-        "70",
-        "1",
-        "0",
-        "LTYPE",
-        "2",
-        "CONTINUOUS",
-        "70",
-        "0",
-        "3",
-        "Solid line",
-        "72",
-        "65",
-        "73",
-        "0",
-        "40",
-        "0.0",
-        "0",
-        "ENDTAB",
-        "0",
-        "TABLE",
-        "2",
-        "LAYER",
-        "70",
-        "1",
-        "0",
-        "LAYER",
-        "2",
-        layer,
-        "70",
-        "0",
-        "62",
-        "7",
-        "6",
-        "CONTINUOUS",
-        "0",
-        "ENDTAB",
-        "0",
-        "ENDSEC",
-        "0",
-        "SECTION",
-        "2",
-        "ENTITIES",
-    ]
+    head = _dxf_head([layer], vertices.min(axis=0), vertices.max(axis=0))
     template = (
         "0\n3DFACE\n8\n" + layer.replace("%", "%%") + "\n"
         "10\n%r\n20\n%r\n30\n%r\n"
@@ -458,6 +379,52 @@ def _write_dxf(tmp: Path, vertices, faces, name, mesh) -> None:
         for i in range(0, len(rows), 20000):
             fh.write("".join([template % tuple(r) for r in rows[i : i + 20000]]))
         fh.write("0\nENDSEC\n0\nEOF\n")
+
+
+def _dxf_head(layers: list[str], lo: np.ndarray, hi: np.ndarray) -> list[str]:
+    """Group codes and values of an R12 DXF's header, line-type and layer tables, up to its ENTITIES."""
+    extent = []
+    for name, corner in (("$EXTMIN", lo), ("$EXTMAX", hi)):
+        extent += ["9", name] + [v for code, c in zip(("10", "20", "30"), corner) for v in (code, repr(float(c)))]
+    ltype = ["0", "TABLE", "2", "LTYPE", "70", "1", "0", "LTYPE", "2", "CONTINUOUS", "70", "0", "3", "Solid line"]
+    ltype += ["72", "65", "73", "0", "40", "0.0", "0", "ENDTAB"]
+    head = ["0", "SECTION", "2", "HEADER", "9", "$ACADVER", "1", "AC1009", *extent, "0", "ENDSEC"]
+    head += ["0", "SECTION", "2", "TABLES", *ltype, "0", "TABLE", "2", "LAYER", "70", str(len(layers))]
+    for layer in layers:
+        head += ["0", "LAYER", "2", layer, "70", "0", "62", "7", "6", "CONTINUOUS"]
+    return head + ["0", "ENDTAB", "0", "ENDSEC", "0", "SECTION", "2", "ENTITIES"]
+
+
+def write_polylines_dxf(rings: Iterable[tuple[str, float, np.ndarray]], path: str | Path) -> Path:
+    """Write closed 3D polylines as an R12 DXF, atomically: contours and predicted sections for mine software.
+
+    Each ring is ``(geozone, z, xy)``: its vertices ``xy`` (n, 2) at
+    elevation ``z``, on the geozone's layer. Vulcan, Surpac, Datamine,
+    Leapfrog and Deswik all read R12 POLYLINEs as strings or polylines, the
+    usual way to bring digitised bench contours in.
+    """
+    rings = [(_dxf_layer_name(g), float(z), np.asarray(xy, float)) for g, z, xy in rings]
+    xyz = [np.column_stack([xy, np.full(len(xy), z)]) for _, z, xy in rings if len(xy)]
+    pts = np.vstack(xyz) if xyz else np.zeros((1, 3))
+    body = _dxf_head(sorted({g for g, _, _ in rings}) or ["BGM"], pts.min(axis=0), pts.max(axis=0))
+    for layer, z, xy in rings:
+        if len(xy) > 1 and np.allclose(xy[0], xy[-1]):
+            xy = xy[:-1]  # closed by flag 1, not by a repeated vertex
+        body += ["0", "POLYLINE", "8", layer, "66", "1", "70", "9", "10", "0.0", "20", "0.0", "30", repr(z)]
+        for x, y in xy.tolist():
+            body += ["0", "VERTEX", "8", layer, "10", repr(x), "20", repr(y), "30", repr(z), "70", "32"]
+        body += ["0", "SEQEND", "8", layer]
+    body += ["0", "ENDSEC", "0", "EOF"]
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(body) + "\n", encoding="ascii")
+    return path
+
+
+def polygon_rings(geometry) -> list[np.ndarray]:
+    """The exterior and interior rings of a Polygon or MultiPolygon, as (n, 2) arrays."""
+    polys = getattr(geometry, "geoms", [geometry])
+    return [np.asarray(r.coords) for p in polys if not p.is_empty for r in (p.exterior, *p.interiors)]
 
 
 def _write_omf(tmp: Path, vertices, faces, name, mesh) -> None:

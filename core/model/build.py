@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import shapely
+from shapely.geometry import shape
 
 from core.errors import BGMInputError, listing, quoted
 from core.extraction.contours import Contour
@@ -49,6 +50,7 @@ from core.model.session import (  # noqa: F401 - the surface build's steps, long
 PREDICTION_FRACTIONS = tuple(k / 8 for k in range(1, 9))
 #: What ``bgm build`` writes at the top of its folder (besides one folder per geozone).
 TOP_LEVEL_FILES = (
+    "contours.dxf",
     "contours.geojson",
     "evaluation.csv",
     "evaluation_rows.csv",
@@ -188,6 +190,18 @@ def build(
         return _build_into(ctx, wanted, progress, workers, scheduler)
 
 
+def write_section_dxf(features: list[dict], z_key: str, path: Path) -> None:
+    """Write the rings of GeoJSON-like section features as 3D polylines at their elevation ``z_key``."""
+    from core.io.export import polygon_rings, write_polylines_dxf
+
+    rings = [
+        (str(f["properties"]["geozone"]), float(f["properties"][z_key]), ring)
+        for f in features
+        for ring in polygon_rings(shape(f["geometry"]) if isinstance(f["geometry"], dict) else f["geometry"])
+    ]
+    write_polylines_dxf(rings, path)
+
+
 def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, scheduler) -> dict:
     """Everything :func:`build` writes, into ``ctx.out_dir`` (its staging folder)."""
     from core.io.export import FORMAT_NOTES, json_default, write_geojson
@@ -197,7 +211,9 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
     t0 = time.perf_counter()
     ctx.contours = extract_all_benches(ctx.session, workers, scheduler, progress)
     mine = [c for c in ctx.contours if c.geozone in wanted]
-    write_geojson([contour_feature(c, holes) for c in mine], out_dir / "contours.geojson")
+    features = [contour_feature(c, holes) for c in mine]
+    write_geojson(features, out_dir / "contours.geojson")
+    write_section_dxf(features, "bench", out_dir / "contours.dxf")
     containment = containment_summary(mine, holes)
     t_contours = time.perf_counter() - t0
 
@@ -520,6 +536,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         if not region.is_empty
     ]
     write_geojson(features, gdir / "prediction.geojson")
+    write_section_dxf(features, "z", gdir / "prediction.dxf")
     _write_surface(summary, model, ctx, gdir)
     if ctx.evaluate and holes.n_benches >= 3:
         rows = evaluate_geozone(
