@@ -120,10 +120,10 @@ def gap_boundary(
     # Gaps between successive directions, plus the wrap-around gap.
     first = angle[:, 0]
     last = np.take_along_axis(angle, np.maximum(count - 1, 0)[:, None], axis=1)[:, 0]
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore"):  # a hole with no neighbour: inf - inf
         inner = np.diff(angle, axis=1)
+        wrap = first + 2 * np.pi - last
     inner[~np.isfinite(inner)] = -np.inf
-    wrap = first + 2 * np.pi - last
     gaps = np.column_stack([inner, wrap])
     widest = np.argmax(gaps, axis=1)
     gap = gaps[np.arange(n), widest]

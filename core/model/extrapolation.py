@@ -45,6 +45,10 @@ from shapely.geometry import MultiPolygon
 
 from core.geometry.grid import Grid
 
+#: Neighbourhood over which the rate of movement is averaged, in hole spacings: each
+#: bench's section errs by a fraction of a spacing that does not repeat from bench to
+#: bench, and averaging along the boundary cancels it (chosen on the tuning seeds only).
+RATE_SMOOTHING_SPACINGS = 1.5
 #: Neighbourhood over which the persistence of movement is measured, in hole spacings.
 PERSISTENCE_SPACINGS = 3.0
 #: Signed distances are capped at this many hole spacings: a boundary far away
@@ -266,8 +270,18 @@ class DepthTrend:
         return self.grid.polygons_from_field(field, 0.0)
 
 
+def smoothed_rate(rate: np.ndarray, fields: BenchFields, smoothing_m: float) -> np.ndarray:
+    """The rate averaged over a Gaussian neighbourhood of the cells where it was measured (two benches or more)."""
+    measured = (np.sum(fields.weight >= OBSERVED_WEIGHT, axis=0) >= 2).astype(float)
+    sigma = smoothing_m / fields.grid.cell_size_m
+    num = ndimage.gaussian_filter(rate * measured, sigma)
+    den = ndimage.gaussian_filter(measured, sigma)
+    return np.where(den > 1e-3, num / np.maximum(den, 1e-3), rate)
+
+
 def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
     """The geozone's :class:`DepthTrend` from its benches' :class:`BenchFields`."""
     f_last, z_last, rate = fit_trend(fields, bench_height_m)
+    rate = smoothed_rate(rate, fields, RATE_SMOOTHING_SPACINGS * hole_spacing_m)
     persistence = local_persistence(fields, PERSISTENCE_SPACINGS * hole_spacing_m)
     return DepthTrend(fields.grid, float(fields.z_m[-1]), bench_height_m, f_last, z_last, rate, persistence)

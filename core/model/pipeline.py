@@ -253,7 +253,7 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
 
     spacing = holes.hole_spacing_m
     lo, hi = holes.xy.min(axis=0), holes.xy.max(axis=0)
-    cell = max(spacing / 2, float(np.max(hi - lo)) / FIELD_MAX_CELLS)
+    cell = max(FIELD_CELL_SPACINGS * spacing, float(np.max(hi - lo)) / FIELD_MAX_CELLS)
     grid = Grid.covering((lo[0], lo[1], hi[0], hi[1]), cell, margin_cells=8)
     regions, drilled, z = {}, {}, {}
     for k in np.unique(holes.bench[holes.bench >= 0]):  # benches with holes: an empty level says nothing
@@ -266,6 +266,9 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
     return bench_fields(regions, drilled, z, grid, spacing, reach_spacings * spacing)
 
 
+#: Cell size of a geozone's field grid, in hole spacings (a quarter resolves the half-spacing
+#: offsets of bisector contours; chosen on the tuning seeds only).
+FIELD_CELL_SPACINGS = 0.25
 #: Most cells along a side of a geozone's field grid.
 FIELD_MAX_CELLS = 600
 
