@@ -1,10 +1,13 @@
-"""The Qt main window of the BGM viewer (qtpy + PySide6, pyvistaqt).
+"""The Qt main window of the BGM viewer (qtpy + PySide6, pyvistaqt, superqt).
 
 The window only observes and drives plain objects: a :class:`ViewerModel`
-(state, pipeline, overrides, project file) and a :class:`Scene` of layers
-drawn by a :class:`SceneRenderer` into a ``pyvistaqt.QtInteractor``. Engine
-runs happen in a worker thread (:func:`bgm_viewer.model.compute`); a newer
-request cancels an older one, progress goes to the status bar.
+(state, overrides, project file, core's pipeline) and a :class:`Scene` of
+layers drawn by a :class:`SceneRenderer` into a ``pyvistaqt.QtInteractor``.
+Engine runs happen in a superqt generator worker (:func:`bgm_viewer.model.compute`
+on a thread of Qt's pool); a newer request cancels an older one, progress goes
+to the status bar. The parameter sliders are generated from core's
+parameter specs (:data:`core.model.parameters.PARAMETERS`), with the command
+line's defaults.
 
 Qt's ``offscreen`` platform cannot host the VTK OpenGL widget; run under a
 real display or ``xvfb-run``.
@@ -12,81 +15,116 @@ real display or ``xvfb-run``.
 
 from __future__ import annotations
 
+import functools
 import itertools
-import queue
 import threading
 import time
-import traceback
 import warnings
 from pathlib import Path
 
 import numpy as np
 from qtpy import QtCore, QtGui, QtWidgets
+from superqt import QLabeledDoubleSlider, QLabeledSlider
+from superqt.utils import create_worker
+
+from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
 from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, refresh_scene
-from .model import PARAMETERS, STAGES, Cancelled, ViewerModel, compute
+from .model import STEPS, ViewerModel, compute, display_unit, project_input
 from .scene import SceneRenderer, drag_on_plane
 
+Qt = QtCore.Qt
 Signal = QtCore.Signal
-SLIDER_STEPS = 1000
+#: Slider groups: the method's steps, in the geologist's words.
+SECTIONS = {
+    "boundary": "Boundary holes (section 2.1-2.3)",
+    "snake": "Edge map, GVF and snake (2.4-2.5)",
+    "correspondence": "Correspondence between benches (3)",
+    "morph": "Metamorphosis (4)",
+    "prediction": "Prediction below the benches",
+    "surface": "Surface",
+}
 
 
 class ParamControl(QtWidgets.QWidget):
-    """A slider with a numeric field for one :class:`~bgm_viewer.model.ParamSpec`."""
+    """A labelled slider for one core parameter, in the input's units; ``auto`` for a data-derived default.
 
-    valueChanged = Signal(str, float)
+    A flag (``kind == "flag"``) is a check box instead of a slider.
+    """
 
-    def __init__(self, spec, value, parent=None):
+    valueChanged = Signal(str, object)  #: name, value in engine units (``None``: derived from the data)
+
+    def __init__(self, spec: ParameterSpec, value, holes, parent=None):
         super().__init__(parent)
         self.spec = spec
+        self._factor, self.unit = display_unit(spec, holes)
+        self._derived = spec.resolved(None, holes.hole_spacing_m)
         lay = QtWidgets.QHBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
-        self.slider = QtWidgets.QSlider(QtCore.Qt.Horizontal)
-        self.slider.setRange(0, SLIDER_STEPS)
-        if spec.integer:
-            self.field = QtWidgets.QSpinBox()
-            self.field.setRange(int(spec.minimum), int(spec.maximum))
+        lo, hi = (v * self._factor for v in spec.limits(holes.hole_spacing_m))
+        self.slider: QLabeledSlider | QLabeledDoubleSlider | QtWidgets.QCheckBox
+        if spec.kind == "flag":
+            self.slider = QtWidgets.QCheckBox()
+        elif spec.integer:
+            self.slider = QLabeledSlider(Qt.Orientation.Horizontal)
+            self.slider.setRange(int(lo), int(hi))
         else:
-            self.field = QtWidgets.QDoubleSpinBox()
-            self.field.setDecimals(3)
-            self.field.setRange(spec.minimum, spec.maximum)
-            self.field.setSingleStep((spec.maximum - spec.minimum) / 100)
-        self.field.setKeyboardTracking(False)
-        self.field.setToolTip(spec.help or spec.label)
-        lay.addWidget(self.slider, 3)
-        lay.addWidget(self.field, 1)
+            self.slider = QLabeledDoubleSlider(Qt.Orientation.Horizontal)
+            self.slider.setDecimals(3)
+            self.slider.setRange(lo, hi)
+        lay.addWidget(self.slider, 1)
+        self.auto: QtWidgets.QCheckBox | None = None
+        if spec.default is None:
+            self.auto = QtWidgets.QCheckBox("auto")
+            self.auto.setToolTip(f"Derived from the data: {spec.auto}")
+            lay.addWidget(self.auto)
+        if spec.kind == "flag":
+            default = "on" if spec.default else "off"
+        else:
+            default = spec.auto if spec.default is None else f"{spec.default * self._factor:g}"
+        symbol = f" ({spec.symbol})" if spec.symbol else ""
+        unit = f" in {self.unit}" if self.unit else ""
+        self.setToolTip(f"<b>{spec.label}{symbol}</b>{unit}<br>{spec.help}<br>Default: {default}")
         self.set_value(value)
-        self.slider.valueChanged.connect(self._from_slider)
-        self.field.valueChanged.connect(self._from_field)
+        if isinstance(self.slider, QtWidgets.QCheckBox):
+            self.slider.toggled.connect(self._changed)
+        else:
+            self.slider.valueChanged.connect(self._changed)
+        if self.auto is not None:
+            self.auto.toggled.connect(self._changed)
 
-    def _to_slider(self, v: float) -> int:
-        s = self.spec
-        return int(round((v - s.minimum) / (s.maximum - s.minimum) * SLIDER_STEPS))
+    def set_value(self, value) -> None:
+        """Show ``value`` (engine units; ``None``: auto) without emitting."""
+        for w in (self.slider, self.auto):
+            if w is not None:
+                w.blockSignals(True)
+        shown = self._derived if value is None else value
+        if isinstance(self.slider, QtWidgets.QCheckBox):
+            self.slider.setChecked(bool(shown))
+        elif shown is not None:
+            v = shown * self._factor
+            self.slider.setValue(int(round(v)) if self.spec.integer else v)
+        if self.auto is not None:
+            self.auto.setChecked(value is None)
+            self.slider.setEnabled(value is not None)
+        for w in (self.slider, self.auto):
+            if w is not None:
+                w.blockSignals(False)
 
-    def _from_slider(self, pos: int) -> None:
-        s = self.spec
-        v = s.minimum + pos / SLIDER_STEPS * (s.maximum - s.minimum)
-        v = int(round(v)) if s.integer else v
-        self.field.blockSignals(True)
-        self.field.setValue(v)
-        self.field.blockSignals(False)
-        self.valueChanged.emit(s.name, float(v))
+    def value(self):
+        """The value in engine units (``None`` when auto)."""
+        if self.auto is not None and self.auto.isChecked():
+            return None
+        if isinstance(self.slider, QtWidgets.QCheckBox):
+            return self.slider.isChecked()
+        v = self.slider.value() / self._factor
+        return int(round(v)) if self.spec.integer else float(v)
 
-    def _from_field(self, v) -> None:
-        self.slider.blockSignals(True)
-        self.slider.setValue(self._to_slider(v))
-        self.slider.blockSignals(False)
-        self.valueChanged.emit(self.spec.name, float(v))
-
-    def set_value(self, v) -> None:
-        for w, val in ((self.field, v), (self.slider, self._to_slider(v))):
-            w.blockSignals(True)
-            w.setValue(val)
-            w.blockSignals(False)
-
-    def value(self) -> float:
-        return float(self.field.value())
+    def _changed(self, *_) -> None:
+        if self.auto is not None:
+            self.slider.setEnabled(not self.auto.isChecked())
+        self.valueChanged.emit(self.spec.name, self.value())
 
 
 def _single_render(interactor):
@@ -137,20 +175,21 @@ class MainWindow(QtWidgets.QMainWindow):
         self.setWindowTitle("BGM viewer")
         self.resize(1400, 900)
         self._jobs = itertools.count(1)
-        self.emit_times: list[float] = []
         self._job = 0
-        self._pending_stage: str | None = None
-        self._queued_stage: str | None = None
+        self._worker = None
+        self._stop = threading.Event()
+        self._pending_step: str | None = None
+        self._queued_step: str | None = None
         self._request_time = 0.0
+        self._started = 0.0
         self.last_run_seconds = float("nan")
         self.last_update_seconds = float("nan")
-        # Worker results come back through a queue polled by a timer: passing Python
-        # objects through Qt signals from a plain thread can corrupt reference counts.
-        self._inbox: queue.Queue = queue.Queue()
-        self._poll = QtCore.QTimer(self)
-        self._poll.setInterval(20)
-        self._poll.timeout.connect(self._drain)
-        self._poll.start()
+        # Only the newest of a burst of worker results is drawn (drawing costs more than computing some).
+        self._latest: tuple | None = None
+        self._show_timer = QtCore.QTimer(self)
+        self._show_timer.setSingleShot(True)
+        self._show_timer.setInterval(0)
+        self._show_timer.timeout.connect(self._show_latest)
         self._debounce = QtCore.QTimer(self)
         self._debounce.setSingleShot(True)
         self._debounce.setInterval(debounce_ms)
@@ -181,30 +220,37 @@ class MainWindow(QtWidgets.QMainWindow):
         self._play = QtCore.QTimer(self)
         self._play.setInterval(80)
         self._play.timeout.connect(self._advance_frame)
-        self.model.connect(self._on_model)
+        self._connect_model()
         self._drag_start: tuple[int, int] | None = None
         self._watch_mouse()
         self._update_title()
         if auto_run:
-            self.request("boundary", immediate=True)
+            self.request("contours", immediate=True)
 
     # ------------------------------------------------------------------ building
     def _build_menus(self) -> None:
         m = self.menuBar().addMenu("&File")
-        m.addAction("&Open blastholes...", self.open_input_dialog, QtGui.QKeySequence.Open)
+        m.addAction("&Open blastholes...", self.open_input_dialog, QtGui.QKeySequence.StandardKey.Open)
         m.addAction("Open &project...", self.open_project_dialog)
-        m.addAction("&Save project", self.save_project, QtGui.QKeySequence.Save)
+        m.addAction("&Save project", self.save_project, QtGui.QKeySequence.StandardKey.Save)
         m.addAction("Save project &as...", lambda: self.save_project(ask=True))
         m.addSeparator()
         m.addAction("Export &screenshot...", self.export_screenshot_dialog)
         m.addAction("Export s&urface...", self.export_surface_dialog)
         m.addSeparator()
-        m.addAction("&Quit", self.close, QtGui.QKeySequence.Quit)
+        m.addAction("&Quit", self.close, QtGui.QKeySequence.StandardKey.Quit)
         e = self.menuBar().addMenu("&Edit")
-        self.undo_action = e.addAction("&Undo alignment", self.undo, QtGui.QKeySequence.Undo)
+        self.undo_action = QtGui.QAction("&Undo alignment", self)
+        self.undo_action.setShortcut(QtGui.QKeySequence.StandardKey.Undo)
+        self.undo_action.triggered.connect(self.undo)
+        e.addAction(self.undo_action)
         v = self.menuBar().addMenu("&View")
         for cam in ("iso", "top", "front", "side"):
-            v.addAction(f"Camera: {cam}", lambda c=cam: (self.renderer.set_camera(c), self.plotter.render()))
+            v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam))
+
+    def set_camera(self, camera: str) -> None:
+        self.renderer.set_camera(camera)
+        self.plotter.render()
 
     def _dock(self, title: str, widget: QtWidgets.QWidget, area) -> QtWidgets.QDockWidget:
         dock = QtWidgets.QDockWidget(title, self)
@@ -222,18 +268,18 @@ class MainWindow(QtWidgets.QMainWindow):
         self.layer_list = QtWidgets.QListWidget()
         for layer in self.scene.layers:
             item = QtWidgets.QListWidgetItem(layer.name)
-            item.setFlags(item.flags() | QtCore.Qt.ItemIsUserCheckable)
-            item.setCheckState(QtCore.Qt.Checked if layer.visible else QtCore.Qt.Unchecked)
+            item.setFlags(item.flags() | Qt.ItemFlag.ItemIsUserCheckable)
+            item.setCheckState(Qt.CheckState.Checked if layer.visible else Qt.CheckState.Unchecked)
             self.layer_list.addItem(item)
         self.layer_list.itemChanged.connect(self._on_layer_item)
         self.layer_list.currentRowChanged.connect(self._on_layer_row)
         lay.addWidget(self.layer_list)
         form = QtWidgets.QFormLayout()
-        self.opacity_slider = QtWidgets.QSlider(QtCore.Qt.Horizontal)
+        self.opacity_slider = QtWidgets.QSlider(Qt.Orientation.Horizontal)
         self.opacity_slider.setRange(0, 100)
         self.opacity_slider.valueChanged.connect(self._on_opacity)
         form.addRow("opacity", self.opacity_slider)
-        self.frame_slider = QtWidgets.QSlider(QtCore.Qt.Horizontal)
+        self.frame_slider = QtWidgets.QSlider(Qt.Orientation.Horizontal)
         self.frame_slider.valueChanged.connect(self._on_frame)
         form.addRow("frame", self.frame_slider)
         buttons = QtWidgets.QHBoxLayout()
@@ -252,7 +298,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.ve_spin.valueChanged.connect(self._on_ve)
         form.addRow("vertical exaggeration", self.ve_spin)
         lay.addLayout(form)
-        self._dock("Layers", w, QtCore.Qt.LeftDockWidgetArea)
+        self._dock("Layers", w, Qt.DockWidgetArea.LeftDockWidgetArea)
         self.layer_list.setCurrentRow(0)
 
     def _build_selection_panel(self) -> None:
@@ -270,7 +316,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.geozone_list = self.geozone_combo  # alias used by tests / docs
         form.addRow("bench pair", self.bench_combo)
         form.addRow("source component", self.component_spin)
-        self._dock("Selection", w, QtCore.Qt.LeftDockWidgetArea)
+        self._dock("Selection", w, Qt.DockWidgetArea.LeftDockWidgetArea)
 
     def _fill_selection(self) -> None:
         h, sel = self.model.holes, self.model.selection
@@ -292,20 +338,19 @@ class MainWindow(QtWidgets.QMainWindow):
         w = QtWidgets.QWidget()
         lay = QtWidgets.QVBoxLayout(w)
         self.param_controls: dict[str, ParamControl] = {}
-        for stage in STAGES:
-            specs = [p for p in PARAMETERS if p.stage == stage]
-            if not specs:
-                continue
-            box = QtWidgets.QGroupBox(stage)
+        for section, title in SECTIONS.items():
+            box = QtWidgets.QGroupBox(title)
             form = QtWidgets.QFormLayout(box)
-            for spec in specs:
-                ctl = ParamControl(spec, self.model.params[spec.name])
+            for spec in (p for p in PARAMETERS if p.section == section):
+                ctl = ParamControl(spec, self.model.param(spec.name), self.model.holes)
                 ctl.valueChanged.connect(self.set_param)
-                form.addRow(spec.label, ctl)
+                label = QtWidgets.QLabel(f"{spec.label} ({ctl.unit})" if ctl.unit else spec.label)
+                label.setToolTip(ctl.toolTip())
+                form.addRow(label, ctl)
                 self.param_controls[spec.name] = ctl
             lay.addWidget(box)
         lay.addStretch(1)
-        self._dock("Parameters", w, QtCore.Qt.RightDockWidgetArea)
+        self._dock("Parameters", w, Qt.DockWidgetArea.RightDockWidgetArea)
 
     def _build_alignment_panel(self) -> None:
         w = QtWidgets.QWidget()
@@ -351,7 +396,7 @@ class MainWindow(QtWidgets.QMainWindow):
             sc.activated.connect(
                 lambda dx=dx, dy=dy: self.nudge(dx * self.nudge_step.value(), dy * self.nudge_step.value())
             )
-        self._dock("Manual alignment", w, QtCore.Qt.RightDockWidgetArea)
+        self._dock("Manual alignment", w, Qt.DockWidgetArea.RightDockWidgetArea)
 
     # ------------------------------------------------------------------ mouse alignment
     def _watch_mouse(self) -> None:
@@ -415,7 +460,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _on_layer_item(self, item) -> None:
         layer = self.scene.get(item.text())
         if layer is not None:
-            layer.visible = item.checkState() == QtCore.Qt.Checked
+            layer.visible = item.checkState() == Qt.CheckState.Checked
 
     def _current_layer(self):
         item = self.layer_list.currentItem()
@@ -463,13 +508,12 @@ class MainWindow(QtWidgets.QMainWindow):
         self.scene.vertical_exaggeration = float(v)
 
     def set_layer_visible(self, name: str, visible: bool) -> None:
-        item = self.layer_list.findItems(name, QtCore.Qt.MatchExactly)[0]
-        item.setCheckState(QtCore.Qt.Checked if visible else QtCore.Qt.Unchecked)
+        item = self.layer_list.findItems(name, Qt.MatchFlag.MatchExactly)[0]
+        item.setCheckState(Qt.CheckState.Checked if visible else Qt.CheckState.Unchecked)
 
     # ------------------------------------------------------------------ model changes
-    def set_param(self, name: str, value: float) -> None:
-        stage = self.model.set_param(name, value)
-        self.request(stage)
+    def set_param(self, name: str, value) -> None:
+        self.request(self.model.set_param(name, value))
 
     def _select(self, **kw) -> None:
         try:
@@ -500,13 +544,14 @@ class MainWindow(QtWidgets.QMainWindow):
         if stage:
             self.request(stage, immediate=True)
 
-    def _on_model(self, what: str) -> None:
-        if what == "dirty":
-            self._update_title()
-        elif what == "overrides":
-            self.undo_action.setEnabled(self.model.can_undo)
+    def _connect_model(self) -> None:
+        self.model.dirty_changed.connect(self._update_title)
+        self.model.overrides_changed.connect(self._on_overrides)
 
-    def _update_title(self) -> None:
+    def _on_overrides(self) -> None:
+        self.undo_action.setEnabled(self.model.can_undo)
+
+    def _update_title(self, *_) -> None:
         name = Path(self.model.project_path).name if self.model.project_path else "untitled project"
         self.setWindowTitle(
             f"BGM viewer - {self.model.holes.source or 'input'} - {name}{' *' if self.model.dirty else ''}"
@@ -515,12 +560,12 @@ class MainWindow(QtWidgets.QMainWindow):
     # ------------------------------------------------------------------ worker
     @property
     def busy(self) -> bool:
-        return self._pending_stage is not None or self._queued_stage is not None
+        return self._pending_step is not None or self._queued_step is not None
 
-    def request(self, stage: str, immediate: bool = False) -> None:
-        """Re-run from ``stage`` (merged with any run not yet finished) after the debounce delay."""
-        stages = [s for s in (stage, self._queued_stage, self._pending_stage) if s]
-        self._queued_stage = min(stages, key=STAGES.index)
+    def request(self, step: str, immediate: bool = False) -> None:
+        """Re-run from ``step`` (merged with any run not yet finished) after the debounce delay."""
+        steps = [s for s in (step, self._queued_step, self._pending_step) if s]
+        self._queued_step = min(steps, key=STEPS.index)
         self._request_time = time.perf_counter()
         if immediate:
             self._debounce.stop()
@@ -528,52 +573,43 @@ class MainWindow(QtWidgets.QMainWindow):
         else:
             self._debounce.start()
 
+    def _cancel(self) -> None:
+        """Stop the running job at its next step (its results are ignored from now on)."""
+        self._job = next(self._jobs)
+        self._stop.set()
+        if self._worker is not None:
+            self._worker.quit()
+            self._worker = None
+
     def _start_queued(self) -> None:
-        stage, self._queued_stage = self._queued_stage, None
-        if stage is None:
+        step, self._queued_step = self._queued_step, None
+        if step is None:
             return
-        self._job = job = next(self._jobs)
-        self._pending_stage = stage
+        self._cancel()
+        job, self._stop = self._job, threading.Event()
+        self._pending_step = step
         self._first_update = True
-        inputs = self.model.inputs()
-        previous = self.model.result
-        self.statusBar().showMessage(f"running from {stage}...")
+        self._started = time.perf_counter()
+        self.statusBar().showMessage(f"running from {step}...")
         self.progress_bar.setValue(0)
-        inbox = self._inbox
-
-        def work():
-            t0 = time.perf_counter()
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    for msg, frac, res in compute(inputs, previous, stage, lambda: self._job != job):
-                        self.emit_times.append(time.perf_counter())
-                        inbox.put((self._on_progress, (job, msg, frac, res)))
-                inbox.put((self._on_finished, (job, time.perf_counter() - t0)))
-            except Cancelled:
-                pass
-            except Exception:
-                inbox.put((self._on_failed, (job, traceback.format_exc(limit=3))))
-
-        threading.Thread(target=work, name=f"bgm-pipeline-{job}", daemon=True).start()
-
-    def _drain(self) -> None:
-        """Handle what the worker sent; only the newest progress of a burst is drawn."""
-        items = []
-        while True:
-            try:
-                items.append(self._inbox.get_nowait())
-            except queue.Empty:
-                break
-        for i, (fn, args) in enumerate(items):
-            later = any(f == self._on_progress for f, _ in items[i + 1 :])
-            if fn == self._on_progress and later:
-                continue
-            fn(*args)
+        worker = create_worker(
+            _quietly, self.model.inputs(), self.model.result, step, self._stop.is_set, _start_thread=False
+        )
+        worker.yielded.connect(lambda item, job=job: self._on_progress(job, *item))
+        worker.returned.connect(lambda _, job=job: self._on_finished(job))
+        worker.errored.connect(lambda exc, job=job: self._on_failed(job, exc))
+        self._worker = worker
+        worker.start()
 
     def _on_progress(self, job: int, msg: str, frac: float, result) -> None:
-        if job != self._job:
-            return  # superseded
+        if job == self._job:
+            self._latest = (msg, frac, result)
+            self._show_timer.start()
+
+    def _show_latest(self) -> None:
+        if self._latest is None:
+            return
+        (msg, frac, result), self._latest = self._latest, None
         previous = self.model.result
         self.model.set_result(result)
         with self.renderer.batch():
@@ -587,27 +623,30 @@ class MainWindow(QtWidgets.QMainWindow):
         self.progress_bar.setValue(int(frac * 100))
         self.resultShown.emit()
 
-    def _on_finished(self, job: int, seconds: float) -> None:
+    def _on_finished(self, job: int) -> None:
         if job != self._job:
             return
-        self._pending_stage = None
-        self.last_run_seconds = seconds
+        self._show_latest()  # the last result before saying done
+        self._pending_step = None
+        self._worker = None
+        self.last_run_seconds = time.perf_counter() - self._started
         errors = "; ".join(f"{k}: {v}" for k, v in self.model.result.errors.items())
-        self.statusBar().showMessage(f"done in {seconds:.2f} s" + (f" - {errors}" if errors else ""))
+        self.statusBar().showMessage(f"done in {self.last_run_seconds:.2f} s" + (f" - {errors}" if errors else ""))
         self.progress_bar.setValue(100)
 
-    def _on_failed(self, job: int, text: str) -> None:
+    def _on_failed(self, job: int, exc: Exception) -> None:
         if job != self._job:
             return
-        self._pending_stage = None
-        self.statusBar().showMessage("failed: " + text.strip().splitlines()[-1])
+        self._pending_step = None
+        self._worker = None
+        self.statusBar().showMessage(f"failed: {type(exc).__name__}: {exc}")
 
     def _show_translation(self) -> None:
         t = self.model.current_translation_m()
         if t is None:
             self.translation_label.setText("-")
             return
-        locked = self.model._override(create=False)
+        locked = self.model.override_here()
         lock = " (locked)" if locked is not None and locked.translation is not None else ""
         self.translation_label.setText(f"{t[0]:.2f}, {t[1]:.2f}{lock}")
         for s, v in ((self.dx_spin, t[0]), (self.dy_spin, t[1])):
@@ -619,29 +658,29 @@ class MainWindow(QtWidgets.QMainWindow):
         """Process events until no run is pending (for scripts and tests)."""
         end = time.perf_counter() + timeout_s
         while self.busy and time.perf_counter() < end:
-            QtWidgets.QApplication.processEvents(QtCore.QEventLoop.AllEvents, 50)
+            QtWidgets.QApplication.processEvents(QtCore.QEventLoop.ProcessEventsFlag.AllEvents, 50)
             time.sleep(0.02)
         return not self.busy
 
     # ------------------------------------------------------------------ files
     def open_input(self, path) -> None:
-        model = ViewerModel(path)
+        model = ViewerModel(path, cache=self.model.store.cache is not None)
         self._replace_model(model)
 
     def _replace_model(self, model: ViewerModel) -> None:
-        self._job = next(self._jobs)  # cancel running work
-        self._pending_stage = self._queued_stage = None
+        self._cancel()
+        self._pending_step = self._queued_step = None
         self.model = model
-        self.model.connect(self._on_model)
+        self._connect_model()
         with self.renderer.batch():
             refresh_scene(self.scene, model.holes, model.result, model.selection)
         self._fill_selection()
         for name, ctl in self.param_controls.items():
-            ctl.set_value(model.params[name])
+            ctl.set_value(model.param(name))
         self.ve_spin.setValue(model.vertical_exaggeration)
         self.renderer.set_camera("iso")
         self._update_title()
-        self.request("boundary", immediate=True)
+        self.request("contours", immediate=True)
 
     def open_input_dialog(self) -> None:
         if not self._confirm_discard():
@@ -653,10 +692,9 @@ class MainWindow(QtWidgets.QMainWindow):
             self._guard(lambda: self.open_input(path))
 
     def open_project(self, path) -> None:
-        from .cli_hooks import _project_input
-
-        inp = _project_input(path)
-        model = ViewerModel(inp) if inp else ViewerModel(self.model.holes)
+        inp = project_input(path)
+        cache = self.model.store.cache is not None
+        model = ViewerModel(inp, cache=cache) if inp else ViewerModel(self.model.holes, cache=cache)
         model.load_project(path)
         self._replace_model(model)
 
@@ -727,18 +765,20 @@ class MainWindow(QtWidgets.QMainWindow):
             self,
             "Unsaved changes",
             "The project has unsaved parameter or alignment changes. Save them?",
-            QtWidgets.QMessageBox.Save | QtWidgets.QMessageBox.Discard | QtWidgets.QMessageBox.Cancel,
-            QtWidgets.QMessageBox.Save,
+            QtWidgets.QMessageBox.StandardButton.Save
+            | QtWidgets.QMessageBox.StandardButton.Discard
+            | QtWidgets.QMessageBox.StandardButton.Cancel,
+            QtWidgets.QMessageBox.StandardButton.Save,
         )
-        if answer == QtWidgets.QMessageBox.Save:
+        if answer == QtWidgets.QMessageBox.StandardButton.Save:
             return self.save_project()
-        return answer == QtWidgets.QMessageBox.Discard
+        return answer == QtWidgets.QMessageBox.StandardButton.Discard
 
     def closeEvent(self, event) -> None:
         if not self._confirm_discard():
             event.ignore()
             return
-        self._job = next(self._jobs)  # let a running worker stop
+        self._cancel()  # let a running worker stop
         self._play.stop()
         if not getattr(self, "_closed", False):
             self._closed = True
@@ -746,14 +786,19 @@ class MainWindow(QtWidgets.QMainWindow):
         event.accept()
 
 
-def run_viewer(input_path=None, project_path=None) -> int:
+def _quietly(inputs, previous, step, cancelled):
+    """:func:`compute` with the engine's warnings silenced (the status bar reports errors)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield from compute(inputs, previous, step, cancelled)
+
+
+def run_viewer(input_path=None, project_path=None, *, cache: bool = True) -> int:
     """Open the viewer window on ``input_path`` (demo if ``None``) and a project; returns the exit code."""
     app = QtWidgets.QApplication.instance() or QtWidgets.QApplication([])
     if input_path is None and project_path is not None:
-        from .cli_hooks import _project_input
-
-        input_path = _project_input(project_path)
-    model = ViewerModel(input_path)
+        input_path = project_input(project_path)
+    model = ViewerModel(input_path, cache=cache)
     if project_path is not None:
         model.load_project(project_path)
     window = MainWindow(model)

@@ -147,6 +147,8 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
         out |= {"edge map", "GVF", "snake"}
     if result.morph is not previous.morph:
         out |= {"wavefront", "trajectories"}
+    if result.predicted is not previous.predicted:
+        out.add("predicted contours")
     if result.surface is not previous.surface:
         out.add("surfaces")
     return out
@@ -170,5 +172,5 @@ def refresh_scene(
             continue
         old = scene.get(layer.name)
         if old is not None and old.n_frames == layer.n_frames and old.n_frames > 1:
-            layer._frame = old.frame
+            layer.frame = old.frame
         scene.replace(layer)

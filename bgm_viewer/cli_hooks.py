@@ -1,4 +1,10 @@
-"""What ``bgm view`` calls (the lead wires it into ``core.cli``; core never imports this).
+"""``bgm view``: the viewer's command, added to the engine's command line as a plug-in.
+
+``core.cli`` never imports the viewer: it loads the entry points of the group
+``bgm.commands`` (see :func:`core.cli.load_plugins`), and this package's
+pyproject entry ``view = "bgm_viewer.cli_hooks:register"`` adds the command.
+Nothing here imports Qt or PyVista until the command runs, so ``bgm`` works
+without them and ``bgm view`` says in one line what to install.
 
 ``view_command(input, project, screenshot, layers, camera)``:
 
@@ -17,6 +23,9 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Annotated
+
+import typer
 
 from core.errors import BGMInputError, quoted
 
@@ -24,6 +33,61 @@ from core.errors import BGMInputError, quoted
 MAX_EXAGGERATION = 100.0
 #: A camera direction closer than this (degrees) to vertical has no "up" to draw: use ``top``.
 MIN_CAMERA_TILT_DEG = 1.0
+QT_MISSING = "the viewer needs Qt and PyVista ({}); install them with: pip install -e '.[viewer]'"
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``bgm view`` to the engine's typer app."""
+    app.command("view")(view)
+
+
+def view(
+    input: Annotated[
+        Path | None,
+        typer.Argument(help="Blasthole table (default: the bundled demo; - for standard input).", show_default=False),
+    ] = None,
+    project: Annotated[
+        Path | None, typer.Option("--project", help="Project file with parameters and manual alignment overrides.")
+    ] = None,
+    screenshot: Annotated[
+        Path | None,
+        typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window."),
+    ] = None,
+    layers: Annotated[
+        str | None,
+        typer.Option(
+            help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."
+        ),
+    ] = None,
+    camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
+    geozone: Annotated[str | None, typer.Option("--geozone", help="Geozone to select.")] = None,
+    bench: Annotated[int | None, typer.Option(help="Bench index to select (0 = top).")] = None,
+    exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
+    no_cache: Annotated[
+        bool, typer.Option("--no-cache", help="Compute every stage afresh instead of reusing earlier runs' results.")
+    ] = False,
+) -> None:
+    """Open the 3D viewer (or render a screenshot with no display)."""
+    from core.cli import DEMO_CSV, _outputs  # the engine's checks of every output
+
+    if input is not None and str(input) != "-" and not Path(input).exists():
+        raise BGMInputError(f"input file {str(input)!r} does not exist")
+    if screenshot is not None:
+        _outputs(screenshot, input if input is not None else DEMO_CSV, project)
+    code = view_command(
+        input,
+        project,
+        screenshot,
+        layers,
+        camera,
+        geozone=geozone,
+        bench=bench,
+        vertical_exaggeration=exaggeration,
+        cache=not no_cache,
+    )
+    if screenshot:
+        typer.echo(f"wrote {screenshot}", err=True)
+    raise typer.Exit(code or 0)
 
 
 def view_command(
@@ -36,17 +100,26 @@ def view_command(
     geozone: str | None = None,
     bench: int | None = None,
     vertical_exaggeration: float | None = None,
+    cache: bool = True,
 ) -> int:
-    """Entry point of ``bgm view [INPUT] [--project P] [--screenshot out.png] [--layers a,b] [--camera iso]``."""
+    """Render ``screenshot`` off-screen (no Qt, no display) and return 0, or open the window and return its exit code.
+
+    Errors in the options, input or project are :class:`core.errors.BGMInputError`, for the CLI to report.
+    """
+    try:
+        from .model import project_input
+
+        if screenshot:
+            from .screenshot import render_screenshot
+        else:
+            from .app import run_viewer
+    except ImportError as exc:
+        raise BGMInputError(QT_MISSING.format(exc)) from None
     check_view_options(layers, camera, vertical_exaggeration)
     if input is None and project is not None:
-        input = _project_input(project)
-    holes = None
-    if screenshot or geozone is not None or bench is not None or project is not None:
-        holes = _checked_holes(input, project, geozone, bench)
+        input = project_input(project)
     if screenshot:
-        from .screenshot import render_screenshot
-
+        holes = _checked_holes(input, geozone, bench)
         render_screenshot(
             holes,
             screenshot,
@@ -56,11 +129,12 @@ def view_command(
             geozone=geozone if geozone is None else holes.check_geozones([geozone])[0],
             bench=bench,
             vertical_exaggeration=vertical_exaggeration,
+            cache=cache,
         )
         return 0
-    from .app import run_viewer
-
-    return run_viewer(input, project)
+    if geozone is not None or bench is not None:
+        _checked_holes(input, geozone, bench)
+    return run_viewer(input, project, cache=cache)
 
 
 def check_view_options(layers=None, camera: str | None = None, vertical_exaggeration: float | None = None) -> None:
@@ -100,10 +174,8 @@ def _check_direction(camera: str, names) -> None:
         raise BGMInputError(f"--camera direction {quoted(camera)} is vertical; use --camera top for a plan view")
 
 
-def _checked_holes(input, project, geozone: str | None, bench: int | None):
-    """The input's blastholes, with the selection and the project checked against them."""
-    from core.io.project import check_project, load_project
-
+def _checked_holes(input, geozone: str | None, bench: int | None):
+    """The input's blastholes, with the selection checked against them (the project is checked as it is applied)."""
     from .model import load_holes
 
     holes = load_holes(input)
@@ -114,19 +186,4 @@ def _checked_holes(input, project, geozone: str | None, bench: int | None):
             f"--bench {bench} is out of range: bench pairs of {holes.source or 'the input'} are numbered 0 "
             f"(top) to {max(holes.n_benches - 2, 0)}"
         )
-    if project is not None:
-        check_project(load_project(project), holes, command="bgm view", uses_parameters=True)
     return holes
-
-
-def _project_input(project) -> str | None:
-    """The input named by a project file (relative to the project's folder)."""
-    from core.io.project import load_project
-
-    p = load_project(project).input_path
-    if not p:
-        return None
-    path = Path(p)
-    if not path.is_absolute():
-        path = Path(project).resolve().parent / path
-    return str(path)

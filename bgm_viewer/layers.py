@@ -4,10 +4,9 @@ Modelled on napari: a layer holds its data (arrays and shapely polygons, as
 ``core`` returns them) and its display state (visibility, opacity, colour,
 animation frame). It knows nothing of Qt or of a plotter. ``build(view)``
 returns :class:`MeshItem` s (a :class:`pyvista.PolyData` and the keyword
-arguments for ``Plotter.add_mesh``); observers registered with
-:meth:`Layer.connect` are told what changed (``"visible"``, ``"opacity"``,
-``"color"``, ``"frame"``, ``"data"``) so a renderer can update only what is
-needed. Everything here is testable without a screen.
+arguments for ``Plotter.add_mesh``); the psygnal signal ``Layer.changed``
+says what changed (``"visible"``, ``"opacity"``, ``"color"``, ``"frame"``,
+``"data"``) so a renderer can update only what is needed. Everything here is testable without a screen.
 
 Coordinates are the engine's local metres; :class:`ViewTransform` applies
 the vertical exaggeration about a reference elevation (the top bench).
@@ -15,11 +14,13 @@ the vertical exaggeration about a reference elevation (the top bench).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pyvista as pv
+from psygnal import Signal
 from shapely.geometry import MultiPolygon, Polygon
 
 from . import _vtkenv  # noqa: F401  (must precede pyvista)
@@ -105,7 +106,7 @@ def _xyz(xy: np.ndarray, z: float) -> np.ndarray:
 
 
 def _line_style(width: float = 2.0, rgb: bool = True, color: RGB | None = None) -> dict:
-    style = {"line_width": width, "lighting": False, "show_scalar_bar": False}
+    style: dict[str, object] = {"line_width": width, "lighting": False, "show_scalar_bar": False}
     if rgb:
         style.update(scalars="rgb", rgb=True)
     elif color is not None:
@@ -118,29 +119,19 @@ def _line_style(width: float = 2.0, rgb: bool = True, color: RGB | None = None) 
 
 
 class Layer:
-    """Base of all layers: name, visibility, opacity, colour and change observers."""
+    """Base of all layers: name, visibility, opacity, colour; ``changed(layer, what)`` after every change."""
 
     kind = "layer"
+    changed = Signal(object, str)
 
     def __init__(self, name: str, *, visible: bool = True, opacity: float = 1.0, color: RGB | None = None):
         self.name = name
         self._visible = bool(visible)
         self._opacity = float(opacity)
         self._color = color
-        self._listeners: list[Callable[[Layer, str], None]] = []
-
-    # -- observers ---------------------------------------------------------
-    def connect(self, callback: Callable[[Layer, str], None]) -> None:
-        """Call ``callback(layer, what)`` after every change."""
-        self._listeners.append(callback)
-
-    def disconnect(self, callback) -> None:
-        if callback in self._listeners:
-            self._listeners.remove(callback)
 
     def _emit(self, what: str) -> None:
-        for cb in list(self._listeners):
-            cb(self, what)
+        self.changed.emit(self, what)
 
     # -- display state -----------------------------------------------------
     @property
@@ -690,7 +681,7 @@ class SurfaceLayer(Layer):
         self.colours = dict(colours) if colours else geozone_colours(g for g, _, _ in self.meshes)
 
     @classmethod
-    def from_trimesh(cls, items: Iterable[tuple[str, object]], colours=None, **kw) -> SurfaceLayer:
+    def from_trimesh(cls, items: Iterable[tuple[str, Any]], colours=None, **kw) -> SurfaceLayer:
         """From ``(geozone, trimesh.Trimesh)`` pairs (``core.model.surfaces.surface_from_sections``)."""
         return cls([(g, m.vertices, m.faces) for g, m in items], colours, **kw)
 

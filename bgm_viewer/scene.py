@@ -9,10 +9,11 @@ the same renderer with a ``pyvistaqt.QtInteractor`` as the plotter.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from contextlib import contextmanager, suppress
 
 import numpy as np
+from psygnal import Signal
 
 from . import _vtkenv  # noqa: F401
 from .layers import Layer, ViewTransform
@@ -22,28 +23,22 @@ CAMERAS = ("iso", "top", "front", "side")
 
 
 class Scene:
-    """Ordered layers plus view settings; observers hear ``(layer_or_None, what)``."""
+    """Ordered layers plus view settings; ``changed(layer_or_None, what)`` after every change."""
+
+    changed = Signal(object, str)
 
     def __init__(self, layers: Iterable[Layer] = (), *, vertical_exaggeration: float = 2.0, z_ref: float = 0.0):
         self.layers: list[Layer] = []
-        self._listeners: list[Callable] = []
         self._view = ViewTransform(vertical_exaggeration, z_ref)
         for layer in layers:
             self.add(layer)
-
-    def connect(self, cb: Callable) -> None:
-        self._listeners.append(cb)
-
-    def _emit(self, layer, what: str) -> None:
-        for cb in list(self._listeners):
-            cb(layer, what)
 
     def add(self, layer: Layer) -> Layer:
         if layer.name in self.names():
             raise ValueError(f"a layer named {layer.name!r} is already in the scene")
         self.layers.append(layer)
-        layer.connect(self._emit)
-        self._emit(layer, "added")
+        layer.changed.connect(self.changed)
+        self.changed.emit(layer, "added")
         return layer
 
     def replace(self, layer: Layer) -> Layer:
@@ -52,10 +47,10 @@ class Scene:
         if old is None:
             return self.add(layer)
         layer._visible, layer._opacity = old.visible, old.opacity
-        old.disconnect(self._emit)
+        old.changed.disconnect(self.changed)
         self.layers[self.layers.index(old)] = layer
-        layer.connect(self._emit)
-        self._emit(layer, "data")
+        layer.changed.connect(self.changed)
+        self.changed.emit(layer, "data")
         return layer
 
     def get(self, name: str) -> Layer | None:
@@ -85,7 +80,7 @@ class Scene:
             raise ValueError("vertical exaggeration must be positive")
         if value != self._view.vertical_exaggeration:
             self._view = ViewTransform(value, self._view.z_ref)
-            self._emit(None, "view")
+            self.changed.emit(None, "view")
 
     def set_visible_only(self, names: Iterable[str]) -> None:
         """Show exactly the named layers (unknown names raise ``KeyError``)."""
@@ -95,11 +90,15 @@ class Scene:
         for layer in self.layers:
             layer.visible = layer.name in names
 
-    def legend_entries(self) -> list[tuple[str, tuple[int, int, int]]]:
-        """Legend of the visible layers: geozones first, then layer colours (no duplicates)."""
+    def legend_entries(self, is_empty=None) -> list[tuple[str, tuple[int, int, int]]]:
+        """Legend of the visible layers: geozones first, then layer colours (no duplicates).
+
+        ``is_empty(layer)`` says whether a layer draws nothing (default: build it and see).
+        """
+        is_empty = is_empty or (lambda layer: layer.is_empty)
         out, seen = [], set()
         for layer in self.layers:
-            if not layer.visible or layer.is_empty:
+            if not layer.visible or is_empty(layer):
                 continue
             for label, rgb in layer.legend():
                 if rgb is not None and label not in seen:
@@ -123,6 +122,7 @@ class SceneRenderer:
         self.actors: dict[str, list] = {}
         self._legend_shown: list | None = None
         self._batching = 0
+        self._legend_stale = False
         with suppress(Exception):
             plotter.disable_anti_aliasing()
         ren_win = getattr(plotter, "ren_win", None)
@@ -135,7 +135,7 @@ class SceneRenderer:
         for layer in scene.layers:
             self._rebuild(layer)
         self._update_legend()
-        scene.connect(self._on_change)
+        scene.changed.connect(self._on_change)
 
     # -- updates -----------------------------------------------------------
     def _on_change(self, layer: Layer | None, what: str) -> None:
@@ -149,8 +149,14 @@ class SceneRenderer:
         else:
             self._rebuild(layer)
         if what in ("visible", "added", "data", "color") or layer is None:
+            self._legend_stale = True
+        if not self._batching:
+            self._refresh()
+
+    def _refresh(self) -> None:
+        if self._legend_stale:
             self._update_legend()
-        if self.auto_render and not self._batching:
+        if self.auto_render:
             self.plotter.render()
 
     @contextmanager
@@ -169,8 +175,8 @@ class SceneRenderer:
         finally:
             self.plotter.suppress_rendering = suppressed
             self._batching -= 1
-            if self.auto_render and not self._batching:
-                self.plotter.render()
+            if not self._batching:
+                self._refresh()  # the legend once for the whole batch, and one render
 
     def _rebuild(self, layer: Layer) -> None:
         for actor in self.actors.pop(layer.name, []):
@@ -185,7 +191,8 @@ class SceneRenderer:
         self.actors[layer.name] = actors
 
     def _update_legend(self) -> None:
-        entries = self.scene.legend_entries() if self.show_legend else []
+        self._legend_stale = False
+        entries = self.scene.legend_entries(lambda layer: not self.actors.get(layer.name)) if self.show_legend else []
         if entries == self._legend_shown:
             return  # rebuilding an unchanged legend costs a render
         self._legend_shown = entries
@@ -265,8 +272,8 @@ def display_to_plane(plotter, x_px: float, y_px: float, z_display: float) -> np.
 
 def drag_on_plane(plotter, start_px, end_px, z_display: float) -> np.ndarray | None:
     """World ``(dx, dy)`` of a mouse drag between two display pixels, measured on the plane ``z = z_display``."""
-    a = display_to_plane(plotter, *start_px, z_display)
-    b = display_to_plane(plotter, *end_px, z_display)
+    a = display_to_plane(plotter, start_px[0], start_px[1], z_display)
+    b = display_to_plane(plotter, end_px[0], end_px[1], z_display)
     if a is None or b is None:
         return None
     return b - a

@@ -17,21 +17,21 @@ from core.io.atomic import atomic_path
 
 from . import _vtkenv  # noqa: F401  (before pyvista)
 from .builders import build_scene, parse_layers
-from .model import STAGES, ViewerModel
+from .model import STEPS, ViewerModel
 from .scene import Scene, SceneRenderer
 
 DEFAULT_SIZE = (1280, 960)
 
-#: Which stage layers need which pipeline stages (to skip work a screenshot does not show).
+#: The last step of the pipeline each layer needs (to skip work a screenshot does not show).
 _NEEDS = {
-    "blastholes": "boundary",
-    "contours": "boundary",
-    "edge map": "boundary",
-    "GVF": "boundary",
-    "snake": "boundary",
+    "blastholes": "contours",
+    "contours": "contours",
+    "edge map": "contours",
+    "GVF": "contours",
+    "snake": "contours",
     "wavefront": "morph",
     "trajectories": "morph",
-    "predicted contours": "boundary",
+    "predicted contours": "prediction",
     "surfaces": "surface",
 }
 
@@ -48,7 +48,7 @@ def no_aa_theme():
 
 def plotter_for(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True):
     """An off-screen plotter with ``scene`` drawn and the camera set."""
-    plotter = pv.Plotter(off_screen=True, window_size=tuple(window_size), theme=no_aa_theme())
+    plotter = pv.Plotter(off_screen=True, window_size=[int(v) for v in window_size], theme=no_aa_theme())
     renderer = SceneRenderer(plotter, scene, legend=legend)
     renderer.set_camera(camera)
     return plotter, renderer
@@ -69,8 +69,8 @@ def model_scene(model: ViewerModel, layers=None, *, run: bool = True) -> Scene:
     """Run what the requested layers need and build their scene."""
     names = parse_layers(layers)
     if run and names:
-        until = STAGES[max(STAGES.index(_NEEDS[n]) for n in names)]
-        model.run("boundary", until=until)
+        until = STEPS[max(STEPS.index(_NEEDS[n]) for n in names)]
+        model.run(until=until)
     return build_scene(
         model.holes, model.result, model.selection, visible=names, vertical_exaggeration=model.vertical_exaggeration
     )
@@ -90,6 +90,7 @@ def render_screenshot(
     window_size=DEFAULT_SIZE,
     legend: bool = True,
     model: ViewerModel | None = None,
+    cache: bool = True,
 ) -> Path:
     """Render the viewer scene of ``holes_or_path`` to ``out_png``; returns the path.
 
@@ -106,9 +107,11 @@ def render_screenshot(
         Project file whose parameters, selection and overrides are applied.
     geozone, bench, component : selection of the stage layers (bench = upper bench of the pair).
     vertical_exaggeration : float, optional
+    cache : bool
+        Reuse (and keep) stage results on disk (see :mod:`core.io.cache`).
     """
     if model is None:
-        model = ViewerModel(holes_or_path)
+        model = ViewerModel(holes_or_path, cache=cache)
         if project:
             model.load_project(project)
         if geozone is not None or bench is not None or component is not None:

@@ -82,7 +82,16 @@ InputArg = Annotated[
 ]
 GeozoneOpt = Annotated[str, typer.Option("--geozone", help="Geozone to model (as written in the input, e.g. 3310).")]
 ProjectOpt = Annotated[
-    Path | None, typer.Option("--project", help="Project file with manual alignment overrides (JSON).")
+    Path | None,
+    typer.Option(
+        "--project", help="Project file (JSON) with parameters (see bgm parameters) and manual alignment overrides."
+    ),
+]
+NoCacheOpt = Annotated[
+    bool,
+    typer.Option(
+        "--no-cache", help="Compute every stage afresh instead of reusing results kept from earlier runs on this input."
+    ),
 ]
 
 
@@ -223,8 +232,18 @@ def _load_project(project: Path | None, holes, geozones: list[str], command: str
     if project is None:
         return None
     proj = load_project(project)
-    check_project(proj, holes, geozones, command=f"bgm {command}")
+    check_project(proj, holes, geozones, command=f"bgm {command}", uses_parameters=True)
     return proj
+
+
+def _session(holes, project: Path | None, geozones: list[str], command: str, no_cache: bool):
+    """The pipeline on ``holes`` with the project's parameters and overrides, on the disk cache unless ``no_cache``."""
+    from core.model.parameters import parameters_from_dict
+    from core.model.session import ModelSession
+
+    proj = _load_project(project, holes, geozones, command)
+    params = parameters_from_dict(proj.parameters) if proj is not None else None
+    return ModelSession.open(holes, params, proj, cache=not no_cache)
 
 
 # --------------------------------------------------------------------------- commands
@@ -249,6 +268,7 @@ def contours(
             "(by default they are taken as label noise and reported as isolated_holes).",
         ),
     ] = False,
+    no_cache: NoCacheOpt = False,
     *,
     table: TableOptions,
 ) -> None:
@@ -257,21 +277,21 @@ def contours(
     Writes one Polygon feature per bench, geozone and component with
     properties geozone, bench (elevation), component and containment figures.
     """
-    from core.extraction.contours import ExtractionParameters, extract_contours
     from core.io.export import write_geojson
     from core.io.reporting import containment_summary, contour_feature
+    from core.model.parameters import with_values
 
     _positive("--search-radius", search_radius)
     _outputs(out, input)
     holes = table.read(input)
     wanted = holes.check_geozones(geozone)
-    params = ExtractionParameters(
-        search_radius_m=None if search_radius is None else float(holes.frame.length_to_local(search_radius)),
-        keep_isolated_holes=keep_isolated,
-    ).validate()
+    session = _session(holes, None, wanted, "contours", no_cache)
+    radius_m = None if search_radius is None else float(holes.frame.length_to_local(search_radius))
+    params = with_values(session.params, search_radius_m=radius_m, keep_isolated_holes=keep_isolated)
+    session = session.updated(params=params.validate())
     start = time.perf_counter()
     with progress_bar("extracting contours") as update:
-        result = extract_contours(holes, wanted, params=params, progress=update)
+        result = [c for c in session.contours(progress=update) if c.geozone in wanted]
     elapsed = time.perf_counter() - start
     features = [contour_feature(c, holes) for c in result]
     write_geojson(features, out)
@@ -283,21 +303,19 @@ def contours(
     typer.echo(json.dumps(summary, indent=2))
 
 
-def _model(input, geozone, project, stages, table: TableOptions, command: str):
-    """Read the input and model one geozone up to ``stages``; returns (holes, label, model, seconds)."""
-    from core.model.pipeline import model_geozone
-
+def _model(input, geozone, project, stages, table: TableOptions, command: str, no_cache: bool):
+    """Read the input and model one geozone up to ``stages``; returns (session, label, model, seconds)."""
     holes = table.read(input)
     geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 2:
         raise BGMInputError(
             f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
         )
-    proj = _load_project(project, holes, [geozone], command)
+    session = _session(holes, project, [geozone], command, no_cache)
     start = time.perf_counter()
     with progress_bar(f"{stages[-1]} {geozone[:40]}") as update:
-        model = model_geozone(holes, geozone, project=proj, stages=stages, progress=update)
-    return holes, geozone, model, time.perf_counter() - start
+        model = session.geozone_model(geozone, stages=stages, progress=update)
+    return session, geozone, model, time.perf_counter() - start
 
 
 @app.command()
@@ -307,6 +325,7 @@ def correspond(
     geozone: GeozoneOpt,
     out: Annotated[Path, typer.Option("--out", help="JSON file to write.")] = Path("correspondence.json"),
     project: ProjectOpt = None,
+    no_cache: NoCacheOpt = False,
     *,
     table: TableOptions,
 ) -> None:
@@ -315,8 +334,8 @@ def correspond(
     from core.model.pipeline import correspondence_json
 
     _outputs(out, input, project)
-    holes, geozone, model, elapsed = _model(input, geozone, project, ("correspond",), table, "correspond")
-    data = correspondence_json(model, holes)
+    session, geozone, model, elapsed = _model(input, geozone, project, ("correspond",), table, "correspond", no_cache)
+    data = correspondence_json(model, session.holes)
     atomic_write_text(out, json.dumps(data, indent=1))
     typer.echo(
         json.dumps({"geozone": geozone, "pairs": len(data["pairs"]), "seconds": round(elapsed, 2), "out": str(out)})
@@ -330,6 +349,7 @@ def morph(
     geozone: GeozoneOpt,
     out: Annotated[Path, typer.Option("--out", help="JSON file to write.")] = Path("morph.json"),
     project: ProjectOpt = None,
+    no_cache: NoCacheOpt = False,
     *,
     table: TableOptions,
 ) -> None:
@@ -338,8 +358,10 @@ def morph(
     from core.model.pipeline import morph_json
 
     _outputs(out, input, project)
-    holes, geozone, model, elapsed = _model(input, geozone, project, ("correspond", "morph"), table, "morph")
-    data = morph_json(model, holes)
+    session, geozone, model, elapsed = _model(
+        input, geozone, project, ("correspond", "morph"), table, "morph", no_cache
+    )
+    data = morph_json(model, session.holes)
     atomic_write_text(out, json.dumps(data))
     cov = [p["target_boundary_coverage"] for p in data["pairs"] if p["target_boundary_coverage"] is not None]
     before = [p["coverage_before_backtracking"] for p in data["pairs"] if p["coverage_before_backtracking"] is not None]
@@ -404,12 +426,12 @@ def predict(
             help=f"Predict even more than {MAX_PREDICTION_BENCHES:g} bench heights above or below the benches.",
         ),
     ] = False,
+    no_cache: NoCacheOpt = False,
     *,
     table: TableOptions,
 ) -> None:
     """Predict the geozone's region at any elevation (paper: contour prediction)."""
     from core.io.export import write_geojson
-    from core.model.pipeline import model_geozone
 
     levels = _elevations(elevations)
     _outputs(out, input, project)
@@ -421,10 +443,10 @@ def predict(
         )
     if not force:
         _check_reach(levels, holes)
-    proj = _load_project(project, holes, [geozone], "predict")
+    session = _session(holes, project, [geozone], "predict", no_cache)
     with progress_bar(f"morph {geozone[:40]}") as update:
-        model = model_geozone(holes, geozone, project=proj, stages=("correspond", "morph"), progress=update)
-    features = _prediction_features(holes, geozone, levels, model)
+        model = session.geozone_model(geozone, stages=("correspond", "morph"), progress=update)
+    features = _prediction_features(session, geozone, levels, model)
     write_geojson([f for f in features if not f["geometry"].is_empty], out)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty:
@@ -434,13 +456,13 @@ def predict(
     )
 
 
-def _prediction_features(holes, geozone: str, levels: list[float], model) -> list[dict]:
+def _prediction_features(session, geozone: str, levels: list[float], model) -> list[dict]:
     """One feature per elevation (input units), empty geometry where the geozone is predicted absent."""
     from core.io.reporting import to_input_geometry
-    from core.model.prediction import predict_geozone
 
+    holes = session.holes
     z_m = [float(holes.frame.z_to_local(v)) for v in levels]
-    regions = predict_geozone(model, z_m, holes.hole_spacing_m)
+    regions = session.predict(geozone, z_m, model)
     features = []
     for level, zm in zip(levels, z_m):
         region = regions[zm]
@@ -458,15 +480,14 @@ def evaluate(
     input: InputArg,
     geozone: GeozoneOpt,
     out: Annotated[Path, typer.Option("--out", help="Folder for the table (CSV) and plot (PNG).")] = Path("evaluation"),
+    no_cache: NoCacheOpt = False,
     *,
     table: TableOptions,
 ) -> None:
     """Precision and recall of predictions below withheld benches, against nil, linear and implicit references."""
-    from core.extraction.contours import extract_contours
     from core.io.atomic import atomic_write_text, check_output, make_folder
     from core.model.build import load_truth, predictor_from_model
     from core.model.evaluation import evaluate_geozone, format_table, plot_precision_recall, summary_table
-    from core.model.pipeline import ModelParameters, model_geozone
 
     names = ("evaluation_rows.csv", "evaluation.csv", "precision_recall.png")
     check_output(out, folder=True)
@@ -478,11 +499,12 @@ def evaluate(
     if holes.n_benches < 3:
         raise BGMInputError(f"{input} has {holes.n_benches} bench(es); evaluation needs at least three")
     truth = load_truth(input, holes)
-    params = ModelParameters()
+    session = _session(holes, None, [geozone], "evaluate", no_cache)
     start = time.perf_counter()
-    contours = extract_contours(holes, params=params.extraction)
-    model = model_geozone(holes, geozone, contours=contours, params=params)
-    rows = evaluate_geozone(holes, geozone, predictor_from_model(model, holes, params), truth=truth, contours=contours)
+    contours = session.contours()
+    model = session.geozone_model(geozone, contours=contours)
+    predictor = predictor_from_model(model, holes, session.params)
+    rows = evaluate_geozone(holes, geozone, predictor, truth=truth, contours=contours)
     if rows.empty:
         raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
     summary = summary_table(rows)
@@ -495,21 +517,23 @@ def evaluate(
     typer.echo(format_table(summary))
 
 
-def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None) -> dict:
+def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None, no_cache=False) -> dict:
     from core.model.build import build
 
     wanted = holes.check_geozones(geozone)
-    proj = _load_project(project, holes, wanted, "build")
+    session = _session(holes, project, wanted, "build", no_cache)
     with progress_bar("building") as update:
         summary = build(
             holes,
             out,
             geozones=wanted,
-            project=proj,
+            params=session.params,
+            project=session.project,
             truth=truth,
             progress=lambda stage, done, total: update(done, total, stage),
             workers=workers,
             scheduler=scheduler,
+            cache=session.store.cache,
         )
     _say(f"wrote {out}/report.md ({summary['seconds']:.1f} s)")
     return summary
@@ -526,6 +550,7 @@ def build(
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Address of a dask.distributed scheduler to run on instead.")
     ] = None,
+    no_cache: NoCacheOpt = False,
     *,
     table: TableOptions,
 ) -> None:
@@ -539,7 +564,7 @@ def build(
     holes = table.read(input)
     if holes.n_benches < 2:
         raise BGMInputError(f"{input} has a single bench; building a model needs two or more benches")
-    summary = _run_build(holes, out, geozone, project, load_truth(input, holes), workers, scheduler)
+    summary = _run_build(holes, out, geozone, project, load_truth(input, holes), workers, scheduler, no_cache)
     typer.echo(json.dumps({k: summary[k] for k in ("holes", "seconds")} | {"out": str(out)}))
 
 
@@ -547,6 +572,7 @@ def build(
 def demo(
     out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-demo"),
     view: Annotated[bool, typer.Option(help="Open the 3D viewer on the result when a display is available.")] = False,
+    no_cache: NoCacheOpt = False,
 ) -> None:
     """Build the whole model on the bundled synthetic demo data (assets/demo_blastholes.csv)."""
     from core.io.blastholes import read_blastholes
@@ -555,55 +581,39 @@ def demo(
     _outputs(out, DEMO_CSV, folder=True)
     check_model_folder(out)
     holes = read_blastholes(DEMO_CSV)
-    _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes))
+    _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes), no_cache=no_cache)
     typer.echo((out / "report.md").read_text())
-    if view:
-        from bgm_viewer.cli_hooks import view_command
-
-        view_command(DEMO_CSV, None, None, None, None)
-    else:
+    if not view:
         _say("open it in 3D with: bgm view")
+        return
+    viewer = next((c.callback for c in app.registered_commands if c.name == "view" and c.callback), None)
+    if viewer is None:
+        raise BGMInputError("the 3D viewer is not installed: pip install -e '.[viewer]'")
+    viewer(DEMO_CSV)
 
 
 @app.command()
-def view(
-    input: Annotated[
-        Path | None, typer.Argument(help="Blasthole table (default: the bundled demo).", show_default=False)
-    ] = None,
-    project: ProjectOpt = None,
-    screenshot: Annotated[
-        Path | None,
-        typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window."),
-    ] = None,
-    layers: Annotated[
-        str | None,
-        typer.Option(
-            help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."
-        ),
-    ] = None,
-    camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
-    geozone: Annotated[str | None, typer.Option("--geozone", help="Geozone to select.")] = None,
-    bench: Annotated[int | None, typer.Option(help="Bench index to select (0 = top).")] = None,
-    exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
-) -> None:
-    """Open the 3D viewer (or render a screenshot with no display)."""
-    # The viewer is a separate package on top of the engine; only this command loads it.
-    try:
-        from bgm_viewer.cli_hooks import view_command
-    except ImportError as exc:
-        raise BGMInputError(
-            f"the viewer is not installed ({exc}); install it with: pip install -e '.[viewer]'"
-        ) from None
-    if input is not None and str(input) != "-" and not Path(input).exists():
-        raise BGMInputError(f"input file {str(input)!r} does not exist")
-    if screenshot is not None:
-        _outputs(screenshot, input if input is not None else DEMO_CSV, project)
-    code = view_command(
-        input, project, screenshot, layers, camera, geozone=geozone, bench=bench, vertical_exaggeration=exaggeration
-    )
-    if screenshot:
-        _say(f"wrote {screenshot}")
-    raise typer.Exit(code or 0)
+def parameters() -> None:
+    """The model's parameters, by stage: what a project file's "parameters" may set, with defaults and ranges.
+
+    Lengths are metres (ranges in hole spacings), angles radians, flags true or
+    false; a default of "auto" is derived from the data as the last column says.
+    """
+    from rich.console import Console
+    from rich.table import Table
+
+    from core.model.parameters import PARAMETERS
+
+    table = Table("name", "stage", "symbol", "default", "typical range", "what it does", show_lines=False)
+    for p in PARAMETERS:
+        scale = " x spacing" if p.kind == "length" else ""
+        if p.kind == "flag":
+            default, typical = str(p.default).lower(), "true or false"
+        else:
+            default = "auto: " + p.auto if p.default is None else f"{p.default:g}"
+            typical = f"{p.minimum:g} - {p.maximum:g}{scale}"
+        table.add_row(p.name, p.stage, p.symbol, default, typical, p.help)
+    Console(width=200).print(table)
 
 
 @app.command("make-demo-data")
@@ -653,6 +663,35 @@ def _one_line(message, limit: int = 1000) -> str:
     return text if len(text) <= limit else text[:limit] + f"... ({len(text)} characters)"
 
 
+#: Entry-point group through which other packages add commands (the viewer adds ``bgm view``):
+#: each entry point names a function ``register(app)`` that adds its commands to the typer app.
+PLUGIN_GROUP = "bgm.commands"
+
+
+def load_plugins(target: typer.Typer = app) -> list[str]:
+    """Let installed packages add their commands (entry points of :data:`PLUGIN_GROUP`); returns their names.
+
+    The engine knows no viewer: a package that adds one registers it here, so
+    ``bgm`` works with or without it installed.
+    """
+    from importlib.metadata import entry_points
+
+    present = {c.name for c in target.registered_commands}
+    loaded = []
+    for ep in entry_points(group=PLUGIN_GROUP):
+        if ep.name in present:
+            continue
+        try:
+            ep.load()(target)
+        except Exception as exc:  # a broken add-on must not take the engine's commands with it
+            _say(
+                f"bgm: warning: the {ep.name!r} command could not be loaded ({type(exc).__name__}: {_one_line(exc, 300)})"
+            )
+            continue
+        loaded.append(ep.name)
+    return loaded
+
+
 def _import_uninterrupted() -> None:
     """Import the libraries that swallow Ctrl-C during their own import, with Ctrl-C held until done."""
     with _ctrl_c_held():
@@ -697,6 +736,7 @@ def _run() -> int:
     warnings.filterwarnings("always", category=BGMWarning)
     try:
         _import_uninterrupted()
+        load_plugins()
         return 130 if _INTERRUPTS else (app(prog_name="bgm", standalone_mode=False) or 0)
     except click.NoArgsIsHelpError:
         app(["--help"], prog_name="bgm", standalone_mode=False)

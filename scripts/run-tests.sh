@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Set up everything the tests need (idempotent), run the checks, then the whole suite.
 # The checks come first and any finding fails the run before a test starts: ruff (lint
-# and format), mypy over core, and import-linter's contract that core never imports the
-# viewer, Qt or a renderer (pyproject.toml). Locally, BGM_SKIP_IMPORT_RULES=1 skips the
-# import contract; CI (which sets CI, see .ci/run) never skips it.
+# and format), mypy over core and the viewer, and import-linter's contracts: core never
+# imports the viewer, Qt or a renderer, and the viewer's layers (pyproject.toml).
+# Locally, BGM_SKIP_IMPORT_RULES=1 skips the import contracts; CI (which sets CI, see
+# .ci/run) never skips them.
 # Window tests need an X server: on Debian as root, xvfb and the xcb libraries
 # Qt wants are installed when missing; elsewhere those tests skip.
 set -euo pipefail
@@ -27,7 +28,7 @@ check() {
 }
 check "ruff check" .venv/bin/ruff check core bgm_viewer tests
 check "ruff format" .venv/bin/ruff format --check core bgm_viewer tests
-check "mypy" .venv/bin/mypy core
+check "mypy" .venv/bin/mypy core bgm_viewer
 if [ -n "${BGM_SKIP_IMPORT_RULES:-}" ] && [ -z "${CI:-}" ]; then
   echo "== lint-imports skipped (BGM_SKIP_IMPORT_RULES is set)"
 else

@@ -20,7 +20,12 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
-BGM = [sys.executable, "-c", "from core.cli import main; main()"]
+#: ``bgm`` with the viewer's command registered, as its installed entry point does (see test_plugins.py).
+BGM = [
+    sys.executable,
+    "-c",
+    "from core.cli import app, main; from bgm_viewer.cli_hooks import register; register(app); main()",
+]
 
 
 @dataclass
@@ -37,8 +42,11 @@ class _Stdin(io.TextIOWrapper):
 
 def bgm(*args, stdin: bytes | None = None) -> Run:
     """``bgm ARGS`` in this process: its exit status, stdout and stderr."""
+    from bgm_viewer.cli_hooks import register
     from core import cli
 
+    if "view" not in {c.name for c in cli.app.registered_commands}:
+        register(cli.app)  # as its installed entry point does
     out, err = io.StringIO(), io.StringIO()
     saved = sys.argv, sys.stdin, os.environ.pop("BGM_DEBUG", None), signal.getsignal(signal.SIGINT)
     sys.argv = ["bgm", *map(str, args)]

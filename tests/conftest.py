@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -20,6 +23,18 @@ KENNECOTT_CSV = Path(
 )
 
 os.environ.setdefault("QT_API", "pyside6")
+# Stage results are cached on disk (core.io.cache): the suite never reads or fills the user's
+# cache, and each test gets a cache of its own (fixture below); commands started by a test inherit it.
+os.environ["BGM_CACHE_DIR"] = tempfile.mkdtemp(prefix="bgm-test-cache-")
+atexit.register(shutil.rmtree, os.environ["BGM_CACHE_DIR"], ignore_errors=True)
+
+
+@pytest.fixture(autouse=True)
+def own_stage_cache(tmp_path_factory, monkeypatch) -> Path:
+    """A fresh, empty stage cache for every test (see :mod:`core.io.cache`)."""
+    path = tmp_path_factory.mktemp("bgm-cache")
+    monkeypatch.setenv("BGM_CACHE_DIR", str(path))
+    return path
 
 
 @pytest.fixture(scope="session")

@@ -227,3 +227,26 @@ def test_evaluate_geozone_real_data_mode(small_mine):
     assert ((df["precision"] > 0.5) & (df["recall"] > 0.5)).all()
     summary = ev.summary_table(df)
     assert len(summary) == 1 and summary["precision_gain"].item() == pytest.approx(0.0)
+
+
+def test_real_data_is_also_scored_on_the_withheld_benchs_holes():
+    """A body that does not move: holding the last bench holds nearly every hole of the next one."""
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    rows = np.arange(0.0, 120.0, 6.0 * np.sqrt(3) / 2)
+    xy = np.array([(x + (i % 2) * 3.0, y) for i, y in enumerate(rows) for x in np.arange(0.0, 150.0, 6.0)])
+    inside = np.hypot(xy[:, 0] - 75, xy[:, 1] - 60) < 30
+    table = pd.concat(
+        [
+            pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": 100.0 - 10 * k, "geozone": np.where(inside, "a", "b")})
+            for k in range(4)
+        ]
+    )
+    holes = blastholes_from_table(table)
+    df = ev.evaluate_geozone(holes, "a", None, references=("nil",))
+    assert {"holes_in", "holes_in_geozone", "holes_geozone"} <= set(df.columns)
+    hit, inside_n, labelled = df["holes_in_geozone"].sum(), df["holes_in"].sum(), df["holes_geozone"].sum()
+    assert labelled == 2 * inside.sum()  # benches 2 and 3 withheld in turn
+    assert hit / labelled > 0.97 and hit / inside_n > 0.97

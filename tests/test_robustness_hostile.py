@@ -592,13 +592,14 @@ def test_unused_overrides_are_named(csv, tmp_path):
     rng = rng_for("overrides")
     project = tmp_path / "p.json"
     missing = _garbage(rng)
+    unknown = "no_such_" + _garbage(rng).replace("#", "_").replace("@", "_")
     top = quiet_read(csv).bench_z_input(0)
     project.write_text(
         json.dumps(
             {
                 "format": "bgm-project",
                 "version": 1,
-                "parameters": {"gvf_mu": 0.2},
+                "parameters": {"gvf_mu": 0.2, unknown: 1.0},
                 "overrides": [
                     {"geozone": missing, "source_z": top, "source": 0, "translation": [1.0, 0.0]},
                     {"geozone": "g1", "source_z": top + float(rng.uniform(1, 9)), "source": 0, "translation": [1, 0]},
@@ -612,7 +613,9 @@ def test_unused_overrides_are_named(csv, tmp_path):
     assert any("override 0" in w and missing in w for w in found), found
     assert any("override 1" in w and "no bench pair" in w for w in found), found
     assert not any("override 2" in w for w in found), found
-    assert any("gvf_mu" in w and "not use" in w for w in found), found
+    # every command applies the model's parameters: gvf_mu is used, a name the model does not know is not
+    assert any(unknown in w and "not use" in w for w in found), found
+    assert not any("gvf_mu" in w for w in found), found
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

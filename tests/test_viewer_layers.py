@@ -83,7 +83,7 @@ def test_vertical_exaggeration_scales_about_reference():
 def test_visibility_and_opacity_notify_observers():
     layer = ContoursLayer([("a", 0.0, box(0, 0, 1, 1))])
     seen = []
-    layer.connect(lambda lay, what: seen.append(what))
+    layer.changed.connect(lambda lay, what: seen.append(what))
     layer.visible = False
     layer.visible = False  # no change, no event
     layer.opacity = 0.3
@@ -140,7 +140,7 @@ def test_snake_layer_steps_through_iterations():
     layer = SnakeLayer(hist, 1.0)
     assert layer.n_frames == 3 and layer.frame == 2
     events = []
-    layer.connect(lambda lay, what: events.append(what))
+    layer.changed.connect(lambda lay, what: events.append(what))
     layer.frame = 0
     start, current = layer.build()
     np.testing.assert_allclose(current.mesh.points[:4, :2], hist[0])
@@ -243,6 +243,7 @@ def test_snake_parameter_reruns_only_selected_snake_first(model):
     after = first.selected_contour(model.selection).polygon
     assert not after.equals(before)
     steps.close()
+    model.params = type(model.params)()  # the module's model back at the defaults for the next tests
 
 
 def test_manual_alignment_undo_and_project_roundtrip(model, tmp_path):

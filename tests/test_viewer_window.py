@@ -78,8 +78,8 @@ def test_window_shows_layers_and_results(window):
 def test_slider_change_reruns_its_stage_and_changes_the_contour(window, qtbot):
     before = _selected_polygon(window)
     ctl = window.param_controls["snake_max_iterations"]
-    ctl.slider.setValue(ctl._to_slider(30))  # as a user drags it
-    assert window.model.params["snake_max_iterations"] == ctl.field.value() < 40
+    ctl.slider.setValue(10)  # as a user drags it (the snake converges in about 20)
+    assert window.model.param("snake_max_iterations") == ctl.value() == 10
     assert window.model.dirty
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
     after = _selected_polygon(window)

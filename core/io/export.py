@@ -43,14 +43,17 @@ import re
 import warnings
 from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
-import trimesh
 from shapely.geometry import mapping, shape
 
 from core.errors import BGMInputError
 from core.io.atomic import atomic_path
+
+if TYPE_CHECKING:  # trimesh costs most of a second to import; only surface writers load it
+    import trimesh
 
 #: Formats :func:`export_surface` writes, by canonical name.
 SURFACE_FORMATS = ("obj", "ply", "stl", "vtp", "dxf", "omf")
@@ -262,6 +265,8 @@ def _canonical(fmt: str) -> str:
 
 
 def _write_obj(tmp: Path, vertices, faces, name, mesh) -> None:
+    import trimesh
+
     m = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     text = trimesh.exchange.obj.export_obj(
         m, include_normals=False, include_color=False, include_texture=False, digits=10
@@ -271,6 +276,8 @@ def _write_obj(tmp: Path, vertices, faces, name, mesh) -> None:
 
 def _write_stl(tmp: Path, vertices, faces, name, mesh) -> None:
     """Binary STL, in a local frame when float32 cannot hold the coordinates (offset in the header)."""
+    import trimesh
+
     offset = stl_offset(vertices)
     m = trimesh.Trimesh(vertices=vertices - offset, faces=faces, process=False)
     data = bytearray(trimesh.exchange.stl.export_stl(m))

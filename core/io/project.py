@@ -1,4 +1,4 @@
-"""Project files: viewer parameters and manual alignment overrides.
+"""Project files: model parameters, the viewer's view and manual alignment overrides.
 
 A project file is JSON::
 
@@ -6,7 +6,7 @@ A project file is JSON::
       "format": "bgm-project",
       "version": 1,
       "input_path": "blastholes.csv",
-      "parameters": {"hole_spacing_m": 6.0},
+      "parameters": {"search_radius_m": 9.5, "viewer": {"geozone": "ore", "bench": 2}},
       "overrides": [
         {"geozone": "ore", "source_z": 1210.0, "source": 2,
          "translation": [3.5, -1.0], "associate": {"0": true, "4": false}}
@@ -18,7 +18,10 @@ geozone on the bench at elevation ``source_z`` (the upper bench of a bench
 pair, paper section 3 "source"): ``translation`` locks its translation
 (input units; translations do not depend on the local frame's origin) and
 ``associate`` forces (``true``) or forbids (``false``) its association with
-target components by index. Files are written atomically (core.io.atomic).
+target components by index. ``parameters`` sets the model's parameters by
+name (``bgm parameters`` lists them; every command with ``--project`` and the
+viewer apply them) and, under ``viewer``, the viewer's selection and vertical
+exaggeration. Files are written atomically (core.io.atomic).
 """
 
 from __future__ import annotations
@@ -186,13 +189,13 @@ def _parse_override(path: Path, i: int, o) -> AlignmentOverride:
 
 
 def _check_parameters(path: Path, parameters: dict) -> None:
-    """Every parameter is a finite number; those the engine knows by name are in their range.
+    """Every parameter is a finite number (a flag true or false); those the engine knows by name are in their range.
 
-    Names the engine does not know (the viewer's own settings such as
-    ``search_radius_spacings``) are checked by the viewer when it applies them.
+    Names the engine does not know are left unused, and said so by
+    :func:`check_project`.
     """
     from core.extraction.contours import EXTRACTION_RANGES
-    from core.model.pipeline import MODEL_RANGES
+    from core.model.parameters import MODEL_RANGES, PARAMETER
 
     ranges = {**EXTRACTION_RANGES, **MODEL_RANGES}
     for name, value in parameters.items():
@@ -200,6 +203,10 @@ def _check_parameters(path: Path, parameters: dict) -> None:
             if value is not None and not isinstance(value, dict):
                 raise BGMInputError(f'project file {path}: "viewer" must be an object.')
             _check_viewer(path, value or {})
+            continue
+        if name in PARAMETER and PARAMETER[name].kind == "flag":
+            if not isinstance(value, bool):
+                raise BGMInputError(f"project file {path}: parameter {name} must be true or false, got {value!r}.")
             continue
         if name in ranges and not ranges[name].holds(value):
             raise BGMInputError(
@@ -241,8 +248,9 @@ def check_project(
     An override is unused when its geozone is not in the input (or not among
     ``geozones``, the ones being modelled), or no bench pair has its upper
     bench at ``source_z``. A locked translation longer than the whole input
-    is refused: it cannot be a correction. Project parameters are the
-    viewer's settings; the command line does not use them, which is said too.
+    is refused: it cannot be a correction. Project parameters the command
+    does not apply (any, unless ``uses_parameters``; else those that are no
+    parameter of the model) are said to be unused too.
 
     Parameters
     ----------
@@ -253,7 +261,8 @@ def check_project(
     command : str
         How the warnings name the command.
     uses_parameters : bool
-        The command applies the project's parameters (the viewer does).
+        The command applies the project's parameters (every command with
+        ``--project`` and the viewer do).
     """
     import numpy as np
 
@@ -278,10 +287,20 @@ def check_project(
             reason = f"no bench pair has its upper bench at {o.source_z:g} (upper benches: {listing(uppers, 8)})"
         if reason:
             warnings.warn(f"{where} is not used: {reason}", BGMWarning, stacklevel=2)
+    from core.model.parameters import PARAMETER
+
     settings = sorted(k for k in project.parameters if k != "viewer")
     if settings and not uses_parameters:
         warnings.warn(
             f"project parameters {listing(settings, 8)} are viewer settings; {command} does not use them",
+            BGMWarning,
+            stacklevel=2,
+        )
+    unknown = [k for k in settings if k not in PARAMETER]
+    if unknown and uses_parameters:
+        warnings.warn(
+            f"project parameters {listing(unknown, 8)} are not parameters of the model "
+            f"(see bgm parameters); {command} does not use them",
             BGMWarning,
             stacklevel=2,
         )

@@ -26,7 +26,6 @@ import shapely
 
 from core.errors import BGMInputError, listing, quoted
 from core.extraction.contours import Contour
-from core.geometry.grid import as_multipolygon
 from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
 from core.io.reporting import containment_summary, contour_feature, to_input_geometry
@@ -34,16 +33,20 @@ from core.model.pipeline import (
     GeozoneModel,
     ModelParameters,
     correspondence_json,
-    model_geozone,
     morph_json,
     pair_coverage,
 )
-from core.model.prediction import predict_geozone, region_between
+from core.model.prediction import predict_geozone
+from core.model.session import (  # noqa: F401 - the surface build's steps, long imported from here
+    SURFACE_STEPS_PER_BENCH,
+    ModelSession,
+    StageStore,
+    surface_cell_size,
+    surface_sections,
+)
 
 #: Depths below the deepest bench at which predictions are written, in bench heights.
 PREDICTION_FRACTIONS = tuple(k / 8 for k in range(1, 9))
-#: Iso-contours per bench interval used to build surfaces.
-SURFACE_STEPS_PER_BENCH = 4
 #: What ``bgm build`` writes at the top of its folder (besides one folder per geozone).
 TOP_LEVEL_FILES = (
     "contours.geojson",
@@ -121,35 +124,6 @@ def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelPa
     return predict
 
 
-def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParameters, below_fraction: float = 1.0):
-    """Stacked regions (z metres, region) from the top bench to one bench below the deepest."""
-    sections = []
-    for p in model.pairs:
-        if p.correspondence is None:
-            continue
-        for s in range(SURFACE_STEPS_PER_BENCH):
-            f = s / SURFACE_STEPS_PER_BENCH
-            z = p.source_z_m + f * (p.target_z_m - p.source_z_m)
-            region = model.region_at_bench(p.upper) if s == 0 else region_between(p, f)
-            sections.append((z, as_multipolygon(region)))
-    if model.pairs:
-        last = model.pairs[-1]
-        sections.append((last.target_z_m, as_multipolygon(model.region_at_bench(last.lower))))
-        height = last.source_z_m - last.target_z_m
-        zs = [last.target_z_m - f * height for f in np.linspace(0.25, below_fraction, 4)]
-        sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
-    return sections
-
-
-def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 300) -> float:
-    """Half a hole spacing, coarsened so the surface grid stays under ``max_cells`` across."""
-    polys = [c.polygon for c in model.contours if not c.polygon.is_empty]
-    if not polys:
-        return 0.5 * holes.hole_spacing_m
-    xmin, ymin, xmax, ymax = shapely.union_all(polys).bounds
-    return max(0.5 * holes.hole_spacing_m, max(xmax - xmin, ymax - ymin) / max_cells)
-
-
 @dataclass
 class GeozoneSummary:
     geozone: str
@@ -181,13 +155,17 @@ def build(
     evaluate: bool = True,
     workers: int | None = None,
     scheduler: str | None = None,
+    cache=None,
 ) -> dict:
     """Run the whole pipeline and write every output under ``out_dir``.
 
     Benches (for contours) and geozones (for everything else) are
     independent: they run in parallel on ``workers`` local processes (all
     cores by default), or on a dask.distributed cluster when ``scheduler``
-    gives its address, with identical results.
+    gives its address, with identical results. Every stage runs through a
+    :class:`~core.model.session.ModelSession`, the viewer's pipeline; with a
+    :class:`~core.io.cache.StageCache` as ``cache`` its results are kept on
+    disk for the next run.
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
@@ -199,10 +177,8 @@ def build(
     wanted = holes.check_geozones(geozones)
     with replaced_folder(out_dir) as staging:
         ctx = BuildContext(
-            holes,
+            ModelSession(holes, params, project, StageStore(cache)),
             [],
-            params,
-            project,
             truth,
             staging,
             tuple(formats or DEFAULT_FORMATS),
@@ -217,9 +193,9 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
     from core.io.export import FORMAT_NOTES, json_default, write_geojson
     from core.model.evaluation import plot_precision_recall, summary_table
 
-    holes, out_dir = ctx.holes, ctx.out_dir
+    holes, out_dir = ctx.session.holes, ctx.out_dir
     t0 = time.perf_counter()
-    ctx.contours = extract_all_benches(holes, ctx.params, workers, scheduler, progress)
+    ctx.contours = extract_all_benches(ctx.session, workers, scheduler, progress)
     mine = [c for c in ctx.contours if c.geozone in wanted]
     write_geojson([contour_feature(c, holes) for c in mine], out_dir / "contours.geojson")
     containment = containment_summary(mine, holes)
@@ -362,10 +338,8 @@ def _finite(obj):
 class BuildContext:
     """What every geozone job needs (shared with worker processes by fork)."""
 
-    holes: Blastholes
+    session: ModelSession  #: the input, parameters, project overrides and stage store
     contours: list[Contour]
-    params: ModelParameters
-    project: object
     truth: Callable[[str, float], shapely.MultiPolygon] | None
     out_dir: Path
     formats: tuple
@@ -388,7 +362,7 @@ def _init_worker(ctx: BuildContext) -> None:
 def _map_geozones(ctx: BuildContext, geozones: list[str], workers: int | None, scheduler: str | None = None):
     """Yield ``build_geozone`` results as they finish, in parallel where it pays."""
     # Largest geozones first so the last job to start is a short one.
-    order = sorted(geozones, key=lambda g: -int(np.sum(ctx.holes.geozone == g)))
+    order = sorted(geozones, key=lambda g: -int(np.sum(ctx.session.holes.geozone == g)))
     yield from _parallel_map(build_geozone, ctx, order, workers, scheduler)
 
 
@@ -477,24 +451,23 @@ def _call_in_worker(func, item):
     return func(_WORKER_CONTEXT, item)
 
 
-def extract_all_benches(holes: Blastholes, params: ModelParameters, workers=None, scheduler=None, progress=None):
+def extract_all_benches(session: ModelSession, workers=None, scheduler=None, progress=None) -> list[Contour]:
     """Contours of every bench, benches in parallel; in bench order whatever order they finish in."""
-    ctx = (holes, params.extraction)
+    holes = session.holes
     by_bench = {}
     for done, (k, contours) in enumerate(
-        _parallel_map(_extract_one_bench, ctx, list(range(holes.n_benches)), workers, scheduler), start=1
+        _parallel_map(_extract_one_bench, session, list(range(holes.n_benches)), workers, scheduler), start=1
     ):
         by_bench[k] = contours
         if progress:
             progress("contours", done, holes.n_benches)
+    for k, contours in by_bench.items():  # from worker processes: remembered here (they cached them on disk)
+        session.store.put("contours", session._contours_key(k), contours, disk=False)
     return [c for k in sorted(by_bench) for c in by_bench[k]]
 
 
-def _extract_one_bench(ctx, k: int):
-    from core.extraction.contours import extract_bench
-
-    holes, extraction = ctx
-    return k, extract_bench(holes, k, None, extraction)
+def _extract_one_bench(session: ModelSession, k: int):
+    return k, session.bench_contours(k)
 
 
 def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFrame | None]:
@@ -502,9 +475,10 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     from core.io.export import write_geojson
     from core.model.evaluation import evaluate_geozone
 
-    holes, params, out_dir = ctx.holes, ctx.params, ctx.out_dir
+    session, out_dir = ctx.session, ctx.out_dir
+    holes, params = session.holes, session.params
     tg = time.perf_counter()
-    model = model_geozone(holes, g, contours=ctx.contours, params=params, project=ctx.project)
+    model = session.geozone_model(g, contours=ctx.contours)
     gdir = out_dir / (ctx.folders.get(g) or geozone_folders([g])[g])
     gdir.mkdir(exist_ok=True)
     folder = gdir.name
@@ -536,7 +510,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     deepest = model.pairs[-1]
     height = deepest.source_z_m - deepest.target_z_m
     zs = [deepest.target_z_m - f * height for f in PREDICTION_FRACTIONS]
-    predictions = predict_geozone(model, zs, holes.hole_spacing_m, params)
+    predictions = session.predict(g, zs, model)
     features = [
         {
             "geometry": to_input_geometry(region, holes),
@@ -560,14 +534,12 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
 def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildContext, gdir: Path) -> None:
     """The geozone's closed surface in every format; its figures (or why there is none) go into ``summary``."""
     from core.io.export import export_all
-    from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
+    from core.model.surfaces import mesh_summary, to_input_frame
 
-    holes, mpu = ctx.holes, ctx.holes.frame.metres_per_unit
+    holes = ctx.session.holes
+    mpu = holes.frame.metres_per_unit
     try:
-        # Half a hole spacing resolves all the data can tell; finer only adds faces.
-        mesh = surface_from_sections(
-            surface_sections(model, holes, ctx.params), cell_size_m=surface_cell_size(model, holes)
-        )
+        mesh = ctx.session.surface(model.geozone, model)
         info = mesh_summary(mesh)
         surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
         exported = export_all(surface, gdir, "surface", ctx.formats)

@@ -502,7 +502,9 @@ def evaluate_geozone(
         bench), ``bench_z`` (its elevation), ``z_m`` (predicted elevation),
         ``depth_m``, ``fraction``, ``method``, ``precision``, ``recall``,
         ``f1``, ``p_area``, ``g_area``, ``i_area`` (intersection area, for
-        area-weighted aggregation by :func:`summary_table`).
+        area-weighted aggregation by :func:`summary_table`); on real data (no
+        ``truth``) also ``holes_in``, ``holes_in_geozone``, ``holes_geozone``,
+        the scores on the withheld bench's own holes (see :func:`_add_hole_scores`).
     """
     levels = np.asarray(holes.bench_levels_m, float)
     n = len(levels)
@@ -522,9 +524,16 @@ def evaluate_geozone(
             methods = _predictors(holes, geozone, k, regions, z_targets, model_predictor, references, grid, height)
             observed = regions_by_bench[k + 1]
             rows += _scores(methods, targets, truth, geozone, observed, holes.drilled_area(k + 1), k, float(levels[k]))
+            if truth is None:
+                _add_hole_scores(rows[-len(methods) :], methods, targets[0][2], holes, geozone, k + 1)
         if progress:
             progress(done, len(ks))
-    return pd.DataFrame(rows, columns=list(_COLUMNS))
+    extra = [c for c in _HOLE_COLUMNS if rows and c in rows[0]]
+    return pd.DataFrame(rows, columns=[*_COLUMNS, *extra])
+
+
+#: Columns added on real data (no truth function): scores on the withheld bench's holes.
+_HOLE_COLUMNS = ("holes_in", "holes_in_geozone", "holes_geozone")
 
 
 def _prediction_targets(
@@ -596,6 +605,32 @@ def _scores(
             row["i_area"] = 0.0 if not np.isfinite(p) else p * pa
             rows.append(row)
     return rows
+
+
+def _add_hole_scores(
+    rows: list[dict],
+    methods: dict[str, Callable[[float], MultiPolygon]],
+    z: float,
+    holes: Blastholes,
+    geozone: str,
+    bench: int,
+) -> None:
+    """Score each method on the withheld bench's holes as well (real data, in place).
+
+    ``holes_in``: holes of the bench inside the prediction; ``holes_in_geozone``:
+    those labelled ``geozone``; ``holes_geozone``: all its holes labelled
+    ``geozone``. Precision is ``holes_in_geozone / holes_in``, recall
+    ``holes_in_geozone / holes_geozone``, summed over benches by the caller:
+    a score on the samples themselves, free of how the bench was contoured.
+    """
+    on = holes.on_bench(bench)
+    xy, mine = holes.xy[on], holes.geozone[on] == geozone
+    for row, predict in zip(rows, methods.values()):
+        region = _region(predict(z))
+        inside = shapely.contains_xy(region, xy[:, 0], xy[:, 1]) if not region.is_empty else np.zeros(len(xy), bool)
+        row.update(
+            holes_in=int(inside.sum()), holes_in_geozone=int((inside & mine).sum()), holes_geozone=int(mine.sum())
+        )
 
 
 def summary_table(df: pd.DataFrame) -> pd.DataFrame:

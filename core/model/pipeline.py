@@ -16,48 +16,29 @@ import shapely
 from shapely import affinity
 
 from core.correspondence.pair import MorphInstance, PairCorrespondence, correspond_pair
-from core.errors import Range, check_ranges
-from core.extraction.contours import Contour, ExtractionParameters, extract_contours
+from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes
 from core.model.extrapolation import BenchFields, bench_fields
+from core.model.parameters import ModelParameters
 from core.morph.levelset import MorphResult, morph_regions
 from core.morph.trajectories import trajectory_xyz
 
-
-@dataclass(frozen=True)
-class ModelParameters:
-    """Parameters of the whole model; ``None`` lengths scale with the hole spacing."""
-
-    extraction: ExtractionParameters = field(default_factory=ExtractionParameters)
-    mu_lower_m: float | None = None  #: lower limit of the association radius (eq. 8)
-    correspondence_cell_size_m: float | None = None
-    morph_max_cells: int = 256  #: level-set grid size along the longer side
-    #: Components with fewer holes are left out between benches: on real
-    #: benches a lone hole of another domain is far more often a mislabelled
-    #: assay than a body, and it would drag alignments around.
-    min_component_holes: int = 3
-    speed_clamp_m: float | None = None  #: |gamma_t| clamp of the morph speed
-    #: How far past a bench's drilled area its evidence is carried, in hole
-    #: spacings (and never further than the drilled patch is wide); see
-    #: :mod:`core.model.extrapolation`.
-    frontier_reach_spacings: float = 10.0
-
-    def validate(self) -> ModelParameters:
-        """Raise :class:`core.errors.BGMInputError` naming the first parameter out of range; returns self."""
-        self.extraction.validate()
-        check_ranges(self, MODEL_RANGES)
-        return self
-
-
-#: Valid values of each :class:`ModelParameters` field.
-MODEL_RANGES = {
-    "mu_lower_m": Range(0, low_open=True, optional=True),
-    "correspondence_cell_size_m": Range(0, low_open=True, optional=True),
-    "morph_max_cells": Range(16, 4096, integer=True),
-    "min_component_holes": Range(1, integer=True),
-    "speed_clamp_m": Range(0, low_open=True, optional=True),
-    "frontier_reach_spacings": Range(0),
-}
+__all__ = [
+    "BenchPair",
+    "GeozoneModel",
+    "ModelParameters",
+    "MorphStep",
+    "bench_pairs",
+    "correspond",
+    "correspondence_json",
+    "geozone_fields",
+    "model_geozone",
+    "modelled_contours",
+    "morph",
+    "morph_instance",
+    "morph_json",
+    "pair_coverage",
+]
 
 
 @dataclass
@@ -84,7 +65,9 @@ class BenchPair:
 
     def aligned_source(self, i: int):
         """Source ``i`` moved by its estimated translation (local metres)."""
-        dx, dy = self.correspondence.translations[i]  # type: ignore[union-attr]  # set by correspond() before use
+        if self.correspondence is None:
+            raise ValueError("the pair has no correspondence yet")
+        dx, dy = self.correspondence.translations[i]
         return affinity.translate(self.sources[i].polygon, dx, dy)
 
 
@@ -109,15 +92,25 @@ class GeozoneModel:
         return shapely.union_all(polys) if polys else shapely.Polygon()
 
 
+def modelled_contours(contours: list[Contour], geozone: str, bench: int, min_component_holes: int = 1) -> list[Contour]:
+    """The geozone's contours on a bench that take part in the model, by component number.
+
+    Their positions in this list are the source (target) indices of the
+    bench pair below (above) the bench, as project overrides name them.
+    """
+    own = (c for c in contours if c.geozone == geozone and c.bench == bench and len(c.holes) >= min_component_holes)
+    return sorted(own, key=lambda c: c.component)
+
+
 def bench_pairs(
     holes: Blastholes, contours: list[Contour], geozone: str, min_component_holes: int = 1
 ) -> list[BenchPair]:
     """Successive bench pairs where the geozone is on at least one of the two benches."""
-    own = [c for c in contours if c.geozone == geozone and len(c.holes) >= min_component_holes]
+    own = [c for c in contours if c.geozone == geozone]
     pairs = []
     for k in range(holes.n_benches - 1):
-        sources = sorted((c for c in own if c.bench == k), key=lambda c: c.component)
-        targets = sorted((c for c in own if c.bench == k + 1), key=lambda c: c.component)
+        sources = modelled_contours(own, geozone, k, min_component_holes)
+        targets = modelled_contours(own, geozone, k + 1, min_component_holes)
         if not sources and not targets:
             continue
         pairs.append(
@@ -169,34 +162,44 @@ def morph(
     keep_fronts: bool = False,
     hole_spacing_m: float | None = None,
 ) -> list[MorphStep]:
-    """Morph every instance of a corresponded pair (paper section 4).
+    """Morph every instance of a corresponded pair (paper section 4); see :func:`morph_instance`."""
+    if pair.correspondence is None:
+        raise ValueError("morph needs the pair's correspondence first")
+    pair.morphs = [
+        morph_instance(pair, inst, params, keep_fronts, hole_spacing_m) for inst in pair.correspondence.instances
+    ]
+    return pair.morphs
+
+
+def morph_instance(
+    pair: BenchPair,
+    instance: MorphInstance,
+    params: ModelParameters | None = None,
+    keep_fronts: bool = False,
+    hole_spacing_m: float | None = None,
+) -> MorphStep:
+    """Morph one instance of a corresponded pair: its aligned sources into its targets.
 
     With ``hole_spacing_m`` the level-set cells are never finer than a
     quarter of it: contours cannot be placed more finely than the holes
     allow, and a small pod on a 256-cell grid would cost as much as a pit.
     """
     params = params or ModelParameters()
-    if pair.correspondence is None:
-        raise ValueError("morph needs the pair's correspondence first")
-    steps = []
-    for inst in pair.correspondence.instances:
-        sources = [pair.aligned_source(i) for i in inst.source_ids]
-        targets = [pair.targets[j].polygon for j in inst.target_ids]
-        cell = None
-        if hole_spacing_m:
-            xmin, ymin, xmax, ymax = shapely.union_all([*sources, *targets]).bounds
-            cell = max(max(xmax - xmin, ymax - ymin) / params.morph_max_cells, hole_spacing_m / 4)
-        result = morph_regions(
-            sources,
-            targets,
-            cell_size_m=cell,
-            speed_clamp_m=params.speed_clamp_m,
-            keep_fronts=keep_fronts,
-            max_cells=params.morph_max_cells,
-        )
-        steps.append(MorphStep(inst, result))
-    pair.morphs = steps
-    return steps
+    sources = [pair.aligned_source(i) for i in instance.source_ids]
+    targets = [pair.targets[j].polygon for j in instance.target_ids]
+    cell = None
+    if hole_spacing_m:
+        xmin, ymin, xmax, ymax = shapely.union_all([*sources, *targets]).bounds
+        cell = max(max(xmax - xmin, ymax - ymin) / params.morph_max_cells, hole_spacing_m / 4)
+    result = morph_regions(
+        sources,
+        targets,
+        cell_size_m=cell,
+        speed_clamp_m=params.speed_clamp_m,
+        keep_fronts=keep_fronts,
+        max_cells=params.morph_max_cells,
+    )
+    return MorphStep(instance, result)
 
 
 def model_geozone(
@@ -211,6 +214,9 @@ def model_geozone(
     progress: Callable[[int, int], None] | None = None,
 ) -> GeozoneModel:
     """Run the pipeline for one geozone up to the requested stages.
+
+    A one-off :class:`core.model.session.ModelSession` (no disk cache):
+    commands and the viewer that run more than once keep a session instead.
 
     Parameters
     ----------
@@ -229,27 +235,10 @@ def model_geozone(
     progress : callable, optional
         ``progress(done, total)`` over bench pairs.
     """
-    from core.io.project import overrides_for
+    from core.model.session import ModelSession  # the session orchestrates this module's stages
 
-    params = params or ModelParameters()
-    if contours is None:
-        contours = extract_contours(holes, [geozone], params=params.extraction, keep_fields=keep_fields)
-    pairs = bench_pairs(holes, contours, geozone, params.min_component_holes)
-    for done, pair in enumerate(pairs, start=1):
-        if "correspond" in stages or "morph" in stages:
-            overrides = None
-            if project is not None:
-                overrides = overrides_for(project, geozone, holes.bench_z_input(pair.upper))
-            correspond(pair, holes, params, overrides, keep_fields)
-        if "morph" in stages:
-            morph(pair, params, keep_fronts=keep_fields, hole_spacing_m=holes.hole_spacing_m)
-        if progress:
-            progress(done, len(pairs))
-    own = [c for c in contours if c.geozone == geozone]
-    big = [c for c in own if len(c.holes) >= params.min_component_holes]
-    minor = [c for c in own if len(c.holes) < params.min_component_holes]
-    fields = geozone_fields(holes, own, params.frontier_reach_spacings)
-    return GeozoneModel(geozone, big, pairs, minor, fields)
+    session = ModelSession(holes, params or ModelParameters(), project)
+    return session.geozone_model(geozone, contours=contours, stages=stages, keep_fields=keep_fields, progress=progress)
 
 
 def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: float) -> BenchFields:
@@ -303,17 +292,19 @@ def correspondence_json(model: GeozoneModel, holes: Blastholes) -> dict:
     pairs = []
     for p in model.pairs:
         corr = p.correspondence
+        if corr is None:
+            raise ValueError(f"bench pair {p.upper}-{p.lower} of {model.geozone} has no correspondence yet")
         pairs.append(
             {
                 "source_z": holes.bench_z_input(p.upper),
                 "target_z": holes.bench_z_input(p.lower),
                 "sources": [_component_dict(i, c, holes) for i, c in enumerate(p.sources)],
                 "targets": [_component_dict(j, c, holes) for j, c in enumerate(p.targets)],
-                "association": corr.association.astype(int).tolist(),  # type: ignore[union-attr]  # set by correspond() before use
-                "translations": holes.frame.length_to_input(corr.translations).reshape(-1, 2).tolist(),  # type: ignore[union-attr]  # set by correspond() before use
+                "association": corr.association.astype(int).tolist(),
+                "translations": holes.frame.length_to_input(corr.translations).reshape(-1, 2).tolist(),
                 "instances": [
                     {"sources": list(map(int, m.source_ids)), "targets": list(map(int, m.target_ids))}
-                    for m in corr.instances  # type: ignore[union-attr]  # set by correspond() before use
+                    for m in corr.instances
                 ],
             }
         )

@@ -44,7 +44,7 @@ def main(sizes: list[int]) -> None:
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "mine.csv"
             table.to_csv(path, index=False)
-            r = run_measured([*BGM, "build", str(path), "--out", str(Path(tmp) / "out")])
+            r = run_measured([*BGM, "build", str(path), "--out", str(Path(tmp) / "out"), "--no-cache"])
         status = "ok" if r["returncode"] == 0 else f"FAILED: {r['stderr'][-400:]}"
         line = f"{len(table):>9,d} holes, {n_benches:2d} benches: {r['seconds']:7.1f} s, peak {r['peak_gb']:5.2f} GB - {status}"
         if previous is not None:

@@ -1,0 +1,425 @@
+"""Staged, memoised runs of the pipeline: the one pipeline ``bgm`` and the viewer share.
+
+A :class:`ModelSession` holds the blastholes, the :class:`ModelParameters` and
+the project's manual overrides, and answers for any bench or geozone with the
+stage functions of :mod:`core.model.pipeline` (contours per bench;
+correspondence and morph per bench pair; prediction and surface per geozone).
+Every result is stored in a :class:`StageStore` under a key that hashes what
+it was computed from: the bench's holes, the polygons of a bench pair, the
+parameters of its stage (:func:`core.model.parameters.stage_values`), the
+overrides of the pair and the engine's code. So a changed parameter re-runs
+exactly its stage and the stages after it, on the benches and pairs it
+changes, and nothing is ever served stale. With a
+:class:`core.io.cache.StageCache` the results also outlive the process, so a
+second command on the same input reuses them.
+
+Sessions are cheap, immutable views: :meth:`ModelSession.updated` gives one
+with other parameters or overrides that shares the same store (what the
+viewer does on every slider move). Results in the store are shared between
+sessions: treat them as read-only.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import Counter, OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import cast
+
+import numpy as np
+import shapely
+
+from core.extraction.contours import Contour, extract_bench
+from core.geometry.grid import as_multipolygon
+from core.io.blastholes import Blastholes
+from core.io.cache import MISSING, StageCache, content_key, engine_fingerprint
+from core.io.project import Project, overrides_for
+from core.model.extrapolation import BenchFields
+from core.model.parameters import ModelParameters, stage_values
+from core.model.pipeline import (
+    BenchPair,
+    GeozoneModel,
+    MorphStep,
+    bench_pairs,
+    correspond,
+    geozone_fields,
+    morph,
+    morph_instance,
+)
+from core.model.prediction import predict_geozone, region_between
+
+#: Iso-contours per bench interval used to build surfaces.
+SURFACE_STEPS_PER_BENCH = 4
+#: Results kept in memory per stage, newest first; display fields (edge maps, GVF, snake
+#: histories, level-set fronts) and a geozone's bench fields (signed distances on every
+#: bench) run to tens of megabytes each, so only the latest few.
+MEMORY_ENTRIES = {"fields": 3, "fronts": 8, "bench_fields": 4}
+
+
+class StageStore:
+    """Stage results by ``(stage, key)``: the latest in memory, all of them on disk with a cache.
+
+    Thread-safe (the viewer computes in a worker thread while its window
+    reads); two threads asking for the same missing key both compute it,
+    with the same result. ``counts[(stage, source)]`` tells how each request
+    was answered (``memory``, ``disk`` or ``computed``).
+    """
+
+    def __init__(self, cache: StageCache | None = None, max_entries: int = 128):
+        self.cache = cache
+        self.max_entries = max_entries  #: per stage, except the display stages of MEMORY_ENTRIES
+        self.counts: Counter = Counter()
+        self._memory: dict[str, OrderedDict] = {}
+        self._lock = threading.Lock()
+
+    def get(self, stage: str, key: str, compute: Callable[[], object], *, disk: bool = True):
+        """The stored result, or ``compute()`` stored (on disk too when ``disk`` and a cache is set)."""
+        value = self.peek(stage, key, disk=disk)
+        if value is not MISSING:
+            return value
+        value = compute()
+        self.counts[stage, "computed"] += 1
+        self.put(stage, key, value, disk=disk)
+        return value
+
+    def peek(self, stage: str, key: str, *, disk: bool = True):
+        """The stored result, or :data:`core.io.cache.MISSING` (nothing is computed)."""
+        value = self._recall(stage, key)
+        if value is not MISSING:
+            self.counts[stage, "memory"] += 1
+        elif disk and self.cache is not None:
+            value = self.cache.load(stage, key)
+            if value is not MISSING:
+                self.counts[stage, "disk"] += 1
+                self._remember(stage, key, value)
+        return value
+
+    def put(self, stage: str, key: str, value, *, disk: bool = True) -> None:
+        """Store a result computed elsewhere (e.g. by a worker process)."""
+        self._remember(stage, key, value)
+        if disk and self.cache is not None:
+            self.cache.store(stage, key, value)
+
+    def _recall(self, stage: str, key: str):
+        with self._lock:
+            entries = self._memory.get(stage)
+            if entries is None or key not in entries:
+                return MISSING
+            entries.move_to_end(key)
+            return entries[key]
+
+    def _remember(self, stage: str, key: str, value) -> None:
+        with self._lock:
+            entries = self._memory.setdefault(stage, OrderedDict())
+            entries[key] = value
+            entries.move_to_end(key)
+            while len(entries) > MEMORY_ENTRIES.get(stage, self.max_entries):
+                entries.popitem(last=False)
+
+    def __getstate__(self) -> dict:
+        # Sent to other processes (dask workers): the disk cache travels, memory and lock do not.
+        return {"cache": self.cache, "max_entries": self.max_entries}
+
+    def __setstate__(self, state: dict) -> None:
+        self.cache, self.max_entries = state["cache"], state["max_entries"]
+        self.counts, self._memory, self._lock = Counter(), {}, threading.Lock()
+
+
+@dataclass(frozen=True, eq=False)
+class ModelSession:
+    """The pipeline on one input, stage by stage, with every result memoised (see the module docstring).
+
+    Parameters
+    ----------
+    holes : Blastholes
+    params : ModelParameters
+    project : core.io.project.Project, optional
+        Manual overrides (locked translations, forced and forbidden associations).
+    store : StageStore
+        Where results are kept; give it a :class:`~core.io.cache.StageCache` to keep them on disk.
+    """
+
+    holes: Blastholes
+    params: ModelParameters = field(default_factory=ModelParameters)
+    project: Project | None = None
+    store: StageStore = field(default_factory=StageStore)
+
+    @classmethod
+    def open(cls, holes: Blastholes, params=None, project=None, *, cache: bool = True) -> ModelSession:
+        """A session on the user's disk cache (``cache=False``: in memory only, as ``--no-cache``)."""
+        return cls(holes, params or ModelParameters(), project, StageStore(StageCache() if cache else None))
+
+    def updated(self, **changes) -> ModelSession:
+        """The same input and store with other ``params`` and/or ``project``."""
+        return replace(self, **changes)
+
+    # -- keys ------------------------------------------------------------------------------
+    def bench_key(self, bench: int) -> str:
+        """Hash of what extraction reads of one bench: its holes (positions, labels, indices) and spacing."""
+        h, idx = self.holes, self.holes.on_bench(bench)
+        level = float(h.bench_levels_m[bench])
+        return content_key(engine_fingerprint(), idx, h.xy[idx], h.geozone[idx], float(h.hole_spacing_m), level)
+
+    def _contours_key(self, bench: int) -> str:
+        return content_key("contours", self.bench_key(bench), stage_values(self.params, "contours"))
+
+    def _pair_keys(self, pair: BenchPair) -> tuple[str, str]:
+        """Keys of a pair's correspondence and of its morph."""
+        locked, forced, forbidden = self.overrides(pair)
+        corr = content_key(
+            "correspondence",
+            engine_fingerprint(),
+            [c.polygon for c in pair.sources],
+            [c.polygon for c in pair.targets],
+            float(self.holes.hole_spacing_m),
+            float(self.holes.frame.metres_per_unit),  # locked translations are in input units
+            stage_values(self.params, "correspondence"),
+            {int(k): tuple(map(float, v)) for k, v in locked.items()},
+            set(forced),
+            set(forbidden),
+        )
+        return corr, content_key("morph", corr, stage_values(self.params, "morph"))
+
+    def _fields_key(self, geozone: str, own: list[Contour]) -> str:
+        """Key of a geozone's bench fields: every bench's holes (drilled areas), the geozone's contours, the reach."""
+        return content_key(
+            "bench_fields",
+            [self.bench_key(k) for k in range(self.holes.n_benches)],
+            geozone,
+            sorted(((int(c.bench), int(c.component), c.polygon) for c in own), key=lambda t: t[:2]),
+            float(self.params.frontier_reach_spacings),
+        )
+
+    def _model_key(self, model: GeozoneModel) -> str:
+        return content_key(
+            "model",
+            [self._pair_keys(p)[1] for p in model.pairs],
+            [c.polygon for c in model.contours],
+            [c.polygon for c in model.minor],
+            self._fields_key(model.geozone, [*model.contours, *model.minor]),
+            float(self.holes.hole_spacing_m),
+        )
+
+    # -- contours (paper section 2) ------------------------------------------------------------
+    def bench_contours(self, bench: int) -> list[Contour]:
+        """Contours of every geozone on one bench."""
+        key = self._contours_key(bench)
+        return self.store.get("contours", key, lambda: extract_bench(self.holes, bench, None, self.params.extraction))
+
+    def bench_contours_with_fields(self, bench: int, geozone: str) -> list[Contour]:
+        """:meth:`bench_contours`, with the edge map, GVF and snake history of ``geozone``'s contours.
+
+        Kept in memory only, for the newest few requests: fields are large.
+        """
+        key = self._contours_key(bench)
+
+        def extract() -> list[Contour]:
+            full = extract_bench(self.holes, bench, None, self.params.extraction, keep_fields=True)
+            if self.store.peek("contours", key, disk=False) is MISSING:
+                self.store.put("contours", key, [replace(c, fields=None) for c in full])
+            return [c if c.geozone == geozone else replace(c, fields=None) for c in full]
+
+        return self.store.get("fields", content_key(key, geozone), extract, disk=False)
+
+    def stored_bench_contours(self, bench: int, geozone: str | None = None) -> list[Contour] | None:
+        """The bench's contours if they need no computing (with ``geozone``'s fields when at hand), else ``None``."""
+        key = self._contours_key(bench)
+        found = MISSING if geozone is None else self.store.peek("fields", content_key(key, geozone), disk=False)
+        if found is MISSING:
+            found = self.store.peek("contours", key)
+        return None if found is MISSING else cast(list, found)
+
+    def contours(self, benches=None, progress: Callable[[int, int], None] | None = None) -> list[Contour]:
+        """Contours of every geozone on the given benches (all by default), in bench order."""
+        benches = list(range(self.holes.n_benches)) if benches is None else list(benches)
+        out: list[Contour] = []
+        for done, k in enumerate(benches, start=1):
+            out.extend(self.bench_contours(k))
+            if progress:
+                progress(done, len(benches))
+        return out
+
+    def snake_preview(self, contour: Contour) -> Contour:
+        """The contour extracted again, with its fields, with this session's parameters.
+
+        A quick preview for a snake parameter change, before the whole bench
+        is extracted again: only the contour's geozone is traced (its bench's
+        evidence, then the snake of each of its parts). The contour itself when
+        the new parameters give the geozone no part of that number.
+        """
+        fresh = extract_bench(self.holes, contour.bench, [contour.geozone], self.params.extraction, keep_fields=True)
+        return next((c for c in fresh if c.component == contour.component), contour)
+
+    # -- correspondence and morph (sections 3-4) -------------------------------------------------
+    def pairs(self, geozone: str, contours: list[Contour] | None = None) -> list[BenchPair]:
+        """The geozone's bench pairs (not yet corresponded)."""
+        contours = self.contours() if contours is None else contours
+        return bench_pairs(self.holes, contours, geozone, self.params.min_component_holes)
+
+    def overrides(self, pair: BenchPair) -> tuple[dict, set, set]:
+        """The project's overrides of one bench pair (input units), as :func:`correspond` takes them."""
+        if self.project is None:
+            return {}, set(), set()
+        return overrides_for(self.project, pair.geozone, self.holes.bench_z_input(pair.upper))
+
+    def correspond(self, pair: BenchPair, keep_fields: bool = False):
+        """The pair's correspondence (set on ``pair``); with ``keep_fields`` computed afresh with its fields."""
+        if keep_fields:
+            return correspond(pair, self.holes, self.params, self.overrides(pair), keep_fields=True)
+        key, _ = self._pair_keys(pair)
+        pair.correspondence = self.store.get(
+            "correspondence", key, lambda: correspond(pair, self.holes, self.params, self.overrides(pair))
+        )
+        return pair.correspondence
+
+    def morph(self, pair: BenchPair, keep_fronts: bool = False) -> list[MorphStep]:
+        """The morphs of every instance of the pair (set on ``pair``), corresponding it first if needed."""
+        if pair.correspondence is None:
+            self.correspond(pair)
+        spacing = self.holes.hole_spacing_m
+        if keep_fronts:
+            return morph(pair, self.params, keep_fronts=True, hole_spacing_m=spacing)
+        _, key = self._pair_keys(pair)
+        pair.morphs = self.store.get("morph", key, lambda: self._morph_instances(pair, key))
+        return pair.morphs
+
+    def _morph_instances(self, pair: BenchPair, key: str) -> list[MorphStep]:
+        """:func:`core.model.pipeline.morph`, reusing instances already morphed with their fronts."""
+        corr = pair.correspondence
+        if corr is None:
+            raise ValueError("the pair has no correspondence yet")
+        steps = []
+        for i, instance in enumerate(corr.instances):
+            shown = self.store.peek("fronts", content_key("fronts", key, i), disk=False)
+            if shown is MISSING:
+                steps.append(morph_instance(pair, instance, self.params, False, self.holes.hole_spacing_m))
+            else:  # recording fronts changes nothing else
+                steps.append(MorphStep(shown.instance, replace(shown.result, fronts=[])))
+        return steps
+
+    def instance_fronts(self, pair: BenchPair, index: int) -> MorphStep:
+        """Morph instance ``index`` of a corresponded pair with its fronts kept (for display).
+
+        Asked before :meth:`morph`, the pair's morph reuses it instead of morphing that instance twice.
+        """
+        if pair.correspondence is None:
+            raise ValueError("the pair has no correspondence yet")
+        instance = pair.correspondence.instances[index]
+        key = content_key("fronts", self._pair_keys(pair)[1], index)
+        return self.store.get(
+            "fronts",
+            key,
+            lambda: morph_instance(pair, instance, self.params, True, self.holes.hole_spacing_m),
+            disk=False,
+        )
+
+    # -- a geozone's model, prediction and surface ------------------------------------------------------
+    def geozone_model(
+        self,
+        geozone: str,
+        *,
+        contours: list[Contour] | None = None,
+        stages: tuple[str, ...] = ("correspond", "morph"),
+        keep_fields: bool = False,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> GeozoneModel:
+        """Everything the model knows about one geozone (see :func:`core.model.pipeline.model_geozone`)."""
+        if contours is None:
+            if keep_fields:
+                contours = [c for k in range(self.holes.n_benches) for c in self.bench_contours_with_fields(k, geozone)]
+            else:
+                contours = self.contours()
+        pairs = self.pairs(geozone, contours)
+        for done, pair in enumerate(pairs, start=1):
+            if "correspond" in stages or "morph" in stages:
+                self.correspond(pair, keep_fields)
+            if "morph" in stages:
+                self.morph(pair, keep_fronts=keep_fields)
+            if progress:
+                progress(done, len(pairs))
+        own = [c for c in contours if c.geozone == geozone]
+        big = [c for c in own if len(c.holes) >= self.params.min_component_holes]
+        minor = [c for c in own if len(c.holes) < self.params.min_component_holes]
+        for k in range(self.holes.n_benches):  # evaluation scores on drilled areas: kept with the other results
+            self.drilled_area(k)
+        return GeozoneModel(geozone, big, pairs, minor, self.bench_fields(geozone, own))
+
+    def drilled_area(self, bench: int):
+        """The bench's drilled area (:meth:`Blastholes.drilled_area`), stored with the other results."""
+        area = self.store.get("drilled", self.bench_key(bench), lambda: self.holes.drilled_area(bench))
+        self.holes._drilled.setdefault(bench, area)  # what Blastholes.drilled_area would compute
+        return area
+
+    def bench_fields(self, geozone: str, own: list[Contour]) -> BenchFields:
+        """:func:`core.model.pipeline.geozone_fields` of the geozone from its own contours (of every size)."""
+        reach = self.params.frontier_reach_spacings
+        return self.store.get(
+            "bench_fields", self._fields_key(geozone, own), lambda: geozone_fields(self.holes, own, reach)
+        )
+
+    def predict(self, geozone: str, z_m, model: GeozoneModel | None = None) -> dict:
+        """The geozone's region at each elevation (metres); see :func:`core.model.prediction.predict_geozone`."""
+        model = model or self.geozone_model(geozone)
+        z_m = [float(z) for z in z_m]
+        key = content_key("prediction", self._model_key(model), z_m, stage_values(self.params, "prediction"))
+        return self.store.get(
+            "prediction", key, lambda: predict_geozone(model, z_m, self.holes.hole_spacing_m, self.params)
+        )
+
+    def surface(self, geozone: str, model: GeozoneModel | None = None):
+        """The geozone's closed surface (trimesh, local metres): what ``bgm build`` exports.
+
+        Raises
+        ------
+        core.errors.BGMInputError or RuntimeError
+            When no surface can be made (every section empty, a mesh that will not close).
+        """
+        from core.model.surfaces import surface_from_sections
+
+        model = model or self.geozone_model(geozone)
+        key = content_key(
+            "surface",
+            self._model_key(model),
+            stage_values(self.params, "prediction"),
+            stage_values(self.params, "surface"),
+        )
+
+        def compute():
+            sections = surface_sections(model, self.holes, self.params)
+            cell = surface_cell_size(model, self.holes, self.params.surface_max_cells)
+            return surface_from_sections(sections, cell_size_m=cell)
+
+        return self.store.get("surface", key, compute)
+
+
+def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParameters, below_fraction: float = 1.0):
+    """Stacked regions (z metres, region) from the top bench to one bench below the deepest."""
+    sections = []
+    for p in model.pairs:
+        if p.correspondence is None:
+            continue
+        for s in range(SURFACE_STEPS_PER_BENCH):
+            f = s / SURFACE_STEPS_PER_BENCH
+            z = p.source_z_m + f * (p.target_z_m - p.source_z_m)
+            region = model.region_at_bench(p.upper) if s == 0 else region_between(p, f)
+            sections.append((z, as_multipolygon(region)))
+    if model.pairs:
+        last = model.pairs[-1]
+        sections.append((last.target_z_m, as_multipolygon(model.region_at_bench(last.lower))))
+        height = last.source_z_m - last.target_z_m
+        zs = [last.target_z_m - f * height for f in np.linspace(0.25, below_fraction, 4)]
+        sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
+    return sections
+
+
+def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 300) -> float:
+    """Half a hole spacing, coarsened so the surface grid stays under ``max_cells`` across.
+
+    Half a hole spacing resolves all the data can tell; finer only adds faces.
+    """
+    polys = [c.polygon for c in model.contours if not c.polygon.is_empty]
+    if not polys:
+        return 0.5 * holes.hole_spacing_m
+    xmin, ymin, xmax, ymax = shapely.union_all(polys).bounds
+    return max(0.5 * holes.hole_spacing_m, max(xmax - xmin, ymax - ymin) / max_cells)

@@ -1,0 +1,120 @@
+"""The viewer shows what `bgm build` exports, and saves what `bgm correspond --project` reads.
+
+The viewer drives core's own pipeline (core.model.session); these tests hold
+it to the command line's outputs on the same input and parameters.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import shapely
+import trimesh
+from conftest import DEMO_CSV
+from shapely.geometry import shape
+from test_cli import bgm
+
+pytest.importorskip("psygnal")
+
+from bgm_viewer.model import ViewerModel
+from core.io.blastholes import read_blastholes
+from core.io.reporting import to_input_geometry
+from core.model.build import build
+from core.model.surfaces import to_input_frame
+
+GEOZONE = "g2"
+
+
+@pytest.fixture(scope="module")
+def demo_holes():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return read_blastholes(DEMO_CSV)
+
+
+def _viewer(holes, geozone: str, bench: int, until: str = "surface", cache: bool = False) -> ViewerModel:
+    model = ViewerModel(holes, cache=cache)  # by default computed afresh, not read back from the command's cache
+    model.select(geozone, bench, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(until=until)
+    assert not model.result.errors, model.result.errors
+    return model
+
+
+def test_the_viewer_shows_the_contours_translations_and_surface_bgm_build_exports(demo_holes, tmp_path):
+    holes = demo_holes
+    out = tmp_path / "build"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        summary = build(holes, out, geozones=[GEOZONE], evaluate=False, workers=1)
+    viewer = _viewer(holes, GEOZONE, 0)
+    res = viewer.result
+
+    # contours: every one of the geozone's contours on every bench, same vertices
+    exported = {
+        (f["properties"]["bench"], f["properties"]["component"]): shape(f["geometry"])
+        for f in json.loads((out / "contours.geojson").read_text())["features"]
+    }
+    shown = {
+        (holes.bench_z_input(b), c.component): to_input_geometry(c.polygon, holes)
+        for b, cs in res.contours.items()
+        for c in cs
+        if c.geozone == GEOZONE
+    }
+    assert shown.keys() == exported.keys() and len(shown) >= holes.n_benches
+    for key, geometry in shown.items():
+        assert shapely.equals_exact(geometry, exported[key], tolerance=1e-6), key
+
+    # translations of every bench pair, input units
+    corr = json.loads((out / GEOZONE / "correspondence.json").read_text())
+    mpu = holes.frame.metres_per_unit
+    assert len(res.model.pairs) == len(corr["pairs"])
+    for pair, written in zip(res.model.pairs, corr["pairs"]):
+        assert written["source_z"] == holes.bench_z_input(pair.upper)
+        np.testing.assert_allclose(pair.correspondence.translations / mpu, written["translations"], atol=1e-9)
+
+    # the surface: the exported mesh, vertex for vertex
+    info = next(g for g in summary["geozones"] if g["geozone"] == GEOZONE)
+    mesh = trimesh.load(out / info["files"]["obj"], force="mesh", process=False)
+    on_screen = to_input_frame(res.surface, (holes.frame.origin_x, holes.frame.origin_y), mpu)
+    assert len(on_screen.faces) == len(mesh.faces)
+    np.testing.assert_allclose(on_screen.vertices, mesh.vertices, atol=1e-6)
+    assert on_screen.volume == pytest.approx(info["volume"], rel=1e-3)
+
+
+def test_the_translation_shown_and_locked_is_bgm_corresponds(demo_holes, tmp_path):
+    """Demo, g2, 675 -> 665, source 0: the viewer once aligned it 14 m away from `bgm correspond`."""
+    holes = demo_holes
+    bench = next(k for k in range(holes.n_benches) if holes.bench_z_input(k) == 675.0)
+    viewer = _viewer(holes, GEOZONE, bench, until="correspondence", cache=True)
+    auto = np.array(viewer.current_translation_m()) / holes.frame.metres_per_unit
+
+    def translation(path) -> np.ndarray:
+        pairs = json.loads(path.read_text())["pairs"]
+        return np.array(next(p for p in pairs if p["source_z"] == 675.0)["translations"][0])
+
+    bgm("correspond", DEMO_CSV, "--geozone", GEOZONE, "--out", tmp_path / "auto.json", "--no-cache")
+    np.testing.assert_allclose(auto, translation(tmp_path / "auto.json"), atol=1e-9)
+
+    locked = auto + (2.5, -1.5)
+    viewer.set_translation(*(locked * holes.frame.metres_per_unit))
+    viewer.save_project(tmp_path / "project.json")
+    bgm(
+        "correspond",
+        DEMO_CSV,
+        "--geozone",
+        GEOZONE,
+        "--project",
+        tmp_path / "project.json",
+        "--out",
+        tmp_path / "p.json",
+    )
+    np.testing.assert_allclose(translation(tmp_path / "p.json"), locked, atol=1e-9)
+    viewer.run("correspondence", until="correspondence")
+    np.testing.assert_allclose(
+        np.array(viewer.current_translation_m()) / holes.frame.metres_per_unit, locked, atol=1e-9
+    )

@@ -1,0 +1,70 @@
+"""`bgm view` is the viewer's plug-in: the engine's command line never imports the viewer."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tomllib
+from importlib.metadata import EntryPoint
+from pathlib import Path
+
+import pytest
+import typer
+
+from core import cli
+
+ROOT = Path(__file__).resolve().parent.parent
+#: ``bgm`` with the viewer's command registered as an installed entry point would register it.
+BGM_WITH_VIEWER = "from core.cli import app, main; from bgm_viewer.cli_hooks import register; register(app); main()"
+
+
+def _entry_points():
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"][cli.PLUGIN_GROUP]
+    return [EntryPoint(name, value, cli.PLUGIN_GROUP) for name, value in declared.items()]
+
+
+def test_the_viewer_declares_its_command_as_an_entry_point():
+    from bgm_viewer.cli_hooks import register
+
+    (view,) = _entry_points()
+    assert view.name == "view" and view.load() is register
+
+
+def test_plugins_add_their_commands_and_a_broken_one_does_not_break_bgm(monkeypatch, capsys):
+    broken = EntryPoint("broken", "no_such_package.cli:register", cli.PLUGIN_GROUP)
+    monkeypatch.setattr("importlib.metadata.entry_points", lambda group: [*_entry_points(), broken])
+    app = typer.Typer()
+    app.command("contours")(lambda: None)
+    assert cli.load_plugins(app) == ["view"]
+    assert {c.name for c in app.registered_commands} == {"contours", "view"}
+    assert "'broken' command could not be loaded" in capsys.readouterr().err
+    assert cli.load_plugins(app) == []  # loading twice adds nothing
+
+
+def test_bgm_view_renders_a_screenshot(tmp_path):
+    pytest.importorskip("pyvista")
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    csv = tmp_path / "mine.csv"
+    sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4).to_csv(
+        csv, index=False
+    )
+    png = tmp_path / "view.png"
+    args = ["view", str(csv), "--screenshot", str(png), "--layers", "blastholes,contours", "--geozone", "g1"]
+    proc = subprocess.run([sys.executable, "-c", BGM_WITH_VIEWER, *args], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert png.stat().st_size > 10_000 and f"wrote {png}" in proc.stderr
+
+
+def test_bgm_view_without_qt_and_pyvista_says_what_to_install(tmp_path):
+    hide = "import sys; [sys.modules.__setitem__(m, None) for m in ('pyvista', 'qtpy', 'pyvistaqt', 'vtk')]; "
+    for args in (["view", "--screenshot", str(tmp_path / "x.png")], ["view"]):
+        proc = subprocess.run(
+            [sys.executable, "-c", hide + BGM_WITH_VIEWER, *args], capture_output=True, text=True, timeout=600
+        )
+        assert proc.returncode == 2, proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and "pip install -e '.[viewer]'" in lines[0], proc.stderr
+    # and the engine's commands still work
+    proc = subprocess.run([sys.executable, "-c", hide + BGM_WITH_VIEWER, "--help"], capture_output=True, text=True)
+    assert proc.returncode == 0 and "correspond" in proc.stdout

@@ -1,0 +1,226 @@
+"""The staged pipeline (core.model.session), its stage cache (core.io.cache) and the parameter specs.
+
+A result must be reused when nothing it depends on changed, and computed
+again, never served stale, when the input, a parameter or the code did.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from conftest import synthetic
+from test_cli import bgm
+
+from core.errors import BGMInputError
+from core.io.cache import StageCache, content_key, source_fingerprint
+from core.model.parameters import (
+    PARAMETER,
+    PARAMETERS,
+    STAGES,
+    ModelParameters,
+    first_changed_stage,
+    parameter_value,
+    parameters_from_dict,
+    parameters_to_dict,
+    stage_values,
+    with_values,
+)
+from core.model.pipeline import model_geozone
+from core.model.session import ModelSession, StageStore
+
+MINE = {"n_benches": 3, "extent_m": (140.0, 100.0), "n_pods": 1}
+
+
+@pytest.fixture(scope="module")
+def holes():
+    return synthetic(11, **MINE)[2]
+
+
+def _session(holes, cache_dir, **params) -> ModelSession:
+    return ModelSession(holes, with_values(ModelParameters(), **params), None, StageStore(StageCache(cache_dir)))
+
+
+def _computed(session: ModelSession) -> dict:
+    """Stage -> how many results were computed (not found in memory or on disk)."""
+    return {stage: n for (stage, how), n in session.store.counts.items() if how == "computed"}
+
+
+def _translations(model) -> list:
+    return [p.correspondence.translations.tolist() for p in model.pairs]
+
+
+def test_a_second_run_on_the_same_input_is_read_from_disk(holes, tmp_path):
+    first = _session(holes, tmp_path)
+    model = first.geozone_model("g1")
+    assert _computed(first)["contours"] == holes.n_benches and _computed(first)["morph"] == len(model.pairs)
+    again = _session(holes, tmp_path)  # a new process: nothing in memory
+    cached = again.geozone_model("g1")
+    assert _computed(again) == {}
+    assert _translations(cached) == _translations(model)
+    assert [c.polygon.wkb for c in cached.contours] == [c.polygon.wkb for c in model.contours]
+    # what the one-off function (no cache) computes is the same
+    fresh = model_geozone(holes, "g1")
+    assert _translations(fresh) == _translations(model)
+
+
+def test_a_changed_hole_label_recomputes_its_bench_and_what_follows(holes, tmp_path):
+    _session(holes, tmp_path).geozone_model("g1")
+    on = holes.on_bench(1)
+    g1 = on[holes.geozone[on] == "g1"]
+    # relabel the hole in the middle of g1 on bench 1 and its two nearest holes: they become a pod of g0
+    # cut out of g1's contour (one hole alone would be taken as label noise, see core.extraction.noise)
+    middle = g1[np.argmin(np.hypot(*(holes.xy[g1] - holes.xy[g1].mean(axis=0)).T))]
+    pod = g1[np.argsort(np.hypot(*(holes.xy[g1] - holes.xy[middle]).T))[:3]]
+    labels = holes.geozone.copy()
+    labels[pod] = "g0"
+    changed = dataclasses.replace(holes, geozone=labels, _drilled={})
+    session = _session(changed, tmp_path)
+    model = session.geozone_model("g1")
+    computed = _computed(session)
+    assert computed["contours"] == 1  # bench 1 only; benches 0 and 2 come from the cache
+    assert computed["correspondence"] == 2  # both pairs touch bench 1
+    assert not any(middle in c.holes for c in model.contours)
+    assert _translations(model) == _translations(model_geozone(changed, "g1"))
+
+
+def test_a_changed_parameter_recomputes_its_stage_and_the_later_ones(holes, tmp_path):
+    base = _session(holes, tmp_path)
+    base.geozone_model("g1")
+    morph = _session(holes, tmp_path, morph_max_cells=128)
+    morph.geozone_model("g1")
+    assert set(_computed(morph)) == {"morph"}
+    assert first_changed_stage(base.params, morph.params) == "morph"
+    boundary = _session(holes, tmp_path, entropy_threshold=0.7)
+    model = boundary.geozone_model("g1")
+    assert _computed(boundary)["contours"] == holes.n_benches
+    params = boundary.params
+    assert _translations(model) == _translations(model_geozone(holes, "g1", params=params))
+    same = _session(holes, tmp_path, entropy_threshold=0.7)
+    same.geozone_model("g1")
+    assert _computed(same) == {}
+
+
+def test_an_unreadable_cache_entry_is_computed_again(holes, tmp_path):
+    session = _session(holes, tmp_path)
+    contours = session.bench_contours(0)
+    (entry,) = (tmp_path / "contours").rglob("*.pkl")
+    entry.write_bytes(b"not a pickle")
+    again = _session(holes, tmp_path)
+    assert [c.polygon.wkb for c in again.bench_contours(0)] == [c.polygon.wkb for c in contours]
+    assert _computed(again) == {"contours": 1}
+    assert entry.read_bytes() != b"not a pickle"  # replaced by a good entry
+
+
+def test_a_code_change_changes_every_key(tmp_path):
+    (tmp_path / "a.py").write_text("x = 1\n")
+    before = source_fingerprint(tmp_path)
+    (tmp_path / "a.py").write_text("x = 2\n")
+    assert source_fingerprint(tmp_path) != before
+    assert content_key(before, 1) != content_key(source_fingerprint(tmp_path), 1)
+
+
+def test_content_keys_see_values_not_identities():
+    a = np.arange(6, dtype=float).reshape(3, 2)
+    assert content_key(a, "g1", {"x": 1.0}) == content_key(a.copy(), "g1", {"x": 1.0})
+    assert content_key(a, "g1") != content_key(a + 1e-12, "g1")
+    assert content_key(np.array(["g1", "g2"], dtype=object)) != content_key(np.array(["g1", "g3"], dtype=object))
+    assert content_key(1) != content_key(1.0) != content_key("1")
+
+
+def test_the_cache_is_pruned_to_its_size_limit(tmp_path):
+    cache = StageCache(tmp_path, max_bytes=50_000)
+    for i in range(10):
+        cache.store("s", content_key(i), np.zeros(1000))  # about 8 kB each
+    cache.prune()
+    kept = list(tmp_path.rglob("*.pkl"))
+    assert 0 < len(kept) <= 6 and sum(p.stat().st_size for p in kept) <= 50_000
+
+
+# ----------------------------------------------------------------------------------------------
+# parameter specs
+
+
+def test_every_parameter_has_one_spec_with_a_stage_a_kind_and_a_range():
+    assert len(PARAMETERS) == len(PARAMETER)
+    for spec in PARAMETERS:
+        assert spec.stage in STAGES and spec.kind in ("length", "angle", "count", "ratio", "flag")
+        assert spec.minimum < spec.maximum and spec.help and spec.label
+        default = spec.default
+        if default is None:
+            assert spec.kind == "length" and spec.auto  # derived from the data, and says how
+        else:
+            assert spec.minimum <= default <= spec.maximum, spec.name
+    assert sum(len(stage_values(ModelParameters(), s)) for s in STAGES) == len(PARAMETERS)
+
+
+def test_parameters_round_trip_through_a_project_and_are_checked():
+    params = with_values(ModelParameters(), search_radius_m=9.5, morph_max_cells=200, entropy_threshold=0.4)
+    stored = json.loads(json.dumps(parameters_to_dict(params)))
+    assert stored == {"search_radius_m": 9.5, "morph_max_cells": 200, "entropy_threshold": 0.4}
+    assert parameters_from_dict({**stored, "viewer": {"bench": 1}}) == params
+    assert parameter_value(params, "search_radius_m") == 9.5
+    for bad in ({"morph_max_cells": 2.5}, {"search_radius_m": -1.0}, {"gvf_mu": "high"}, {"gvf_mu": float("nan")}):
+        with pytest.raises(BGMInputError):
+            parameters_from_dict(bad)
+
+
+def _small_csv(tmp_path, seed: int):
+    _, table, _ = synthetic(seed, **MINE)
+    path = tmp_path / "mine.csv"
+    table.to_csv(path, index=False)
+    return path, table
+
+
+def _source_sizes(path) -> list[int]:
+    return [s["holes"] for pair in json.loads(path.read_text())["pairs"] for s in pair["sources"]]
+
+
+def test_the_command_line_applies_a_projects_parameters(tmp_path):
+    csv, _ = _small_csv(tmp_path, 12)
+    bgm("correspond", csv, "--geozone", "g1", "--out", tmp_path / "default.json")
+    project = tmp_path / "p.json"
+    project.write_text(json.dumps({"format": "bgm-project", "version": 1, "parameters": {"min_component_holes": 1}}))
+    bgm("correspond", csv, "--geozone", "g1", "--project", project, "--out", tmp_path / "tuned.json")
+    assert min(_source_sizes(tmp_path / "default.json")) >= 3
+    assert min(_source_sizes(tmp_path / "tuned.json")) < 3, "the project's min_component_holes = 1 was not applied"
+
+
+def test_a_second_command_reuses_the_cache_and_a_changed_file_is_not_served_stale(tmp_path, own_stage_cache):
+    csv, table = _small_csv(tmp_path, 13)
+    args = ("correspond", csv, "--geozone", "g1")
+    bgm(*args, "--out", tmp_path / "1.json")
+    entries = sorted(own_stage_cache.rglob("*.pkl"))
+    assert len(entries) > 3
+    bgm(*args, "--out", tmp_path / "2.json")
+    assert sorted(own_stage_cache.rglob("*.pkl")) == entries  # nothing new: all reused
+    assert (tmp_path / "1.json").read_text() == (tmp_path / "2.json").read_text()
+    # one hole of g1 on the deepest bench relabelled in the file: recomputed, and the output follows the file
+    row = table.index[(table["z"] < table["z"].min() + 1.0) & (table["geozone"] == "g1")][0]
+    table.loc[row, "geozone"] = "g0"
+    table.to_csv(csv, index=False)
+    bgm(*args, "--out", tmp_path / "3.json")
+    assert len(list(own_stage_cache.rglob("*.pkl"))) > len(entries)
+    bgm(*args, "--out", tmp_path / "4.json", "--no-cache")
+    assert (tmp_path / "3.json").read_text() == (tmp_path / "4.json").read_text()
+    assert (tmp_path / "3.json").read_text() != (tmp_path / "1.json").read_text()
+
+
+def test_bgm_parameters_lists_every_parameter_with_its_stage():
+    out = bgm("parameters").stdout
+    for spec in PARAMETERS:
+        assert spec.name in out, spec.name
+
+
+def test_memory_keeps_the_newest_results_of_each_stage():
+    store = StageStore(max_entries=2)
+    for i in range(3):
+        store.get("contours", str(i), lambda i=i: i)
+    store.get("morph", "a", lambda: "a")
+    assert store.get("contours", "0", lambda: "again") == "again"  # the oldest contours were let go
+    assert store.get("contours", "2", lambda: "again") == 2 and store.get("morph", "a", lambda: "again") == "a"
+    for i in range(5):
+        store.get("fields", str(i), lambda i=i: i)  # display fields: only the latest few
+    assert store.get("fields", "0", lambda: "again") == "again"
