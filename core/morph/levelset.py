@@ -334,13 +334,13 @@ def seed_unreached_parts(
         labels, n = ndimage.label(flip)
         if not n:
             continue
-        ids = np.arange(1, n + 1)
-        deepest = ndimage.maximum(depth, labels, ids)
-        contact = ndimage.maximum(np.where(front, depth, 0.0), labels, ids)
-        where = ndimage.maximum_position(depth, labels, ids)
-        for d, c, rc in zip(deepest, contact, where):
-            if c < min(h, d):
-                out.append(_seed_disc(grid, rc, float(d)))
+        part, d = labels[flip], depth[flip]
+        deepest, contact = np.zeros(n + 1), np.zeros(n + 1)
+        np.maximum.at(deepest, part, d)
+        np.maximum.at(contact, part, np.where(front[flip], d, 0.0))
+        for i in np.flatnonzero(contact < np.minimum(h, deepest)):
+            rc = np.unravel_index(int(np.argmax(np.where(labels == i, depth, -1.0))), depth.shape)
+            out.append(_seed_disc(grid, (int(rc[0]), int(rc[1])), float(deepest[i])))
     if not grown and not cut:
         return source
     seeded = shapely.union_all([source, *grown]) if grown else source
