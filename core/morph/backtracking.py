@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
+from scipy import ndimage
 from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 
@@ -48,8 +49,11 @@ from core.morph.trajectories import Trajectory, bilinear, remove_crossings, ring
 def arrival_descent_field(arrival_time: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unit downhill direction of the time-of-arrival map, upwind.
 
-    Cells the front never crossed (nan) are given the latest arrival time, so
-    tracks never descend into them. Along each axis the direction points to
+    Cells the front never crossed (nan) are given the latest arrival time
+    plus their distance (in cells) to the nearest crossed cell, so tracks
+    never descend into them, and a track starting among them (a target
+    boundary point in a corner no cell centre of which the front crossed)
+    finds the nearest crossed cells. Along each axis the direction points to
     the smaller neighbour when it is smaller than the cell itself (the
     upwind choice of the eikonal equation), which keeps the jump between
     crossed and never-crossed cells from spoiling the direction.
@@ -60,8 +64,12 @@ def arrival_descent_field(arrival_time: np.ndarray) -> tuple[np.ndarray, np.ndar
     v_row, v_col : (rows, cols) float arrays
         Unit vectors (zero where no neighbour is lower).
     """
-    t_end = float(np.nanmax(arrival_time)) if np.isfinite(arrival_time).any() else 0.0
-    T = np.where(np.isnan(arrival_time), t_end, arrival_time)
+    crossed = np.isfinite(arrival_time)
+    if crossed.any():
+        away = ndimage.distance_transform_edt(~crossed)
+        T = np.where(crossed, arrival_time, float(np.nanmax(arrival_time)) + away)
+    else:
+        T = np.zeros(arrival_time.shape)
     P = np.pad(T, 1, constant_values=np.inf)
     left, right = P[1:-1, :-2], P[1:-1, 2:]
     low, high = P[:-2, 1:-1], P[2:, 1:-1]
@@ -191,7 +199,12 @@ def _descend(
     A seed stops when it reaches the source contour (``|gamma_s| <= h/2``),
     when the downhill direction vanishes, or when its arrival time has not
     decreased over ``stall_steps`` steps (caught in a never-crossed area or
-    zig-zagging on a ridge); only the first kind is usable.
+    zig-zagging on a ridge). A stopped seed is cut back to its earliest
+    arrival time; it counts as reaching the source contour when that point
+    lies within a cell diagonal (1.5 cells) of it: the arrival time is known
+    at cell centres only, the cells next to the contour on its resting side
+    are never crossed, and the first crossed ones can lie up to a diagonal
+    away. Any other stopped seed is unusable.
 
     Returns the ``(steps + 1, m, 2)`` positions (fractional row, col), their
     ``(steps + 1, m)`` arrival times, the last step index of each seed, and
@@ -227,7 +240,15 @@ def _descend(
             stall = tk[idx] >= t_hist[-1 - stall_steps][idx]
         active[idx[hit | ~ok | stall]] = False
         hist.append(pos.copy())
-    return np.stack(hist), np.stack(t_hist), last, reached
+    hist_a, t_a = np.stack(hist), np.stack(t_hist)
+    stopped = np.flatnonzero(~reached)
+    if stopped.size:
+        steps = np.arange(len(t_a))[:, None]
+        t_stop = np.where(steps <= last[stopped], t_a[:, stopped], np.inf)
+        best = np.argmin(t_stop, axis=0)
+        last[stopped] = best
+        reached[stopped] = np.abs(bilinear(source_sdf, hist_a[best, stopped])) <= 1.5 * h
+    return hist_a, t_a, last, reached
 
 
 def backtrack_trajectories(

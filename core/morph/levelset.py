@@ -8,7 +8,9 @@ Breen & Whitaker (2001) level-set flow used in the paper (Appendix B, eq. 19-20)
 with ``phi`` and the target signed distance ``gamma_t`` positive inside (paper
 convention). The front grows where the target lies outside it and shrinks
 where it lies inside, and comes to rest on the target contour; merging and
-splitting are handled by the level set itself. Particles ride the front
+splitting are handled by the level set itself; a target part the front
+cannot reach (a pod or a hole appearing) grows from a seed
+(:func:`seed_unreached_parts`). Particles ride the front
 (:mod:`core.morph.trajectories`) and target-boundary segments they miss are
 recovered by curvelet backtracking (:mod:`core.morph.backtracking`).
 
@@ -49,7 +51,7 @@ from core.morph.trajectories import (
 
 #: Margin (cells) of the morph grid around the union of source and target.
 MARGIN_CELLS = 4
-#: Radius (cells) of the disc seeded for a pod appearing / pinching out.
+#: Radius (cells) of the disc seeded for a part appearing (a pod, a hole) or a pod pinching out.
 SEED_DISC_RADIUS_CELLS = 2.0
 #: Morph times (and fronts) are recorded every this many level-set steps.
 RECORD_EVERY_STEPS = 2
@@ -86,7 +88,9 @@ class MorphResult:
     target_boundary_coverage : float
         Target boundary fraction covered by all trajectories.
     source, target : MultiPolygon
-        The regions actually morphed (after seeding a disc for an empty side).
+        The regions actually morphed: the source with a seed disc in every
+        target part its front cannot reach (:func:`seed_unreached_parts`),
+        the target a seed disc when it is empty.
     dt : float
         Level-set time step.
     n_steps : int
@@ -280,14 +284,77 @@ def _as_region(regions) -> MultiPolygon:
     return as_multipolygon(regions)
 
 
+def _seed_disc(grid: Grid, rc: tuple[int, int], depth_m: float) -> Polygon:
+    """Disc of radius ``min(SEED_DISC_RADIUS_CELLS, depth)`` (at least half a cell) at cell ``rc``."""
+    h = grid.cell_size_m
+    x, y = grid.rc_to_xy(np.array([rc], dtype=float))[0]
+    return Point(x, y).buffer(min(SEED_DISC_RADIUS_CELLS * h, max(depth_m, 0.5 * h)), quad_segs=16)
+
+
+def seed_unreached_parts(
+    grid: Grid, source: MultiPolygon, source_mask: np.ndarray, target_sdf: np.ndarray
+) -> MultiPolygon:
+    """The source with a seed for every target part its front cannot reach (paper section 4, pods).
+
+    The morph's speed is the target's signed distance, so the front only
+    moves into a cell that must change sign (a target cell outside the
+    source, or a source cell outside the target) from the initial front,
+    through the connected part of such cells around it, and crawls where
+    that part meets the front only along cells less than a cell deep in it
+    (speed below one cell per unit time, dying out towards the target
+    contour). Such a part (a target pod with no source over it, a hole of
+    the target inside the source -- a host pod appearing inside the
+    geozone -- or one that touches the source only at a pinch) grows from a
+    seed instead, like an appearing pod: a disc of at most
+    :data:`SEED_DISC_RADIUS_CELLS` cells at its deepest point (largest
+    ``|gamma_t|``), added to the source in the target, cut out of it in a hole.
+
+    Parameters
+    ----------
+    grid : Grid
+    source : MultiPolygon
+        Source region (may be empty).
+    source_mask : (rows, cols) bool array
+        Its cells (``gamma_s > 0``).
+    target_sdf : (rows, cols) float array
+        ``gamma_t`` (metres, positive inside).
+
+    Returns
+    -------
+    MultiPolygon
+        The seeded source; ``source`` itself when nothing needed a seed.
+    """
+    h = grid.cell_size_m
+    target = target_sdf > 0
+    depth = np.abs(target_sdf)
+    front = _interface_cells(source_mask)
+    grown: list[Polygon] = []
+    cut: list[Polygon] = []
+    for flip, out in ((target & ~source_mask, grown), (~target & source_mask, cut)):
+        labels, n = ndimage.label(flip)
+        if not n:
+            continue
+        part, d = labels[flip], depth[flip]
+        deepest, contact = np.zeros(n + 1), np.zeros(n + 1)
+        np.maximum.at(deepest, part, d)
+        np.maximum.at(contact, part, np.where(front[flip], d, 0.0))
+        for i in np.flatnonzero(contact < np.minimum(h, deepest)):
+            rc = np.unravel_index(int(np.argmax(np.where(labels == i, depth, -1.0))), depth.shape)
+            out.append(_seed_disc(grid, (int(rc[0]), int(rc[1])), float(deepest[i])))
+    if not grown and not cut:
+        return source
+    seeded = shapely.union_all([source, *grown]) if grown else source
+    if cut:
+        seeded = seeded.difference(shapely.union_all(cut))
+    return as_multipolygon(seeded)
+
+
 def _deepest_disc(region: MultiPolygon, cell_size_m: float) -> MultiPolygon:
-    """Small disc at the deepest interior point (max of the SDF) of ``region``."""
+    """Seed disc (:func:`_seed_disc`) at the deepest interior point (max of the SDF) of ``region``."""
     grid = Grid.covering(region.bounds, cell_size_m, MARGIN_CELLS)
     sdf = region_sdf(grid, region)
     i = np.unravel_index(int(np.argmax(sdf)), sdf.shape)
-    x, y = grid.rc_to_xy(np.array([i], dtype=float))[0]
-    r = min(SEED_DISC_RADIUS_CELLS * cell_size_m, max(float(sdf[i]), 0.5 * cell_size_m))
-    return as_multipolygon(Point(x, y).buffer(r, quad_segs=16))
+    return as_multipolygon(_seed_disc(grid, (int(i[0]), int(i[1])), float(sdf[i])))
 
 
 # ---------------------------------------------------------------------------
@@ -314,11 +381,14 @@ def morph_regions(
     sources, targets : Polygon, MultiPolygon or list of them
         Source regions (already shifted by the spatial-correspondence
         translation) and target regions, in the local frame (metres). Either
-        side may be empty (not both): a pod appearing (no source) starts from
-        a small disc (radius 2 cells) at the target's deepest interior point,
-        the maximum of its signed distance; a pod pinching out (no target)
-        morphs into such a disc at the source's deepest point. The seeded
-        discs are reported in ``MorphResult.source`` / ``.target``.
+        side may be empty (not both). A target part the front cannot reach
+        from the source -- a pod appearing (no source over it), a host pod
+        appearing inside the geozone (a hole of the target inside the
+        source), or one the source touches only at a pinch -- grows from a
+        small disc (radius 2 cells) at its deepest point
+        (:func:`seed_unreached_parts`); a pod pinching out (no target) morphs
+        into such a disc at the source's deepest point. The seeded discs are
+        reported in ``MorphResult.source`` / ``.target``.
     cell_size_m : float, optional
         Grid cell size. Default: the longer side of the bounding box of both
         regions spread over about ``max_cells`` cells (including the margin).
@@ -343,14 +413,18 @@ def morph_regions(
 
     Notes
     -----
-    Steps: regions and grid, signed distances, particles on the source
-    contour, level-set evolution (:func:`_evolve_front`), trajectories.
+    Steps: regions and grid, signed distances, seeds for the target parts
+    the front cannot reach, particles on the source contour, level-set
+    evolution (:func:`_evolve_front`), trajectories.
     """
     src, tgt, grid = _morph_frame(sources, targets, cell_size_m, speed_clamp_m, max_cells)
     h = grid.cell_size_m
     c = 3.0 * h if speed_clamp_m is None else float(speed_clamp_m)
-    phi0 = region_sdf(grid, src)
     gamma = region_sdf(grid, tgt)
+    phi0 = region_sdf(grid, src) if not src.is_empty else np.full(grid.shape, -float(np.hypot(*grid.shape)) * h)
+    seeded = seed_unreached_parts(grid, src, phi0 > 0, gamma)
+    if seeded is not src:
+        src, phi0 = seeded, region_sdf(grid, seeded)
     speed = np.clip(gamma, -c, c)
     dt = 0.5 * h / max(float(np.max(np.abs(speed))), 1e-12)  # CFL: the front moves at most h/2 a step
     if max_steps is None:  # enough to cross the grid diagonal twice
@@ -380,7 +454,7 @@ def morph_regions(
 def _morph_frame(
     sources, targets, cell_size_m: float | None, speed_clamp_m: float | None, max_cells: int
 ) -> tuple[MultiPolygon, MultiPolygon, Grid]:
-    """The source and target regions (a seed disc for an empty side) and the morph grid.
+    """The source and target regions (a seed disc for an empty target) and the morph grid.
 
     Checks the input (not both regions empty, a positive speed clamp); the
     cell size defaults to the longer side of both regions over ``max_cells``
@@ -398,11 +472,9 @@ def _morph_frame(
     if cell_size_m is None:
         cell_size_m = span / max(max_cells - 2 * MARGIN_CELLS - 1, 8)
     h = float(cell_size_m)
-    if src.is_empty:
-        src = _deepest_disc(tgt, h)
-    elif tgt.is_empty:
+    if tgt.is_empty:
         tgt = _deepest_disc(src, h)
-    return src, tgt, Grid.covering(src.union(tgt).bounds, h, MARGIN_CELLS)
+    return src, tgt, Grid.covering(both.bounds, h, MARGIN_CELLS)
 
 
 def _stall_time(speed_clamp_m: float, cell_size_m: float) -> float:
@@ -462,7 +534,9 @@ class _BandedFront:
         crossed = ((new_b > 0) != self._inside0_b) & np.isnan(self._arrival_flat[idx])
         if crossed.any():
             o, n = old_b[crossed], new_b[crossed]
-            self._arrival_flat[idx[crossed]] = t + np.clip(o / (o - n), 0.0, 1.0) * dt
+            # a cell sitting exactly on the front (o == n == 0) crossed at the step's end
+            frac = np.divide(o, o - n, out=np.ones_like(o), where=o != n)
+            self._arrival_flat[idx[crossed]] = t + np.clip(frac, 0.0, 1.0) * dt
         self._flat[idx] = new_b
         return bool(crossed.any())
 

@@ -139,7 +139,7 @@ def ring_samples(
                 continue
             n = max(int(np.ceil(length / spacing_m)), 3)
             d = np.arange(n) * (length / n)
-            pts = shapely.get_coordinates(shapely.line_interpolate_point(ring, d))
+            pts = _along(shapely.get_coordinates(ring), d)
             xs.append(pts)
             rings.append(np.full(n, k))
             arcs.append(d)
@@ -149,6 +149,16 @@ def ring_samples(
         empty = np.zeros(0)
         return np.zeros((0, 2)), empty.astype(int), empty, empty
     return np.vstack(xs), np.concatenate(rings), np.concatenate(arcs), np.concatenate(weights)
+
+
+def _along(coords: np.ndarray, arc_m: np.ndarray) -> np.ndarray:
+    """Points at arc lengths ``arc_m`` along the polyline ``coords`` (linear interpolation).
+
+    Same points as ``shapely.line_interpolate_point``, which walks the ring
+    once per point (quadratic on long contours).
+    """
+    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coords, axis=0).T))])
+    return np.column_stack([np.interp(arc_m, cum, coords[:, 0]), np.interp(arc_m, cum, coords[:, 1])])
 
 
 # ---------------------------------------------------------------------------

@@ -15,7 +15,7 @@ import statistics
 import time
 
 from shapely import affinity
-from shapely.geometry import Point, box
+from shapely.geometry import Point, Polygon, box
 from shapely.ops import unary_union
 
 from core.morph.levelset import morph_regions
@@ -32,6 +32,12 @@ INSTANCES = {
     "split ellipse -> 2 discs": (ellipse(0, 0, 48, 22), [Point(-25, 0).buffer(18), Point(25, 0).buffer(18)]),
     "branching disc -> cross": (Point(0, 0).buffer(12), unary_union([box(-60, -4, 60, 4), box(-4, -60, 4, 60)])),
     "pod appearing": ([], ellipse(0, 0, 40, 30)),
+    "pod beside the source": (Point(-30, 0).buffer(15), [Point(-28, 0).buffer(15), Point(30, 0).buffer(10)]),
+    "host pod appearing inside": (Point(0, 0).buffer(35), Point(0, 0).buffer(35).difference(Point(5, 0).buffer(10))),
+    "C shape from a disc": (
+        Point(10, 0).buffer(25),
+        Point(0, 0).buffer(40).difference(Point(0, 0).buffer(20)).difference(Polygon([(0, 0), (60, -25), (60, 25)])),
+    ),
 }
 
 

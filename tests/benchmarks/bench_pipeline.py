@@ -11,6 +11,7 @@ correspondence; < 0.5 s per morph instance.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 import warnings
@@ -25,7 +26,9 @@ from core.extraction.contours import extract_contours  # noqa: E402
 from core.io.blastholes import read_blastholes  # noqa: E402
 from core.model.pipeline import ModelParameters, bench_pairs, correspond, morph  # noqa: E402
 
-KENNECOTT = ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv"
+KENNECOTT = Path(
+    os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
+)
 
 
 def run(path: Path) -> None:
