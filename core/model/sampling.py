@@ -1,0 +1,258 @@
+"""Where to sample next: the holes whose labels would most reduce the boundaries' uncertainty.
+
+The paper's Discussion ends on adaptive sampling: a predicted slope is worth
+having because it makes the next drilling and assaying "more targeted and
+cost-effective". Given the calibrated :class:`core.model.uncertainty.SectionUncertainty`
+of one or more geozones on the next bench, this module chooses ``N`` holes
+among candidates (a planned blast pattern, or the last bench's pattern laid
+over the ground that can be drilled next) greedily:
+
+* the information a label at a point carries about a geozone is the binary
+  entropy of ``P(inside)`` there (bits): 1 on the predicted boundary when it
+  is uncertain, 0 deep inside or far outside;
+* a candidate is worth what it would tell about its neighbourhood: the
+  information summed over candidates nearby, weighted by
+  ``exp(-d^2 / 2 l^2)`` (``l`` about a hole spacing, :data:`INFLUENCE_SPACINGS`);
+* after each choice the information near it is discounted by the same
+  weight (``H <- H (1 - exp(-d^2 / 2 l^2))``), so the next hole goes where
+  the boundary is still unknown rather than next to the last one.
+
+Several geozones share one budget: their information adds up, and a hole
+discounts it for all of them. :func:`revealed_field` is the other half: the
+predicted section updated with the labels of the holes revealed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage, sparse, special
+from scipy.spatial import cKDTree
+
+from core.model.uncertainty import SectionUncertainty, z_score
+
+#: Reach of a label's information (the ``l`` of the module docstring), in hole spacings.
+INFLUENCE_SPACINGS = 1.0
+#: Neighbours further than this many ``l`` carry no weight.
+KERNEL_REACH = 3.0
+
+
+@dataclass(frozen=True)
+class DrillPattern:
+    """A blast pattern: rows of holes ``spacing_m`` apart, rows ``burden_m`` apart, along ``azimuth_rad``.
+
+    ``azimuth_rad`` is the direction of the rows from the +x axis, in
+    ``[0, pi)``; in a staggered pattern every other row is shifted by half a
+    spacing; ``origin_m`` is a hole of the pattern (local metres).
+    """
+
+    spacing_m: float
+    burden_m: float
+    azimuth_rad: float
+    staggered: bool
+    origin_m: tuple[float, float]
+
+
+def estimate_pattern(xy: np.ndarray, neighbours: int = 6) -> DrillPattern:
+    """The blast pattern of a bench's holes (``(n, 2)`` local metres, at least 3 holes).
+
+    The vectors from each hole to its ``neighbours`` nearest holes, those no
+    longer than 1.5 times the median nearest-neighbour distance, are the
+    pattern's short steps. The rows run along the most frequent direction of
+    those steps (a histogram of their angles modulo 180 degrees, one degree
+    per bin, smoothed over five); the spacing is the median length of the
+    steps within 10 degrees of it, the burden the median step across it, and
+    the pattern is staggered when steps to the next row are offset by about
+    half a spacing along it.
+    """
+    xy = np.asarray(xy, float)
+    if len(xy) < 3:
+        raise ValueError("a pattern needs at least three holes")
+    k = min(neighbours, len(xy) - 1)
+    d, idx = cKDTree(xy).query(xy, k=k + 1)
+    steps = (xy[idx[:, 1:]] - xy[:, None, :]).reshape(-1, 2)
+    length = d[:, 1:].ravel()
+    steps = steps[(length > 0) & (length <= 1.5 * np.median(d[:, 1]))]
+    angle = np.mod(np.arctan2(steps[:, 1], steps[:, 0]), np.pi)
+    counts = np.bincount(np.minimum((np.degrees(angle)).astype(int), 179), minlength=180).astype(float)
+    peak = int(np.argmax(ndimage.uniform_filter1d(counts, 5, mode="wrap")))
+    near = np.abs(((np.degrees(angle) - peak + 90) % 180) - 90) <= 10
+    # Refine the direction: circular mean of the doubled angles of the steps along the rows.
+    azimuth = float(np.mod(np.angle(np.mean(np.exp(2j * angle[near]))) / 2, np.pi))
+    along = np.array([np.cos(azimuth), np.sin(azimuth)])
+    across = np.array([-along[1], along[0]])
+    spacing = float(np.median(np.abs(steps[near] @ along)))
+    off = steps[~near]
+    off = off[np.abs(off @ across) > 0.25 * spacing]
+    if not len(off):  # a single row
+        return DrillPattern(spacing, spacing, azimuth, False, tuple(xy[0]))
+    burden = float(np.median(np.abs(off @ across)))
+    shift = np.abs(np.mod(off @ along / spacing + 0.5, 1.0) - 0.5)  # 0: square, 0.5: staggered
+    centre = xy[np.argmin(np.sum((xy - xy.mean(axis=0)) ** 2, axis=1))]
+    return DrillPattern(spacing, burden, azimuth, bool(np.median(shift) > 0.25), (float(centre[0]), float(centre[1])))
+
+
+def lay_out(pattern: DrillPattern, area) -> np.ndarray:
+    """The pattern's holes inside ``area`` (a shapely polygon, local metres), ``(n, 2)``."""
+    import shapely
+
+    if area.is_empty:
+        return np.zeros((0, 2))
+    along = np.array([np.cos(pattern.azimuth_rad), np.sin(pattern.azimuth_rad)])
+    across = np.array([-along[1], along[0]])
+    corners = np.array(shapely.get_coordinates(shapely.envelope(area))) - np.asarray(pattern.origin_m)
+    u, v = corners @ along, corners @ across
+    rows = np.arange(np.floor(v.min() / pattern.burden_m) - 1, np.ceil(v.max() / pattern.burden_m) + 2)
+    cols = np.arange(np.floor(u.min() / pattern.spacing_m) - 1, np.ceil(u.max() / pattern.spacing_m) + 2)
+    r, c = np.meshgrid(rows, cols, indexing="ij")
+    shift = 0.5 * (np.mod(r, 2) == 1) if pattern.staggered else 0.0
+    uu = (c + shift) * pattern.spacing_m
+    vv = r * pattern.burden_m
+    xy = np.asarray(pattern.origin_m) + uu.ravel()[:, None] * along + vv.ravel()[:, None] * across
+    return xy[shapely.contains_xy(area, xy[:, 0], xy[:, 1])]
+
+
+def binary_entropy(p: np.ndarray) -> np.ndarray:
+    """``-p log2 p - (1 - p) log2 (1 - p)``, bits (0 at 0 and 1)."""
+    p = np.clip(np.asarray(p, float), 1e-12, 1 - 1e-12)
+    return -(p * np.log2(p) + (1 - p) * np.log2(1 - p))
+
+
+@dataclass(frozen=True)
+class Suggestion:
+    """One suggested hole.
+
+    ``candidate`` indexes the candidates it was chosen from; ``geozone`` is
+    the one whose boundary it tells most about, with its ``probability_inside``
+    there and ``distance_m``, the signed distance to its predicted boundary
+    (positive inside); ``in_band`` whether it lies in that geozone's band;
+    ``information`` the bits it was expected to bring (its neighbourhood's).
+    """
+
+    candidate: int
+    xy_m: tuple[float, float]
+    geozone: str
+    probability_inside: float
+    distance_m: float
+    in_band: bool
+    information: float
+
+
+def suggest_holes(
+    sections: Mapping[str, SectionUncertainty],
+    candidates_m: np.ndarray,
+    budget: int,
+    hole_spacing_m: float,
+) -> list[Suggestion]:
+    """Choose ``budget`` of the candidates whose labels would most reduce the sections' uncertainty.
+
+    Parameters
+    ----------
+    sections : mapping of geozone -> SectionUncertainty
+        The predicted sections on the bench to sample (one budget for all).
+    candidates_m : (n, 2) float
+        Where holes can go (local metres): a planned pattern, or :func:`lay_out`.
+    budget : int
+        Holes to choose (at most ``n``).
+    hole_spacing_m : float
+        Sets the reach of a label's information (:data:`INFLUENCE_SPACINGS`).
+
+    Returns
+    -------
+    list of Suggestion
+        In the order chosen (most informative first).
+    """
+    xy = np.asarray(candidates_m, float).reshape(-1, 2)
+    names = list(sections)
+    if not len(xy) or not names or budget <= 0:
+        return []
+    at = {g: sections[g].at(xy) for g in names}
+    info = np.stack([binary_entropy(at[g][2]) for g in names])  # (geozones, candidates)
+    weights = influence_matrix(xy, INFLUENCE_SPACINGS * hole_spacing_m)
+    score = weights @ info.sum(axis=0)
+    chosen: list[Suggestion] = []
+    for _ in range(min(int(budget), len(xy))):
+        c = int(np.argmax(score))
+        chosen.append(_suggestion(c, xy, names, at, info, sections, float(score[c])))
+        row = weights.getrow(c)
+        near, w = row.indices, row.data
+        before = info[:, near].sum(axis=0)
+        info[:, near] *= 1.0 - w
+        score += weights[:, near] @ (info[:, near].sum(axis=0) - before)
+        score[c] = -np.inf
+    return chosen
+
+
+def influence_matrix(xy: np.ndarray, influence_m: float):
+    """Sparse ``exp(-d^2 / 2 l^2)`` between points within :data:`KERNEL_REACH` ``l`` (1 on the diagonal)."""
+    tree = cKDTree(xy)
+    pairs = tree.sparse_distance_matrix(tree, KERNEL_REACH * influence_m, output_type="coo_matrix")
+    weights = sparse.coo_matrix(
+        (np.exp(-(pairs.data**2) / (2 * influence_m**2)), (pairs.row, pairs.col)), shape=(len(xy), len(xy))
+    ).tocsr()
+    return weights + sparse.identity(len(xy), format="csr")  # the zero distances left out above
+
+
+def _suggestion(c, xy, names, at, info, sections, information) -> Suggestion:
+    """The suggestion of candidate ``c``, told for the geozone it informs most (else the nearest boundary)."""
+    if info[:, c].max() > 0:
+        k = int(np.argmax(info[:, c]))
+    else:
+        k = int(np.argmin([abs(at[g][0][c]) for g in names]))
+    g = names[k]
+    f, s, p = (float(v[c]) for v in at[g])
+    band = abs(f) <= z_score(sections[g].probability) * s
+    return Suggestion(c, (float(xy[c, 0]), float(xy[c, 1])), g, p, f, bool(band), information)
+
+
+def reason(suggestion: Suggestion, probability: float, unit: str, metres_per_unit: float) -> str:
+    """A short reason for a suggestion, e.g. ``boundary band 90%, 3.2 m from predicted contact (inside)``."""
+    distance = abs(suggestion.distance_m) / metres_per_unit
+    side = "inside" if suggestion.distance_m > 0 else "outside"
+    where = f"boundary band {probability:.0%}" if suggestion.in_band else f"beyond the {probability:.0%} band"
+    return f"{where}, {distance:.1f} {unit} from predicted contact ({side})"
+
+
+def revealed_field(
+    section: SectionUncertainty, xy_m: np.ndarray, inside: np.ndarray, hole_spacing_m: float
+) -> np.ndarray:
+    """The predicted signed distance updated with the labels of revealed holes.
+
+    Each label says on which side of the boundary its hole lies. Under the
+    prediction's ``N(F, sigma^2)`` at the hole, that makes ``F`` there a
+    truncated normal, whose mean and variance (inverse Mills ratio ``lambda``:
+    ``F + sign sigma lambda`` and ``sigma^2 (1 - lambda (lambda + sign F /
+    sigma))``) are taken as an observation of ``F`` (variance at least half
+    a hole spacing squared: where holes place a boundary). The residuals are
+    spread by simple kriging with covariance ``sigma(x) sigma(y) exp(-d^2 / 2 l^2)``
+    (``l`` as in :func:`suggest_holes`): a hole corrects the section around
+    it, not the whole bench.
+
+    Returns
+    -------
+    (rows, cols) float
+        The updated field on the section's grid; ``> 0`` is the updated section.
+    """
+    xy = np.asarray(xy_m, float).reshape(-1, 2)
+    if not len(xy):
+        return section.field.copy()
+    f, s, _ = section.at(xy)
+    sign = np.where(np.asarray(inside, bool), 1.0, -1.0)
+    a = sign * f / s
+    mills = np.exp(-0.5 * a**2 - 0.5 * np.log(2 * np.pi) - special.log_ndtr(a))  # phi(a) / Phi(a), stable in the tails
+    mean = f + sign * s * mills
+    var = np.maximum(s**2 * (1 - mills * (mills + a)), (0.5 * hole_spacing_m) ** 2)
+    ell = INFLUENCE_SPACINGS * hole_spacing_m
+    rho = influence_matrix(xy, ell).toarray()
+    cov = s[:, None] * s[None, :] * rho + np.diag(var)
+    weights = np.linalg.solve(cov, mean - f)
+    # sum_i weights_i s_i rho(x, x_i) on the grid: impulses smoothed by a Gaussian of l (peak 1).
+    grid = section.grid
+    rc = np.clip(np.round(grid.xy_to_rc(xy)).astype(int), 0, np.array(grid.shape) - 1)
+    impulses = np.zeros(grid.shape)
+    np.add.at(impulses, (rc[:, 0], rc[:, 1]), weights * s)
+    width = ell / grid.cell_size_m
+    spread = ndimage.gaussian_filter(impulses, width, mode="constant", truncate=KERNEL_REACH) * (2 * np.pi * width**2)
+    return section.field + section.sigma * spread
