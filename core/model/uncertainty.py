@@ -37,7 +37,7 @@ outer polygon ``{F > -z_q sigma}``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,16 +48,9 @@ from skimage import measure
 
 from core.geometry.grid import Grid, as_multipolygon
 from core.geometry.sdf import region_signed_distance
-from core.model.extrapolation import (
-    CAP_SPACINGS,
-    MIN_DIP_DEG,
-    OBSERVED_WEIGHT,
-    PERSISTENCE_SPACINGS,
-    BenchFields,
-    DepthTrend,
-    depth_trend,
-    last_observations,
-)
+from core.model.extrapolation import BenchFields, DepthTrend, depth_trend, last_observations
+from core.model.pipeline import GeozoneModel
+from core.model.prediction import predict_geozone
 
 #: Default probability that the band holds the true boundary.
 DEFAULT_PROBABILITY = 0.9
@@ -74,6 +67,11 @@ MIN_BACKTEST_BENCHES = 2
 MIN_BACKTEST_POINTS = 30
 #: Weight of a backtest relative to one made knowing one bench more (see :func:`fit_scale`).
 RECENCY = 0.25
+#: Neighbourhood over which the consistency of the movement is measured, in hole spacings.
+CONSISTENCY_SPACINGS = 3.0
+#: A change of the signed distance faster than this many bench heights per bench is a body appearing or
+#: vanishing, not a boundary moving (a dip of 34 degrees); it is left out of the movement's consistency.
+FASTEST_MOVE_BENCHES = 1.5
 #: Boundary rings around fewer holes than this are label noise, not boundaries (see :func:`boundary_points`);
 #: the pipeline's ``min_component_holes``.
 NOISE_RING_HOLES = 3
@@ -88,7 +86,7 @@ class Backtest:
     error_m : (n,) float
         Predicted signed distance ``F_pred`` at each true boundary point,
         metres: positive where the prediction reaches past the true boundary.
-    terms_m : (n, 4) float
+    terms_m : (n, 5) float
         The scale's terms (:data:`TERMS`) at each point, metres.
     bench : (n,) int
         Index (in the fields, top first) of the bench each point lies on.
@@ -155,7 +153,7 @@ def scale_terms(fields: BenchFields, trend: DepthTrend, z_m: float, hole_spacing
 
     ``fields`` are the benches the trend extrapolates (for the consistency of their movement).
     """
-    depth = np.maximum(trend.z_last - z_m, 0.0) / trend.bench_height_m
+    depth = np.abs(trend.z_last - z_m) / trend.bench_height_m  # bench heights from the last observation, either way
     movement = np.abs(trend.rate) * depth
     return np.stack(
         [
@@ -163,28 +161,35 @@ def scale_terms(fields: BenchFields, trend: DepthTrend, z_m: float, hole_spacing
             depth * trend.bench_height_m,
             trend.persistence * movement,
             (1.0 - trend.persistence) * movement,
-            movement_inconsistency(fields, PERSISTENCE_SPACINGS * hole_spacing_m) * depth,
+            movement_inconsistency(fields, CONSISTENCY_SPACINGS * hole_spacing_m) * depth,
         ],
         axis=-1,
     )
 
 
-def predicted_distance(trend: DepthTrend, z_m: float, hole_spacing_m: float) -> np.ndarray:
-    """Signed distance to the predicted boundary at ``z_m`` (metres, positive inside), capped as the fields are.
+def predicted_region(fields: BenchFields, z_m: float, hole_spacing_m: float) -> MultiPolygon:
+    """The section the model predicts at ``z_m`` from ``fields`` alone (outside their benches).
 
-    The trend's ``F`` has the right zero set but not the right slope: where
-    the movement squeezes or stretches it (a narrow strip whose two sides
-    cross a cell in turn) ``|grad F|`` is far from 1, and ``F`` is no distance.
-    Errors, scales and bands are distances, so the predicted section is
-    measured afresh: exact near its boundary, by distance transform elsewhere
-    (:func:`core.geometry.sdf.region_signed_distance`).
+    :func:`core.model.prediction.predict_geozone` on a model that knows only
+    the fields: below the deepest bench (above the top one) it extrapolates
+    them, exactly as ``bgm predict`` and ``bgm build`` do.
     """
-    cap = CAP_SPACINGS * hole_spacing_m
-    field = trend.field(z_m)
-    if not (field > 0).any():
-        return np.full(field.shape, -cap)
-    distance = region_signed_distance(trend.grid, trend.region(z_m), mask=field > 0)
-    return np.clip(distance, -cap, cap)
+    model = GeozoneModel("", [], [], fields=fields)
+    return predict_geozone(model, [float(z_m)], hole_spacing_m)[float(z_m)]
+
+
+def section_distance(fields: BenchFields, region) -> np.ndarray:
+    """Signed distance to a predicted section's boundary on the fields' grid (metres, positive inside), capped.
+
+    Errors, scales and bands are distances, so the section is measured
+    afresh (:func:`core.geometry.sdf.region_signed_distance`): exact near its
+    boundary, by distance transform elsewhere, capped as the fields are (a
+    boundary that far says nothing here).
+    """
+    cap = float(np.max(np.abs(fields.distance))) if fields.distance.size else 0.0
+    if region.is_empty:
+        return np.full(fields.grid.shape, -cap)
+    return np.clip(region_signed_distance(fields.grid, region), -cap, cap)
 
 
 def movement_inconsistency(fields: BenchFields, smoothing_m: float) -> np.ndarray:
@@ -193,7 +198,7 @@ def movement_inconsistency(fields: BenchFields, smoothing_m: float) -> np.ndarra
     With ``d1 = F_k - F_k-1`` and ``d2 = F_k-1 - F_k-2`` (as
     :func:`core.model.extrapolation.local_persistence`), the root mean square
     of ``d1 - d2`` over a Gaussian neighbourhood of ``smoothing_m``, where the
-    three benches observed the cell and the changes are movements (not bodies
+    three benches drilled the cell and the changes are movements (not bodies
     appearing). 0 for a boundary moving steadily, twice the movement for one
     that reverses; 0 with fewer than three benches (nothing measured).
     """
@@ -201,9 +206,9 @@ def movement_inconsistency(fields: BenchFields, smoothing_m: float) -> np.ndarra
         return np.zeros(fields.grid.shape)
     d1 = fields.distance[-1] - fields.distance[-2]
     d2 = fields.distance[-2] - fields.distance[-3]
-    seen = np.prod(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0).astype(float)
+    seen = np.prod(fields.drilled[-3:], axis=0).astype(float)
     h = float(abs(fields.z_m[-2] - fields.z_m[-1]))
-    fastest = h / np.tan(np.radians(MIN_DIP_DEG))
+    fastest = FASTEST_MOVE_BENCHES * h
     w = seen * ((np.abs(d1) <= fastest) & (np.abs(d2) <= fastest))
     sigma = smoothing_m / fields.grid.cell_size_m
     energy = ndimage.gaussian_filter(w * (d1 - d2) ** 2, sigma)
@@ -276,7 +281,7 @@ def backtest(
                 continue
             trend = depth_trend(known, bench_height_m, hole_spacing_m)
             z = float(fields.z_m[j])
-            error = grid.sample(predicted_distance(trend, z, hole_spacing_m), seen)
+            error = grid.sample(section_distance(known, predicted_region(known, z, hole_spacing_m)), seen)
             terms = scale_terms(known, trend, z, hole_spacing_m)
             sampled = np.column_stack([grid.sample(terms[..., t], seen) for t in range(terms.shape[-1])])
             n = len(seen)
@@ -286,7 +291,7 @@ def backtest(
 
 def _observed(fields: BenchFields, xy: np.ndarray) -> np.ndarray:
     """Whether any of the benches observed the cell of each point: where the prediction rests on evidence."""
-    last, _ = last_observations(fields)
+    last = last_observations(fields)[0]
     rc = np.clip(np.round(fields.grid.xy_to_rc(xy)).astype(int), 0, np.array(fields.grid.shape) - 1)
     return last[rc[:, 0], rc[:, 1]] >= 0
 
@@ -331,7 +336,11 @@ def weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> floa
     return float(values[order][min(int(np.searchsorted(share, q)), len(values) - 1)])
 
 
-def calibrate(own: Backtest, pooled: Sequence[Backtest] = (), probability: float = DEFAULT_PROBABILITY):
+def calibrate(
+    own: Backtest,
+    pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
+    probability: float = DEFAULT_PROBABILITY,
+) -> UncertaintyScale:
     """The geozone's :class:`UncertaintyScale`, from the best backtest there is.
 
     In order, the first that covers :data:`MIN_BACKTEST_BENCHES` benches and
@@ -340,25 +349,35 @@ def calibrate(own: Backtest, pooled: Sequence[Backtest] = (), probability: float
 
     1. its own backtest, predictions from two benches or more (what the
        trend does: it needs two benches to see movement);
-    2. the same pooled with the backtests of the input's other geozones (``pooled``);
+    2. the same pooled with the backtests of the input's other geozones
+       (``pooled``, or a function giving them: only called when needed);
     3. all of those including predictions from a single bench, which hold
        it: a prior from how far the input's boundaries move per bench;
     4. :data:`PRIOR_COEFFICIENTS`, not calibrated.
     """
-    trended = [b.subset(b.known >= 2) for b in (own, *pooled)]
+    own_trended = own.subset(own.known >= 2)
+    if _enough([own_trended]):
+        return _fitted([own_trended], probability, "own backtest")
+    others = list(pooled() if callable(pooled) else pooled)
     candidates = (
-        ("own backtest", trended[:1]),
-        ("pooled backtest", trended),
-        ("pooled single-bench backtest", [own, *pooled]),
+        ("pooled backtest", [own_trended, *(b.subset(b.known >= 2) for b in others)]),
+        ("pooled single-bench backtest", [own, *others]),
     )
     for source, parts in candidates:
-        parts = [p for p in parts if len(p.error_m)]
-        benches = sum(p.benches for p in parts)
-        every = Backtest.concat(parts)
-        if benches >= MIN_BACKTEST_BENCHES and len(every.error_m) >= MIN_BACKTEST_POINTS:
-            scale = fit_scale(every, probability, source)
-            return UncertaintyScale(scale.coefficients, source, scale.points, benches)
+        if _enough(parts):
+            return _fitted(parts, probability, source)
     return UncertaintyScale(PRIOR_COEFFICIENTS, "prior", 0, 0)
+
+
+def _enough(parts: Sequence[Backtest]) -> bool:
+    points = sum(len(p.error_m) for p in parts)
+    return sum(p.benches for p in parts if len(p.error_m)) >= MIN_BACKTEST_BENCHES and points >= MIN_BACKTEST_POINTS
+
+
+def _fitted(parts: Sequence[Backtest], probability: float, source: str) -> UncertaintyScale:
+    scale = fit_scale(Backtest.concat(parts), probability, source)
+    benches = sum(p.benches for p in parts if len(p.error_m))
+    return UncertaintyScale(scale.coefficients, source, scale.points, benches)
 
 
 def z_score(probability: float) -> float:
@@ -436,23 +455,32 @@ class SectionUncertainty:
         return self.grid.polygons_from_field(field, 0.0) if (field > 0).any() else MultiPolygon()
 
 
-def extrapolation_trend(
-    fields: BenchFields, z_m: float, hole_spacing_m: float
-) -> tuple[DepthTrend, BenchFields] | None:
-    """The depth trend that predicts elevation ``z_m`` and the fields it extrapolates, or None.
-
-    Below the deepest bench the fields top down, above the top bench the
-    fields reversed (as :func:`core.model.prediction.predict_geozone` does);
-    None at or between the benches, where the section is interpolated from
-    the benches on both sides instead of extrapolated.
-    """
+def _bench_height(fields: BenchFields) -> float:
     levels = fields.z_m
-    if not len(levels) or levels[-1] - 1e-6 <= z_m <= levels[0] + 1e-6:
-        return None
-    height = float(np.median(-np.diff(levels))) if len(levels) > 1 else 1.0
-    down = bool(z_m < levels[-1])
-    used = fields if down else fields.reversed()
-    return depth_trend(used, height, hole_spacing_m), used
+    return float(np.median(-np.diff(levels))) if len(levels) > 1 else 1.0
+
+
+def _direction(fields: BenchFields, down: bool) -> BenchFields:
+    """The fields in the order they are extrapolated: top first downwards, bottom first upwards."""
+    return fields if down else fields.reversed()
+
+
+def direction_scale(
+    fields: BenchFields,
+    down: bool,
+    hole_spacing_m: float,
+    probability: float = DEFAULT_PROBABILITY,
+    pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
+) -> UncertaintyScale:
+    """The calibrated scale of predictions below the deepest bench (``down``) or above the top one."""
+    used = _direction(fields, down)
+    return calibrate(backtest(used, _bench_height(fields), hole_spacing_m), pooled, probability)
+
+
+def _sigma(fields: BenchFields, down: bool, z_m: float, hole_spacing_m: float, scale: UncertaintyScale) -> np.ndarray:
+    used = _direction(fields, down)
+    trend = depth_trend(used, _bench_height(fields), hole_spacing_m)
+    return scale.sigma(scale_terms(used, trend, z_m, hole_spacing_m))
 
 
 def section_uncertainty(
@@ -460,40 +488,75 @@ def section_uncertainty(
     z_m: float,
     hole_spacing_m: float,
     probability: float = DEFAULT_PROBABILITY,
-    pooled: Sequence[Backtest] = (),
-    scale: UncertaintyScale | None = None,
+    pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
+    region=None,
+    scales: dict[bool, UncertaintyScale] | None = None,
 ) -> SectionUncertainty | None:
-    """The predicted section at ``z_m`` (outside the benches) with its calibrated uncertainty.
+    """The predicted section at ``z_m`` with its calibrated uncertainty (None at a bench level).
+
+    Below the deepest bench (above the top one) the scale is calibrated on
+    the benches' backtest in that direction. Between two benches the section
+    is constrained from both sides: its scale combines the extrapolations
+    from the bench above and from the bench below, ``1 / sigma^2 = 1 /
+    sigma_down^2 + 1 / sigma_up^2`` (each calibrated; their combination is
+    not backtested, as there is no bench between benches to test it on).
 
     Parameters
     ----------
     fields : BenchFields
         The geozone's benches (``GeozoneModel.fields``).
     z_m : float
-        Elevation, metres, below the deepest bench or above the top one.
+        Elevation, metres.
     hole_spacing_m : float
     probability : float
         The band's probability of holding the true boundary, in (0, 1).
-    pooled : sequence of Backtest
+    pooled : sequence of Backtest, or a function giving them
         Backtests of the input's other geozones, used when this one's own
         backtest is too short (see :func:`calibrate`).
-    scale : UncertaintyScale, optional
-        Already calibrated (e.g. one scale for several elevations).
+    region : Polygon or MultiPolygon, optional
+        The predicted section (what ``bgm predict`` wrote); by default
+        predicted from the fields (:func:`predicted_region`, outside the benches only).
+    scales : dict, optional
+        Scales already calibrated, by direction (``True``: down); filled in as calibrated.
 
     Returns
     -------
     SectionUncertainty or None
-        None at or between the benches.
+        None at a bench level, where the section is the bench's contours, and
+        between benches without ``region``.
     """
-    found = extrapolation_trend(fields, z_m, hole_spacing_m)
-    if found is None:
+    ways = directions(fields, z_m)
+    if not ways or (len(ways) == 2 and region is None):
         return None
-    trend, used = found
-    if scale is None:
-        scale = calibrate(backtest(used, trend.bench_height_m, hole_spacing_m), pooled, probability)
-    sigma = scale.sigma(scale_terms(used, trend, z_m, hole_spacing_m))
-    field = predicted_distance(trend, z_m, hole_spacing_m)
-    return SectionUncertainty(fields.grid, float(z_m), float(probability), field, sigma, scale)
+    scales = {} if scales is None else scales
+    sigmas = []
+    for down in ways:
+        if down not in scales:
+            scales[down] = direction_scale(fields, down, hole_spacing_m, probability, pooled)
+        # Between benches each direction extrapolates only the benches on its side.
+        known = fields.down_to(z_m) if down else BenchFields(*_below(fields, z_m))
+        sigmas.append((_sigma(known, down, z_m, hole_spacing_m, scales[down]), scales[down]))
+    sigma = 1.0 / np.sqrt(sum(1.0 / np.maximum(s, 1e-9) ** 2 for s, _ in sigmas))
+    if region is None:
+        region = predicted_region(fields, z_m, hole_spacing_m)
+    field = section_distance(fields, region)
+    return SectionUncertainty(fields.grid, float(z_m), float(probability), field, sigma, sigmas[0][1])
+
+
+def directions(fields: BenchFields, z_m: float) -> tuple[bool, ...]:
+    """How the section at ``z_m`` is extrapolated: ``(True,)`` down, ``(False,)`` up, both between benches, none at one."""
+    levels = fields.z_m
+    if not len(levels) or np.isclose(levels, z_m, atol=1e-6).any():
+        return ()
+    if levels[-1] < z_m < levels[0]:
+        return (True, False)
+    return (bool(z_m < levels[-1]),)
+
+
+def _below(fields: BenchFields, z_m: float) -> tuple:
+    """The fields of the benches below ``z_m`` (what extrapolating upwards to ``z_m`` rests on)."""
+    keep = fields.z_m <= z_m + 1e-6
+    return fields.grid, fields.z_m[keep], fields.distance[keep], fields.weight[keep], fields.drilled[keep]
 
 
 def band_width_m(section: SectionUncertainty, within=None) -> float:
@@ -511,3 +574,84 @@ def band_width_m(section: SectionUncertainty, within=None) -> float:
         return float("nan")
     _, s, _ = section.at(xy)
     return float(np.median(2 * z_score(section.probability) * s))
+
+
+# ---------------------------------------------------------------------------
+# On a session: the geozones of one input, with backtests kept with the other stage results
+
+
+def session_backtest(session, geozone: str, down: bool = True, model: GeozoneModel | None = None) -> Backtest:
+    """The geozone's backtest (:func:`backtest`) in one direction, memoised in the session's store.
+
+    ``session`` is a :class:`core.model.session.ModelSession`; the key hashes
+    the geozone's bench fields, so a changed bench or parameter is backtested again.
+    """
+    from core.io.cache import content_key, engine_fingerprint
+
+    if model is not None and model.fields is not None:
+        fields = model.fields
+    else:
+        own = [c for c in session.contours() if c.geozone == geozone]
+        fields = session.bench_fields(geozone, own)
+    spacing = float(session.holes.hole_spacing_m)
+    key = content_key("backtest", engine_fingerprint(), fields.z_m, fields.distance, fields.drilled, spacing, down)
+    return session.store.get(
+        "backtest", key, lambda: backtest(_direction(fields, down), _bench_height(fields), spacing)
+    )
+
+
+def geozone_uncertainty(
+    session,
+    geozone: str,
+    z_m: Sequence[float],
+    model: GeozoneModel | None = None,
+    probability: float = DEFAULT_PROBABILITY,
+    regions: dict | None = None,
+) -> dict[float, SectionUncertainty | None]:
+    """The calibrated uncertainty of the geozone's predicted section at each elevation (metres).
+
+    Parameters
+    ----------
+    session : core.model.session.ModelSession
+    geozone : str
+    z_m : sequence of float
+    model : GeozoneModel, optional
+        The geozone's model (computed by the session when omitted).
+    probability : float
+        The band's probability of holding the true boundary.
+    regions : dict, optional
+        The predicted sections by elevation (``session.predict``); predicted when omitted.
+
+    Returns
+    -------
+    dict of float -> SectionUncertainty or None
+        None at bench levels (the section is the bench's contours) and where
+        the geozone has no fields.
+
+    Notes
+    -----
+    The scale is calibrated on the geozone's own backtest; when that is too
+    short, the backtests of the input's other geozones are pooled (computed
+    only then; see :func:`calibrate`).
+    """
+    if not 0 < probability < 1:
+        raise ValueError(f"the band's probability must lie between 0 and 1, got {probability}")
+    model = model or session.geozone_model(geozone)
+    z_m = [float(z) for z in z_m]
+    if model.fields is None or not len(model.fields.z_m):
+        return dict.fromkeys(z_m)
+    regions = regions if regions is not None else session.predict(geozone, z_m, model)
+    spacing = float(session.holes.hole_spacing_m)
+    scales: dict[bool, UncertaintyScale] = {}
+    out: dict[float, SectionUncertainty | None] = {}
+    others = [g for g in session.holes.geozones if g != geozone]
+    for z in z_m:
+        for down in directions(model.fields, z):
+            if down not in scales:
+                scales[down] = calibrate(
+                    session_backtest(session, geozone, down, model),
+                    lambda d=down: [session_backtest(session, g, d) for g in others],
+                    probability,
+                )
+        out[z] = section_uncertainty(model.fields, z, spacing, probability, region=regions.get(z), scales=scales)
+    return out
