@@ -28,10 +28,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 from scipy import ndimage, sparse, special
 from scipy.spatial import cKDTree
 
-from core.model.uncertainty import SectionUncertainty, z_score
+from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty, z_score
 
 #: Reach of a label's information (the ``l`` of the module docstring), in hole spacings.
 INFLUENCE_SPACINGS = 1.0
@@ -96,8 +97,6 @@ def estimate_pattern(xy: np.ndarray, neighbours: int = 6) -> DrillPattern:
 
 def lay_out(pattern: DrillPattern, area) -> np.ndarray:
     """The pattern's holes inside ``area`` (a shapely polygon, local metres), ``(n, 2)``."""
-    import shapely
-
     if area.is_empty:
         return np.zeros((0, 2))
     along = np.array([np.cos(pattern.azimuth_rad), np.sin(pattern.azimuth_rad)])
@@ -256,3 +255,55 @@ def revealed_field(
     width = ell / grid.cell_size_m
     spread = ndimage.gaussian_filter(impulses, width, mode="constant", truncate=KERNEL_REACH) * (2 * np.pi * width**2)
     return section.field + section.sigma * spread
+
+
+def next_bench_candidates(holes, bench: int | None = None) -> np.ndarray:
+    """Where the next bench's holes would go without a planned pattern, ``(n, 2)`` local metres.
+
+    The pattern of bench ``bench`` (the deepest by default; :func:`estimate_pattern`)
+    laid over its drilled area: a pit narrows with depth, so the next bench
+    lies under the last one, drilled on the same spacing and orientation.
+    """
+    k = holes.n_benches - 1 if bench is None else int(bench)
+    xy = holes.xy[holes.on_bench(k)]
+    if len(xy) < 3:
+        raise ValueError(f"bench {holes.bench_z_input(k)} has {len(xy)} hole(s); its pattern needs three or more")
+    return lay_out(estimate_pattern(xy), holes.drilled_area(k))
+
+
+@dataclass
+class SamplingPlan:
+    """Suggested holes on one bench for one or more geozones, and what they were chosen from."""
+
+    z_m: float
+    probability: float
+    candidates_m: np.ndarray
+    sections: dict[str, SectionUncertainty]
+    suggestions: list[Suggestion]
+
+
+def plan_sampling(
+    session,
+    geozones: list[str],
+    budget: int,
+    z_m: float,
+    candidates_m: np.ndarray | None = None,
+    probability: float = DEFAULT_PROBABILITY,
+) -> SamplingPlan:
+    """Choose ``budget`` holes at elevation ``z_m`` for ``geozones`` (one budget shared by all).
+
+    ``session`` is a :class:`core.model.session.ModelSession`; candidates are
+    a planned pattern's holes, or :func:`next_bench_candidates`. Geozones
+    without a predicted section there with its uncertainty (at a bench level)
+    take no part.
+    """
+    spacing = float(session.holes.hole_spacing_m)
+    if candidates_m is None:
+        candidates_m = next_bench_candidates(session.holes)
+    sections = {}
+    for g in geozones:
+        section = geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
+        if section is not None:
+            sections[g] = section
+    chosen = suggest_holes(sections, candidates_m, budget, spacing)
+    return SamplingPlan(float(z_m), float(probability), np.asarray(candidates_m, float), sections, chosen)
