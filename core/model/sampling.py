@@ -34,8 +34,9 @@ from scipy.spatial import cKDTree
 
 from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty, z_score
 
-#: Reach of a label's information (the ``l`` of the module docstring), in hole spacings.
-INFLUENCE_SPACINGS = 1.0
+#: Reach of a label's information (the ``l`` of the module docstring), in hole spacings: a label tells about
+#: the boundary about two holes around it (chosen on tuning seeds, ``bench_uncertainty.py --tuning``).
+INFLUENCE_SPACINGS = 2.0
 #: Neighbours further than this many ``l`` carry no weight.
 KERNEL_REACH = 3.0
 
