@@ -43,18 +43,37 @@ KERNEL_REACH = 3.0
 
 @dataclass(frozen=True)
 class DrillPattern:
-    """A blast pattern: rows of holes ``spacing_m`` apart, rows ``burden_m`` apart, along ``azimuth_rad``.
+    """A blast pattern as a lattice: holes at ``origin + i along + j across`` for whole ``i, j`` (local metres).
 
-    ``azimuth_rad`` is the direction of the rows from the +x axis, in
-    ``[0, pi)``; in a staggered pattern every other row is shifted by half a
-    spacing; ``origin_m`` is a hole of the pattern (local metres).
+    ``along_m`` is the step between neighbouring holes of a row, ``across_m``
+    the step to the nearest hole of the next row (in a staggered pattern it
+    is offset by half a spacing along the row; a staggered pattern is the
+    same lattice whichever of its three short directions is taken as rows).
     """
 
-    spacing_m: float
-    burden_m: float
-    azimuth_rad: float
-    staggered: bool
+    along_m: tuple[float, float]
+    across_m: tuple[float, float]
     origin_m: tuple[float, float]
+
+    @property
+    def spacing_m(self) -> float:
+        """Distance between holes along a row."""
+        return float(np.hypot(*self.along_m))
+
+    @property
+    def burden_m(self) -> float:
+        """Distance between rows."""
+        (ax, ay), (bx, by) = self.along_m, self.across_m
+        return float(abs(ax * by - ay * bx) / self.spacing_m)
+
+    @property
+    def azimuth_rad(self) -> float:
+        """Direction of the rows from the +x axis, in ``[0, pi)``."""
+        return float(np.mod(np.arctan2(self.along_m[1], self.along_m[0]), np.pi))
+
+    def lattice(self) -> np.ndarray:
+        """``[along, across]`` as the columns of a 2 x 2 matrix."""
+        return np.column_stack([self.along_m, self.across_m])
 
 
 def estimate_pattern(xy: np.ndarray, neighbours: int = 6) -> DrillPattern:
@@ -62,12 +81,14 @@ def estimate_pattern(xy: np.ndarray, neighbours: int = 6) -> DrillPattern:
 
     The vectors from each hole to its ``neighbours`` nearest holes, those no
     longer than 1.5 times the median nearest-neighbour distance, are the
-    pattern's short steps. The rows run along the most frequent direction of
-    those steps (a histogram of their angles modulo 180 degrees, one degree
-    per bin, smoothed over five); the spacing is the median length of the
-    steps within 10 degrees of it, the burden the median step across it, and
-    the pattern is staggered when steps to the next row are offset by about
-    half a spacing along it.
+    lattice's short steps. Folded onto half a turn, their most frequent
+    direction (one-degree histogram smoothed over five) gives the rows, the
+    most frequent of the others the next row; each step is the mean of the
+    steps within 10 degrees of its direction (jitter averages out over
+    thousands of steps, where a median of lengths would not place holes 30
+    rows away). The lattice is then refined by least squares on every hole's
+    whole lattice coordinates, and the origin is the hole nearest the centre.
+    A single row gets a square pattern.
     """
     xy = np.asarray(xy, float)
     if len(xy) < 3:
@@ -77,40 +98,47 @@ def estimate_pattern(xy: np.ndarray, neighbours: int = 6) -> DrillPattern:
     steps = (xy[idx[:, 1:]] - xy[:, None, :]).reshape(-1, 2)
     length = d[:, 1:].ravel()
     steps = steps[(length > 0) & (length <= 1.5 * np.median(d[:, 1]))]
-    angle = np.mod(np.arctan2(steps[:, 1], steps[:, 0]), np.pi)
-    counts = np.bincount(np.minimum((np.degrees(angle)).astype(int), 179), minlength=180).astype(float)
-    peak = int(np.argmax(ndimage.uniform_filter1d(counts, 5, mode="wrap")))
-    near = np.abs(((np.degrees(angle) - peak + 90) % 180) - 90) <= 10
-    # Refine the direction: circular mean of the doubled angles of the steps along the rows.
-    azimuth = float(np.mod(np.angle(np.mean(np.exp(2j * angle[near]))) / 2, np.pi))
-    along = np.array([np.cos(azimuth), np.sin(azimuth)])
-    across = np.array([-along[1], along[0]])
-    spacing = float(np.median(np.abs(steps[near] @ along)))
-    off = steps[~near]
-    off = off[np.abs(off @ across) > 0.25 * spacing]
-    if not len(off):  # a single row
-        return DrillPattern(spacing, spacing, azimuth, False, tuple(xy[0]))
-    burden = float(np.median(np.abs(off @ across)))
-    shift = np.abs(np.mod(off @ along / spacing + 0.5, 1.0) - 0.5)  # 0: square, 0.5: staggered
+    along = _step_direction(steps)
+    unit = along / np.hypot(*along)
+    across_steps = steps[np.abs(unit[0] * steps[:, 1] - unit[1] * steps[:, 0]) > 0.25 * np.hypot(*along)]
+    if len(across_steps):
+        across = _step_direction(across_steps)
+    else:  # a single row
+        across = np.array([-along[1], along[0]])
     centre = xy[np.argmin(np.sum((xy - xy.mean(axis=0)) ** 2, axis=1))]
-    return DrillPattern(spacing, burden, azimuth, bool(np.median(shift) > 0.25), (float(centre[0]), float(centre[1])))
+    basis = np.column_stack([along, across])
+    for _ in range(2):  # least squares on the whole lattice coordinates of the holes that fit
+        ij = np.round(np.linalg.solve(basis, (xy - centre).T).T)
+        fit = np.hypot(*(xy - centre - ij @ basis.T).T) < 0.3 * min(np.hypot(*along), np.hypot(*across))
+        if fit.sum() < 3:
+            break
+        design = np.column_stack([np.ones(fit.sum()), ij[fit]])
+        solution = np.linalg.lstsq(design, xy[fit], rcond=None)[0]
+        centre, basis = solution[0], solution[1:].T
+    return DrillPattern(tuple(basis[:, 0]), tuple(basis[:, 1]), (float(centre[0]), float(centre[1])))
+
+
+def _step_direction(steps: np.ndarray) -> np.ndarray:
+    """The mean of the steps along their most frequent direction (folded onto half a turn)."""
+    angle = np.mod(np.arctan2(steps[:, 1], steps[:, 0]), np.pi)
+    counts = np.bincount(np.minimum(np.degrees(angle).astype(int), 179), minlength=180).astype(float)
+    peak = np.radians(int(np.argmax(ndimage.uniform_filter1d(counts, 5, mode="wrap"))) + 0.5)
+    unit = np.array([np.cos(peak), np.sin(peak)])
+    near = np.abs(((np.degrees(angle - peak) + 90) % 180) - 90) <= 10
+    folded = steps[near] * np.sign(steps[near] @ unit)[:, None]
+    return folded.mean(axis=0)
 
 
 def lay_out(pattern: DrillPattern, area) -> np.ndarray:
     """The pattern's holes inside ``area`` (a shapely polygon, local metres), ``(n, 2)``."""
     if area.is_empty:
         return np.zeros((0, 2))
-    along = np.array([np.cos(pattern.azimuth_rad), np.sin(pattern.azimuth_rad)])
-    across = np.array([-along[1], along[0]])
+    basis = pattern.lattice()
     corners = np.array(shapely.get_coordinates(shapely.envelope(area))) - np.asarray(pattern.origin_m)
-    u, v = corners @ along, corners @ across
-    rows = np.arange(np.floor(v.min() / pattern.burden_m) - 1, np.ceil(v.max() / pattern.burden_m) + 2)
-    cols = np.arange(np.floor(u.min() / pattern.spacing_m) - 1, np.ceil(u.max() / pattern.spacing_m) + 2)
-    r, c = np.meshgrid(rows, cols, indexing="ij")
-    shift = 0.5 * (np.mod(r, 2) == 1) if pattern.staggered else 0.0
-    uu = (c + shift) * pattern.spacing_m
-    vv = r * pattern.burden_m
-    xy = np.asarray(pattern.origin_m) + uu.ravel()[:, None] * along + vv.ravel()[:, None] * across
+    ij = np.linalg.solve(basis, corners.T).T
+    lo, hi = np.floor(ij.min(axis=0)) - 1, np.ceil(ij.max(axis=0)) + 1
+    i, j = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1), indexing="ij")
+    xy = np.asarray(pattern.origin_m) + np.column_stack([i.ravel(), j.ravel()]) @ basis.T
     return xy[shapely.contains_xy(area, xy[:, 0], xy[:, 1])]
 
 
