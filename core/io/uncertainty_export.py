@@ -177,3 +177,60 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     labels = table[ids].astype(str).tolist() if ids is not None else [str(first + i) for i in range(len(table))]
     z = float(np.median(values["z"])) if "z" in values else None
     return xy, labels, z
+
+
+def plot_sampling_map(plan, holes: Blastholes, path: str | Path, title: str = "") -> Path | None:
+    """A map of the band and the suggested holes on the bench to sample (PNG), or None without matplotlib.
+
+    ``plan`` is a :class:`core.model.sampling.SamplingPlan`: its sections'
+    band (shaded) and predicted boundary (line), the candidate holes (grey
+    dots) and the suggestions (red, numbered in the order chosen), in the
+    input's coordinates.
+    """
+    try:
+        from matplotlib.figure import Figure  # a bare Figure renders with Agg, no pyplot global state
+    except ImportError:
+        return None
+    import shapely
+
+    fig = Figure(figsize=(6.5, 6.0), dpi=110)
+    ax = fig.add_subplot()
+    for section in plan.sections.values():
+        for geometry, style in ((section.band, {"color": "#f4a261", "alpha": 0.45}), (section.predicted, None)):
+            for poly in getattr(to_input_geometry(geometry, holes), "geoms", []):
+                rings = [poly.exterior, *poly.interiors]
+                for ring in rings:
+                    x, y = np.asarray(ring.coords).T
+                    if style is None:
+                        ax.plot(x, y, color="#264653", lw=1.0)
+                if style is not None:
+                    x, y = np.asarray(poly.exterior.coords).T
+                    ax.fill(x, y, lw=0, **style)
+                    for ring in poly.interiors:
+                        x, y = np.asarray(ring.coords).T
+                        ax.fill(x, y, color="white", lw=0)
+    cand = holes.frame.to_input(plan.candidates_m)
+    ax.scatter(cand[:, 0], cand[:, 1], s=2, color="#adb5bd", label="candidate holes")
+    chosen = holes.frame.to_input(np.array([s.xy_m for s in plan.suggestions], float).reshape(-1, 2))
+    ax.scatter(chosen[:, 0], chosen[:, 1], s=18, color="#d62828", label="suggested", zorder=3)
+    if len(chosen):
+        lo, hi = chosen.min(axis=0), chosen.max(axis=0)
+        bands = [to_input_geometry(s.outer, holes) for s in plan.sections.values() if not s.outer.is_empty]
+        if bands:
+            bx0, by0, bx1, by1 = shapely.union_all(bands).bounds
+            lo, hi = np.minimum(lo, [bx0, by0]), np.maximum(hi, [bx1, by1])
+        pad = 0.05 * float(np.max(hi - lo)) + 1.0
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.tick_params(labelsize=7)
+    unit = holes.frame.length_unit
+    ax.set_title(title or f"z = {float(holes.frame.z_to_input(plan.z_m)):g} {unit}", fontsize=9)
+    ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    from core.io.atomic import atomic_path
+
+    with atomic_path(Path(path)) as tmp:
+        fig.savefig(tmp, format="png")
+    return Path(path)
