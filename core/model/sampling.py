@@ -13,6 +13,7 @@ over the ground that can be drilled next) greedily:
 * a candidate is worth what it would tell about its neighbourhood: the
   information summed over candidates nearby, weighted by
   ``exp(-d^2 / 2 l^2)`` (``l`` about a hole spacing, :data:`INFLUENCE_SPACINGS`);
+* holes in a band (of any of the geozones) are chosen before the others;
 * after each choice the information near it is discounted by the same
   weight (``H <- H (1 - exp(-d^2 / 2 l^2))``), so the next hole goes where
   the boundary is still unknown rather than next to the last one.
@@ -200,9 +201,12 @@ def suggest_holes(
     info = np.stack([binary_entropy(at[g][2]) for g in names])  # (geozones, candidates)
     weights = influence_matrix(xy, INFLUENCE_SPACINGS * hole_spacing_m)
     score = weights @ info.sum(axis=0)
+    # A hole outside every band would tell what the prediction already knows there: holes in a band go first.
+    in_band = np.any([sections[g].in_band(xy) for g in names], axis=0)
     chosen: list[Suggestion] = []
     for _ in range(min(int(budget), len(xy))):
-        c = int(np.argmax(score))
+        first = np.where(in_band, score, -np.inf)
+        c = int(np.argmax(first if np.isfinite(first).any() else score))
         chosen.append(_suggestion(c, xy, names, at, info, sections, float(score[c])))
         row = weights.getrow(c)
         near, w = row.indices, row.data
