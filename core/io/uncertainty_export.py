@@ -90,7 +90,7 @@ def probability_grid(sections: Mapping[float, SectionUncertainty | None], holes:
 def write_probability_grid(path: str | Path, arrays: Mapping[str, np.ndarray]) -> Path:
     """Write :func:`probability_grid` arrays as a compressed ``.npz``, atomically."""
     buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)
+    np.savez_compressed(buffer, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as its own options
     atomic_write_bytes(Path(path), buffer.getvalue())
     return Path(path)
 
@@ -196,19 +196,13 @@ def plot_sampling_map(plan, holes: Blastholes, path: str | Path, title: str = ""
     fig = Figure(figsize=(6.5, 6.0), dpi=110)
     ax = fig.add_subplot()
     for section in plan.sections.values():
-        for geometry, style in ((section.band, {"color": "#f4a261", "alpha": 0.45}), (section.predicted, None)):
-            for poly in getattr(to_input_geometry(geometry, holes), "geoms", []):
-                rings = [poly.exterior, *poly.interiors]
-                for ring in rings:
-                    x, y = np.asarray(ring.coords).T
-                    if style is None:
-                        ax.plot(x, y, color="#264653", lw=1.0)
-                if style is not None:
-                    x, y = np.asarray(poly.exterior.coords).T
-                    ax.fill(x, y, lw=0, **style)
-                    for ring in poly.interiors:
-                        x, y = np.asarray(ring.coords).T
-                        ax.fill(x, y, color="white", lw=0)
+        for poly in to_input_geometry(section.band, holes).geoms:  # the band, shaded (its holes left white)
+            ax.fill(*np.asarray(poly.exterior.coords).T, color="#f4a261", alpha=0.45, lw=0)
+            for ring in poly.interiors:
+                ax.fill(*np.asarray(ring.coords).T, color="white", lw=0)
+        for poly in to_input_geometry(section.predicted, holes).geoms:  # the predicted boundary
+            for ring in [poly.exterior, *poly.interiors]:
+                ax.plot(*np.asarray(ring.coords).T, color="#264653", lw=1.0)
     cand = holes.frame.to_input(plan.candidates_m)
     ax.scatter(cand[:, 0], cand[:, 1], s=2, color="#adb5bd", label="candidate holes")
     chosen = holes.frame.to_input(np.array([s.xy_m for s in plan.suggestions], float).reshape(-1, 2))

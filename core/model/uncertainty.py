@@ -37,6 +37,7 @@ outer polygon ``{F > -z_q sigma}``.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -600,6 +601,10 @@ def session_backtest(session, geozone: str, down: bool = True, model: GeozoneMod
     )
 
 
+def _backtests(session, geozones: list[str], down: bool) -> list[Backtest]:
+    return [session_backtest(session, g, down) for g in geozones]
+
+
 def geozone_uncertainty(
     session,
     geozone: str,
@@ -650,7 +655,7 @@ def geozone_uncertainty(
             if down not in scales:
                 scales[down] = calibrate(
                     session_backtest(session, geozone, down, model),
-                    lambda d=down: [session_backtest(session, g, d) for g in others],
+                    functools.partial(_backtests, session, others, down),
                     probability,
                 )
         out[z] = section_uncertainty(model.fields, z, spacing, probability, region=regions.get(z), scales=scales)
