@@ -15,7 +15,6 @@ usual outputs (:mod:`core.model.uncertainty`, :mod:`core.model.sampling`):
 
 from __future__ import annotations
 
-import io
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -23,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from core.io.atomic import atomic_write_bytes, atomic_write_text
+from core.io.atomic import atomic_path, atomic_write_text
 from core.io.blastholes import Blastholes
 from core.io.reporting import to_input_geometry
 from core.model.sampling import Suggestion, reason
@@ -89,9 +88,8 @@ def probability_grid(sections: Mapping[float, SectionUncertainty | None], holes:
 
 def write_probability_grid(path: str | Path, arrays: Mapping[str, np.ndarray]) -> Path:
     """Write :func:`probability_grid` arrays as a compressed ``.npz``, atomically."""
-    buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as its own options
-    atomic_write_bytes(Path(path), buffer.getvalue())
+    with atomic_path(Path(path)) as tmp:  # keeps the .npz suffix, so numpy adds none
+        np.savez_compressed(tmp, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as its own options
     return Path(path)
 
 
@@ -223,8 +221,6 @@ def plot_sampling_map(plan, holes: Blastholes, path: str | Path, title: str = ""
     ax.set_title(title or f"z = {float(holes.frame.z_to_input(plan.z_m)):g} {unit}", fontsize=9)
     ax.legend(loc="upper right", fontsize=7)
     fig.tight_layout()
-    from core.io.atomic import atomic_path
-
     with atomic_path(Path(path)) as tmp:
         fig.savefig(tmp, format="png")
     return Path(path)
