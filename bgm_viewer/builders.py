@@ -21,6 +21,7 @@ from .layers import (
 )
 from .model import PipelineResult, Selection
 from .palette import geozone_colours
+from .sampling_layers import NextBench, SuggestedHolesLayer, UncertaintyLayer
 from .scene import Scene
 
 LAYER_NAMES = (
@@ -33,6 +34,8 @@ LAYER_NAMES = (
     "trajectories",
     "predicted contours",
     "surfaces",
+    "uncertainty",
+    "suggested holes",
 )
 #: Shown when nothing else is asked for.
 DEFAULT_VISIBLE = ("blastholes", "contours", "snake", "trajectories", "surfaces")
@@ -52,6 +55,9 @@ def _alias(name: str) -> str:
         "predicted": "predicted contours",
         "prediction": "predicted contours",
         "surface": "surfaces",
+        "band": "uncertainty",
+        "suggestions": "suggested holes",
+        "suggested": "suggested holes",
     }
     key = aliases.get(key, key)
     for n in LAYER_NAMES:
@@ -105,6 +111,8 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
     layers.append(ContoursLayer(predicted, colours, name="predicted contours", predicted=True, line_width=2.0))
     surf = [(selection.geozone, result.surface)] if result.surface is not None else []
     layers.append(SurfaceLayer.from_trimesh(surf, colours))
+    next_bench = NextBench(holes, result.model)  # computed by core when one of its layers is first drawn
+    layers += [UncertaintyLayer(next_bench), SuggestedHolesLayer(next_bench)]
     return layers
 
 
@@ -151,6 +159,8 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
         out.add("predicted contours")
     if result.surface is not previous.surface:
         out.add("surfaces")
+    if result.model is not previous.model:
+        out |= {"uncertainty", "suggested holes"}
     return out
 
 

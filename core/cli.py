@@ -87,6 +87,10 @@ ProjectOpt = Annotated[
         "--project", help="Project file (JSON) with parameters (see bgm parameters) and manual alignment overrides."
     ),
 ]
+BandProbabilityOpt = Annotated[
+    float,
+    typer.Option("--band-probability", help="Probability that the uncertainty band holds the true boundary."),
+]
 NoCacheOpt = Annotated[
     bool,
     typer.Option(
@@ -427,14 +431,23 @@ def predict(
         ),
     ] = False,
     no_cache: NoCacheOpt = False,
+    band_probability: BandProbabilityOpt = 0.9,
     *,
     table: TableOptions,
 ) -> None:
-    """Predict the geozone's region at any elevation (paper: contour prediction)."""
+    """Predict the geozone's region at any elevation (paper: contour prediction).
+
+    Beside --out it writes the uncertainty of every section off the benches:
+    OUT.uncertainty.geojson (inner, outer and band polygons holding the true
+    boundary with --band-probability) and OUT.p_inside.npz (probability of
+    being inside the geozone on a grid).
+    """
     from core.io.export import write_geojson
 
     levels = _elevations(elevations)
-    _outputs(out, input, project)
+    _band_probability(band_probability)
+    sidecars = uncertainty_sidecars(out)
+    _outputs(out, input, project, *sidecars)
     holes = table.read(input)
     geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 2:
@@ -448,12 +461,39 @@ def predict(
         model = session.geozone_model(geozone, stages=("correspond", "morph"), progress=update)
     features = _prediction_features(session, geozone, levels, model)
     write_geojson([f for f in features if not f["geometry"].is_empty], out)
+    _write_uncertainty(session, geozone, levels, model, band_probability, sidecars)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty:
         _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
     typer.echo(
         json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)})
     )
+
+
+def uncertainty_sidecars(out: Path) -> tuple[Path, Path]:
+    """Where ``bgm predict --out OUT`` writes the bands and the P(inside) grid."""
+    stem = out.name[: -len(out.suffix)] if out.suffix else out.name
+    return out.with_name(f"{stem}.uncertainty.geojson"), out.with_name(f"{stem}.p_inside.npz")
+
+
+def _band_probability(value: float) -> None:
+    if not (math.isfinite(value) and 0.5 <= value < 1):
+        raise BGMInputError(f"--band-probability must lie in [0.5, 1), got {value}")
+
+
+def _write_uncertainty(session, geozone: str, levels: list[float], model, probability: float, paths) -> None:
+    """The bands and P(inside) grid of the predicted sections (see :mod:`core.io.uncertainty_export`)."""
+    from core.io.export import write_geojson
+    from core.io.uncertainty_export import band_features, probability_grid, write_probability_grid
+    from core.model.uncertainty import geozone_uncertainty
+
+    z_m = [float(session.holes.frame.z_to_local(v)) for v in levels]
+    sections = geozone_uncertainty(session, geozone, z_m, model, probability, session.predict(geozone, z_m, model))
+    write_geojson(band_features(sections, session.holes, geozone), paths[0])
+    write_probability_grid(paths[1], probability_grid(sections, session.holes, geozone))
+    at_benches = [v for v, z in zip(levels, z_m) if sections[z] is None]
+    if at_benches:
+        _say(f"bgm: note: no uncertainty at bench levels {', '.join(map(str, at_benches))} (the bench's own contours)")
 
 
 def _prediction_features(session, geozone: str, levels: list[float], model) -> list[dict]:
@@ -614,6 +654,111 @@ def parameters() -> None:
             typical = f"{p.minimum:g} - {p.maximum:g}{scale}"
         table.add_row(p.name, p.stage, p.symbol, default, typical, p.help)
     Console(width=200).print(table)
+
+
+@app.command()
+@reads_table
+def suggest(
+    input: InputArg,
+    geozone: Annotated[
+        list[str],
+        typer.Option(
+            "--geozone", help="Geozone(s) to pin down (repeat, or separate with commas); they share the budget."
+        ),
+    ],
+    budget: Annotated[int, typer.Option("--budget", help="Number of holes to suggest, for all the geozones together.")],
+    out: Annotated[Path, typer.Option("--out", help="CSV file to write.")] = Path("suggestions.csv"),
+    pattern: Annotated[
+        Path | None,
+        typer.Option(
+            "--pattern", help="Planned blast pattern (CSV with x, y; optional z, hole_id): choose among its holes."
+        ),
+    ] = None,
+    elevation: Annotated[
+        float | None,
+        typer.Option(
+            "--elevation", help="Elevation of the bench to sample (default: the pattern's, else the next bench)."
+        ),
+    ] = None,
+    project: ProjectOpt = None,
+    band_probability: BandProbabilityOpt = 0.9,
+    no_cache: NoCacheOpt = False,
+    *,
+    table: TableOptions,
+) -> None:
+    """Holes on the next bench whose labels would most reduce the uncertainty of the geozones' boundaries.
+
+    Without --pattern the holes are laid out on the deepest bench's spacing
+    and orientation over its drilled area; with it, they are a subset of the
+    planned holes. Each row gives x, y, z, the geozone it informs, the
+    predicted probability of being inside it and a short reason.
+    """
+    from core.io.uncertainty_export import read_pattern, suggestions_table, write_suggestions
+    from core.model.sampling import next_bench_candidates, plan_sampling
+
+    if budget < 1:
+        raise BGMInputError(f"--budget must be 1 or more holes, got {budget}")
+    _band_probability(band_probability)
+    _outputs(out, input, project, pattern)
+    holes = table.read(input)
+    wanted = holes.check_geozones([g.strip() for part in geozone for g in part.split(",") if g.strip()])
+    if holes.n_benches < 2:
+        raise BGMInputError(f"{input} has a single bench; predicting the next one needs two or more benches")
+    labels, z_pattern, candidates = None, None, None
+    if pattern is not None:
+        candidates, labels, z_pattern = read_pattern(pattern, holes)
+    level = _next_level(holes, elevation if elevation is not None else z_pattern)
+    if candidates is None:
+        try:
+            candidates = next_bench_candidates(holes)
+        except ValueError as exc:
+            raise BGMInputError(f"{exc}; give the holes with --pattern") from None
+    session = _session(holes, project, wanted, "suggest", no_cache)
+    plan = plan_sampling(session, wanted, budget, level, candidates, band_probability)
+    if not plan.sections:
+        raise BGMInputError(f"no geozone of {', '.join(wanted)} has a predicted boundary to sample at that elevation")
+    if budget > len(candidates):
+        _say(f"bgm: note: only {len(candidates)} candidate holes; all of them are suggested")
+    data = suggestions_table(plan.suggestions, holes, level, band_probability, labels)
+    write_suggestions(out, data)
+    typer.echo(
+        json.dumps(
+            {
+                "geozones": wanted,
+                "z": round(float(holes.frame.z_to_input(level)), 3),
+                "candidates": int(len(candidates)),
+                "suggested": int(len(data)),
+                "in_band": int(sum(s.in_band for s in plan.suggestions)),
+                "out": str(out),
+            }
+        )
+    )
+
+
+def _next_level(holes, elevation: float | None) -> float:
+    """The elevation to sample (local metres): ``elevation`` (input units), else one bench below the deepest.
+
+    It must lie below the deepest bench, within :data:`MAX_PREDICTION_BENCHES` bench heights.
+    """
+    levels = holes.bench_levels_m
+    height = float(np.median(-np.diff(levels)))
+    if elevation is None:
+        return float(levels[-1] - height)
+    if not math.isfinite(elevation):
+        raise BGMInputError(f"--elevation must be a finite number, got {elevation}")
+    z = float(holes.frame.z_to_local(elevation))
+    bottom = holes.bench_z_input(holes.n_benches - 1)
+    if z >= levels[-1] - 1e-6:
+        raise BGMInputError(
+            f"elevation {elevation:g} is not below the deepest bench ({bottom:g} {holes.frame.length_unit}); "
+            "suggestions are for the next bench down"
+        )
+    if z < levels[-1] - MAX_PREDICTION_BENCHES * height:
+        raise BGMInputError(
+            f"elevation {elevation:g} is more than {MAX_PREDICTION_BENCHES:g} bench heights below the deepest bench "
+            f"({bottom:g} {holes.frame.length_unit}); a prediction that far is a guess"
+        )
+    return z
 
 
 @app.command("make-demo-data")

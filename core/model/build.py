@@ -142,6 +142,8 @@ class GeozoneSummary:
     folder: str = ""  #: where its files are, under the build folder (see :func:`geozone_folders`)
     #: Per surface format: ``watertight`` as written (STL read back), and the STL's local-frame ``offset``.
     formats: dict = field(default_factory=dict)
+    #: Where to sample next (see :func:`write_sampling`): calibration, band width, suggested holes, map.
+    sampling: dict = field(default_factory=dict)
 
 
 def build(
@@ -537,6 +539,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     ]
     write_geojson(features, gdir / "prediction.geojson")
     write_section_dxf(features, "z", gdir / "prediction.dxf")
+    summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
     _write_surface(summary, model, ctx, gdir)
     if ctx.evaluate and holes.n_benches >= 3:
         rows = evaluate_geozone(
@@ -546,6 +549,63 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
             rows.insert(0, "geozone", g)
     summary.seconds = time.perf_counter() - tg
     return summary, rows
+
+
+#: Share of the next bench's candidate holes in a geozone's band that the build suggests sampling.
+SUGGESTION_SHARE = 0.1
+
+
+def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict, gdir: Path, out_dir: Path) -> dict:
+    """The uncertainty of the geozone's predictions and the holes to sample on the next bench, under ``gdir``.
+
+    Writes ``uncertainty.geojson`` (90% band, inner and outer polygons of
+    every predicted section), ``p_inside.npz`` (P(inside) grids),
+    ``suggestions.csv`` (:data:`SUGGESTION_SHARE` of the next bench's
+    candidate holes that lie in the band, one bench below the deepest, laid
+    out on the deepest bench's pattern) and ``where_to_sample.png`` (its
+    map, when matplotlib is there). Returns what the report says of it.
+    """
+    from core.io.export import write_geojson
+    from core.io.uncertainty_export import (
+        band_features,
+        plot_sampling_map,
+        probability_grid,
+        suggestions_table,
+        write_probability_grid,
+        write_suggestions,
+    )
+    from core.model.sampling import next_bench_candidates, plan_sampling
+    from core.model.uncertainty import DEFAULT_PROBABILITY, band_width_m, geozone_uncertainty
+
+    holes, g = session.holes, model.geozone
+    sections = geozone_uncertainty(session, g, list(predictions), model, DEFAULT_PROBABILITY, predictions)
+    write_geojson(band_features(sections, holes, g), gdir / "uncertainty.geojson")
+    write_probability_grid(gdir / "p_inside.npz", probability_grid(sections, holes, g))
+    levels = holes.bench_levels_m
+    z_next = float(levels[-1] - np.median(-np.diff(levels)))
+    try:
+        candidates = next_bench_candidates(holes)
+    except ValueError as exc:
+        return {"note": f"no suggestions: {exc}"}
+    first = plan_sampling(session, [g], 0, z_next, candidates)
+    section = first.sections.get(g)
+    if section is None:
+        return {"note": "no suggestions: no predicted boundary on the next bench"}
+    in_band = int(section.in_band(candidates).sum()) if len(candidates) else 0
+    budget = max(int(round(SUGGESTION_SHARE * in_band)), 1) if in_band else 0
+    plan = plan_sampling(session, [g], budget, z_next, candidates)
+    write_suggestions(gdir / "suggestions.csv", suggestions_table(plan.suggestions, holes, z_next, plan.probability))
+    picture = plot_sampling_map(plan, holes, gdir / "where_to_sample.png", f"{g}: next bench")
+    width = band_width_m(section, holes.drilled_area(holes.n_benches - 1))
+    return {
+        "z": round(float(holes.frame.z_to_input(z_next)), 3),
+        "probability": plan.probability,
+        "calibration": section.scale.source,
+        "band_width": None if not np.isfinite(width) else float(holes.frame.length_to_input(width)),
+        "candidates_in_band": in_band,
+        "suggested": len(plan.suggestions),
+        "map": None if picture is None else str(picture.relative_to(out_dir)),
+    }
 
 
 def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildContext, gdir: Path) -> None:
@@ -617,7 +677,7 @@ def report_markdown(summary: dict, table: pd.DataFrame | None) -> str:
             f"({c['contours_with_at_most_5pct_other']:.0%} of contours at most 5%).",
             "",
         ]
-    lines += _geozone_table(summary) + _surfaces_section(summary)
+    lines += _geozone_table(summary) + _surfaces_section(summary) + _sampling_section(summary)
     if table is not None:
         lines += [
             "## Predictive value",
@@ -675,6 +735,41 @@ def _surfaces_section(summary: dict) -> list[str]:
     for offset in sorted(offsets):
         lines.append(f"  STL offset: add ({', '.join(f'{v:.0f}' for v in offset)}) {summary['units']} to x, y, z.")
     return [*lines, ""]
+
+
+def _sampling_section(summary: dict) -> list[str]:
+    """Where to sample next: each geozone's band on the next bench and the holes suggested there, with its map."""
+    unit = summary["units"]
+    rows = [g for g in summary["geozones"] if g.get("sampling")]
+    if not rows:
+        return []
+    lines = [
+        "## Where to sample next",
+        "",
+        "The band holds the true boundary with the stated probability, calibrated by predicting each known bench "
+        "from the benches above it (the input's other geozones pooled when a geozone has too few). Suggested holes, "
+        f"{SUGGESTION_SHARE:.0%} of the next bench's holes in the band (laid out on the deepest bench's pattern), are "
+        "those whose labels would most narrow it: `<folder>/suggestions.csv`; bands in `<folder>/uncertainty.geojson`, "
+        "P(inside) grids in `<folder>/p_inside.npz`. `bgm suggest` chooses any number of holes, or from a planned pattern.",
+        "",
+        f"| geozone | next bench ({unit}) | band | calibration | median band width ({unit}) | holes in band | suggested |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for g in rows:
+        s = g["sampling"]
+        if "note" in s:
+            lines.append(f"| {_cell(g['geozone'])} | | | | | | {_cell(s['note'], 200)} |")
+            continue
+        width = "" if s["band_width"] is None else f"{s['band_width']:.1f}"
+        lines.append(
+            f"| {_cell(g['geozone'])} | {s['z']:g} | {s['probability']:.0%} | {s['calibration']} | {width} | "
+            f"{s['candidates_in_band']} | {s['suggested']} |"
+        )
+    lines.append("")
+    for g in rows:
+        if g["sampling"].get("map"):
+            lines += [f"![{_cell(g['geozone'])}: where to sample next]({g['sampling']['map']})", ""]
+    return lines
 
 
 def _cell(text, limit: int = 60) -> str:

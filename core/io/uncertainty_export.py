@@ -1,0 +1,226 @@
+"""Uncertainty and suggested holes in the input's coordinates: GeoJSON bands, P(inside) grids, suggestion tables.
+
+What ``bgm predict``, ``bgm build`` and ``bgm suggest`` write beside their
+usual outputs (:mod:`core.model.uncertainty`, :mod:`core.model.sampling`):
+
+* band features: per predicted section, three polygons, ``kind`` ``inner``
+  (inside with probability ``(1 + q) / 2`` or more), ``outer`` (everything
+  that may be inside) and ``band`` (outer minus inner: where the true
+  boundary lies with probability ``q``);
+* a P(inside) grid (NumPy ``.npz``): ``x`` (cols), ``y`` (rows) cell centres
+  and ``z`` (levels) in input units, ``p_inside`` ``(levels, rows, cols)``
+  and ``sigma`` (the calibrated scale, input units) of the same shape;
+* suggestions: one row per hole, ``x, y, z, geozone, probability_inside, reason``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from core.io.atomic import atomic_path, atomic_write_text
+from core.io.blastholes import Blastholes
+from core.io.reporting import to_input_geometry
+from core.model.sampling import Suggestion, reason
+from core.model.uncertainty import SectionUncertainty, band_width_m
+
+#: Band polygons written per section, and what each holds.
+BAND_KINDS = ("inner", "outer", "band")
+
+
+def band_features(
+    sections: Mapping[float, SectionUncertainty | None], holes: Blastholes, geozone: str, within=None
+) -> list[dict]:
+    """GeoJSON features of each section's band (:data:`BAND_KINDS`), input coordinates; empty polygons left out.
+
+    Properties: ``geozone``, ``z`` (input units), ``kind``, ``probability``,
+    ``band_width`` (median width across the predicted boundary, input units)
+    and ``calibration`` (what the scale was calibrated on). ``within``
+    (local polygon) limits the width's boundary points, e.g. to the drilled area.
+    """
+    frame = holes.frame
+    features = []
+    for z, section in sections.items():
+        if section is None:
+            continue
+        width = band_width_m(section, within)
+        props = {
+            "geozone": geozone,
+            "z": round(float(frame.z_to_input(z)), 3),
+            "probability": section.probability,
+            "band_width": None if not np.isfinite(width) else round(float(frame.length_to_input(width)), 3),
+            "calibration": section.scale.source,
+        }
+        for kind in BAND_KINDS:
+            geometry = getattr(section, kind)
+            if not geometry.is_empty:
+                features.append({"geometry": to_input_geometry(geometry, holes), "properties": {**props, "kind": kind}})
+    return features
+
+
+def probability_grid(sections: Mapping[float, SectionUncertainty | None], holes: Blastholes, geozone: str) -> dict:
+    """The arrays of a P(inside) grid (see the module docstring); levels without uncertainty are left out."""
+    kept = {z: s for z, s in sections.items() if s is not None}
+    frame = holes.frame
+    if not kept:
+        return {}
+    first = next(iter(kept.values()))
+    rows, cols = first.grid.shape
+    xs = first.grid.rc_to_xy(np.column_stack([np.zeros(cols), np.arange(cols)]))[:, 0]
+    ys = first.grid.rc_to_xy(np.column_stack([np.arange(rows), np.zeros(rows)]))[:, 1]
+    x_in = frame.to_input(np.column_stack([xs, np.zeros(cols)]))[:, 0]
+    y_in = frame.to_input(np.column_stack([np.zeros(rows), ys]))[:, 1]
+    return {
+        "geozone": np.array(geozone),
+        "probability": np.array(first.probability),
+        "x": x_in,
+        "y": y_in,
+        "z": np.array([float(frame.z_to_input(z)) for z in kept]),
+        # Rounded to 1e-3: what a map shows, and it compresses to a fraction.
+        "p_inside": np.round(np.stack([s.inside_probability for s in kept.values()]), 3).astype(np.float32),
+        "sigma": np.round(np.stack([frame.length_to_input(s.sigma) for s in kept.values()]), 3).astype(np.float32),
+    }
+
+
+def write_probability_grid(path: str | Path, arrays: Mapping[str, np.ndarray]) -> Path:
+    """Write :func:`probability_grid` arrays as a compressed ``.npz``, atomically."""
+    with atomic_path(Path(path)) as tmp:  # keeps the .npz suffix, so numpy adds none
+        np.savez_compressed(tmp, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as its own options
+    return Path(path)
+
+
+def suggestions_table(
+    suggestions: Sequence[Suggestion],
+    holes: Blastholes,
+    z_m: float,
+    probability: float,
+    labels: Sequence | None = None,
+) -> pd.DataFrame:
+    """One row per suggested hole, in the order chosen: ``x, y, z, geozone, probability_inside, reason``.
+
+    ``labels`` (one per candidate), when the candidates came from a planned
+    pattern, adds its hole identifier as ``pattern_hole``.
+    """
+    frame = holes.frame
+    xy = frame.to_input(np.array([s.xy_m for s in suggestions], float).reshape(-1, 2))
+    unit, mpu = frame.length_unit, frame.metres_per_unit
+    table = pd.DataFrame(
+        {
+            "x": xy[:, 0],
+            "y": xy[:, 1],
+            "z": np.full(len(suggestions), round(float(frame.z_to_input(z_m)), 3)),
+            "geozone": [s.geozone for s in suggestions],
+            "probability_inside": [round(s.probability_inside, 3) for s in suggestions],
+            "reason": [reason(s, probability, unit, mpu) for s in suggestions],
+        }
+    )
+    if labels is not None:
+        table.insert(0, "pattern_hole", [labels[s.candidate] for s in suggestions])
+    return table
+
+
+def write_suggestions(path: str | Path, table: pd.DataFrame) -> Path:
+    """Write a suggestions table as CSV, atomically (floats as their shortest exact repr)."""
+    atomic_write_text(Path(path), table.to_csv(index=False))
+    return Path(path)
+
+
+def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list, float | None]:
+    """A planned blast pattern: hole positions (local metres), their identifiers, and their elevation if given.
+
+    The table (CSV or Parquet, read as the blasthole table is) needs x and y
+    columns, found by the same names (``x/east/easting``, ``y/north/northing``,
+    any case); a ``z`` column gives the bench's elevation (input units, the
+    median), a ``hole_id`` column the identifiers (else the data line numbers).
+
+    Raises
+    ------
+    BGMInputError
+        A missing column, a value that is not a finite number, or fewer than one hole.
+    """
+    from core.errors import BGMInputError
+    from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, find_column
+    from core.io.tables import read_table
+
+    table = read_table(path)
+    columns = [str(c) for c in table.columns]
+    table.columns = columns
+    if not len(table):
+        raise BGMInputError(f"pattern {str(path)!r} has no holes")
+    values = {}
+    for role in ("x", "y", "z"):
+        try:
+            column = find_column(columns, role)
+        except BGMInputError as exc:
+            if role == "z" and not any(c.strip().lower() in COLUMN_ALIASES["z"] for c in columns):
+                continue
+            # The input's --x/--y/--z options do not apply to the pattern: its columns go by name.
+            message = re.sub(r";? (name it|choose one) with --\w+ COLUMN", "", str(exc))
+            raise BGMInputError(f"pattern {str(path)!r}: {message}") from None
+        number = pd.to_numeric(table[column], errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(number))
+        if len(bad):
+            raise BGMInputError(
+                f"pattern {str(path)!r}: column {column!r} has {len(bad)} missing or non-numeric value(s) "
+                f"(first on data line {int(bad[0]) + table.attrs.get('first_data_line', 2)})"
+            )
+        values[role] = number
+    xy = holes.frame.to_local(values["x"], values["y"])
+    ids = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES), None)
+    first = int(table.attrs.get("first_data_line", 2))
+    labels = table[ids].astype(str).tolist() if ids is not None else [str(first + i) for i in range(len(table))]
+    z = float(np.median(values["z"])) if "z" in values else None
+    return xy, labels, z
+
+
+def plot_sampling_map(plan, holes: Blastholes, path: str | Path, title: str = "") -> Path | None:
+    """A map of the band and the suggested holes on the bench to sample (PNG), or None without matplotlib.
+
+    ``plan`` is a :class:`core.model.sampling.SamplingPlan`: its sections'
+    band (shaded) and predicted boundary (line), the candidate holes (grey
+    dots) and the suggestions (red, numbered in the order chosen), in the
+    input's coordinates.
+    """
+    try:
+        from matplotlib.figure import Figure  # a bare Figure renders with Agg, no pyplot global state
+    except ImportError:
+        return None
+    import shapely
+
+    fig = Figure(figsize=(6.5, 6.0), dpi=110)
+    ax = fig.add_subplot()
+    for section in plan.sections.values():
+        for poly in to_input_geometry(section.band, holes).geoms:  # the band, shaded (its holes left white)
+            ax.fill(*np.asarray(poly.exterior.coords).T, color="#f4a261", alpha=0.45, lw=0)
+            for ring in poly.interiors:
+                ax.fill(*np.asarray(ring.coords).T, color="white", lw=0)
+        for poly in to_input_geometry(section.predicted, holes).geoms:  # the predicted boundary
+            for ring in [poly.exterior, *poly.interiors]:
+                ax.plot(*np.asarray(ring.coords).T, color="#264653", lw=1.0)
+    cand = holes.frame.to_input(plan.candidates_m)
+    ax.scatter(cand[:, 0], cand[:, 1], s=2, color="#adb5bd", label="candidate holes")
+    chosen = holes.frame.to_input(np.array([s.xy_m for s in plan.suggestions], float).reshape(-1, 2))
+    ax.scatter(chosen[:, 0], chosen[:, 1], s=18, color="#d62828", label="suggested", zorder=3)
+    if len(chosen):
+        lo, hi = chosen.min(axis=0), chosen.max(axis=0)
+        bands = [to_input_geometry(s.outer, holes) for s in plan.sections.values() if not s.outer.is_empty]
+        if bands:
+            bx0, by0, bx1, by1 = shapely.union_all(bands).bounds
+            lo, hi = np.minimum(lo, [bx0, by0]), np.maximum(hi, [bx1, by1])
+        pad = 0.05 * float(np.max(hi - lo)) + 1.0
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.tick_params(labelsize=7)
+    unit = holes.frame.length_unit
+    ax.set_title(title or f"z = {float(holes.frame.z_to_input(plan.z_m)):g} {unit}", fontsize=9)
+    ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    with atomic_path(Path(path)) as tmp:
+        fig.savefig(tmp, format="png")
+    return Path(path)

@@ -1,0 +1,342 @@
+"""Where to sample next: the holes whose labels would most reduce the boundaries' uncertainty.
+
+The paper's Discussion ends on adaptive sampling: a predicted slope is worth
+having because it makes the next drilling and assaying "more targeted and
+cost-effective". Given the calibrated :class:`core.model.uncertainty.SectionUncertainty`
+of one or more geozones on the next bench, this module chooses ``N`` holes
+among candidates (a planned blast pattern, or the last bench's pattern laid
+over the ground that can be drilled next) greedily:
+
+* the information a label at a point carries about a geozone is the binary
+  entropy of ``P(inside)`` there (bits): 1 on the predicted boundary when it
+  is uncertain, 0 deep inside or far outside;
+* a candidate is worth what it would tell about its neighbourhood: the
+  information summed over candidates nearby, weighted by
+  ``exp(-d^2 / 2 l^2)`` (``l`` about a hole spacing, :data:`INFLUENCE_SPACINGS`);
+* holes in a band (of any of the geozones) are chosen before the others;
+* after each choice the information near it is discounted by the same
+  weight (``H <- H (1 - exp(-d^2 / 2 l^2))``), so the next hole goes where
+  the boundary is still unknown rather than next to the last one.
+
+Several geozones share one budget: their information adds up, and a hole
+discounts it for all of them. :func:`revealed_field` is the other half: the
+predicted section updated with the labels of the holes revealed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy import ndimage, sparse, special
+from scipy.spatial import cKDTree
+
+from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty, z_score
+
+#: Reach of a label's information (the ``l`` of the module docstring), in hole spacings: a label tells about
+#: the boundary about two holes around it (chosen on tuning seeds, ``bench_uncertainty.py --tuning``).
+INFLUENCE_SPACINGS = 2.0
+#: Neighbours further than this many ``l`` carry no weight.
+KERNEL_REACH = 3.0
+
+
+@dataclass(frozen=True)
+class DrillPattern:
+    """A blast pattern as a lattice: holes at ``origin + i along + j across`` for whole ``i, j`` (local metres).
+
+    ``along_m`` is the step between neighbouring holes of a row, ``across_m``
+    the step to the nearest hole of the next row (in a staggered pattern it
+    is offset by half a spacing along the row; a staggered pattern is the
+    same lattice whichever of its three short directions is taken as rows).
+    """
+
+    along_m: tuple[float, float]
+    across_m: tuple[float, float]
+    origin_m: tuple[float, float]
+
+    @property
+    def spacing_m(self) -> float:
+        """Distance between holes along a row."""
+        return float(np.hypot(*self.along_m))
+
+    @property
+    def burden_m(self) -> float:
+        """Distance between rows."""
+        (ax, ay), (bx, by) = self.along_m, self.across_m
+        return float(abs(ax * by - ay * bx) / self.spacing_m)
+
+    @property
+    def azimuth_rad(self) -> float:
+        """Direction of the rows from the +x axis, in ``[0, pi)``."""
+        return float(np.mod(np.arctan2(self.along_m[1], self.along_m[0]), np.pi))
+
+    def lattice(self) -> np.ndarray:
+        """``[along, across]`` as the columns of a 2 x 2 matrix."""
+        return np.column_stack([self.along_m, self.across_m])
+
+
+def estimate_pattern(xy: np.ndarray, neighbours: int = 6) -> DrillPattern:
+    """The blast pattern of a bench's holes (``(n, 2)`` local metres, at least 3 holes).
+
+    The vectors from each hole to its ``neighbours`` nearest holes, those no
+    longer than 1.5 times the median nearest-neighbour distance, are the
+    lattice's short steps. Folded onto half a turn, their most frequent
+    direction (one-degree histogram smoothed over five) gives the rows, the
+    most frequent of the others the next row; each step is the mean of the
+    steps within 10 degrees of its direction (jitter averages out over
+    thousands of steps, where a median of lengths would not place holes 30
+    rows away). The lattice is then refined by least squares on every hole's
+    whole lattice coordinates, and the origin is the hole nearest the centre.
+    A single row gets a square pattern.
+    """
+    xy = np.asarray(xy, float)
+    if len(xy) < 3:
+        raise ValueError("a pattern needs at least three holes")
+    k = min(neighbours, len(xy) - 1)
+    d, idx = cKDTree(xy).query(xy, k=k + 1)
+    steps = (xy[idx[:, 1:]] - xy[:, None, :]).reshape(-1, 2)
+    length = d[:, 1:].ravel()
+    steps = steps[(length > 0) & (length <= 1.5 * np.median(d[:, 1]))]
+    along = _step_direction(steps)
+    unit = along / np.hypot(*along)
+    across_steps = steps[np.abs(unit[0] * steps[:, 1] - unit[1] * steps[:, 0]) > 0.25 * np.hypot(*along)]
+    if len(across_steps):
+        across = _step_direction(across_steps)
+    else:  # a single row
+        across = np.array([-along[1], along[0]])
+    centre = xy[np.argmin(np.sum((xy - xy.mean(axis=0)) ** 2, axis=1))]
+    basis = np.column_stack([along, across])
+    for _ in range(2):  # least squares on the whole lattice coordinates of the holes that fit
+        ij = np.round(np.linalg.solve(basis, (xy - centre).T).T)
+        fit = np.hypot(*(xy - centre - ij @ basis.T).T) < 0.3 * min(np.hypot(*along), np.hypot(*across))
+        if fit.sum() < 3:
+            break
+        design = np.column_stack([np.ones(fit.sum()), ij[fit]])
+        solution = np.linalg.lstsq(design, xy[fit], rcond=None)[0]
+        centre, basis = solution[0], solution[1:].T
+    return DrillPattern(tuple(basis[:, 0]), tuple(basis[:, 1]), (float(centre[0]), float(centre[1])))
+
+
+def _step_direction(steps: np.ndarray) -> np.ndarray:
+    """The mean of the steps along their most frequent direction (folded onto half a turn)."""
+    angle = np.mod(np.arctan2(steps[:, 1], steps[:, 0]), np.pi)
+    counts = np.bincount(np.minimum(np.degrees(angle).astype(int), 179), minlength=180).astype(float)
+    peak = np.radians(int(np.argmax(ndimage.uniform_filter1d(counts, 5, mode="wrap"))) + 0.5)
+    unit = np.array([np.cos(peak), np.sin(peak)])
+    near = np.abs(((np.degrees(angle - peak) + 90) % 180) - 90) <= 10
+    folded = steps[near] * np.sign(steps[near] @ unit)[:, None]
+    return folded.mean(axis=0)
+
+
+def lay_out(pattern: DrillPattern, area) -> np.ndarray:
+    """The pattern's holes inside ``area`` (a shapely polygon, local metres), ``(n, 2)``."""
+    if area.is_empty:
+        return np.zeros((0, 2))
+    basis = pattern.lattice()
+    corners = np.array(shapely.get_coordinates(shapely.envelope(area))) - np.asarray(pattern.origin_m)
+    ij = np.linalg.solve(basis, corners.T).T
+    lo, hi = np.floor(ij.min(axis=0)) - 1, np.ceil(ij.max(axis=0)) + 1
+    i, j = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1), indexing="ij")
+    xy = np.asarray(pattern.origin_m) + np.column_stack([i.ravel(), j.ravel()]) @ basis.T
+    return xy[shapely.contains_xy(area, xy[:, 0], xy[:, 1])]
+
+
+def binary_entropy(p: np.ndarray) -> np.ndarray:
+    """``-p log2 p - (1 - p) log2 (1 - p)``, bits (0 at 0 and 1)."""
+    p = np.clip(np.asarray(p, float), 1e-12, 1 - 1e-12)
+    return -(p * np.log2(p) + (1 - p) * np.log2(1 - p))
+
+
+@dataclass(frozen=True)
+class Suggestion:
+    """One suggested hole.
+
+    ``candidate`` indexes the candidates it was chosen from; ``geozone`` is
+    the one whose boundary it tells most about, with its ``probability_inside``
+    there and ``distance_m``, the signed distance to its predicted boundary
+    (positive inside); ``in_band`` whether it lies in that geozone's band;
+    ``information`` the bits it was expected to bring (its neighbourhood's).
+    """
+
+    candidate: int
+    xy_m: tuple[float, float]
+    geozone: str
+    probability_inside: float
+    distance_m: float
+    in_band: bool
+    information: float
+
+
+def suggest_holes(
+    sections: Mapping[str, SectionUncertainty],
+    candidates_m: np.ndarray,
+    budget: int,
+    hole_spacing_m: float,
+) -> list[Suggestion]:
+    """Choose ``budget`` of the candidates whose labels would most reduce the sections' uncertainty.
+
+    Parameters
+    ----------
+    sections : mapping of geozone -> SectionUncertainty
+        The predicted sections on the bench to sample (one budget for all).
+    candidates_m : (n, 2) float
+        Where holes can go (local metres): a planned pattern, or :func:`lay_out`.
+    budget : int
+        Holes to choose (at most ``n``).
+    hole_spacing_m : float
+        Sets the reach of a label's information (:data:`INFLUENCE_SPACINGS`).
+
+    Returns
+    -------
+    list of Suggestion
+        In the order chosen (most informative first).
+    """
+    xy = np.asarray(candidates_m, float).reshape(-1, 2)
+    names = list(sections)
+    if not len(xy) or not names or budget <= 0:
+        return []
+    at = {g: sections[g].at(xy) for g in names}
+    info = np.stack([binary_entropy(at[g][2]) for g in names])  # (geozones, candidates)
+    weights = influence_matrix(xy, INFLUENCE_SPACINGS * hole_spacing_m)
+    score = weights @ info.sum(axis=0)
+    # A hole outside every band would tell what the prediction already knows there: holes in a band go first.
+    in_band = np.any([sections[g].in_band(xy) for g in names], axis=0)
+    chosen: list[Suggestion] = []
+    for _ in range(min(int(budget), len(xy))):
+        first = np.where(in_band, score, -np.inf)
+        c = int(np.argmax(first if np.isfinite(first).any() else score))
+        chosen.append(_suggestion(c, xy, names, at, info, sections, float(score[c])))
+        row = weights.getrow(c)
+        near, w = row.indices, row.data
+        before = info[:, near].sum(axis=0)
+        info[:, near] *= 1.0 - w
+        score += weights[:, near] @ (info[:, near].sum(axis=0) - before)
+        score[c] = -np.inf
+    return chosen
+
+
+def influence_matrix(xy: np.ndarray, influence_m: float):
+    """Sparse ``exp(-d^2 / 2 l^2)`` between points within :data:`KERNEL_REACH` ``l`` (1 on the diagonal)."""
+    tree = cKDTree(xy)
+    pairs = tree.sparse_distance_matrix(tree, KERNEL_REACH * influence_m, output_type="coo_matrix")
+    weights = sparse.coo_matrix(
+        (np.exp(-(pairs.data**2) / (2 * influence_m**2)), (pairs.row, pairs.col)), shape=(len(xy), len(xy))
+    ).tocsr()
+    return weights + sparse.identity(len(xy), format="csr")  # the zero distances left out above
+
+
+def _suggestion(c, xy, names, at, info, sections, information) -> Suggestion:
+    """The suggestion of candidate ``c``, told for the geozone it informs most (else the nearest boundary)."""
+    if info[:, c].max() > 0:
+        k = int(np.argmax(info[:, c]))
+    else:
+        k = int(np.argmin([abs(at[g][0][c]) for g in names]))
+    g = names[k]
+    f, s, p = (float(v[c]) for v in at[g])
+    band = abs(f) <= z_score(sections[g].probability) * s
+    return Suggestion(c, (float(xy[c, 0]), float(xy[c, 1])), g, p, f, bool(band), information)
+
+
+def reason(suggestion: Suggestion, probability: float, unit: str, metres_per_unit: float) -> str:
+    """A short reason for a suggestion, e.g. ``boundary band 90%, 3.2 m from predicted contact (inside)``."""
+    distance = abs(suggestion.distance_m) / metres_per_unit
+    side = "inside" if suggestion.distance_m > 0 else "outside"
+    where = f"boundary band {probability:.0%}" if suggestion.in_band else f"beyond the {probability:.0%} band"
+    return f"{where}, {distance:.1f} {unit} from predicted contact ({side})"
+
+
+def revealed_field(
+    section: SectionUncertainty, xy_m: np.ndarray, inside: np.ndarray, hole_spacing_m: float
+) -> np.ndarray:
+    """The predicted signed distance updated with the labels of revealed holes.
+
+    Each label says on which side of the boundary its hole lies. Under the
+    prediction's ``N(F, sigma^2)`` at the hole, that makes ``F`` there a
+    truncated normal, whose mean and variance (inverse Mills ratio ``lambda``:
+    ``F + sign sigma lambda`` and ``sigma^2 (1 - lambda (lambda + sign F /
+    sigma))``) are taken as an observation of ``F`` (variance at least half
+    a hole spacing squared: where holes place a boundary). The residuals are
+    spread by simple kriging with covariance ``sigma(x) sigma(y) exp(-d^2 / 2 l^2)``
+    (``l`` as in :func:`suggest_holes`): a hole corrects the section around
+    it, not the whole bench.
+
+    Returns
+    -------
+    (rows, cols) float
+        The updated field on the section's grid; ``> 0`` is the updated section.
+    """
+    xy = np.asarray(xy_m, float).reshape(-1, 2)
+    if not len(xy):
+        return section.field.copy()
+    f, s, _ = section.at(xy)
+    sign = np.where(np.asarray(inside, bool), 1.0, -1.0)
+    a = sign * f / s
+    mills = np.exp(-0.5 * a**2 - 0.5 * np.log(2 * np.pi) - special.log_ndtr(a))  # phi(a) / Phi(a), stable in the tails
+    mean = f + sign * s * mills
+    var = np.maximum(s**2 * (1 - mills * (mills + a)), (0.5 * hole_spacing_m) ** 2)
+    ell = INFLUENCE_SPACINGS * hole_spacing_m
+    rho = influence_matrix(xy, ell).toarray()
+    cov = s[:, None] * s[None, :] * rho + np.diag(var)
+    weights = np.linalg.solve(cov, mean - f)
+    # sum_i weights_i s_i rho(x, x_i) on the grid: impulses smoothed by a Gaussian of l (peak 1).
+    grid = section.grid
+    rc = np.clip(np.round(grid.xy_to_rc(xy)).astype(int), 0, np.array(grid.shape) - 1)
+    impulses = np.zeros(grid.shape)
+    np.add.at(impulses, (rc[:, 0], rc[:, 1]), weights * s)
+    width = ell / grid.cell_size_m
+    spread = ndimage.gaussian_filter(impulses, width, mode="constant", truncate=KERNEL_REACH) * (2 * np.pi * width**2)
+    return section.field + section.sigma * spread
+
+
+def next_bench_candidates(holes, bench: int | None = None) -> np.ndarray:
+    """Where the next bench's holes would go without a planned pattern, ``(n, 2)`` local metres.
+
+    The pattern of bench ``bench`` (the deepest by default; :func:`estimate_pattern`)
+    laid over its drilled area: a pit narrows with depth, so the next bench
+    lies under the last one, drilled on the same spacing and orientation.
+    """
+    k = holes.n_benches - 1 if bench is None else int(bench)
+    xy = holes.xy[holes.on_bench(k)]
+    if len(xy) < 3:
+        raise ValueError(f"bench {holes.bench_z_input(k)} has {len(xy)} hole(s); its pattern needs three or more")
+    return lay_out(estimate_pattern(xy), holes.drilled_area(k))
+
+
+@dataclass
+class SamplingPlan:
+    """Suggested holes on one bench for one or more geozones, and what they were chosen from."""
+
+    z_m: float
+    probability: float
+    candidates_m: np.ndarray
+    sections: dict[str, SectionUncertainty]
+    suggestions: list[Suggestion]
+
+
+def plan_sampling(
+    session,
+    geozones: list[str],
+    budget: int,
+    z_m: float,
+    candidates_m: np.ndarray | None = None,
+    probability: float = DEFAULT_PROBABILITY,
+) -> SamplingPlan:
+    """Choose ``budget`` holes at elevation ``z_m`` for ``geozones`` (one budget shared by all).
+
+    ``session`` is a :class:`core.model.session.ModelSession`; candidates are
+    a planned pattern's holes, or :func:`next_bench_candidates`. Geozones
+    without a predicted section there with its uncertainty (at a bench level)
+    take no part.
+    """
+    spacing = float(session.holes.hole_spacing_m)
+    if candidates_m is None:
+        candidates_m = next_bench_candidates(session.holes)
+    sections = {}
+    for g in geozones:
+        section = geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
+        if section is not None:
+            sections[g] = section
+    chosen = suggest_holes(sections, candidates_m, budget, spacing)
+    return SamplingPlan(float(z_m), float(probability), np.asarray(candidates_m, float), sections, chosen)

@@ -1,0 +1,662 @@
+"""How sure a predicted section is: a calibrated scale, P(inside) and a band around the boundary.
+
+Below the deepest bench a geozone's section is ``{F(z) > 0}``, ``F`` the
+extrapolated signed distance of :class:`core.model.extrapolation.DepthTrend`.
+The error of ``F`` at a point of the true boundary is the (signed) distance
+from that point to the predicted boundary. This module models it as
+``N(0, sigma^2)`` with a per-cell scale built from what the trend knows
+(paper, Discussion: slope predictions to target sampling)::
+
+    sigma^2 = (c0 s)^2 + (c1 h d)^2 + (c2 p |r| d)^2 + (c3 (1 - p) |r| d)^2
+
+with ``s`` the hole spacing, ``h`` the bench height, ``d`` the depth below
+the cell's last observed bench in bench heights, ``r`` its change of ``F`` per
+bench and ``p`` its persistence. The terms are: where holes can place a
+boundary at all (``s``); the vertical distance to the last observation (a
+boundary dipping at 45 degrees moves across itself by as much); the movement
+the prediction carries on (its disagreement with holding the last bench, the
+nil reference); and the movement it does not carry on (its disagreement with
+the linear reference).
+
+The coefficients are calibrated by backtesting on the geozone's own benches
+(:func:`backtest`): every known bench ``j >= 2`` is predicted from the benches
+above it, one and two benches up, and the signed distance from the points of
+its true boundary (its own ``F_j = 0`` set inside its drilled area) to the
+predicted boundary is measured. :func:`fit_scale` fits the coefficients by
+maximum likelihood and then scales them so that exactly the share ``q`` of
+the backtest errors falls inside ``z_q sigma`` (a quantile calibration, robust
+to the heavy tails of bodies that appear). With too few benches to backtest,
+the backtests of the input's other geozones are pooled; with none at all, the
+documented prior :data:`PRIOR_COEFFICIENTS` is used.
+
+From the calibrated ``sigma``: ``P(inside) = Phi(F / sigma)`` and the band
+that holds the true boundary with probability ``q`` is
+``{|F| <= z_q sigma}``, between the inner polygon ``{F >= z_q sigma}`` and the
+outer polygon ``{F > -z_q sigma}``.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy import ndimage, optimize, stats
+from shapely.geometry import MultiPolygon
+from skimage import measure
+
+from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.sdf import region_signed_distance
+from core.model.extrapolation import BenchFields, DepthTrend, depth_trend, last_observations
+from core.model.pipeline import GeozoneModel
+from core.model.prediction import predict_geozone
+
+#: Default probability that the band holds the true boundary.
+DEFAULT_PROBABILITY = 0.9
+#: Names of the terms of the scale, in the order of the coefficients.
+TERMS = ("spacing", "depth", "carried movement", "held movement", "inconsistent movement")
+#: Coefficients used when neither the geozone nor the input's other geozones can be backtested:
+#: half a hole spacing (where holes can place a boundary), a bench height per bench of depth (a
+#: boundary of unknown dip, taken at 45 degrees), and all of the movement the prediction does not carry on.
+PRIOR_COEFFICIENTS = (0.5, 1.0, 0.0, 1.0, 1.0)
+#: How far above a backtested bench its prediction is made from, in benches.
+BACKTEST_DEPTHS = (1, 2)
+#: A geozone's own backtest is used when it covers this many benches and boundary points.
+MIN_BACKTEST_BENCHES = 2
+MIN_BACKTEST_POINTS = 30
+#: Weight of a backtest relative to one made knowing one bench more (see :func:`fit_scale`).
+RECENCY = 0.25
+#: Neighbourhood over which the consistency of the movement is measured, in hole spacings.
+CONSISTENCY_SPACINGS = 3.0
+#: A change of the signed distance faster than this many bench heights per bench is a body appearing or
+#: vanishing, not a boundary moving (a dip of 34 degrees); it is left out of the movement's consistency.
+FASTEST_MOVE_BENCHES = 1.5
+#: Boundary rings around fewer holes than this are label noise, not boundaries (see :func:`boundary_points`);
+#: the pipeline's ``min_component_holes``.
+NOISE_RING_HOLES = 3
+
+
+@dataclass
+class Backtest:
+    """Errors of a geozone's backtested predictions at points of the true boundary.
+
+    Attributes
+    ----------
+    error_m : (n,) float
+        Predicted signed distance ``F_pred`` at each true boundary point,
+        metres: positive where the prediction reaches past the true boundary.
+    terms_m : (n, 5) float
+        The scale's terms (:data:`TERMS`) at each point, metres.
+    bench : (n,) int
+        Index (in the fields, top first) of the bench each point lies on.
+    depth : (n,) int
+        How many benches above it the prediction was made from.
+    known : (n,) int
+        How many benches were known when it was made.
+    """
+
+    error_m: np.ndarray
+    terms_m: np.ndarray
+    bench: np.ndarray
+    depth: np.ndarray
+    known: np.ndarray
+
+    @classmethod
+    def empty(cls) -> Backtest:
+        return cls(np.zeros(0), np.zeros((0, len(TERMS))), *(np.zeros(0, int) for _ in range(3)))
+
+    @classmethod
+    def concat(cls, parts: Sequence[Backtest]) -> Backtest:
+        parts = [p for p in parts if len(p.error_m)]
+        if not parts:
+            return cls.empty()
+        return cls(
+            np.concatenate([p.error_m for p in parts]),
+            np.concatenate([p.terms_m for p in parts]),
+            np.concatenate([p.bench for p in parts]),
+            np.concatenate([p.depth for p in parts]),
+            np.concatenate([p.known for p in parts]),
+        )
+
+    def subset(self, keep: np.ndarray) -> Backtest:
+        return Backtest(self.error_m[keep], self.terms_m[keep], self.bench[keep], self.depth[keep], self.known[keep])
+
+    @property
+    def benches(self) -> int:
+        """Number of distinct benches backtested."""
+        return len(np.unique(self.bench))
+
+
+@dataclass(frozen=True)
+class UncertaintyScale:
+    """Calibrated coefficients of the scale ``sigma`` (see the module docstring).
+
+    ``source`` says where they come from: ``"own backtest"``, ``"pooled
+    backtest"`` (the input's other geozones) or ``"prior"``; ``points`` and
+    ``benches`` how much backtest they rest on.
+    """
+
+    coefficients: tuple[float, ...]
+    source: str
+    points: int = 0
+    benches: int = 0
+
+    def sigma(self, terms_m: np.ndarray) -> np.ndarray:
+        """``sigma`` (metres) from the terms (last axis of ``terms_m``, metres)."""
+        c = np.asarray(self.coefficients, float)
+        return np.sqrt(np.sum((terms_m * c) ** 2, axis=-1))
+
+
+def scale_terms(fields: BenchFields, trend: DepthTrend, z_m: float, hole_spacing_m: float) -> np.ndarray:
+    """The scale's terms (:data:`TERMS`) on the trend's grid at elevation ``z_m``, ``(rows, cols, 5)`` metres.
+
+    ``fields`` are the benches the trend extrapolates (for the consistency of their movement).
+    """
+    depth = np.abs(trend.z_last - z_m) / trend.bench_height_m  # bench heights from the last observation, either way
+    movement = np.abs(trend.rate) * depth
+    return np.stack(
+        [
+            np.full(trend.f_last.shape, hole_spacing_m),
+            depth * trend.bench_height_m,
+            trend.persistence * movement,
+            (1.0 - trend.persistence) * movement,
+            movement_inconsistency(fields, CONSISTENCY_SPACINGS * hole_spacing_m) * depth,
+        ],
+        axis=-1,
+    )
+
+
+def predicted_region(fields: BenchFields, z_m: float, hole_spacing_m: float) -> MultiPolygon:
+    """The section the model predicts at ``z_m`` from ``fields`` alone (outside their benches).
+
+    :func:`core.model.prediction.predict_geozone` on a model that knows only
+    the fields: below the deepest bench (above the top one) it extrapolates
+    them, exactly as ``bgm predict`` and ``bgm build`` do.
+    """
+    model = GeozoneModel("", [], [], fields=fields)
+    return predict_geozone(model, [float(z_m)], hole_spacing_m)[float(z_m)]
+
+
+def section_distance(fields: BenchFields, region) -> np.ndarray:
+    """Signed distance to a predicted section's boundary on the fields' grid (metres, positive inside), capped.
+
+    Errors, scales and bands are distances, so the section is measured
+    afresh (:func:`core.geometry.sdf.region_signed_distance`): exact near its
+    boundary, by distance transform elsewhere, capped as the fields are (a
+    boundary that far says nothing here).
+    """
+    cap = float(np.max(np.abs(fields.distance))) if fields.distance.size else 0.0
+    if region.is_empty:
+        return np.full(fields.grid.shape, -cap)
+    return np.clip(region_signed_distance(fields.grid, region), -cap, cap)
+
+
+def movement_inconsistency(fields: BenchFields, smoothing_m: float) -> np.ndarray:
+    """How much the movement changed between the last two bench pairs, metres per bench (RMS nearby).
+
+    With ``d1 = F_k - F_k-1`` and ``d2 = F_k-1 - F_k-2`` (as
+    :func:`core.model.extrapolation.local_persistence`), the root mean square
+    of ``d1 - d2`` over a Gaussian neighbourhood of ``smoothing_m``, where the
+    three benches drilled the cell and the changes are movements (not bodies
+    appearing). 0 for a boundary moving steadily, twice the movement for one
+    that reverses; 0 with fewer than three benches (nothing measured).
+    """
+    if len(fields.z_m) < 3:
+        return np.zeros(fields.grid.shape)
+    d1 = fields.distance[-1] - fields.distance[-2]
+    d2 = fields.distance[-2] - fields.distance[-3]
+    seen = np.prod(fields.drilled[-3:], axis=0).astype(float)
+    h = float(abs(fields.z_m[-2] - fields.z_m[-1]))
+    fastest = FASTEST_MOVE_BENCHES * h
+    w = seen * ((np.abs(d1) <= fastest) & (np.abs(d2) <= fastest))
+    sigma = smoothing_m / fields.grid.cell_size_m
+    energy = ndimage.gaussian_filter(w * (d1 - d2) ** 2, sigma)
+    support = ndimage.gaussian_filter(w, sigma)
+    return np.sqrt(np.where(support > 0.05, energy / np.maximum(support, 1e-9), 0.0))
+
+
+def boundary_points(distance: np.ndarray, drilled: np.ndarray, grid: Grid, min_ring_area_m2: float = 0.0) -> np.ndarray:
+    """Points of a bench's boundary (its ``F = 0`` set) between drilled cells, ``(n, 2)`` metres.
+
+    Marching squares on ``F``; a point counts where the cells around it were
+    drilled (the drilled area shrunk by a cell), so the drilling frontier and
+    the reach past it are never taken for a boundary. Closed rings enclosing
+    less than ``min_ring_area_m2`` are left out: a ring around a hole or two
+    is a mislabelled assay to the model (it leaves components of fewer than
+    ``min_component_holes`` out between benches), not a boundary it predicts.
+    Points are about a cell apart.
+    """
+    inner = ndimage.binary_erosion(drilled, iterations=1)
+    min_cells = min_ring_area_m2 / grid.cell_size_m**2
+    rings = [c for c in measure.find_contours(distance, 0.0) if len(c) > 1 and not _small_ring(c, min_cells)]
+    if not rings or not inner.any():
+        return np.zeros((0, 2))
+    rc = np.concatenate(rings)
+    cell = np.clip(np.round(rc).astype(int), 0, np.array(distance.shape) - 1)
+    keep = inner[cell[:, 0], cell[:, 1]]
+    return grid.rc_to_xy(rc[keep])
+
+
+def _small_ring(rc: np.ndarray, min_cells: float) -> bool:
+    """Whether a marching-squares line is a closed ring enclosing fewer than ``min_cells`` cells."""
+    if not np.allclose(rc[0], rc[-1]):
+        return False
+    area = 0.5 * abs(np.dot(rc[:-1, 0], rc[1:, 1]) - np.dot(rc[1:, 0], rc[:-1, 1]))
+    return bool(area < min_cells)
+
+
+def noise_ring_area_m2(hole_spacing_m: float) -> float:
+    """Area of :data:`NOISE_RING_HOLES` holes of a staggered pattern (spacing times burden each)."""
+    return NOISE_RING_HOLES * hole_spacing_m**2 * np.sqrt(3) / 2
+
+
+def backtest(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, depths: Sequence[int] = BACKTEST_DEPTHS
+) -> Backtest:
+    """Predict each known bench from the benches above it and measure the errors at its true boundary.
+
+    Bench ``j`` is predicted from ``fields.down_to(z_{j-m})`` for every ``m``
+    in ``depths`` with ``j - m >= 0``: the trend's ``F`` at ``z_j`` is sampled
+    at the points of the ``F_j = 0`` set inside bench ``j``'s drilled area
+    (:func:`boundary_points`) that the known benches observed (elsewhere the
+    prediction rests on no evidence: a barely drilled top bench predicts
+    nothing), with the scale's terms there. Nothing below the predicting
+    bench is used. Predictions from a single bench (which hold it:
+    no movement is known yet) are kept apart, ``known == 1``, for the prior.
+    """
+    parts = []
+    grid = fields.grid
+    ring = noise_ring_area_m2(hole_spacing_m)
+    for j in range(1, len(fields.z_m)):
+        pts = boundary_points(fields.distance[j], fields.drilled[j], grid, ring)
+        if not len(pts):
+            continue
+        for m in depths:
+            if j - m < 0:
+                continue
+            known = fields.down_to(float(fields.z_m[j - m]))
+            seen = pts[_observed(known, pts)]
+            if not len(seen):
+                continue
+            trend = depth_trend(known, bench_height_m, hole_spacing_m)
+            z = float(fields.z_m[j])
+            error = grid.sample(section_distance(known, predicted_region(known, z, hole_spacing_m)), seen)
+            terms = scale_terms(known, trend, z, hole_spacing_m)
+            sampled = np.column_stack([grid.sample(terms[..., t], seen) for t in range(terms.shape[-1])])
+            n = len(seen)
+            parts.append(Backtest(error, sampled, np.full(n, j), np.full(n, m), np.full(n, j - m + 1)))
+    return Backtest.concat(parts)
+
+
+def _observed(fields: BenchFields, xy: np.ndarray) -> np.ndarray:
+    """Whether any of the benches observed the cell of each point: where the prediction rests on evidence."""
+    last = last_observations(fields)[0]
+    rc = np.clip(np.round(fields.grid.xy_to_rc(xy)).astype(int), 0, np.array(fields.grid.shape) - 1)
+    return last[rc[:, 0], rc[:, 1]] >= 0
+
+
+def _negative_log_likelihood(log_v: np.ndarray, t2: np.ndarray, e2: np.ndarray) -> float:
+    var = np.maximum(t2 @ np.exp(log_v), 1e-12)
+    return float(np.sum(np.log(var) + e2 / var))
+
+
+def fit_scale(samples: Backtest, probability: float = DEFAULT_PROBABILITY, source: str = "own backtest"):
+    """Coefficients of the scale fitted to backtest errors, calibrated to hold ``probability`` of them.
+
+    First the shape: maximum likelihood of ``error ~ N(0, sigma^2)`` over the
+    squared coefficients (log-parametrised, so they stay positive), started
+    from :data:`PRIOR_COEFFICIENTS`. Then the level: every coefficient is
+    multiplied by ``quantile(|error| / sigma, probability) / z_q``, so that
+    exactly the share ``probability`` of the backtest points lies within
+    ``z_q sigma`` of the predicted boundary, whatever the tails.
+    """
+    t2 = samples.terms_m**2
+    e2 = samples.error_m**2
+    start = np.log(np.maximum(np.asarray(PRIOR_COEFFICIENTS, float) ** 2, 1e-4))
+    result = optimize.minimize(
+        _negative_log_likelihood, start, args=(t2, e2), method="L-BFGS-B", bounds=[(-18.0, 6.0)] * len(TERMS)
+    )
+    coefficients = np.sqrt(np.exp(result.x))
+    sigma = np.sqrt(np.maximum(t2 @ coefficients**2, 1e-12))
+    # The level from the next-bench predictions where there are enough (what the band is mostly for),
+    # the recent ones weighing more: they were made knowing as many benches as the prediction will.
+    next_bench = samples.depth == 1 if np.sum(samples.depth == 1) >= MIN_BACKTEST_POINTS else np.ones(len(e2), bool)
+    weight = RECENCY ** (samples.known.max() - samples.known)
+    ratio = np.abs(samples.error_m) / sigma
+    level = weighted_quantile(ratio[next_bench], weight[next_bench], probability) / z_score(probability)
+    coefficients = coefficients * max(float(level), 1e-3)
+    return UncertaintyScale(tuple(float(c) for c in coefficients), source, int(len(samples.error_m)), samples.benches)
+
+
+def weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
+    """The ``q`` quantile of ``values`` with ``weights`` (the smallest value whose weight share reaches ``q``)."""
+    order = np.argsort(values)
+    share = np.cumsum(weights[order]) / np.sum(weights)
+    return float(values[order][min(int(np.searchsorted(share, q)), len(values) - 1)])
+
+
+def calibrate(
+    own: Backtest,
+    pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
+    probability: float = DEFAULT_PROBABILITY,
+) -> UncertaintyScale:
+    """The geozone's :class:`UncertaintyScale`, from the best backtest there is.
+
+    In order, the first that covers :data:`MIN_BACKTEST_BENCHES` benches and
+    :data:`MIN_BACKTEST_POINTS` points (benches of different geozones count
+    apart: they are different boundaries):
+
+    1. its own backtest, predictions from two benches or more (what the
+       trend does: it needs two benches to see movement);
+    2. the same pooled with the backtests of the input's other geozones
+       (``pooled``, or a function giving them: only called when needed);
+    3. all of those including predictions from a single bench, which hold
+       it: a prior from how far the input's boundaries move per bench;
+    4. :data:`PRIOR_COEFFICIENTS`, not calibrated.
+    """
+    own_trended = own.subset(own.known >= 2)
+    if _enough([own_trended]):
+        return _fitted([own_trended], probability, "own backtest")
+    others = list(pooled() if callable(pooled) else pooled)
+    candidates = (
+        ("pooled backtest", [own_trended, *(b.subset(b.known >= 2) for b in others)]),
+        ("pooled single-bench backtest", [own, *others]),
+    )
+    for source, parts in candidates:
+        if _enough(parts):
+            return _fitted(parts, probability, source)
+    return UncertaintyScale(PRIOR_COEFFICIENTS, "prior", 0, 0)
+
+
+def _enough(parts: Sequence[Backtest]) -> bool:
+    points = sum(len(p.error_m) for p in parts)
+    return sum(p.benches for p in parts if len(p.error_m)) >= MIN_BACKTEST_BENCHES and points >= MIN_BACKTEST_POINTS
+
+
+def _fitted(parts: Sequence[Backtest], probability: float, source: str) -> UncertaintyScale:
+    scale = fit_scale(Backtest.concat(parts), probability, source)
+    benches = sum(p.benches for p in parts if len(p.error_m))
+    return UncertaintyScale(scale.coefficients, source, scale.points, benches)
+
+
+def z_score(probability: float) -> float:
+    """``z_q``: a two-sided band of ``z_q`` standard deviations holds ``probability`` of a normal error."""
+    return float(stats.norm.ppf(0.5 + probability / 2))
+
+
+@dataclass
+class SectionUncertainty:
+    """How sure the predicted section of a geozone at one elevation is (all on the trend's grid).
+
+    Attributes
+    ----------
+    grid : Grid
+    z_m : float
+    probability : float
+        The band's probability ``q`` of holding the true boundary.
+    field : (rows, cols) float
+        Predicted signed distance to the boundary ``F_pred`` (metres, positive inside).
+    sigma : (rows, cols) float
+        Calibrated scale of its error (metres).
+    scale : UncertaintyScale
+    """
+
+    grid: Grid
+    z_m: float
+    probability: float
+    field: np.ndarray
+    sigma: np.ndarray
+    scale: UncertaintyScale
+
+    @property
+    def half_width(self) -> np.ndarray:
+        """How far the band reaches on either side of the predicted boundary, ``z_q sigma`` (metres)."""
+        return z_score(self.probability) * self.sigma
+
+    @property
+    def inside_probability(self) -> np.ndarray:
+        """``P(inside) = Phi(F / sigma)`` on the grid."""
+        return stats.norm.cdf(self.field / np.maximum(self.sigma, 1e-9))
+
+    @property
+    def predicted(self) -> MultiPolygon:
+        """The predicted section ``{F > 0}``."""
+        return self._region(self.field)
+
+    @property
+    def inner(self) -> MultiPolygon:
+        """Inside with probability ``(1 + q) / 2`` or more: ``{F >= z_q sigma}``."""
+        return self._region(self.field - self.half_width)
+
+    @property
+    def outer(self) -> MultiPolygon:
+        """Everything that may be inside: ``{F > -z_q sigma}``."""
+        return self._region(self.field + self.half_width)
+
+    @property
+    def band(self) -> MultiPolygon:
+        """Where the true boundary lies with probability ``q``: outer minus inner."""
+        return as_multipolygon(self.outer.difference(self.inner))
+
+    def at(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``F_pred``, ``sigma`` and ``P(inside)`` at points ``xy`` (``(n, 2)`` metres)."""
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        f = self.grid.sample(self.field, xy)
+        s = np.maximum(self.grid.sample(self.sigma, xy), 1e-9)
+        return f, s, stats.norm.cdf(f / s)
+
+    def in_band(self, xy: np.ndarray) -> np.ndarray:
+        """Whether each point lies in the band, ``|F_pred| <= z_q sigma``."""
+        f, s, _ = self.at(xy)
+        return np.abs(f) <= z_score(self.probability) * s
+
+    def _region(self, field: np.ndarray) -> MultiPolygon:
+        return self.grid.polygons_from_field(field, 0.0) if (field > 0).any() else MultiPolygon()
+
+
+def _bench_height(fields: BenchFields) -> float:
+    levels = fields.z_m
+    return float(np.median(-np.diff(levels))) if len(levels) > 1 else 1.0
+
+
+def _direction(fields: BenchFields, down: bool) -> BenchFields:
+    """The fields in the order they are extrapolated: top first downwards, bottom first upwards."""
+    return fields if down else fields.reversed()
+
+
+def direction_scale(
+    fields: BenchFields,
+    down: bool,
+    hole_spacing_m: float,
+    probability: float = DEFAULT_PROBABILITY,
+    pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
+) -> UncertaintyScale:
+    """The calibrated scale of predictions below the deepest bench (``down``) or above the top one."""
+    used = _direction(fields, down)
+    return calibrate(backtest(used, _bench_height(fields), hole_spacing_m), pooled, probability)
+
+
+def _sigma(fields: BenchFields, down: bool, z_m: float, hole_spacing_m: float, scale: UncertaintyScale) -> np.ndarray:
+    used = _direction(fields, down)
+    trend = depth_trend(used, _bench_height(fields), hole_spacing_m)
+    return scale.sigma(scale_terms(used, trend, z_m, hole_spacing_m))
+
+
+def section_uncertainty(
+    fields: BenchFields,
+    z_m: float,
+    hole_spacing_m: float,
+    probability: float = DEFAULT_PROBABILITY,
+    pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
+    region=None,
+    scales: dict[bool, UncertaintyScale] | None = None,
+) -> SectionUncertainty | None:
+    """The predicted section at ``z_m`` with its calibrated uncertainty (None at a bench level).
+
+    Below the deepest bench (above the top one) the scale is calibrated on
+    the benches' backtest in that direction. Between two benches the section
+    is constrained from both sides: its scale combines the extrapolations
+    from the bench above and from the bench below, ``1 / sigma^2 = 1 /
+    sigma_down^2 + 1 / sigma_up^2`` (each calibrated; their combination is
+    not backtested, as there is no bench between benches to test it on).
+
+    Parameters
+    ----------
+    fields : BenchFields
+        The geozone's benches (``GeozoneModel.fields``).
+    z_m : float
+        Elevation, metres.
+    hole_spacing_m : float
+    probability : float
+        The band's probability of holding the true boundary, in (0, 1).
+    pooled : sequence of Backtest, or a function giving them
+        Backtests of the input's other geozones, used when this one's own
+        backtest is too short (see :func:`calibrate`).
+    region : Polygon or MultiPolygon, optional
+        The predicted section (what ``bgm predict`` wrote); by default
+        predicted from the fields (:func:`predicted_region`, outside the benches only).
+    scales : dict, optional
+        Scales already calibrated, by direction (``True``: down); filled in as calibrated.
+
+    Returns
+    -------
+    SectionUncertainty or None
+        None at a bench level, where the section is the bench's contours, and
+        between benches without ``region``.
+    """
+    ways = directions(fields, z_m)
+    if not ways or (len(ways) == 2 and region is None):
+        return None
+    scales = {} if scales is None else scales
+    sigmas = []
+    for down in ways:
+        if down not in scales:
+            scales[down] = direction_scale(fields, down, hole_spacing_m, probability, pooled)
+        # Between benches each direction extrapolates only the benches on its side.
+        known = fields.down_to(z_m) if down else BenchFields(*_below(fields, z_m))
+        sigmas.append((_sigma(known, down, z_m, hole_spacing_m, scales[down]), scales[down]))
+    sigma = 1.0 / np.sqrt(sum(1.0 / np.maximum(s, 1e-9) ** 2 for s, _ in sigmas))
+    if region is None:
+        region = predicted_region(fields, z_m, hole_spacing_m)
+    field = section_distance(fields, region)
+    return SectionUncertainty(fields.grid, float(z_m), float(probability), field, sigma, sigmas[0][1])
+
+
+def directions(fields: BenchFields, z_m: float) -> tuple[bool, ...]:
+    """How the section at ``z_m`` is extrapolated: ``(True,)`` down, ``(False,)`` up, both between benches, none at one."""
+    levels = fields.z_m
+    if not len(levels) or np.isclose(levels, z_m, atol=1e-6).any():
+        return ()
+    if levels[-1] < z_m < levels[0]:
+        return (True, False)
+    return (bool(z_m < levels[-1]),)
+
+
+def _below(fields: BenchFields, z_m: float) -> tuple:
+    """The fields of the benches below ``z_m`` (what extrapolating upwards to ``z_m`` rests on)."""
+    keep = fields.z_m <= z_m + 1e-6
+    return fields.grid, fields.z_m[keep], fields.distance[keep], fields.weight[keep], fields.drilled[keep]
+
+
+def band_width_m(section: SectionUncertainty, within=None) -> float:
+    """Median width of the band across the predicted boundary, ``2 z_q sigma`` there (metres; nan if none).
+
+    ``within`` (a polygon) limits the boundary points considered, e.g. to a drilled area.
+    """
+    rc = [c for c in measure.find_contours(section.field, 0.0) if len(c)]
+    if not rc:
+        return float("nan")
+    xy = section.grid.rc_to_xy(np.concatenate(rc))
+    if within is not None:
+        xy = xy[shapely.contains_xy(within, xy[:, 0], xy[:, 1])]
+    if not len(xy):
+        return float("nan")
+    _, s, _ = section.at(xy)
+    return float(np.median(2 * z_score(section.probability) * s))
+
+
+# ---------------------------------------------------------------------------
+# On a session: the geozones of one input, with backtests kept with the other stage results
+
+
+def session_backtest(session, geozone: str, down: bool = True, model: GeozoneModel | None = None) -> Backtest:
+    """The geozone's backtest (:func:`backtest`) in one direction, memoised in the session's store.
+
+    ``session`` is a :class:`core.model.session.ModelSession`; the key hashes
+    the geozone's bench fields, so a changed bench or parameter is backtested again.
+    """
+    from core.io.cache import content_key, engine_fingerprint
+
+    if model is not None and model.fields is not None:
+        fields = model.fields
+    else:
+        own = [c for c in session.contours() if c.geozone == geozone]
+        fields = session.bench_fields(geozone, own)
+    spacing = float(session.holes.hole_spacing_m)
+    key = content_key("backtest", engine_fingerprint(), fields.z_m, fields.distance, fields.drilled, spacing, down)
+    return session.store.get(
+        "backtest", key, lambda: backtest(_direction(fields, down), _bench_height(fields), spacing)
+    )
+
+
+def _backtests(session, geozones: list[str], down: bool) -> list[Backtest]:
+    return [session_backtest(session, g, down) for g in geozones]
+
+
+def geozone_uncertainty(
+    session,
+    geozone: str,
+    z_m: Sequence[float],
+    model: GeozoneModel | None = None,
+    probability: float = DEFAULT_PROBABILITY,
+    regions: dict | None = None,
+) -> dict[float, SectionUncertainty | None]:
+    """The calibrated uncertainty of the geozone's predicted section at each elevation (metres).
+
+    Parameters
+    ----------
+    session : core.model.session.ModelSession
+    geozone : str
+    z_m : sequence of float
+    model : GeozoneModel, optional
+        The geozone's model (computed by the session when omitted).
+    probability : float
+        The band's probability of holding the true boundary.
+    regions : dict, optional
+        The predicted sections by elevation (``session.predict``); predicted when omitted.
+
+    Returns
+    -------
+    dict of float -> SectionUncertainty or None
+        None at bench levels (the section is the bench's contours) and where
+        the geozone has no fields.
+
+    Notes
+    -----
+    The scale is calibrated on the geozone's own backtest; when that is too
+    short, the backtests of the input's other geozones are pooled (computed
+    only then; see :func:`calibrate`).
+    """
+    if not 0 < probability < 1:
+        raise ValueError(f"the band's probability must lie between 0 and 1, got {probability}")
+    model = model or session.geozone_model(geozone)
+    z_m = [float(z) for z in z_m]
+    if model.fields is None or not len(model.fields.z_m):
+        return dict.fromkeys(z_m)
+    regions = regions if regions is not None else session.predict(geozone, z_m, model)
+    spacing = float(session.holes.hole_spacing_m)
+    scales: dict[bool, UncertaintyScale] = {}
+    out: dict[float, SectionUncertainty | None] = {}
+    others = [g for g in session.holes.geozones if g != geozone]
+    for z in z_m:
+        for down in directions(model.fields, z):
+            if down not in scales:
+                scales[down] = calibrate(
+                    session_backtest(session, geozone, down, model),
+                    functools.partial(_backtests, session, others, down),
+                    probability,
+                )
+        out[z] = section_uncertainty(model.fields, z, spacing, probability, region=regions.get(z), scales=scales)
+    return out

@@ -1,0 +1,229 @@
+"""Where to sample next: the uncertainty band of a predicted section and the holes suggested to pin it down."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import shapely
+from clirun import bgm
+from shapely.geometry import box
+
+from core.geometry.grid import Grid
+from core.model.extrapolation import bench_fields
+from core.model.sampling import estimate_pattern, lay_out, revealed_field, suggest_holes
+from core.model.uncertainty import band_width_m, section_uncertainty
+
+SPACING_M = 5.0
+HEIGHT_M = 10.0
+BENCHES = 6
+SIDE_M = 160.0
+
+
+def strip_fields(offsets_m):
+    """Fields of a strip 30 m wide crossing the pit north-south, its west edge at ``20 + offset`` m on each bench."""
+    grid = Grid.covering((0.0, 0.0, SIDE_M, SIDE_M), SPACING_M / 2, margin_cells=4)
+    regions = {k: box(50.0 + dx, -50.0, 80.0 + dx, SIDE_M + 50.0) for k, dx in enumerate(offsets_m)}
+    drilled = {k: grid.rasterize(box(0.0, 0.0, SIDE_M, SIDE_M)) for k in regions}
+    z = {k: 1000.0 - HEIGHT_M * k for k in regions}
+    return bench_fields(regions, drilled, z, grid, SPACING_M, 3 * SPACING_M)
+
+
+STEADY = [3.0 * k for k in range(BENCHES)]  # 3 m east per bench: a steady dip
+REVERSING = [8.0 * (k % 2) for k in range(BENCHES)]  # 8 m east, 8 m back, every bench
+
+
+def next_section(offsets):
+    fields = strip_fields(offsets)
+    return section_uncertainty(fields, float(fields.z_m[-1] - HEIGHT_M), SPACING_M, 0.9)
+
+
+def pattern_holes(offset=(0.0, 0.0)):
+    """A staggered 5 x 4.5 m pattern over the pit, rows along x."""
+    rows = np.arange(2.0, SIDE_M - 2, 4.5)
+    holes = [(x + (2.5 if i % 2 else 0.0), y) for i, y in enumerate(rows) for x in np.arange(2.0, SIDE_M - 4, 5.0)]
+    return np.array(holes) + np.asarray(offset)
+
+
+def test_a_steadily_dipping_strip_gets_a_narrow_band_that_holds_its_next_bench():
+    section = next_section(STEADY)
+    width = band_width_m(section)
+    assert width < 2.5 * SPACING_M
+    # The strip carries on: its west edge at 68 m on the next bench lies in the band, and the band is about it.
+    truth = np.column_stack([np.full(20, 68.0), np.linspace(20, 140, 20)])
+    assert section.in_band(truth).all()
+    assert section.scale.source == "own backtest"
+
+
+def test_movement_that_reverses_every_bench_gets_a_wide_band():
+    narrow = band_width_m(next_section(STEADY))
+    wide = band_width_m(next_section(REVERSING))
+    assert wide > 2 * narrow
+    # Either way the movement goes next, the edge stays in the band.
+    section = next_section(REVERSING)
+    for west in (50.0, 58.0):
+        assert section.in_band(np.column_stack([np.full(10, west), np.linspace(20, 140, 10)])).all()
+
+
+def test_probability_inside_is_one_half_on_the_predicted_boundary_and_runs_from_0_to_1():
+    section = next_section(REVERSING)
+    f, s, p = section.at(np.array([[30.0, 80.0], [10.0, 80.0], [70.0, 80.0]]))
+    assert p[1] < 0.05 and p[2] > 0.95
+    assert section.inner.within(section.predicted.buffer(1e-6))
+    assert section.predicted.within(section.outer.buffer(1e-6))
+
+
+@pytest.mark.parametrize("offsets", [STEADY, REVERSING], ids=["steady", "reversing"])
+def test_suggestions_fall_in_the_band_not_deep_inside_or_far_outside(offsets):
+    section = next_section(offsets)
+    candidates = pattern_holes()
+    chosen = suggest_holes({"strip": section}, candidates, 12, SPACING_M)
+    assert len(chosen) == 12
+    xy = np.array([c.xy_m for c in chosen])
+    assert section.in_band(xy).all()
+    assert all(0.02 < c.probability_inside < 0.98 for c in chosen)
+    # Spread along both edges, not piled up next to each other.
+    assert np.ptp(xy[:, 1]) > SIDE_M / 2
+    west = xy[:, 0] < np.mean(section.predicted.bounds[::2])
+    assert 0 < west.sum() < len(xy)
+
+
+def test_several_geozones_share_one_budget():
+    sections = {"steady": next_section(STEADY), "reversing": next_section(REVERSING)}
+    chosen = suggest_holes(sections, pattern_holes(), 10, SPACING_M)
+    assert len(chosen) == 10
+    assert {c.geozone for c in chosen} == {"steady", "reversing"}
+
+
+def test_a_planned_pattern_is_respected():
+    rng = np.random.default_rng(3)
+    planned = pattern_holes()[rng.random(len(pattern_holes())) < 0.6]
+    chosen = suggest_holes({"strip": next_section(REVERSING)}, planned, 15, SPACING_M)
+    picked = np.array([c.xy_m for c in chosen])
+    assert len({c.candidate for c in chosen}) == 15
+    np.testing.assert_array_equal(picked, planned[[c.candidate for c in chosen]])
+
+
+def test_the_pattern_of_a_bench_is_recovered_and_laid_out_again():
+    angle = np.radians(30.0)
+    rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    xy = pattern_holes() @ rot.T + np.random.default_rng(0).normal(0, 0.2, (len(pattern_holes()), 2))
+    pattern = estimate_pattern(xy)
+    # A staggered pattern is a lattice that more than one row direction describes; its area per hole is its own.
+    assert pattern.spacing_m * pattern.burden_m == pytest.approx(5.0 * 4.5, rel=0.08)
+    assert min(pattern.spacing_m, pattern.burden_m) == pytest.approx(4.5, abs=0.4)
+    area = shapely.MultiPoint(xy).convex_hull.buffer(-2.0)
+    again = lay_out(pattern, area)
+    assert len(again) == pytest.approx(np.sum(shapely.contains_xy(area, xy[:, 0], xy[:, 1])), rel=0.1)
+    # Laid out again, the holes fall on the bench's holes (within the jitter), not between them.
+    from scipy.spatial import cKDTree
+
+    assert np.median(cKDTree(xy).query(again)[0]) < 1.0
+
+
+def test_revealed_labels_pull_the_section_to_the_truth():
+    section = next_section(REVERSING)  # holds the last bench: the west edge at 58 m; it goes back to 50 m
+    xy = pattern_holes()
+    truth_inside = (xy[:, 0] > 50.0) & (xy[:, 0] < 80.0)
+    near = np.abs(xy[:, 0] - 54.0) < 6.0
+    probe = np.array([[53.0, 80.0], [46.0, 80.0], [65.0, 80.0]])
+    before = section.grid.sample(section.field, probe)
+    after = section.grid.sample(revealed_field(section, xy[near], truth_inside[near], SPACING_M), probe)
+    assert before[0] < 0 < after[0]  # now inside, as it is
+    assert after[1] < 0 < after[2]  # and the rest of the section where it was
+
+
+# --------------------------------------------------------------------------- command line
+
+
+@pytest.fixture(scope="module")
+def strip_csv(tmp_path_factory):
+    """A small pit: a strip dipping steadily east under host rock, on staggered 5 x 4.5 m patterns."""
+    rows = []
+    for k, dx in enumerate(STEADY):
+        for i, (x, y) in enumerate(pattern_holes()):
+            label = "ore" if 50.0 + dx <= x <= 80.0 + dx else "host"
+            rows.append((f"b{k}h{i}", 400_000.0 + x, 7_000_000.0 + y, 1000.0 - HEIGHT_M * k, label))
+    path = tmp_path_factory.mktemp("strip") / "strip.csv"
+    pd.DataFrame(rows, columns=["hole_id", "x", "y", "z", "geozone"]).to_csv(path, index=False)
+    return path
+
+
+def test_suggest_writes_budget_rows_in_input_coordinates(strip_csv, tmp_path):
+    out = tmp_path / "s.csv"
+    run = bgm("suggest", strip_csv, "--geozone", "ore", "--budget", "8", "--out", out)
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["suggested"] == 8 and summary["z"] == pytest.approx(940.0)
+    table = pd.read_csv(out)
+    assert list(table.columns) == ["x", "y", "z", "geozone", "probability_inside", "reason"]
+    assert len(table) == 8 and (table["z"] == 940.0).all()
+    # Next to the strip's edges as they will be at 940 (68 and 98 m east of the origin), in mine coordinates.
+    east = table["x"] - 400_000.0
+    assert (np.minimum(np.abs(east - 68.0), np.abs(east - 98.0)) < 3 * SPACING_M).all()
+    assert table["probability_inside"].between(0, 1).all() and table["reason"].str.contains("band").all()
+
+
+def test_suggest_picks_from_a_planned_pattern(strip_csv, tmp_path):
+    planned = pd.DataFrame(pattern_holes((1.0, 1.0)) + [400_000.0, 7_000_000.0], columns=["X", "Y"])
+    planned.insert(0, "hole_id", [f"p{i}" for i in range(len(planned))])
+    planned["Z"] = 935.0
+    path = tmp_path / "planned.csv"
+    planned.to_csv(path, index=False)
+    out = tmp_path / "s.csv"
+    run = bgm("suggest", strip_csv, "--geozone", "ore,host", "--budget", "6", "--pattern", path, "--out", out)
+    assert run.returncode == 0, run.stderr
+    table = pd.read_csv(out)
+    assert len(table) == 6 and (table["z"] == 935.0).all()
+    merged = table.merge(planned, left_on="pattern_hole", right_on="hole_id")
+    assert len(merged) == 6
+    np.testing.assert_allclose(merged[["x", "y"]].to_numpy(), merged[["X", "Y"]].to_numpy())
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--budget", "0"], "--budget must be 1 or more"),
+        (["--budget", "3", "--elevation", "1000"], "not below the deepest bench"),
+        (["--budget", "3", "--elevation", "500"], "bench heights below the deepest bench"),
+        (["--budget", "3", "--band-probability", "1.5"], "--band-probability"),
+        (["--budget", "3", "--geozone", "nope"], "nope"),
+    ],
+)
+def test_suggest_bad_input_gets_one_line_and_exit_2(strip_csv, tmp_path, extra, message):
+    run = bgm("suggest", strip_csv, "--geozone", "ore", *extra, "--out", tmp_path / "s.csv")
+    assert run.returncode == 2
+    assert message in run.stderr and "Traceback" not in run.stderr
+    assert not (tmp_path / "s.csv").exists()
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [("a,b\n1,2\n", "no x column"), ("x,y\n1,2\nfoo,3\n", "non-numeric"), ("x,y\n", "no holes")],
+)
+def test_suggest_bad_pattern_gets_one_line_and_exit_2(strip_csv, tmp_path, content, message):
+    path = tmp_path / "planned.csv"
+    path.write_text(content)
+    run = bgm("suggest", strip_csv, "--geozone", "ore", "--budget", "3", "--pattern", path, "--out", tmp_path / "s.csv")
+    assert run.returncode == 2, run.stderr
+    assert message in run.stderr and len(run.stderr.strip().splitlines()) <= 2
+
+
+def test_predict_writes_bands_and_probability_grid_beside_its_output(strip_csv, tmp_path):
+    out = tmp_path / "p.geojson"
+    run = bgm("predict", strip_csv, "--geozone", "ore", "--elevations", "945,940,975", "--out", out)
+    assert run.returncode == 0, run.stderr
+    predicted = json.loads(out.read_text())["features"]
+    assert {tuple(sorted(f["properties"])) for f in predicted} == {("area_m2", "geozone", "z")}
+    bands = json.loads((tmp_path / "p.uncertainty.geojson").read_text())["features"]
+    kinds = {(f["properties"]["z"], f["properties"]["kind"]) for f in bands}
+    assert {(945.0, "band"), (940.0, "inner"), (940.0, "outer"), (975.0, "band")} <= kinds
+    grid = np.load(tmp_path / "p.p_inside.npz")
+    assert list(grid["z"]) == [945.0, 940.0, 975.0]
+    assert grid["p_inside"].shape == (3, len(grid["y"]), len(grid["x"]))
+    # Inside the strip's predicted position at 940 (68-98 m east) and outside it.
+    col = lambda east: int(np.argmin(np.abs(grid["x"] - 400_000.0 - east)))  # noqa: E731
+    row = int(np.argmin(np.abs(grid["y"] - 7_000_080.0)))
+    assert grid["p_inside"][1, row, col(83.0)] > 0.9 > 0.1 > grid["p_inside"][1, row, col(30.0)]

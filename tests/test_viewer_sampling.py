@@ -1,0 +1,60 @@
+"""The viewer's where-to-sample layers: band or probability map on the next bench, suggested holes with a budget."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+
+from bgm_viewer.builders import build_scene, parse_layers  # noqa: E402
+from bgm_viewer.sampling_layers import NextBench, SuggestedHolesLayer, UncertaintyLayer  # noqa: E402
+from bgm_viewer.testing import small_model  # noqa: E402
+
+warnings.filterwarnings("ignore", category=FutureWarning)
+
+
+@pytest.fixture(scope="module")
+def viewer_model():
+    return small_model(until="prediction")
+
+
+def test_layers_are_in_the_standard_scene_and_drawn_from_core(viewer_model):
+    assert parse_layers("band,suggestions") == ["uncertainty", "suggested holes"]
+    scene = build_scene(viewer_model.holes, viewer_model.result, viewer_model.selection, visible="band,suggestions")
+    band, holes = scene["uncertainty"], scene["suggested holes"]
+    assert isinstance(band, UncertaintyLayer) and isinstance(holes, SuggestedHolesLayer)
+    section = band.next_bench.section
+    assert section is not None
+    items = band.build(scene.view)
+    assert items, "the next bench's uncertainty is drawn"
+    z_next = section.z_m
+    # On the next bench's plane, where the probability is neither 0 nor 1.
+    probability_mesh = items[0].mesh
+    assert np.allclose(probability_mesh.points[:, 2], scene.view.z(z_next), atol=0.2)
+    xy = probability_mesh.points[:, :2]
+    _, _, p = section.at(xy)
+    assert ((p > 0.01) & (p < 0.99)).mean() > 0.9
+
+
+def test_budget_slider_shows_the_first_n_suggestions_in_the_band(viewer_model):
+    layer = SuggestedHolesLayer(NextBench(viewer_model.holes, viewer_model.result.model))
+    total = layer.n_frames
+    assert total > 3
+    events = []
+    layer.changed.connect(lambda _, what: events.append(what))
+    layer.frame = 2
+    assert layer.budget == 3 and events == ["frame"]
+    shown = layer.build()[0].mesh.points[:, :2]
+    np.testing.assert_allclose(shown, layer.next_bench.suggestions_m[:3])
+    assert layer.next_bench.section.in_band(shown).all()
+    layer.budget = total + 10
+    assert layer.budget == total
+
+
+def test_without_a_model_the_layers_are_empty(viewer_model):
+    nothing = NextBench(viewer_model.holes, None)
+    assert UncertaintyLayer(nothing).build() == [] and SuggestedHolesLayer(nothing).build() == []
+    assert SuggestedHolesLayer(nothing).n_frames == 1
