@@ -30,7 +30,7 @@ from superqt.utils import create_worker
 from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
-from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, refresh_scene
+from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, empty_layer_reasons, refresh_scene
 from .model import STEPS, ViewerModel, compute, display_unit, project_input
 from .scene import SceneRenderer, drag_on_plane
 
@@ -86,6 +86,7 @@ class ParamControl(QtWidgets.QWidget):
         symbol = f" ({spec.symbol})" if spec.symbol else ""
         unit = f" in {self.unit}" if self.unit else ""
         self.setToolTip(f"<b>{spec.label}{symbol}</b>{unit}<br>{spec.help}<br>Default: {default}")
+        self.slider.setToolTip(self.toolTip())
         self.set_value(value)
         if isinstance(self.slider, QtWidgets.QCheckBox):
             self.slider.toggled.connect(self._changed)
@@ -95,7 +96,8 @@ class ParamControl(QtWidgets.QWidget):
             self.auto.toggled.connect(self._changed)
 
     def set_value(self, value) -> None:
-        """Show ``value`` (engine units; ``None``: auto) without emitting."""
+        """Show ``value`` (engine units; ``None``: auto) without emitting; :meth:`value` returns it unchanged."""
+        self._shown = value
         for w in (self.slider, self.auto):
             if w is not None:
                 w.blockSignals(True)
@@ -113,15 +115,25 @@ class ParamControl(QtWidgets.QWidget):
                 w.blockSignals(False)
 
     def value(self):
-        """The value in engine units (``None`` when auto)."""
+        """The value in engine units (``None`` when auto).
+
+        The value last set is returned exactly; a value the user picked on the
+        slider is rounded to the slider's shown decimals in the input's units
+        first (a slider position maps to 0.4995 where the label reads 0.5).
+        """
         if self.auto is not None and self.auto.isChecked():
             return None
         if isinstance(self.slider, QtWidgets.QCheckBox):
             return self.slider.isChecked()
-        v = self.slider.value() / self._factor
-        return int(round(v)) if self.spec.integer else float(v)
+        if self._shown is not None:
+            return self._shown
+        if self.spec.integer:
+            return int(round(self.slider.value() / self._factor))
+        shown = round(float(self.slider.value()), self.slider.decimals())
+        return float(f"{shown / self._factor:.12g}")
 
     def _changed(self, *_) -> None:
+        self._shown = None  # the user moved it: read the slider
         if self.auto is not None:
             self.slider.setEnabled(not self.auto.isChecked())
         self.valueChanged.emit(self.spec.name, self.value())
@@ -350,13 +362,19 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.param_controls[spec.name] = ctl
             lay.addWidget(box)
         lay.addStretch(1)
-        self._dock("Parameters", w, Qt.DockWidgetArea.RightDockWidgetArea)
+        self._param_dock = self._dock("Parameters", w, Qt.DockWidgetArea.RightDockWidgetArea)
 
     def _build_alignment_panel(self) -> None:
         w = QtWidgets.QWidget()
         form = QtWidgets.QFormLayout(w)
+        unit = self.model.holes.frame.length_unit
         self.translation_label = QtWidgets.QLabel("-")
-        form.addRow("translation (m)", self.translation_label)
+        self.translation_label.setToolTip(
+            "How far the selected source component is moved onto the bench below before the"
+            " morph (the translation t of the paper's alignment step, section 3), in the input's units"
+        )
+        self._unit_labels = [QtWidgets.QLabel(f"translation ({unit})"), QtWidgets.QLabel(f"Ctrl+arrow step ({unit})")]
+        form.addRow(self._unit_labels[0], self.translation_label)
         self.dx_spin = QtWidgets.QDoubleSpinBox()
         self.dy_spin = QtWidgets.QDoubleSpinBox()
         for s in (self.dx_spin, self.dy_spin):
@@ -389,12 +407,14 @@ class MainWindow(QtWidgets.QMainWindow):
         self.nudge_step = QtWidgets.QDoubleSpinBox()
         self.nudge_step.setRange(0.1, 100.0)
         self.nudge_step.setValue(1.0)
-        form.addRow("Ctrl+arrow step (m)", self.nudge_step)
+        form.addRow(self._unit_labels[1], self.nudge_step)
         form.addRow(QtWidgets.QLabel("Shift + drag in the view moves the source on its bench."))
         for key, (dx, dy) in {"Left": (-1, 0), "Right": (1, 0), "Up": (0, 1), "Down": (0, -1)}.items():
             sc = QtWidgets.QShortcut(QtGui.QKeySequence(f"Ctrl+{key}"), self)
             sc.activated.connect(
-                lambda dx=dx, dy=dy: self.nudge(dx * self.nudge_step.value(), dy * self.nudge_step.value())
+                lambda dx=dx, dy=dy: self.nudge(
+                    dx * self.nudge_step.value() * self._mpu, dy * self.nudge_step.value() * self._mpu
+                )
             )
         self._dock("Manual alignment", w, Qt.DockWidgetArea.RightDockWidgetArea)
 
@@ -439,8 +459,10 @@ class MainWindow(QtWidgets.QMainWindow):
         d = self.drag_translation(self._drag_start, iren.GetEventPosition())
         if d is not None:
             cur = self.model.current_translation_m() or (0.0, 0.0)
+            tx, ty = ((c + v) / self._mpu for c, v in zip(cur, d))
             self.statusBar().showMessage(
-                f"dragging the source: translation {cur[0] + d[0]:.2f}, {cur[1] + d[1]:.2f} m (release to apply)"
+                f"dragging the source: translation {tx:.2f}, {ty:.2f} {self.model.holes.frame.length_unit}"
+                " (release to apply)"
             )
         self._swallow(event)
 
@@ -457,10 +479,20 @@ class MainWindow(QtWidgets.QMainWindow):
             self.nudge(float(d[0]), float(d[1]))
 
     # ------------------------------------------------------------------ layer panel
+    def empty_layers(self) -> dict[str, str]:
+        """``{name: why}`` of the visible layers that draw nothing."""
+        m = self.model
+        return empty_layer_reasons(
+            self.scene, m.holes, m.result, m.selection, lambda layer: not self.renderer.actors.get(layer.name)
+        )
+
     def _on_layer_item(self, item) -> None:
         layer = self.scene.get(item.text())
         if layer is not None:
             layer.visible = item.checkState() == Qt.CheckState.Checked
+            why = self.empty_layers().get(layer.name) if layer.visible and not self.busy else None
+            if why:
+                self.statusBar().showMessage(f"{layer.name} is empty: {why}", 10000)
 
     def _current_layer(self):
         item = self.layer_list.currentItem()
@@ -524,8 +556,15 @@ class MainWindow(QtWidgets.QMainWindow):
         if stage:
             self.request(stage, immediate=True)
 
+    @property
+    def _mpu(self) -> float:
+        """Metres per input unit (the panels speak the input's units, the model metres)."""
+        return float(self.model.holes.frame.metres_per_unit)
+
     def apply_translation(self) -> None:
-        self.request(self.model.set_translation(self.dx_spin.value(), self.dy_spin.value()), immediate=True)
+        """Lock the translation typed in the panel (input units)."""
+        dx, dy = self.dx_spin.value() * self._mpu, self.dy_spin.value() * self._mpu
+        self.request(self.model.set_translation(dx, dy), immediate=True)
 
     def nudge(self, ddx: float, ddy: float) -> None:
         self.request(self.model.nudge(ddx, ddy), immediate=True)
@@ -631,6 +670,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._worker = None
         self.last_run_seconds = time.perf_counter() - self._started
         errors = "; ".join(f"{k}: {v}" for k, v in self.model.result.errors.items())
+        empty = self.empty_layers()
+        errors += (" - " if errors and empty else "") + "; ".join(f"{k} is empty: {v}" for k, v in empty.items())
         self.statusBar().showMessage(f"done in {self.last_run_seconds:.2f} s" + (f" - {errors}" if errors else ""))
         self.progress_bar.setValue(100)
 
@@ -648,8 +689,9 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         locked = self.model.override_here()
         lock = " (locked)" if locked is not None and locked.translation is not None else ""
-        self.translation_label.setText(f"{t[0]:.2f}, {t[1]:.2f}{lock}")
-        for s, v in ((self.dx_spin, t[0]), (self.dy_spin, t[1])):
+        tx, ty = t[0] / self._mpu, t[1] / self._mpu
+        self.translation_label.setText(f"{tx:.2f}, {ty:.2f}{lock}")
+        for s, v in ((self.dx_spin, tx), (self.dy_spin, ty)):
             s.blockSignals(True)
             s.setValue(v)
             s.blockSignals(False)
@@ -675,8 +717,15 @@ class MainWindow(QtWidgets.QMainWindow):
         with self.renderer.batch():
             refresh_scene(self.scene, model.holes, model.result, model.selection)
         self._fill_selection()
-        for name, ctl in self.param_controls.items():
-            ctl.set_value(model.param(name))
+        # the sliders' units and ranges follow the input: build them again
+        old = self._param_dock
+        self._build_parameter_panel()
+        self.tabifyDockWidget(old, self._param_dock)
+        self.removeDockWidget(old)
+        old.deleteLater()
+        unit = model.holes.frame.length_unit
+        self._unit_labels[0].setText(f"translation ({unit})")
+        self._unit_labels[1].setText(f"Ctrl+arrow step ({unit})")
         self.ve_spin.setValue(model.vertical_exaggeration)
         self.renderer.set_camera("iso")
         self._update_title()

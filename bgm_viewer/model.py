@@ -349,6 +349,28 @@ def project_input(project_path) -> str | None:
     return str(path)
 
 
+def richest_pair(holes: Blastholes) -> tuple[str, int]:
+    """The geozone and upper bench of the bench pair where that geozone has the most holes on both benches.
+
+    The viewer opens there, so its stage layers (snake, GVF, morph) show
+    something: a geozone absent from the selected bench has no contour to
+    draw. A geozone holding over half the holes is taken for the host rock
+    around the bodies and passed over when there are others. Ties go to the
+    top bench and the first label; with one bench, the geozone with most holes on it.
+    """
+    n = holes.n_benches
+    zones = holes.geozones
+    counts = np.zeros((len(zones), max(n, 1)), int)
+    index = {g: i for i, g in enumerate(zones)}
+    np.add.at(counts, ([index[g] for g in holes.geozone], holes.bench), 1)
+    both = np.minimum(counts[:, :-1], counts[:, 1:]) if n > 1 else counts
+    host = counts.sum(axis=1) > 0.5 * len(holes.geozone)
+    if len(zones) > 1:
+        both[host] = -1
+    b, g = np.unravel_index(int(np.argmax(both.T)), both.T.shape)  # bench-major: ties go to the top
+    return zones[int(g)], int(b)
+
+
 class ViewerModel:
     """State of a viewing session; changes are announced on the psygnal signals below."""
 
@@ -365,9 +387,7 @@ class ViewerModel:
         self.params = ModelParameters()
         # One store for the whole session: every run shares what earlier ones computed.
         self.store = StageStore(StageCache() if cache else None)
-        zones = self.holes.geozones
-        default_zone = next((g for g in zones if g != zones[0]), zones[0]) if len(zones) > 1 else zones[0]
-        self.selection = selection or Selection(default_zone, 0, 0)
+        self.selection = selection or Selection(*richest_pair(self.holes), 0)
         self.vertical_exaggeration = 2.0
         self.overrides: list = []  # core.io.project.AlignmentOverride
         self._undo: list[list] = []

@@ -171,3 +171,26 @@ def test_no_prompt_when_saved(window, monkeypatch):
     )
     assert not window.model.dirty
     assert window.close()
+
+
+def test_panels_speak_the_inputs_units_and_sliders_keep_values(qtbot):
+    """A feet input: the alignment panel says ft and shows feet; a slider never rounds a value."""
+    model = ViewerModel(small_holes(unit="ft"))
+    win = MainWindow(model, debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        assert "(ft)" in win._unit_labels[0].text() and "(ft)" in win._unit_labels[1].text()
+        t_m = win.model.current_translation_m()
+        assert t_m is not None
+        np.testing.assert_allclose([win.dx_spin.value(), win.dy_spin.value()], np.divide(t_m, 0.3048), atol=0.01)
+        spacing = win.param_controls["snake_max_iterations"]  # any slider: values set are kept exactly
+        ctl = win.param_controls["entropy_threshold"]
+        ctl.set_value(0.5)
+        assert ctl.value() == 0.5
+        ctl.slider.setValue(0.5)  # as the user leaves it at the label's 0.5
+        assert win.model.param("entropy_threshold") == 0.5
+        assert spacing.toolTip() and spacing.slider.toolTip() == spacing.toolTip()
+    finally:
+        win.model.dirty = False
+        win.close()
