@@ -122,6 +122,7 @@ def build_scene(
         make_layers(holes, result, selection, predicted),
         vertical_exaggeration=vertical_exaggeration,
         z_ref=float(np.max(holes.bench_levels_m)),
+        frame=holes.frame,
     )
     scene.set_visible_only(parse_layers(visible))
     return scene
