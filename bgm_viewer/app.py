@@ -217,14 +217,17 @@ class MainWindow(QtWidgets.QMainWindow):
             visible=DEFAULT_VISIBLE,
             vertical_exaggeration=self.model.vertical_exaggeration,
         )
-        self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True)
-        self.renderer.set_camera("iso")
+        # the legend is a dock (GeozoneLegend): drawn in the view it covered the data
+        self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True, legend=False)
+        self._camera = "iso"
+        self._fitted = False
 
         self._build_menus()
         self._build_layer_panel()
         self._build_selection_panel()
         self._build_parameter_panel()
         self._build_alignment_panel()
+        self._build_view_panels()
         self.progress_bar = QtWidgets.QProgressBar()
         self.progress_bar.setRange(0, 100)
         self.progress_bar.setMaximumWidth(200)
@@ -261,8 +264,64 @@ class MainWindow(QtWidgets.QMainWindow):
             v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam))
 
     def set_camera(self, camera: str) -> None:
+        """Look from ``camera`` (see :meth:`SceneRenderer.set_camera`) and fit the visible data."""
+        self._camera = camera
         self.renderer.set_camera(camera)
         self.plotter.render()
+
+    def showEvent(self, event) -> None:
+        super().showEvent(event)
+        # fit once the docks are laid out: fitted before, Kennecott showed as a thin sliver
+        QtCore.QTimer.singleShot(0, lambda: self.set_camera(self._camera))
+
+    def _build_view_panels(self) -> None:
+        from .panels import GeozoneLegend, SectionPanel
+
+        self.legend = GeozoneLegend(self.renderer, self.model.holes)
+        self.legend.surfacesChanged.connect(self._on_shown_geozones)
+        self._dock("Geozones", self.legend, Qt.DockWidgetArea.LeftDockWidgetArea)
+        self.sections = SectionPanel(self.renderer, self.model.holes)
+        self._dock("Benches and section", self.sections, Qt.DockWidgetArea.LeftDockWidgetArea)
+
+        w = QtWidgets.QWidget()
+        form = QtWidgets.QFormLayout(w)
+        self.surface_scope = QtWidgets.QComboBox()
+        self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
+        self.surface_scope.setToolTip("Whose surfaces are built and shown (each is the one bgm build exports)")
+        self.surface_scope.currentIndexChanged.connect(self._on_shown_geozones)
+        form.addRow("surfaces of", self.surface_scope)
+        unit = self.model.holes.frame.length_unit
+        self.min_volume = QtWidgets.QDoubleSpinBox()
+        self.min_volume.setRange(0.0, 1e12)
+        self.min_volume.setDecimals(0)
+        self.min_volume.setKeyboardTracking(False)
+        self.min_volume.setToolTip(
+            "Bodies of a surface smaller than this are not shown: a lone mislabelled hole (label noise)"
+            " makes a small body of its own. The exported surfaces keep them."
+        )
+        self.min_volume.valueChanged.connect(self._on_body_filter)
+        self._volume_label = QtWidgets.QLabel(f"min body volume ({unit}³)")
+        form.addRow(self._volume_label, self.min_volume)
+        self.min_holes = QtWidgets.QSpinBox()
+        self.min_holes.setRange(0, 10000)
+        self.min_holes.setKeyboardTracking(False)
+        self.min_holes.setToolTip("Bodies holding fewer of their geozone's holes than this are not shown")
+        self.min_holes.valueChanged.connect(self._on_body_filter)
+        form.addRow("min holes in a body", self.min_holes)
+        self._dock("Surfaces", w, Qt.DockWidgetArea.LeftDockWidgetArea)
+
+    def _on_shown_geozones(self, *_) -> None:
+        """Whose surfaces are built changed (scope or legend ticks): build the ones missing."""
+        scope = self.surface_scope.currentIndex()
+        zones = None if scope == 0 else self.legend.shown() if scope == 1 else [self.model.selection.geozone]
+        if zones != self.model.surface_geozones:
+            self.model.surface_geozones = zones
+            self.request("surface", immediate=True)
+
+    def _on_body_filter(self, *_) -> None:
+        self.model.min_body_volume_m3 = self.min_volume.value() * self._mpu**3
+        self.model.min_body_holes = self.min_holes.value()
+        self.request("surface")
 
     def _dock(self, title: str, widget: QtWidgets.QWidget, area) -> QtWidgets.QDockWidget:
         dock = QtWidgets.QDockWidget(title, self)
@@ -328,6 +387,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self.geozone_list = self.geozone_combo  # alias used by tests / docs
         form.addRow("bench pair", self.bench_combo)
         form.addRow("source component", self.component_spin)
+        self.picked_label = QtWidgets.QLabel("click a hole, contour or surface")
+        self.picked_label.setWordWrap(True)
+        self.picked_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        form.addRow("picked", self.picked_label)
         self._dock("Selection", w, Qt.DockWidgetArea.LeftDockWidgetArea)
 
     def _fill_selection(self) -> None:
@@ -434,6 +497,19 @@ class MainWindow(QtWidgets.QMainWindow):
             ("LeftButtonReleaseEvent", self._on_release),
         ):
             self._mouse_tags[event] = iren.AddObserver(event, handler, 10.0)
+        # After a press the camera style holds the mouse and the release reaches only the style
+        # (pyvista issue 4976): a click (press and release in place) is seen there.
+        style = getattr(self.plotter.iren, "style", None)
+        if style is not None:
+            style.AddObserver("LeftButtonReleaseEvent", lambda *_: self._on_click_release(), 10.0)
+
+    def _on_click_release(self) -> None:
+        click, self._click_at = getattr(self, "_click_at", None), None
+        if click is None or self._drag_start is not None:
+            return
+        pos = self.plotter.iren.interactor.GetEventPosition()
+        if abs(pos[0] - click[0]) + abs(pos[1] - click[1]) <= 3:
+            self.pick(*pos)  # a click, not a turn of the camera
 
     def _swallow(self, event: str) -> None:
         self.plotter.iren.interactor.GetCommand(self._mouse_tags[event]).SetAbortFlag(1)
@@ -447,6 +523,7 @@ class MainWindow(QtWidgets.QMainWindow):
         return drag_on_plane(self.plotter, start_px, end_px, self._source_plane_z())
 
     def _on_press(self, iren, event) -> None:
+        self._click_at = tuple(iren.GetEventPosition())
         if not iren.GetShiftKey() or self.model.current_translation_m() is None:
             return
         self._drag_start = tuple(iren.GetEventPosition())
@@ -468,6 +545,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _on_release(self, iren, event) -> None:
         if self._drag_start is None:
+            self._on_click_release()
             return
         start, self._drag_start = self._drag_start, None
         self._swallow(event)
@@ -477,6 +555,58 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         if np.hypot(*d) > 0:
             self.nudge(float(d[0]), float(d[1]))
+
+    # ------------------------------------------------------------------ picking
+    def pick(self, x_px: float, y_px: float) -> dict | None:
+        """Report what is under display pixel ``(x_px, y_px)`` (VTK's, origin bottom left).
+
+        A hole: its id, geozone, bench and the input's other columns, in the
+        status bar and the Selection panel. A contour: its geozone, bench
+        pair and component become the selection. A surface: its geozone does.
+        Returns what was reported (``None``: nothing there).
+        """
+        hit = self.renderer.pick(x_px, y_px)
+        if hit is None:
+            return None
+        name, index = hit
+        layer = self.scene[name]
+        if name == "blastholes":
+            info = self.model.hole_info(index)
+        elif name in ("contours", "predicted contours"):
+            g, z, poly = layer.items[index]
+            info = {"geozone": g, f"elevation ({self.model.holes.frame.length_unit})": self._z_input(z)}
+            info.update(self._select_contour(g, z, poly))
+        elif name == "surfaces":
+            g = layer.meshes[index][0]
+            info = {"geozone": g, "surface": "shown as bgm build exports it"}
+            self._select(geozone=g, component=0)
+        else:
+            return None
+        if name != "blastholes":
+            self._fill_selection()
+        text = ", ".join(f"{k} {v}" for k, v in info.items())
+        self.picked_label.setText(text.replace(", ", "\n"))
+        self.statusBar().showMessage(f"picked {name[:-1] if name.endswith('s') else name}: {text}", 15000)
+        return info
+
+    def _z_input(self, z_m: float) -> float:
+        return round(float(self.model.holes.frame.z_to_input(z_m)), 3)
+
+    def _select_contour(self, geozone: str, z_m: float, polygon) -> dict:
+        """Select the bench pair and component of a picked contour (a modelled one; else its geozone only)."""
+        h = self.model.holes
+        bench = int(np.argmin(np.abs(h.bench_levels_m - z_m)))
+        if abs(h.bench_levels_m[bench] - z_m) > 1e-6:
+            self._select(geozone=geozone)
+            return {}
+        pair_bench = min(bench, max(h.n_benches - 2, 0))
+        sources = self.model.result.sources(type(self.model.selection)(geozone, pair_bench, 0))
+        component = next((i for i, c in enumerate(sources) if c.polygon is polygon), None)
+        if bench != pair_bench or component is None:
+            self._select(geozone=geozone, bench=pair_bench, component=0)
+            return {"bench pair": pair_bench}
+        self._select(geozone=geozone, bench=pair_bench, component=component)
+        return {"bench pair": pair_bench, "component": component}
 
     # ------------------------------------------------------------------ layer panel
     def empty_layers(self) -> dict[str, str]:
@@ -537,7 +667,9 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _on_ve(self, v: float) -> None:
         self.model.vertical_exaggeration = float(v)
-        self.scene.vertical_exaggeration = float(v)
+        with self.renderer.batch():
+            self.scene.vertical_exaggeration = float(v)
+            self.renderer.fit()  # the data got taller or flatter: fit them again
 
     def set_layer_visible(self, name: str, visible: bool) -> None:
         item = self.layer_list.findItems(name, Qt.MatchFlag.MatchExactly)[0]
@@ -654,6 +786,9 @@ class MainWindow(QtWidgets.QMainWindow):
         with self.renderer.batch():
             refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous)
         self._on_layer_row(None)
+        if not self._fitted and result.complete:
+            self._fitted = True  # fit once everything is drawn (the surface can reach below the benches)
+            self.renderer.fit()
         if self._first_update:
             self._first_update = False
             self.last_update_seconds = time.perf_counter() - self._request_time
@@ -727,6 +862,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._unit_labels[0].setText(f"translation ({unit})")
         self._unit_labels[1].setText(f"Ctrl+arrow step ({unit})")
         self.ve_spin.setValue(model.vertical_exaggeration)
+        self.legend.set_holes(model.holes)
+        self.sections.set_holes(model.holes)
+        self._fitted = False
         self.renderer.set_camera("iso")
         self._update_title()
         self.request("contours", immediate=True)

@@ -14,6 +14,7 @@ from .layers import (
     EdgeMapLayer,
     GVFLayer,
     Layer,
+    SelectedComponentsLayer,
     SnakeLayer,
     SurfaceLayer,
     TrajectoriesLayer,
@@ -33,9 +34,10 @@ LAYER_NAMES = (
     "trajectories",
     "predicted contours",
     "surfaces",
+    "selected components",
 )
 #: Shown when nothing else is asked for.
-DEFAULT_VISIBLE = ("blastholes", "contours", "snake", "trajectories", "surfaces")
+DEFAULT_VISIBLE = ("blastholes", "contours", "snake", "trajectories", "surfaces", "selected components")
 
 
 def _alias(name: str) -> str:
@@ -52,6 +54,8 @@ def _alias(name: str) -> str:
         "predicted": "predicted contours",
         "prediction": "predicted contours",
         "surface": "surfaces",
+        "selection": "selected components",
+        "selected": "selected components",
     }
     key = aliases.get(key, key)
     for n in LAYER_NAMES:
@@ -103,9 +107,19 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
         layers.append(TrajectoriesLayer())
     predicted = list(predicted) or list(getattr(result, "predicted", []))
     layers.append(ContoursLayer(predicted, colours, name="predicted contours", predicted=True, line_width=2.0))
-    surf = [(selection.geozone, result.surface)] if result.surface is not None else []
-    layers.append(SurfaceLayer.from_trimesh(surf, colours))
+    layers.append(SurfaceLayer.from_trimesh(sorted(result.surfaces.items()), colours))
+    layers.append(selected_components_layer(result))
     return layers
+
+
+def selected_components_layer(result: PipelineResult) -> SelectedComponentsLayer:
+    """The selected source component(s) and the target(s) they morph into (see :class:`SelectedComponentsLayer`)."""
+    m, pair = result.morph, result.pair
+    items = []
+    if m is not None and pair is not None:
+        for role, ids, contours in (("source", m.source_ids, pair.sources), ("target", m.target_ids, pair.targets)):
+            items.extend((role, contours[i].bench_z_m, contours[i].polygon) for i in ids if 0 <= i < len(contours))
+    return SelectedComponentsLayer(items)
 
 
 def build_scene(
@@ -147,10 +161,12 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
     if result.selected_contour(selection) is not previous.selected_contour(selection):
         out |= {"edge map", "GVF", "snake"}
     if result.morph is not previous.morph:
-        out |= {"wavefront", "trajectories"}
+        out |= {"wavefront", "trajectories", "selected components"}
     if result.predicted is not previous.predicted:
         out.add("predicted contours")
-    if result.surface is not previous.surface:
+    if result.surfaces.keys() != previous.surfaces.keys() or any(
+        m is not previous.surfaces.get(g) for g, m in result.surfaces.items()
+    ):
         out.add("surfaces")
     return out
 
@@ -235,6 +251,7 @@ EMPTY_REASONS = {
     "trajectories": _why_no_morph,
     "predicted contours": _why_no_model_output("prediction"),
     "surfaces": _why_no_model_output("surface"),
+    "selected components": _why_no_morph,
 }
 
 

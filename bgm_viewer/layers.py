@@ -35,6 +35,7 @@ __all__ = [
     "GVFLayer",
     "Layer",
     "MeshItem",
+    "SelectedComponentsLayer",
     "SnakeLayer",
     "SurfaceLayer",
     "TrajectoriesLayer",
@@ -376,6 +377,24 @@ class ContoursLayer(Layer):
         if self.predicted:
             return [("predicted (lighter shade)", LAYER_COLOURS["predicted"])] if self.items else []
         return [(f"geozone {g}", self.colour_of(g)) for g in sorted({g for g, _, _ in self.items})]
+
+
+class SelectedComponentsLayer(ContoursLayer):
+    """The selected source component(s) and their target(s), drawn wide; items are ``("source" | "target", z, polygon)``."""
+
+    kind = "selected_components"
+
+    def __init__(self, items=(), *, name="selected components", line_width: float = 6.0, **kw):
+        colours = {"source": LAYER_COLOURS["selected_source"], "target": LAYER_COLOURS["selected_target"]}
+        super().__init__(items, colours, name=name, line_width=line_width, **kw)
+
+    def _build(self, view):
+        lines, rgb, _ = self.rings(ViewTransform(view.vertical_exaggeration, view.z_ref))  # never hidden
+        return [MeshItem(polylines(lines, rgb), _line_style(self.line_width))]
+
+    def legend(self):
+        present = {role for role, _, _ in self.items}
+        return [(f"selected {role}", self.colours[role]) for role in ("source", "target") if role in present]
 
 
 # ---------------------------------------------------------------------------

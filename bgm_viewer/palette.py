@@ -37,6 +37,8 @@ LAYER_COLOURS: dict[str, tuple[int, int, int]] = {
     "wavefront": (255, 220, 120),
     "predicted": (240, 240, 240),
     "edge_map": (200, 200, 200),
+    "selected_source": (255, 255, 255),
+    "selected_target": (255, 250, 170),
 }
 
 

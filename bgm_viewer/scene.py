@@ -247,6 +247,37 @@ class SceneRenderer:
             actors.append(actor)
         self.actors[layer.name] = actors
 
+    # -- picking -----------------------------------------------------------
+    def pick(self, x_px: float, y_px: float, tolerance: float = 0.01) -> tuple[str, int] | None:
+        """The layer and item under display pixel ``(x_px, y_px)`` (VTK's: origin bottom left).
+
+        The item is what the layer's meshes carry for each point: a hole's
+        index (``"hole"``) or an item's index in the layer (``"item"``).
+        ``None`` when nothing pickable is under the pixel.
+        """
+        import vtk
+
+        picker = vtk.vtkPointPicker()
+        picker.SetTolerance(tolerance)
+        picker.PickFromListOn()
+        owner = {}
+        for name, actors in self.actors.items():
+            for actor in actors:
+                if actor.GetVisibility() and actor.GetPickable():
+                    picker.AddPickList(actor)
+                    owner[id(actor)] = name
+        if not owner or not picker.Pick(float(x_px), float(y_px), 0.0, self.plotter.renderer):
+            return None
+        actor, pid = picker.GetActor(), picker.GetPointId()
+        if actor is None or pid < 0 or id(actor) not in owner:
+            return None
+        data = actor.GetMapper().GetInput().GetPointData()
+        for key in ("hole", "item"):
+            arr = data.GetArray(key)
+            if arr is not None:
+                return owner[id(actor)], int(arr.GetTuple1(pid))
+        return None
+
     # -- clipping: a section plane and an elevation range ------------------
     def set_clip(self, axis: str | None, value: float = 0.0, keep: str = "below") -> None:
         """Cut the picture at ``axis`` (``"x"``, ``"y"``, ``"z"``; ``None`` for no cut) = ``value``.

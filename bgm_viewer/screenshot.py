@@ -34,6 +34,7 @@ _NEEDS = {
     "trajectories": "morph",
     "predicted contours": "prediction",
     "surfaces": "surface",
+    "selected components": "morph",
 }
 
 
