@@ -48,10 +48,12 @@ def no_aa_theme():
     return theme
 
 
-def plotter_for(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True):
-    """An off-screen plotter with ``scene`` drawn and the camera set."""
+def plotter_for(
+    scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True, bearings: bool = True
+):
+    """An off-screen plotter with ``scene`` drawn (with axes grid and scale bar unless ``bearings`` is false)."""
     plotter = pv.Plotter(off_screen=True, window_size=[int(v) for v in window_size], theme=no_aa_theme())
-    renderer = SceneRenderer(plotter, scene, legend=legend)
+    renderer = SceneRenderer(plotter, scene, legend=legend, bearings=bearings)
     renderer.set_camera(camera)
     return plotter, renderer
 
