@@ -252,6 +252,7 @@ class MainWindow(QtWidgets.QMainWindow):
         m.addSeparator()
         m.addAction("Export &screenshot...", self.export_screenshot_dialog)
         m.addAction("Export s&urface...", self.export_surface_dialog)
+        m.addAction("Export shown surfaces to a &folder...", self.export_surfaces_dialog)
         m.addSeparator()
         m.addAction("&Quit", self.close, QtGui.QKeySequence.StandardKey.Quit)
         e = self.menuBar().addMenu("&Edit")
@@ -260,8 +261,11 @@ class MainWindow(QtWidgets.QMainWindow):
         self.undo_action.triggered.connect(self.undo)
         e.addAction(self.undo_action)
         v = self.menuBar().addMenu("&View")
-        for cam in ("iso", "top", "front", "side"):
-            v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam))
+        for cam, key in (("iso", "I"), ("top", "T"), ("front", "F"), ("side", "S")):
+            v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam), QtGui.QKeySequence(f"Ctrl+{key}"))
+        v.addAction("Fit the data", lambda: (self.renderer.fit(), self.plotter.render()), QtGui.QKeySequence("Ctrl+0"))
+        h = self.menuBar().addMenu("&Help")
+        h.addAction("&Shortcuts", self.show_shortcuts, QtGui.QKeySequence("F1"))
 
     def set_camera(self, camera: str) -> None:
         """Look from ``camera`` (see :meth:`SceneRenderer.set_camera`) and fit the visible data."""
@@ -902,16 +906,57 @@ class MainWindow(QtWidgets.QMainWindow):
                 return False
         return self._guard(lambda: self.model.save_project(path))
 
-    def export_screenshot(self, path) -> None:
+    def export_screenshot(self, path, size: tuple[int, int] | None = None) -> None:
+        """The current view as a PNG, ``size`` pixels (width, height; default the view's), written atomically."""
         from core.io.atomic import atomic_path
 
         with atomic_path(path) as tmp:
-            self.plotter.screenshot(str(tmp))
+            self.plotter.screenshot(str(tmp), window_size=list(size) if size else None)
 
     def export_screenshot_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Export screenshot", "bgm.png", "PNG (*.png)")
-        if path:
-            self._guard(lambda: self.export_screenshot(path))
+        if not path:
+            return
+        w, h = self.plotter.window_size
+        text, ok = QtWidgets.QInputDialog.getText(self, "Picture size", "width x height in pixels", text=f"{w}x{h}")
+        if not ok:
+            return
+        try:
+            size = tuple(int(v) for v in text.lower().replace(" ", "").split("x"))
+            if len(size) != 2 or min(size) < 16 or max(size) > 16384:
+                raise ValueError
+        except ValueError:
+            QtWidgets.QMessageBox.warning(self, "BGM viewer", f"{text!r} is not a size: write it as 1920x1080")
+            return
+        self._guard(lambda: self.export_screenshot(path, size))
+
+    def export_surfaces(self, folder) -> dict[str, dict]:
+        """The shown surfaces, in every format ``bgm build`` writes, as ``folder/<geozone>/surface.<fmt>``."""
+        from core.io.export import export_all
+        from core.model.build import geozone_folders
+        from core.model.surfaces import to_input_frame
+
+        surfaces = {g: m for g, m in self.model.result.surfaces.items() if self.scene.view.shows(g)}
+        if not surfaces:
+            raise ValueError("no surface is shown: build or tick some first")
+        f = self.model.holes.frame
+        names = geozone_folders(sorted(surfaces))
+        out = {}
+        for g, mesh in surfaces.items():
+            gdir = Path(folder) / names[g]
+            gdir.mkdir(parents=True, exist_ok=True)
+            moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
+            out[g] = export_all(moved, gdir, "surface")
+        return out
+
+    def export_surfaces_dialog(self) -> None:
+        folder = QtWidgets.QFileDialog.getExistingDirectory(self, "Export shown surfaces to")
+        if folder:
+            self._guard(lambda: self.export_surfaces(folder))
+
+    def show_shortcuts(self) -> None:
+        """Help > Shortcuts: the mouse and keys of the 3D view and the panels."""
+        QtWidgets.QMessageBox.information(self, "Shortcuts", SHORTCUTS_HTML)
 
     def export_surface(self, path) -> None:
         from core.io.export import export_surface
@@ -971,6 +1016,24 @@ class MainWindow(QtWidgets.QMainWindow):
             self._closed = True
             self.plotter.close()
         event.accept()
+
+
+SHORTCUTS_HTML = """<table>
+<tr><td><b>Left drag</b></td><td>turn the view about the data</td></tr>
+<tr><td><b>Right drag / wheel</b></td><td>zoom</td></tr>
+<tr><td><b>Middle drag</b></td><td>pan</td></tr>
+<tr><td><b>Click</b></td><td>pick: a hole shows its id, geozone, bench and grade; a contour or surface
+selects its geozone (and bench pair and component)</td></tr>
+<tr><td><b>Shift + left drag</b></td><td>move the selected source component on its bench</td></tr>
+<tr><td><b>Ctrl + arrows</b></td><td>nudge the selected source by the step of the alignment panel</td></tr>
+<tr><td><b>Ctrl+Z</b></td><td>undo the last alignment change</td></tr>
+<tr><td><b>Ctrl+I / T / F / S</b></td><td>camera: iso, top, front, side</td></tr>
+<tr><td><b>Ctrl+0</b></td><td>fit the visible data</td></tr>
+<tr><td><b>Ctrl+O / Ctrl+S</b></td><td>open blastholes / save the project</td></tr>
+<tr><td><b>F1</b></td><td>this page</td></tr>
+</table>
+<p>The Geozones dock shows or hides each geozone; Benches and section hides benches, limits
+elevations and cuts the view with a plane you drag along its axis.</p>"""
 
 
 def _quietly(inputs, previous, step, cancelled):

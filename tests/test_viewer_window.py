@@ -237,3 +237,17 @@ def test_clicking_a_hole_reports_its_id_and_grade(qtbot, tmp_path):
     finally:
         win.model.dirty = False
         win.close()
+
+
+def test_exports_the_view_at_a_chosen_size_and_the_shown_surfaces(window, tmp_path):
+    from PIL import Image
+
+    png = tmp_path / "view.png"
+    window.export_screenshot(png, (640, 360))
+    img = np.asarray(Image.open(png))
+    assert img.shape[:2] == (360, 640) and img[..., :3].std() > 5
+    written = window.export_surfaces(tmp_path / "surfaces")
+    assert set(written) == set(window.model.result.surfaces)
+    for files in written.values():
+        assert {"ply", "obj", "stl"} <= set(files) and all(p.stat().st_size > 0 for p in files.values())
+    assert "Shift" in __import__("bgm_viewer.app").app.SHORTCUTS_HTML
