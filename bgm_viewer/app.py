@@ -21,6 +21,7 @@ import threading
 import time
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from qtpy import QtCore, QtGui, QtWidgets
@@ -237,6 +238,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._play.timeout.connect(self._advance_frame)
         self._connect_model()
         self._drag_start: tuple[int, int] | None = None
+        self._click_at: tuple[int, ...] | None = None
         self._watch_mouse()
         self._update_title()
         if auto_run:
@@ -263,7 +265,7 @@ class MainWindow(QtWidgets.QMainWindow):
         v = self.menuBar().addMenu("&View")
         for cam, key in (("iso", "I"), ("top", "T"), ("front", "F"), ("side", "S")):
             v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam), QtGui.QKeySequence(f"Ctrl+{key}"))
-        v.addAction("Fit the data", lambda: (self.renderer.fit(), self.plotter.render()), QtGui.QKeySequence("Ctrl+0"))
+        v.addAction("Fit the data", self.fit_view, QtGui.QKeySequence("Ctrl+0"))
         h = self.menuBar().addMenu("&Help")
         h.addAction("&Shortcuts", self.show_shortcuts, QtGui.QKeySequence("F1"))
 
@@ -271,6 +273,11 @@ class MainWindow(QtWidgets.QMainWindow):
         """Look from ``camera`` (see :meth:`SceneRenderer.set_camera`) and fit the visible data."""
         self._camera = camera
         self.renderer.set_camera(camera)
+        self.plotter.render()
+
+    def fit_view(self) -> None:
+        """Fit the visible data, keeping the direction of view."""
+        self.renderer.fit()
         self.plotter.render()
 
     def showEvent(self, event) -> None:
@@ -573,7 +580,7 @@ class MainWindow(QtWidgets.QMainWindow):
         if hit is None:
             return None
         name, index = hit
-        layer = self.scene[name]
+        layer: Any = self.scene[name]
         if name == "blastholes":
             info = self.model.hole_info(index)
         elif name in ("contours", "predicted contours"):

@@ -115,7 +115,7 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
 def selected_components_layer(result: PipelineResult) -> SelectedComponentsLayer:
     """The selected source component(s) and the target(s) they morph into (see :class:`SelectedComponentsLayer`)."""
     m, pair = result.morph, result.pair
-    items = []
+    items: list[tuple[str, float, object]] = []
     if m is not None and pair is not None:
         for role, ids, contours in (("source", m.source_ids, pair.sources), ("target", m.target_ids, pair.targets)):
             items.extend((role, contours[i].bench_z_m, contours[i].polygon) for i in ids if 0 <= i < len(contours))

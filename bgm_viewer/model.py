@@ -433,7 +433,7 @@ def richest_pair(holes: Blastholes) -> tuple[str, int]:
     zones = holes.geozones
     counts = np.zeros((len(zones), max(n, 1)), int)
     index = {g: i for i, g in enumerate(zones)}
-    np.add.at(counts, ([index[g] for g in holes.geozone], holes.bench), 1)
+    np.add.at(counts, (np.array([index[g] for g in holes.geozone], int), np.asarray(holes.bench, int)), 1)
     both = np.minimum(counts[:, :-1], counts[:, 1:]) if n > 1 else counts
     host = counts.sum(axis=1) > 0.5 * len(holes.geozone)
     if len(zones) > 1:

@@ -166,7 +166,7 @@ class SceneRenderer:
         self._legend_stale = False
         self._bearings_stale = False
         self._bearings_shown: tuple | None = None
-        self._ruler = None
+        self._ruler: object | None = None
         self.clip: tuple[str, float, str] | None = None
         self.elevation_range_m: tuple[float | None, float | None] = (None, None)
         with suppress(Exception):
@@ -299,13 +299,12 @@ class SceneRenderer:
     def _clipping_planes(self) -> list:
         import vtk
 
-        planes = []
+        planes: list[tuple[tuple[float, ...], tuple[float, ...]]] = []
         if self.clip is not None:
             axis, value, keep = self.clip
-            normal = np.zeros(3)
-            normal["xyz".index(axis)] = -1.0 if keep == "below" else 1.0
-            origin = np.zeros(3)
-            origin["xyz".index(axis)] = value
+            k = "xyz".index(axis)
+            normal = tuple(float(i == k) * (-1.0 if keep == "below" else 1.0) for i in range(3))
+            origin = tuple(float(i == k) * value for i in range(3))
             planes.append((origin, normal))
         lo, hi = self.elevation_range_m
         view = self.scene.view

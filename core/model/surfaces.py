@@ -267,7 +267,8 @@ def drop_small_bodies(
         keep.append(body)
     if not keep:
         return None
-    return keep[0] if len(keep) == 1 else trimesh.util.concatenate(keep)
+    joined = keep[0] if len(keep) == 1 else trimesh.util.concatenate(keep)
+    return joined if isinstance(joined, trimesh.Trimesh) else None
 
 
 def mesh_summary(mesh: trimesh.Trimesh) -> dict:
