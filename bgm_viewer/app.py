@@ -32,7 +32,7 @@ from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
 from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, empty_layer_reasons, refresh_scene
-from .model import STEPS, ViewerModel, compute, display_unit, project_input
+from .model import STEPS, ViewerModel, bodies, compute, display_unit, project_input
 from .scene import SceneRenderer, drag_on_plane
 
 Qt = QtCore.Qt
@@ -298,6 +298,10 @@ class MainWindow(QtWidgets.QMainWindow):
         form = QtWidgets.QFormLayout(w)
         self.surface_scope = QtWidgets.QComboBox()
         self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
+        if self.model.surface_geozones is not None:  # a host rock's surface would wrap the bodies
+            host = sorted(set(self.model.holes.geozones) - set(self.model.surface_geozones))
+            self.surface_scope.insertItem(0, f"all but the host rock ({', '.join(host)})")
+            self.surface_scope.setCurrentIndex(0)
         self.surface_scope.setToolTip("Whose surfaces are built and shown (each is the one bgm build exports)")
         self.surface_scope.currentIndexChanged.connect(self._on_shown_geozones)
         form.addRow("surfaces of", self.surface_scope)
@@ -323,8 +327,13 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _on_shown_geozones(self, *_) -> None:
         """Whose surfaces are built changed (scope or legend ticks): build the ones missing."""
-        scope = self.surface_scope.currentIndex()
-        zones = None if scope == 0 else self.legend.shown() if scope == 1 else [self.model.selection.geozone]
+        scope = self.surface_scope.currentText()
+        if scope.startswith("all but"):
+            zones = bodies(self.model.holes)
+        elif scope == "all geozones":
+            zones = None
+        else:
+            zones = self.legend.shown() if scope == "ticked geozones" else [self.model.selection.geozone]
         if zones != self.model.surface_geozones:
             self.model.surface_geozones = zones
             self.request("surface", immediate=True)
@@ -510,9 +519,15 @@ class MainWindow(QtWidgets.QMainWindow):
             self._mouse_tags[event] = iren.AddObserver(event, handler, 10.0)
         # After a press the camera style holds the mouse and the release reaches only the style
         # (pyvista issue 4976): a click (press and release in place) is seen there.
+        iren.AddObserver("StartInteractionEvent", lambda *_: self.renderer.set_interacting(True))
+        iren.AddObserver("EndInteractionEvent", lambda *_: self._stop_interacting())
         style = getattr(self.plotter.iren, "style", None)
         if style is not None:
             style.AddObserver("LeftButtonReleaseEvent", lambda *_: self._on_click_release(), 10.0)
+
+    def _stop_interacting(self) -> None:
+        self.renderer.set_interacting(False)
+        self.plotter.render()  # the full surfaces once the view stands still
 
     def _on_click_release(self) -> None:
         click, self._click_at = getattr(self, "_click_at", None), None

@@ -420,6 +420,15 @@ def _hole_attributes(path: str | None, holes: Blastholes):
     return table.loc[ok, extra].iloc[row].reset_index(drop=True)
 
 
+def bodies(holes: Blastholes) -> list[str] | None:
+    """Geozones other than a host rock holding over half the holes (``None``: every geozone, there is none)."""
+    labels, counts = np.unique(holes.geozone, return_counts=True)
+    host = labels[counts > 0.5 * len(holes.geozone)]
+    if len(host) == 0 or len(labels) == 1:
+        return None
+    return [g for g in holes.geozones if g not in set(host.tolist())]
+
+
 def richest_pair(holes: Blastholes) -> tuple[str, int]:
     """The geozone and upper bench of the bench pair where that geozone has the most holes on both benches.
 
@@ -461,7 +470,8 @@ class ViewerModel:
         self.selection = selection or Selection(*richest_pair(self.holes), 0)
         self.vertical_exaggeration = 2.0
         #: Geozones whose surfaces are shown (``None``: all); bodies below the body filter are not shown.
-        self.surface_geozones: list[str] | None = None
+        #: By default all but a host rock holding over half the holes: its surface wraps the others.
+        self.surface_geozones: list[str] | None = bodies(self.holes)
         self.min_body_volume_m3 = 0.0
         self.min_body_holes = 0
         self.overrides: list = []  # core.io.project.AlignmentOverride

@@ -28,6 +28,8 @@ CAMERAS = ("iso", "top", "front", "side")
 DATA_RECT_WITH_LEGEND = (0.03, 0.06, 0.76, 0.94)
 DATA_RECT = (0.05, 0.06, 0.95, 0.94)
 LEGEND_WIDTH = 0.2
+#: Surfaces with more triangles are drawn coarse while the camera moves (:meth:`SceneRenderer.set_interacting`).
+COARSE_ABOVE_FACES = 5000
 
 
 class Scene:
@@ -246,6 +248,32 @@ class SceneRenderer:
                 actor.GetMapper().AddClippingPlane(plane)
             actors.append(actor)
         self.actors[layer.name] = actors
+
+    # -- coarse surfaces while the camera moves -----------------------------
+    def set_interacting(self, moving: bool) -> None:
+        """Draw big surfaces coarse while the camera moves, in full again when it stops.
+
+        Software OpenGL draws about a million triangles a second: Kennecott's
+        surfaces (half a million triangles) took 300 ms a frame. While the
+        user turns the view each surface is replaced by a quadric clustering
+        of itself (a few thousand triangles, made once per surface), opaque;
+        at rest the surfaces drawn are exactly those exported.
+        """
+        layer = self.scene.get("surfaces")
+        for actor in self.actors.get("surfaces", []):
+            mapper = actor.GetMapper()
+            full = getattr(actor, "_full_mesh", None)
+            # blending translucent faces over the whole view costs more than drawing them
+            actor.GetProperty().SetOpacity(1.0 if moving or layer is None else layer.opacity)
+            if moving:
+                mesh = mapper.GetInput()
+                if mesh.GetNumberOfCells() < COARSE_ABOVE_FACES:
+                    continue
+                if getattr(actor, "_coarse_mesh", None) is None:
+                    actor._full_mesh, actor._coarse_mesh = mesh, _coarse(mesh)
+                mapper.SetInputData(actor._coarse_mesh)
+            elif full is not None:
+                mapper.SetInputData(full)
 
     # -- picking -----------------------------------------------------------
     def pick(self, x_px: float, y_px: float, tolerance: float = 0.01) -> tuple[str, int] | None:
@@ -474,6 +502,20 @@ def _view_points(renderer, xyz: np.ndarray) -> np.ndarray:
         renderer.SetWorldPoint(q[0], q[1], q[2], 1.0)
         renderer.WorldToView()
         out[i] = renderer.GetViewPoint()[:2]
+    return out
+
+
+def _coarse(mesh, divisions: int = 48):
+    """A few-thousand-triangle stand-in of ``mesh`` (``vtkQuadricClustering`` on a ``divisions``-cube grid)."""
+    import vtk
+
+    cluster = vtk.vtkQuadricClustering()
+    cluster.SetInputData(mesh)
+    cluster.SetNumberOfDivisions(divisions, divisions, max(divisions // 4, 8))
+    cluster.AutoAdjustNumberOfDivisionsOn()
+    cluster.Update()
+    out = vtk.vtkPolyData()
+    out.DeepCopy(cluster.GetOutput())
     return out
 
 
