@@ -519,10 +519,10 @@ class MainWindow(QtWidgets.QMainWindow):
             self._mouse_tags[event] = iren.AddObserver(event, handler, 10.0)
         # After a press the camera style holds the mouse and the release reaches only the style
         # (pyvista issue 4976): a click (press and release in place) is seen there.
-        iren.AddObserver("StartInteractionEvent", lambda *_: self.renderer.set_interacting(True))
-        iren.AddObserver("EndInteractionEvent", lambda *_: self._stop_interacting())
         style = getattr(self.plotter.iren, "style", None)
-        if style is not None:
+        if style is not None:  # the camera style announces its moves on itself
+            style.AddObserver("StartInteractionEvent", lambda *_: self.renderer.set_interacting(True))
+            style.AddObserver("EndInteractionEvent", lambda *_: self._stop_interacting())
             style.AddObserver("LeftButtonReleaseEvent", lambda *_: self._on_click_release(), 10.0)
 
     def _stop_interacting(self) -> None:
