@@ -21,6 +21,7 @@ import threading
 import time
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from qtpy import QtCore, QtGui, QtWidgets
@@ -30,8 +31,8 @@ from superqt.utils import create_worker
 from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
-from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, refresh_scene
-from .model import STEPS, ViewerModel, compute, display_unit, project_input
+from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, empty_layer_reasons, refresh_scene
+from .model import STEPS, ViewerModel, bodies, compute, display_unit, project_input
 from .scene import SceneRenderer, drag_on_plane
 
 Qt = QtCore.Qt
@@ -86,6 +87,7 @@ class ParamControl(QtWidgets.QWidget):
         symbol = f" ({spec.symbol})" if spec.symbol else ""
         unit = f" in {self.unit}" if self.unit else ""
         self.setToolTip(f"<b>{spec.label}{symbol}</b>{unit}<br>{spec.help}<br>Default: {default}")
+        self.slider.setToolTip(self.toolTip())
         self.set_value(value)
         if isinstance(self.slider, QtWidgets.QCheckBox):
             self.slider.toggled.connect(self._changed)
@@ -95,7 +97,8 @@ class ParamControl(QtWidgets.QWidget):
             self.auto.toggled.connect(self._changed)
 
     def set_value(self, value) -> None:
-        """Show ``value`` (engine units; ``None``: auto) without emitting."""
+        """Show ``value`` (engine units; ``None``: auto) without emitting; :meth:`value` returns it unchanged."""
+        self._shown = value
         for w in (self.slider, self.auto):
             if w is not None:
                 w.blockSignals(True)
@@ -113,15 +116,25 @@ class ParamControl(QtWidgets.QWidget):
                 w.blockSignals(False)
 
     def value(self):
-        """The value in engine units (``None`` when auto)."""
+        """The value in engine units (``None`` when auto).
+
+        The value last set is returned exactly; a value the user picked on the
+        slider is rounded to the slider's shown decimals in the input's units
+        first (a slider position maps to 0.4995 where the label reads 0.5).
+        """
         if self.auto is not None and self.auto.isChecked():
             return None
         if isinstance(self.slider, QtWidgets.QCheckBox):
             return self.slider.isChecked()
-        v = self.slider.value() / self._factor
-        return int(round(v)) if self.spec.integer else float(v)
+        if self._shown is not None:
+            return self._shown
+        if self.spec.integer:
+            return int(round(self.slider.value() / self._factor))
+        shown = round(float(self.slider.value()), self.slider.decimals())
+        return float(f"{shown / self._factor:.12g}")
 
     def _changed(self, *_) -> None:
+        self._shown = None  # the user moved it: read the slider
         if self.auto is not None:
             self.slider.setEnabled(not self.auto.isChecked())
         self.valueChanged.emit(self.spec.name, self.value())
@@ -205,14 +218,17 @@ class MainWindow(QtWidgets.QMainWindow):
             visible=DEFAULT_VISIBLE,
             vertical_exaggeration=self.model.vertical_exaggeration,
         )
-        self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True)
-        self.renderer.set_camera("iso")
+        # the legend is a dock (GeozoneLegend): drawn in the view it covered the data
+        self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True, legend=False)
+        self._camera = "iso"
+        self._fitted = False
 
         self._build_menus()
         self._build_layer_panel()
         self._build_selection_panel()
         self._build_parameter_panel()
         self._build_alignment_panel()
+        self._build_view_panels()
         self.progress_bar = QtWidgets.QProgressBar()
         self.progress_bar.setRange(0, 100)
         self.progress_bar.setMaximumWidth(200)
@@ -222,6 +238,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._play.timeout.connect(self._advance_frame)
         self._connect_model()
         self._drag_start: tuple[int, int] | None = None
+        self._click_at: tuple[int, ...] | None = None
         self._watch_mouse()
         self._update_title()
         if auto_run:
@@ -237,6 +254,7 @@ class MainWindow(QtWidgets.QMainWindow):
         m.addSeparator()
         m.addAction("Export &screenshot...", self.export_screenshot_dialog)
         m.addAction("Export s&urface...", self.export_surface_dialog)
+        m.addAction("Export shown surfaces to a &folder...", self.export_surfaces_dialog)
         m.addSeparator()
         m.addAction("&Quit", self.close, QtGui.QKeySequence.StandardKey.Quit)
         e = self.menuBar().addMenu("&Edit")
@@ -245,12 +263,85 @@ class MainWindow(QtWidgets.QMainWindow):
         self.undo_action.triggered.connect(self.undo)
         e.addAction(self.undo_action)
         v = self.menuBar().addMenu("&View")
-        for cam in ("iso", "top", "front", "side"):
-            v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam))
+        for cam, key in (("iso", "I"), ("top", "T"), ("front", "F"), ("side", "S")):
+            v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam), QtGui.QKeySequence(f"Ctrl+{key}"))
+        v.addAction("Fit the data", self.fit_view, QtGui.QKeySequence("Ctrl+0"))
+        h = self.menuBar().addMenu("&Help")
+        h.addAction("&Shortcuts", self.show_shortcuts, QtGui.QKeySequence("F1"))
 
     def set_camera(self, camera: str) -> None:
+        """Look from ``camera`` (see :meth:`SceneRenderer.set_camera`) and fit the visible data."""
+        self._camera = camera
         self.renderer.set_camera(camera)
         self.plotter.render()
+
+    def fit_view(self) -> None:
+        """Fit the visible data, keeping the direction of view."""
+        self.renderer.fit()
+        self.plotter.render()
+
+    def showEvent(self, event) -> None:
+        super().showEvent(event)
+        # fit once the docks are laid out: fitted before, Kennecott showed as a thin sliver
+        QtCore.QTimer.singleShot(0, lambda: self.set_camera(self._camera))
+
+    def _build_view_panels(self) -> None:
+        from .panels import GeozoneLegend, SectionPanel
+
+        self.legend = GeozoneLegend(self.renderer, self.model.holes)
+        self.legend.surfacesChanged.connect(self._on_shown_geozones)
+        self._dock("Geozones", self.legend, Qt.DockWidgetArea.LeftDockWidgetArea)
+        self.sections = SectionPanel(self.renderer, self.model.holes)
+        self._dock("Benches and section", self.sections, Qt.DockWidgetArea.LeftDockWidgetArea)
+
+        w = QtWidgets.QWidget()
+        form = QtWidgets.QFormLayout(w)
+        self.surface_scope = QtWidgets.QComboBox()
+        self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
+        if self.model.surface_geozones is not None:  # a host rock's surface would wrap the bodies
+            host = sorted(set(self.model.holes.geozones) - set(self.model.surface_geozones))
+            self.surface_scope.insertItem(0, f"all but the host rock ({', '.join(host)})")
+            self.surface_scope.setCurrentIndex(0)
+        self.surface_scope.setToolTip("Whose surfaces are built and shown (each is the one bgm build exports)")
+        self.surface_scope.currentIndexChanged.connect(self._on_shown_geozones)
+        form.addRow("surfaces of", self.surface_scope)
+        unit = self.model.holes.frame.length_unit
+        self.min_volume = QtWidgets.QDoubleSpinBox()
+        self.min_volume.setRange(0.0, 1e12)
+        self.min_volume.setDecimals(0)
+        self.min_volume.setKeyboardTracking(False)
+        self.min_volume.setToolTip(
+            "Bodies of a surface smaller than this are not shown: a lone mislabelled hole (label noise)"
+            " makes a small body of its own. The exported surfaces keep them."
+        )
+        self.min_volume.valueChanged.connect(self._on_body_filter)
+        self._volume_label = QtWidgets.QLabel(f"min body volume ({unit}³)")
+        form.addRow(self._volume_label, self.min_volume)
+        self.min_holes = QtWidgets.QSpinBox()
+        self.min_holes.setRange(0, 10000)
+        self.min_holes.setKeyboardTracking(False)
+        self.min_holes.setToolTip("Bodies holding fewer of their geozone's holes than this are not shown")
+        self.min_holes.valueChanged.connect(self._on_body_filter)
+        form.addRow("min holes in a body", self.min_holes)
+        self._dock("Surfaces", w, Qt.DockWidgetArea.LeftDockWidgetArea)
+
+    def _on_shown_geozones(self, *_) -> None:
+        """Whose surfaces are built changed (scope or legend ticks): build the ones missing."""
+        scope = self.surface_scope.currentText()
+        if scope.startswith("all but"):
+            zones = bodies(self.model.holes)
+        elif scope == "all geozones":
+            zones = None
+        else:
+            zones = self.legend.shown() if scope == "ticked geozones" else [self.model.selection.geozone]
+        if zones != self.model.surface_geozones:
+            self.model.surface_geozones = zones
+            self.request("surface", immediate=True)
+
+    def _on_body_filter(self, *_) -> None:
+        self.model.min_body_volume_m3 = self.min_volume.value() * self._mpu**3
+        self.model.min_body_holes = self.min_holes.value()
+        self.request("surface")
 
     def _dock(self, title: str, widget: QtWidgets.QWidget, area) -> QtWidgets.QDockWidget:
         dock = QtWidgets.QDockWidget(title, self)
@@ -316,6 +407,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self.geozone_list = self.geozone_combo  # alias used by tests / docs
         form.addRow("bench pair", self.bench_combo)
         form.addRow("source component", self.component_spin)
+        self.picked_label = QtWidgets.QLabel("click a hole, contour or surface")
+        self.picked_label.setWordWrap(True)
+        self.picked_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        form.addRow("picked", self.picked_label)
         self._dock("Selection", w, Qt.DockWidgetArea.LeftDockWidgetArea)
 
     def _fill_selection(self) -> None:
@@ -350,13 +445,19 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.param_controls[spec.name] = ctl
             lay.addWidget(box)
         lay.addStretch(1)
-        self._dock("Parameters", w, Qt.DockWidgetArea.RightDockWidgetArea)
+        self._param_dock = self._dock("Parameters", w, Qt.DockWidgetArea.RightDockWidgetArea)
 
     def _build_alignment_panel(self) -> None:
         w = QtWidgets.QWidget()
         form = QtWidgets.QFormLayout(w)
+        unit = self.model.holes.frame.length_unit
         self.translation_label = QtWidgets.QLabel("-")
-        form.addRow("translation (m)", self.translation_label)
+        self.translation_label.setToolTip(
+            "How far the selected source component is moved onto the bench below before the"
+            " morph (the translation t of the paper's alignment step, section 3), in the input's units"
+        )
+        self._unit_labels = [QtWidgets.QLabel(f"translation ({unit})"), QtWidgets.QLabel(f"Ctrl+arrow step ({unit})")]
+        form.addRow(self._unit_labels[0], self.translation_label)
         self.dx_spin = QtWidgets.QDoubleSpinBox()
         self.dy_spin = QtWidgets.QDoubleSpinBox()
         for s in (self.dx_spin, self.dy_spin):
@@ -389,12 +490,14 @@ class MainWindow(QtWidgets.QMainWindow):
         self.nudge_step = QtWidgets.QDoubleSpinBox()
         self.nudge_step.setRange(0.1, 100.0)
         self.nudge_step.setValue(1.0)
-        form.addRow("Ctrl+arrow step (m)", self.nudge_step)
+        form.addRow(self._unit_labels[1], self.nudge_step)
         form.addRow(QtWidgets.QLabel("Shift + drag in the view moves the source on its bench."))
         for key, (dx, dy) in {"Left": (-1, 0), "Right": (1, 0), "Up": (0, 1), "Down": (0, -1)}.items():
             sc = QtWidgets.QShortcut(QtGui.QKeySequence(f"Ctrl+{key}"), self)
             sc.activated.connect(
-                lambda dx=dx, dy=dy: self.nudge(dx * self.nudge_step.value(), dy * self.nudge_step.value())
+                lambda dx=dx, dy=dy: self.nudge(
+                    dx * self.nudge_step.value() * self._mpu, dy * self.nudge_step.value() * self._mpu
+                )
             )
         self._dock("Manual alignment", w, Qt.DockWidgetArea.RightDockWidgetArea)
 
@@ -414,6 +517,25 @@ class MainWindow(QtWidgets.QMainWindow):
             ("LeftButtonReleaseEvent", self._on_release),
         ):
             self._mouse_tags[event] = iren.AddObserver(event, handler, 10.0)
+        # After a press the camera style holds the mouse and the release reaches only the style
+        # (pyvista issue 4976): a click (press and release in place) is seen there.
+        style = getattr(self.plotter.iren, "style", None)
+        if style is not None:  # the camera style announces its moves on itself
+            style.AddObserver("StartInteractionEvent", lambda *_: self.renderer.set_interacting(True))
+            style.AddObserver("EndInteractionEvent", lambda *_: self._stop_interacting())
+            style.AddObserver("LeftButtonReleaseEvent", lambda *_: self._on_click_release(), 10.0)
+
+    def _stop_interacting(self) -> None:
+        self.renderer.set_interacting(False)
+        self.plotter.render()  # the full surfaces once the view stands still
+
+    def _on_click_release(self) -> None:
+        click, self._click_at = getattr(self, "_click_at", None), None
+        if click is None or self._drag_start is not None:
+            return
+        pos = self.plotter.iren.interactor.GetEventPosition()
+        if abs(pos[0] - click[0]) + abs(pos[1] - click[1]) <= 3:
+            self.pick(*pos)  # a click, not a turn of the camera
 
     def _swallow(self, event: str) -> None:
         self.plotter.iren.interactor.GetCommand(self._mouse_tags[event]).SetAbortFlag(1)
@@ -427,6 +549,7 @@ class MainWindow(QtWidgets.QMainWindow):
         return drag_on_plane(self.plotter, start_px, end_px, self._source_plane_z())
 
     def _on_press(self, iren, event) -> None:
+        self._click_at = tuple(iren.GetEventPosition())
         if not iren.GetShiftKey() or self.model.current_translation_m() is None:
             return
         self._drag_start = tuple(iren.GetEventPosition())
@@ -439,13 +562,16 @@ class MainWindow(QtWidgets.QMainWindow):
         d = self.drag_translation(self._drag_start, iren.GetEventPosition())
         if d is not None:
             cur = self.model.current_translation_m() or (0.0, 0.0)
+            tx, ty = ((c + v) / self._mpu for c, v in zip(cur, d))
             self.statusBar().showMessage(
-                f"dragging the source: translation {cur[0] + d[0]:.2f}, {cur[1] + d[1]:.2f} m (release to apply)"
+                f"dragging the source: translation {tx:.2f}, {ty:.2f} {self.model.holes.frame.length_unit}"
+                " (release to apply)"
             )
         self._swallow(event)
 
     def _on_release(self, iren, event) -> None:
         if self._drag_start is None:
+            self._on_click_release()
             return
         start, self._drag_start = self._drag_start, None
         self._swallow(event)
@@ -456,11 +582,73 @@ class MainWindow(QtWidgets.QMainWindow):
         if np.hypot(*d) > 0:
             self.nudge(float(d[0]), float(d[1]))
 
+    # ------------------------------------------------------------------ picking
+    def pick(self, x_px: float, y_px: float) -> dict | None:
+        """Report what is under display pixel ``(x_px, y_px)`` (VTK's, origin bottom left).
+
+        A hole: its id, geozone, bench and the input's other columns, in the
+        status bar and the Selection panel. A contour: its geozone, bench
+        pair and component become the selection. A surface: its geozone does.
+        Returns what was reported (``None``: nothing there).
+        """
+        hit = self.renderer.pick(x_px, y_px)
+        if hit is None:
+            return None
+        name, index = hit
+        layer: Any = self.scene[name]
+        if name == "blastholes":
+            info = self.model.hole_info(index)
+        elif name in ("contours", "predicted contours"):
+            g, z, poly = layer.items[index]
+            info = {"geozone": g, f"elevation ({self.model.holes.frame.length_unit})": self._z_input(z)}
+            info.update(self._select_contour(g, z, poly))
+        elif name == "surfaces":
+            g = layer.meshes[index][0]
+            info = {"geozone": g, "surface": "shown as bgm build exports it"}
+            self._select(geozone=g, component=0)
+        else:
+            return None
+        if name != "blastholes":
+            self._fill_selection()
+        text = ", ".join(f"{k} {v}" for k, v in info.items())
+        self.picked_label.setText(text.replace(", ", "\n"))
+        self.statusBar().showMessage(f"picked {name[:-1] if name.endswith('s') else name}: {text}", 15000)
+        return info
+
+    def _z_input(self, z_m: float) -> float:
+        return round(float(self.model.holes.frame.z_to_input(z_m)), 3)
+
+    def _select_contour(self, geozone: str, z_m: float, polygon) -> dict:
+        """Select the bench pair and component of a picked contour (a modelled one; else its geozone only)."""
+        h = self.model.holes
+        bench = int(np.argmin(np.abs(h.bench_levels_m - z_m)))
+        if abs(h.bench_levels_m[bench] - z_m) > 1e-6:
+            self._select(geozone=geozone)
+            return {}
+        pair_bench = min(bench, max(h.n_benches - 2, 0))
+        sources = self.model.result.sources(type(self.model.selection)(geozone, pair_bench, 0))
+        component = next((i for i, c in enumerate(sources) if c.polygon is polygon), None)
+        if bench != pair_bench or component is None:
+            self._select(geozone=geozone, bench=pair_bench, component=0)
+            return {"bench pair": pair_bench}
+        self._select(geozone=geozone, bench=pair_bench, component=component)
+        return {"bench pair": pair_bench, "component": component}
+
     # ------------------------------------------------------------------ layer panel
+    def empty_layers(self) -> dict[str, str]:
+        """``{name: why}`` of the visible layers that draw nothing."""
+        m = self.model
+        return empty_layer_reasons(
+            self.scene, m.holes, m.result, m.selection, lambda layer: not self.renderer.actors.get(layer.name)
+        )
+
     def _on_layer_item(self, item) -> None:
         layer = self.scene.get(item.text())
         if layer is not None:
             layer.visible = item.checkState() == Qt.CheckState.Checked
+            why = self.empty_layers().get(layer.name) if layer.visible and not self.busy else None
+            if why:
+                self.statusBar().showMessage(f"{layer.name} is empty: {why}", 10000)
 
     def _current_layer(self):
         item = self.layer_list.currentItem()
@@ -505,7 +693,9 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _on_ve(self, v: float) -> None:
         self.model.vertical_exaggeration = float(v)
-        self.scene.vertical_exaggeration = float(v)
+        with self.renderer.batch():
+            self.scene.vertical_exaggeration = float(v)
+            self.renderer.fit()  # the data got taller or flatter: fit them again
 
     def set_layer_visible(self, name: str, visible: bool) -> None:
         item = self.layer_list.findItems(name, Qt.MatchFlag.MatchExactly)[0]
@@ -524,8 +714,15 @@ class MainWindow(QtWidgets.QMainWindow):
         if stage:
             self.request(stage, immediate=True)
 
+    @property
+    def _mpu(self) -> float:
+        """Metres per input unit (the panels speak the input's units, the model metres)."""
+        return float(self.model.holes.frame.metres_per_unit)
+
     def apply_translation(self) -> None:
-        self.request(self.model.set_translation(self.dx_spin.value(), self.dy_spin.value()), immediate=True)
+        """Lock the translation typed in the panel (input units)."""
+        dx, dy = self.dx_spin.value() * self._mpu, self.dy_spin.value() * self._mpu
+        self.request(self.model.set_translation(dx, dy), immediate=True)
 
     def nudge(self, ddx: float, ddy: float) -> None:
         self.request(self.model.nudge(ddx, ddy), immediate=True)
@@ -615,6 +812,9 @@ class MainWindow(QtWidgets.QMainWindow):
         with self.renderer.batch():
             refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous)
         self._on_layer_row(None)
+        if not self._fitted and result.complete:
+            self._fitted = True  # fit once everything is drawn (the surface can reach below the benches)
+            self.renderer.fit()
         if self._first_update:
             self._first_update = False
             self.last_update_seconds = time.perf_counter() - self._request_time
@@ -631,6 +831,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._worker = None
         self.last_run_seconds = time.perf_counter() - self._started
         errors = "; ".join(f"{k}: {v}" for k, v in self.model.result.errors.items())
+        empty = self.empty_layers()
+        errors += (" - " if errors and empty else "") + "; ".join(f"{k} is empty: {v}" for k, v in empty.items())
         self.statusBar().showMessage(f"done in {self.last_run_seconds:.2f} s" + (f" - {errors}" if errors else ""))
         self.progress_bar.setValue(100)
 
@@ -648,8 +850,9 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         locked = self.model.override_here()
         lock = " (locked)" if locked is not None and locked.translation is not None else ""
-        self.translation_label.setText(f"{t[0]:.2f}, {t[1]:.2f}{lock}")
-        for s, v in ((self.dx_spin, t[0]), (self.dy_spin, t[1])):
+        tx, ty = t[0] / self._mpu, t[1] / self._mpu
+        self.translation_label.setText(f"{tx:.2f}, {ty:.2f}{lock}")
+        for s, v in ((self.dx_spin, tx), (self.dy_spin, ty)):
             s.blockSignals(True)
             s.setValue(v)
             s.blockSignals(False)
@@ -675,9 +878,19 @@ class MainWindow(QtWidgets.QMainWindow):
         with self.renderer.batch():
             refresh_scene(self.scene, model.holes, model.result, model.selection)
         self._fill_selection()
-        for name, ctl in self.param_controls.items():
-            ctl.set_value(model.param(name))
+        # the sliders' units and ranges follow the input: build them again
+        old = self._param_dock
+        self._build_parameter_panel()
+        self.tabifyDockWidget(old, self._param_dock)
+        self.removeDockWidget(old)
+        old.deleteLater()
+        unit = model.holes.frame.length_unit
+        self._unit_labels[0].setText(f"translation ({unit})")
+        self._unit_labels[1].setText(f"Ctrl+arrow step ({unit})")
         self.ve_spin.setValue(model.vertical_exaggeration)
+        self.legend.set_holes(model.holes)
+        self.sections.set_holes(model.holes)
+        self._fitted = False
         self.renderer.set_camera("iso")
         self._update_title()
         self.request("contours", immediate=True)
@@ -715,16 +928,57 @@ class MainWindow(QtWidgets.QMainWindow):
                 return False
         return self._guard(lambda: self.model.save_project(path))
 
-    def export_screenshot(self, path) -> None:
+    def export_screenshot(self, path, size: tuple[int, int] | None = None) -> None:
+        """The current view as a PNG, ``size`` pixels (width, height; default the view's), written atomically."""
         from core.io.atomic import atomic_path
 
         with atomic_path(path) as tmp:
-            self.plotter.screenshot(str(tmp))
+            self.plotter.screenshot(str(tmp), window_size=list(size) if size else None)
 
     def export_screenshot_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Export screenshot", "bgm.png", "PNG (*.png)")
-        if path:
-            self._guard(lambda: self.export_screenshot(path))
+        if not path:
+            return
+        w, h = self.plotter.window_size
+        text, ok = QtWidgets.QInputDialog.getText(self, "Picture size", "width x height in pixels", text=f"{w}x{h}")
+        if not ok:
+            return
+        try:
+            size = tuple(int(v) for v in text.lower().replace(" ", "").split("x"))
+            if len(size) != 2 or min(size) < 16 or max(size) > 16384:
+                raise ValueError
+        except ValueError:
+            QtWidgets.QMessageBox.warning(self, "BGM viewer", f"{text!r} is not a size: write it as 1920x1080")
+            return
+        self._guard(lambda: self.export_screenshot(path, size))
+
+    def export_surfaces(self, folder) -> dict[str, dict]:
+        """The shown surfaces, in every format ``bgm build`` writes, as ``folder/<geozone>/surface.<fmt>``."""
+        from core.io.export import export_all
+        from core.model.build import geozone_folders
+        from core.model.surfaces import to_input_frame
+
+        surfaces = {g: m for g, m in self.model.result.surfaces.items() if self.scene.view.shows(g)}
+        if not surfaces:
+            raise ValueError("no surface is shown: build or tick some first")
+        f = self.model.holes.frame
+        names = geozone_folders(sorted(surfaces))
+        out = {}
+        for g, mesh in surfaces.items():
+            gdir = Path(folder) / names[g]
+            gdir.mkdir(parents=True, exist_ok=True)
+            moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
+            out[g] = export_all(moved, gdir, "surface")
+        return out
+
+    def export_surfaces_dialog(self) -> None:
+        folder = QtWidgets.QFileDialog.getExistingDirectory(self, "Export shown surfaces to")
+        if folder:
+            self._guard(lambda: self.export_surfaces(folder))
+
+    def show_shortcuts(self) -> None:
+        """Help > Shortcuts: the mouse and keys of the 3D view and the panels."""
+        QtWidgets.QMessageBox.information(self, "Shortcuts", SHORTCUTS_HTML)
 
     def export_surface(self, path) -> None:
         from core.io.export import export_surface
@@ -784,6 +1038,24 @@ class MainWindow(QtWidgets.QMainWindow):
             self._closed = True
             self.plotter.close()
         event.accept()
+
+
+SHORTCUTS_HTML = """<table>
+<tr><td><b>Left drag</b></td><td>turn the view about the data</td></tr>
+<tr><td><b>Right drag / wheel</b></td><td>zoom</td></tr>
+<tr><td><b>Middle drag</b></td><td>pan</td></tr>
+<tr><td><b>Click</b></td><td>pick: a hole shows its id, geozone, bench and grade; a contour or surface
+selects its geozone (and bench pair and component)</td></tr>
+<tr><td><b>Shift + left drag</b></td><td>move the selected source component on its bench</td></tr>
+<tr><td><b>Ctrl + arrows</b></td><td>nudge the selected source by the step of the alignment panel</td></tr>
+<tr><td><b>Ctrl+Z</b></td><td>undo the last alignment change</td></tr>
+<tr><td><b>Ctrl+I / T / F / S</b></td><td>camera: iso, top, front, side</td></tr>
+<tr><td><b>Ctrl+0</b></td><td>fit the visible data</td></tr>
+<tr><td><b>Ctrl+O / Ctrl+S</b></td><td>open blastholes / save the project</td></tr>
+<tr><td><b>F1</b></td><td>this page</td></tr>
+</table>
+<p>The Geozones dock shows or hides each geozone; Benches and section hides benches, limits
+elevations and cuts the view with a plane you drag along its axis.</p>"""
 
 
 def _quietly(inputs, previous, step, cancelled):

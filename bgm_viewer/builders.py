@@ -14,6 +14,7 @@ from .layers import (
     EdgeMapLayer,
     GVFLayer,
     Layer,
+    SelectedComponentsLayer,
     SnakeLayer,
     SurfaceLayer,
     TrajectoriesLayer,
@@ -34,11 +35,12 @@ LAYER_NAMES = (
     "trajectories",
     "predicted contours",
     "surfaces",
+    "selected components",
     "uncertainty",
     "suggested holes",
 )
 #: Shown when nothing else is asked for.
-DEFAULT_VISIBLE = ("blastholes", "contours", "snake", "trajectories", "surfaces")
+DEFAULT_VISIBLE = ("blastholes", "contours", "snake", "trajectories", "surfaces", "selected components")
 
 
 def _alias(name: str) -> str:
@@ -58,6 +60,8 @@ def _alias(name: str) -> str:
         "band": "uncertainty",
         "suggestions": "suggested holes",
         "suggested": "suggested holes",
+        "selection": "selected components",
+        "selected": "selected components",
     }
     key = aliases.get(key, key)
     for n in LAYER_NAMES:
@@ -109,11 +113,21 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
         layers.append(TrajectoriesLayer())
     predicted = list(predicted) or list(getattr(result, "predicted", []))
     layers.append(ContoursLayer(predicted, colours, name="predicted contours", predicted=True, line_width=2.0))
-    surf = [(selection.geozone, result.surface)] if result.surface is not None else []
-    layers.append(SurfaceLayer.from_trimesh(surf, colours))
+    layers.append(SurfaceLayer.from_trimesh(sorted(result.surfaces.items()), colours))
+    layers.append(selected_components_layer(result))
     next_bench = NextBench(holes, result.model)  # computed by core when one of its layers is first drawn
     layers += [UncertaintyLayer(next_bench), SuggestedHolesLayer(next_bench)]
     return layers
+
+
+def selected_components_layer(result: PipelineResult) -> SelectedComponentsLayer:
+    """The selected source component(s) and the target(s) they morph into (see :class:`SelectedComponentsLayer`)."""
+    m, pair = result.morph, result.pair
+    items: list[tuple[str, float, object]] = []
+    if m is not None and pair is not None:
+        for role, ids, contours in (("source", m.source_ids, pair.sources), ("target", m.target_ids, pair.targets)):
+            items.extend((role, contours[i].bench_z_m, contours[i].polygon) for i in ids if 0 <= i < len(contours))
+    return SelectedComponentsLayer(items)
 
 
 def build_scene(
@@ -130,6 +144,7 @@ def build_scene(
         make_layers(holes, result, selection, predicted),
         vertical_exaggeration=vertical_exaggeration,
         z_ref=float(np.max(holes.bench_levels_m)),
+        frame=holes.frame,
     )
     scene.set_visible_only(parse_layers(visible))
     return scene
@@ -154,10 +169,12 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
     if result.selected_contour(selection) is not previous.selected_contour(selection):
         out |= {"edge map", "GVF", "snake"}
     if result.morph is not previous.morph:
-        out |= {"wavefront", "trajectories"}
+        out |= {"wavefront", "trajectories", "selected components"}
     if result.predicted is not previous.predicted:
         out.add("predicted contours")
-    if result.surface is not previous.surface:
+    if result.surfaces.keys() != previous.surfaces.keys() or any(
+        m is not previous.surfaces.get(g) for g, m in result.surfaces.items()
+    ):
         out.add("surfaces")
     if result.model is not previous.model:
         out |= {"uncertainty", "suggested holes"}
@@ -184,3 +201,83 @@ def refresh_scene(
         if old is not None and old.n_frames == layer.n_frames and old.n_frames > 1:
             layer.frame = old.frame
         scene.replace(layer)
+
+
+# ---------------------------------------------------------------------------
+# why a layer is empty
+
+
+def _bench_words(holes, bench: int) -> str:
+    return f"bench {holes.bench_z_input(bench):g} {holes.frame.length_unit}"
+
+
+def _why_no_contour(holes, result: PipelineResult, sel: Selection) -> str:
+    """Why the selected component has no contour (and so no edge map, GVF or snake)."""
+    if sel.bench not in result.contours:
+        return "the selected bench's contours are not extracted yet"
+    on_bench = int(np.sum((holes.bench == sel.bench) & (holes.geozone == sel.geozone)))
+    where = f"geozone {sel.geozone} on {_bench_words(holes, sel.bench)}"
+    if on_bench == 0:
+        return f"{where} has no holes: choose another geozone or bench pair"
+    n = len(result.sources(sel))
+    if n == 0:
+        return f"{where} has no component of {result.min_component_holes} or more holes ({on_bench} hole(s) in all)"
+    if sel.component >= n:
+        return f"{where} has {n} component(s): source component {sel.component} does not exist"
+    return f"the fields of source component {sel.component} of {where} are not computed yet"
+
+
+def _why_no_morph(holes, result: PipelineResult, sel: Selection) -> str:
+    if result.selected_contour(sel) is None:
+        return _why_no_contour(holes, result, sel)
+    if "correspondence" in result.errors or "morph" in result.errors:
+        return result.errors.get("morph") or result.errors["correspondence"]
+    if result.pair is None or result.correspondence is None:
+        return "the selected bench pair is not corresponded yet"
+    below = _bench_words(holes, sel.bench + 1)
+    return f"source component {sel.component} has no target on {below}: it ends between the benches"
+
+
+def _why_no_model_output(stage: str):
+    def why(holes, result: PipelineResult, sel: Selection) -> str:
+        if stage in result.errors or "model" in result.errors:
+            return result.errors.get(stage) or result.errors["model"]
+        if not result.complete:
+            return f"the {stage} is not computed yet"
+        if result.model is None or not result.model.pairs:
+            return f"geozone {sel.geozone} is never in a component of {result.min_component_holes} or more holes on two benches"
+        return f"the {stage} of geozone {sel.geozone} is empty"
+
+    return why
+
+
+#: ``layer name -> why(holes, result, selection)``: what to tell the user when that layer draws nothing.
+EMPTY_REASONS = {
+    "contours": lambda holes, result, sel: "no contours are extracted yet",
+    "edge map": _why_no_contour,
+    "GVF": _why_no_contour,
+    "snake": _why_no_contour,
+    "wavefront": _why_no_morph,
+    "trajectories": _why_no_morph,
+    "predicted contours": _why_no_model_output("prediction"),
+    "surfaces": _why_no_model_output("surface"),
+    "selected components": _why_no_morph,
+    "uncertainty": _why_no_model_output("prediction"),
+    "suggested holes": _why_no_model_output("prediction"),
+}
+
+
+def empty_layer_reasons(
+    scene: Scene, holes, result: PipelineResult, selection: Selection, is_empty=None
+) -> dict[str, str]:
+    """``{layer name: why it draws nothing}`` for the visible layers of ``scene`` that are empty.
+
+    ``is_empty(layer)`` says whether a layer draws nothing (default: build it and see).
+    """
+    is_empty = is_empty or (lambda layer: layer.is_empty)
+    out = {}
+    for layer in scene.layers:
+        if layer.visible and is_empty(layer):
+            why = EMPTY_REASONS.get(layer.name)
+            out[layer.name] = why(holes, result, selection) if why else "nothing to draw for this selection"
+    return out

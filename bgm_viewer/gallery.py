@@ -3,11 +3,15 @@
     python -m bgm_viewer.gallery [OUT_DIR]     # default assets/screenshots
 
 Writes demo_overview.png, gvf_snake.png, wavefront_trajectories.png and
-surfaces.png of the bundled demo (geozone g1, top bench pair).
+surfaces.png (every geozone's surface) of the bundled demo (geozone g1, top
+bench pair), and kennecott_overview.png (holes, contours and every geozone's
+surface, in feet) when the Kennecott table is found (``BGM_KENNECOTT`` or
+``../shared/data`` beside the repository).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -15,8 +19,14 @@ from pathlib import Path
 SHOTS = (
     ("demo_overview.png", "blastholes,contours", "iso"),
     ("gvf_snake.png", "edge map,GVF,snake", "top"),
-    ("wavefront_trajectories.png", "wavefront,trajectories,contours", "iso"),
+    ("wavefront_trajectories.png", "wavefront,trajectories,contours,selected components", "iso"),
     ("surfaces.png", "surfaces,contours", "iso"),
+)
+KENNECOTT = Path(
+    os.environ.get(
+        "BGM_KENNECOTT",
+        Path(__file__).resolve().parents[2] / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv",
+    )
 )
 
 
@@ -32,6 +42,13 @@ def make_gallery(out_dir: str | Path = "assets/screenshots", geozone: str = "g1"
     out = []
     for name, layers, camera in SHOTS:
         out.append(render_screenshot(out_png=Path(out_dir) / name, layers=layers, camera=camera, model=model))
+    if KENNECOTT.exists():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            model = ViewerModel(str(KENNECOTT))
+            model.run()
+        shot = Path(out_dir) / "kennecott_overview.png"
+        out.append(render_screenshot(out_png=shot, layers="blastholes,contours,surfaces", model=model))
     return out
 
 

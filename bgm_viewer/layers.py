@@ -35,6 +35,7 @@ __all__ = [
     "GVFLayer",
     "Layer",
     "MeshItem",
+    "SelectedComponentsLayer",
     "SnakeLayer",
     "SurfaceLayer",
     "TrajectoriesLayer",
@@ -51,13 +52,37 @@ __all__ = [
 
 @dataclass(frozen=True)
 class ViewTransform:
-    """Display mapping: ``z_display = z_ref + (z - z_ref) * vertical_exaggeration``."""
+    """Display mapping, ``z_display = z_ref + (z - z_ref) * vertical_exaggeration``, and what is left out.
+
+    ``hidden_geozones``: labels whose holes, contours and surfaces are not
+    drawn; ``hidden_benches_m``: bench elevations (metres) whose holes and
+    contours are not drawn.
+    """
 
     vertical_exaggeration: float = 1.0
     z_ref: float = 0.0
+    hidden_geozones: frozenset[str] = frozenset()
+    hidden_benches_m: frozenset[float] = frozenset()
+
+    def shows(self, geozone: str, z_m: float | None = None) -> bool:
+        """Whether an item of ``geozone`` at elevation ``z_m`` (``None``: any) is drawn."""
+        return geozone not in self.hidden_geozones and (
+            z_m is None or not any(abs(z_m - h) < 1e-6 for h in self.hidden_benches_m)
+        )
+
+    def shown_mask(self, geozone: np.ndarray, z_m: np.ndarray) -> np.ndarray:
+        """:meth:`shows` for arrays of labels and elevations."""
+        keep = ~np.isin(geozone, list(self.hidden_geozones)) if self.hidden_geozones else np.ones(len(geozone), bool)
+        for h in self.hidden_benches_m:
+            keep &= np.abs(np.asarray(z_m, float) - h) >= 1e-6
+        return keep
 
     def z(self, z):
         return self.z_ref + (np.asarray(z, float) - self.z_ref) * self.vertical_exaggeration
+
+    def z_from_display(self, z_display):
+        """Elevation (metres) of a displayed ``z``: the inverse of :meth:`z`."""
+        return self.z_ref + (np.asarray(z_display, float) - self.z_ref) / self.vertical_exaggeration
 
 
 @dataclass
@@ -228,8 +253,8 @@ class BlastholesLayer(Layer):
         colours=None,
         *,
         name="blastholes",
-        point_size: float = 5.0,
-        boundary_point_size: float = 9.0,
+        point_size: float = 4.0,
+        boundary_point_size: float = 7.0,
         **kw,
     ):
         super().__init__(name, **kw)
@@ -259,12 +284,15 @@ class BlastholesLayer(Layer):
     def _build(self, view):
         rgb = self.rgb()
         pts = np.column_stack([self.xy, view.z(self.z)])
+        shown = view.shown_mask(self.geozone, self.z)
         items = []
         for sel, size in ((~self.boundary, self.point_size), (self.boundary, self.boundary_point_size)):
+            sel = sel & shown
             if not sel.any():
                 continue
             mesh = pv.PolyData(pts[sel])
             mesh.point_data["rgb"] = rgb[sel]
+            mesh.point_data["hole"] = np.flatnonzero(sel)  # what a pick reports
             items.append(
                 MeshItem(
                     mesh,
@@ -272,9 +300,10 @@ class BlastholesLayer(Layer):
                         "scalars": "rgb",
                         "rgb": True,
                         "point_size": size,
-                        "render_points_as_spheres": False,
+                        "render_points_as_spheres": True,  # small discs, not squares
                         "lighting": False,
                         "show_scalar_bar": False,
+                        "pickable": True,
                     },
                 )
             )
@@ -323,23 +352,49 @@ class ContoursLayer(Layer):
         c = self.colours.get(geozone, (200, 200, 200))
         return lighten(c, 0.55) if self.predicted else c
 
-    def rings(self, view: ViewTransform | None = None) -> tuple[list[np.ndarray], list[RGB]]:
+    def rings(self, view: ViewTransform | None = None) -> tuple[list[np.ndarray], list[RGB], list[int]]:
+        """Rings of the shown items at their displayed elevations, their colours and item indices."""
         view = view or ViewTransform()
-        lines, rgb = [], []
-        for g, z, poly in self.items:
+        lines, rgb, index = [], [], []
+        for i, (g, z, poly) in enumerate(self.items):
+            if not view.shows(g, z):
+                continue
             for ring in polygon_rings(poly):
                 lines.append(_xyz(ring, view.z(z)))
                 rgb.append(self.colour_of(g))
-        return lines, rgb
+                index.append(i)
+        return lines, rgb, index
 
     def _build(self, view):
-        lines, rgb = self.rings(view)
+        lines, rgb, index = self.rings(view)
+        mesh = polylines(lines, rgb)
+        if mesh.n_points:
+            mesh.point_data["item"] = np.repeat(index, [len(line) for line in lines])  # what a pick reports
+        return [MeshItem(mesh, {**_line_style(self.line_width), "pickable": True})]
+
+    def legend(self):
+        """One row per geozone (its colour in every layer); predicted contours: one row for the lighter shades."""
+        if self.predicted:
+            return [("predicted (lighter shade)", LAYER_COLOURS["predicted"])] if self.items else []
+        return [(f"geozone {g}", self.colour_of(g)) for g in sorted({g for g, _, _ in self.items})]
+
+
+class SelectedComponentsLayer(ContoursLayer):
+    """The selected source component(s) and their target(s), drawn wide; items are ``("source" | "target", z, polygon)``."""
+
+    kind = "selected_components"
+
+    def __init__(self, items=(), *, name="selected components", line_width: float = 6.0, **kw):
+        colours = {"source": LAYER_COLOURS["selected_source"], "target": LAYER_COLOURS["selected_target"]}
+        super().__init__(items, colours, name=name, line_width=line_width, **kw)
+
+    def _build(self, view):
+        lines, rgb, _ = self.rings(ViewTransform(view.vertical_exaggeration, view.z_ref))  # never hidden
         return [MeshItem(polylines(lines, rgb), _line_style(self.line_width))]
 
     def legend(self):
-        present = sorted({g for g, _, _ in self.items})
-        suffix = " (predicted)" if self.predicted else ""
-        return [(f"{self.name}{suffix}: {g}", self.colour_of(g)) for g in present]
+        present = {role for role, _, _ in self.items}
+        return [(f"selected {role}", self.colours[role]) for role in ("source", "target") if role in present]
 
 
 # ---------------------------------------------------------------------------
@@ -691,19 +746,27 @@ class SurfaceLayer(Layer):
 
     def _build(self, view):
         items = []
-        for g, v, f in self.meshes:
-            if not len(f):
+        for i, (g, v, f) in enumerate(self.meshes):
+            if not len(f) or not view.shows(g):
                 continue
             pts = v.copy()
             pts[:, 2] = view.z(pts[:, 2])
             faces = np.column_stack([np.full(len(f), 3), f]).ravel()
+            mesh = pv.PolyData(pts, faces=faces)
+            mesh.point_data["item"] = np.full(len(pts), i)  # what a pick reports
             items.append(
                 MeshItem(
-                    pv.PolyData(pts, faces=faces),
-                    {"color": self.colours.get(g, (200, 200, 200)), "smooth_shading": False, "show_scalar_bar": False},
+                    mesh,
+                    {
+                        "color": self.colours.get(g, (200, 200, 200)),
+                        "smooth_shading": False,
+                        "show_scalar_bar": False,
+                        "scalars": None,
+                        "pickable": True,
+                    },
                 )
             )
         return items
 
     def legend(self):
-        return [(f"surface {g}", self.colours.get(g, (200, 200, 200))) for g in sorted({g for g, _, _ in self.meshes})]
+        return [(f"geozone {g}", self.colours.get(g, (200, 200, 200))) for g in sorted({g for g, _, _ in self.meshes})]

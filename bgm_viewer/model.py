@@ -104,6 +104,8 @@ class PipelineResult:
     morph: MorphRecord | None = None  #: the selected source's morph instance, with fronts
     model: GeozoneModel | None = None  #: the selected geozone's whole model
     surface: trimesh.Trimesh | None = None  #: the selected geozone's surface, as ``bgm build`` exports it
+    #: The surfaces shown, by geozone: ``bgm build``'s, less the bodies the body filter drops.
+    surfaces: dict[str, trimesh.Trimesh] = field(default_factory=dict)
     predicted: list = field(default_factory=list)  #: (geozone, z_m, polygon) below the deepest bench
     selection: Selection | None = None  #: what the pair, morph, model and surface were computed for
     min_component_holes: int = ModelParameters().min_component_holes
@@ -135,6 +137,11 @@ class PipelineInputs:
 
     session: ModelSession
     selection: Selection
+    #: Geozones whose surfaces are built after the selected one's (the selected one's always is).
+    surface_geozones: tuple[str, ...] = ()
+    #: Bodies of a surface below this volume, or holding fewer of the geozone's holes, are not shown.
+    min_body_volume_m3: float = 0.0
+    min_body_holes: int = 0
 
 
 Progress = tuple[str, float, PipelineResult]
@@ -144,6 +151,7 @@ class _Run:
     """One run of :func:`compute`: the result being built, timings, errors, cancellation."""
 
     def __init__(self, inputs: PipelineInputs, previous: PipelineResult | None, cancelled):
+        self.inputs = inputs
         self.session, self.sel, self.cancelled = inputs.session, inputs.selection, cancelled
         prev = previous or PipelineResult()
         # What is on screen stays there until it is redone (a picture that empties and
@@ -157,6 +165,8 @@ class _Run:
             model=prev.model if same else None,
             surface=prev.surface if same else None,
             predicted=prev.predicted if same else [],
+            # other geozones' surfaces stay on screen until redone; those no longer asked for go
+            surfaces={g: m for g, m in prev.surfaces.items() if g in (*inputs.surface_geozones, self.sel.geozone)},
             selection=self.sel,
             min_component_holes=self.session.params.min_component_holes,
             timings=dict(prev.timings),
@@ -168,7 +178,9 @@ class _Run:
 
     def snapshot(self) -> PipelineResult:
         r = self.res
-        return replace(r, contours=dict(r.contours), timings=dict(r.timings), errors=dict(r.errors))
+        return replace(
+            r, contours=dict(r.contours), timings=dict(r.timings), errors=dict(r.errors), surfaces=dict(r.surfaces)
+        )
 
     def step(self, name: str, fn: Callable[[], object], error_key: str | None = None):
         """``fn()`` timed as ``name``; an exception is reported under ``error_key`` (re-raised without one)."""
@@ -317,7 +329,42 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
     res.predicted = [(g, z, poly) for z, region in regions.items() for poly in region.geoms]
     if last >= STEPS.index("surface"):
         res.surface = run.step("surface", lambda: session.surface(g, model), "surface")
-        yield "surface", 0.95, run.snapshot()
+        _show_surface(run, g, res.surface)
+        yield "surface", 0.9, run.snapshot()
+        yield from _other_surfaces(run)
+
+
+def _show_surface(run: _Run, geozone: str, mesh) -> None:
+    """Put ``mesh`` among the shown surfaces, without the bodies the body filter drops."""
+    from core.model.surfaces import drop_small_bodies
+
+    inputs, holes = run.inputs, run.session.holes
+    shown = None
+    if mesh is not None:
+        own = holes.geozone == geozone
+        xyz = np.column_stack([holes.xy[own], holes.bench_levels_m[holes.bench[own]]])
+        shown = drop_small_bodies(
+            mesh, min_volume_m3=inputs.min_body_volume_m3, min_holes=inputs.min_body_holes, holes_xyz=xyz
+        )
+    if shown is None:
+        run.res.surfaces.pop(geozone, None)
+    else:
+        run.res.surfaces[geozone] = shown
+
+
+def _other_surfaces(run: _Run) -> Iterator[Progress]:
+    """The surfaces of the other geozones asked for, one at a time (each is ``bgm build``'s)."""
+    others = [g for g in run.inputs.surface_geozones if g != run.sel.geozone]
+    t0 = time.perf_counter()
+    for i, g in enumerate(others, start=1):
+        session = run.session
+        model = run.step(f"model of {g}", functools.partial(session.geozone_model, g), f"model {g}")
+        mesh = None
+        if model is not None and model.pairs:
+            mesh = run.step(f"surface of {g}", functools.partial(session.surface, g, model), f"surface {g}")
+        _show_surface(run, g, mesh)
+        yield f"surface of geozone {g}", 0.9 + 0.1 * i / len(others), run.snapshot()
+    run.res.timings["other surfaces"] = time.perf_counter() - t0
 
 
 # ---------------------------------------------------------------------------
@@ -349,6 +396,61 @@ def project_input(project_path) -> str | None:
     return str(path)
 
 
+def _hole_attributes(path: str | None, holes: Blastholes):
+    import pandas as pd
+    from scipy.spatial import cKDTree
+
+    from core.io.blastholes import table_columns
+    from core.io.tables import read_table
+
+    if path is None or str(path) == "-":
+        return None
+    try:
+        table = read_table(path)
+        cols = table_columns(list(table.columns))
+    except Exception:  # the reader already accepted the file; a second read failing only loses the extras
+        return None
+    extra = [c for c in table.columns if c not in cols.values()]
+    if not extra:
+        return None
+    x, y, z = (pd.to_numeric(table[cols[r]], errors="coerce").to_numpy(float) for r in ("x", "y", "z"))
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
+    xyz = np.column_stack([holes.frame.to_local(x[ok], y[ok]), holes.frame.z_to_local(z[ok])])
+    _, row = cKDTree(xyz).query(np.column_stack([holes.xy, holes.z]))
+    return table.loc[ok, extra].iloc[row].reset_index(drop=True)
+
+
+def bodies(holes: Blastholes) -> list[str] | None:
+    """Geozones other than a host rock holding over half the holes (``None``: every geozone, there is none)."""
+    labels, counts = np.unique(holes.geozone, return_counts=True)
+    host = labels[counts > 0.5 * len(holes.geozone)]
+    if len(host) == 0 or len(labels) == 1:
+        return None
+    return [g for g in holes.geozones if g not in set(host.tolist())]
+
+
+def richest_pair(holes: Blastholes) -> tuple[str, int]:
+    """The geozone and upper bench of the bench pair where that geozone has the most holes on both benches.
+
+    The viewer opens there, so its stage layers (snake, GVF, morph) show
+    something: a geozone absent from the selected bench has no contour to
+    draw. A geozone holding over half the holes is taken for the host rock
+    around the bodies and passed over when there are others. Ties go to the
+    top bench and the first label; with one bench, the geozone with most holes on it.
+    """
+    n = holes.n_benches
+    zones = holes.geozones
+    counts = np.zeros((len(zones), max(n, 1)), int)
+    index = {g: i for i, g in enumerate(zones)}
+    np.add.at(counts, (np.array([index[g] for g in holes.geozone], int), np.asarray(holes.bench, int)), 1)
+    both = np.minimum(counts[:, :-1], counts[:, 1:]) if n > 1 else counts
+    host = counts.sum(axis=1) > 0.5 * len(holes.geozone)
+    if len(zones) > 1:
+        both[host] = -1
+    b, g = np.unravel_index(int(np.argmax(both.T)), both.T.shape)  # bench-major: ties go to the top
+    return zones[int(g)], int(b)
+
+
 class ViewerModel:
     """State of a viewing session; changes are announced on the psygnal signals below."""
 
@@ -365,10 +467,13 @@ class ViewerModel:
         self.params = ModelParameters()
         # One store for the whole session: every run shares what earlier ones computed.
         self.store = StageStore(StageCache() if cache else None)
-        zones = self.holes.geozones
-        default_zone = next((g for g in zones if g != zones[0]), zones[0]) if len(zones) > 1 else zones[0]
-        self.selection = selection or Selection(default_zone, 0, 0)
+        self.selection = selection or Selection(*richest_pair(self.holes), 0)
         self.vertical_exaggeration = 2.0
+        #: Geozones whose surfaces are shown (``None``: all); bodies below the body filter are not shown.
+        #: By default all but a host rock holding over half the holes: its surface wraps the others.
+        self.surface_geozones: list[str] | None = bodies(self.holes)
+        self.min_body_volume_m3 = 0.0
+        self.min_body_holes = 0
         self.overrides: list = []  # core.io.project.AlignmentOverride
         self._undo: list[list] = []
         self.result: PipelineResult = PipelineResult()
@@ -393,7 +498,10 @@ class ViewerModel:
         return ModelSession(self.holes, self.params, Project(overrides=copy.deepcopy(self.overrides)), self.store)
 
     def inputs(self) -> PipelineInputs:
-        return PipelineInputs(self.session(), self.selection)
+        zones = self.holes.geozones if self.surface_geozones is None else self.surface_geozones
+        return PipelineInputs(
+            self.session(), self.selection, tuple(zones), float(self.min_body_volume_m3), int(self.min_body_holes)
+        )
 
     def source_z_input(self) -> float:
         return float(self.holes.bench_z_input(self.selection.bench))
@@ -415,6 +523,31 @@ class ViewerModel:
     def set_result(self, result: PipelineResult) -> None:
         self.result = result
         self.result_changed.emit(result)
+
+    # -- what a picked hole reports ------------------------------------------------
+    def hole_info(self, i: int) -> dict[str, object]:
+        """A hole's id, geozone, bench elevation (input units) and the input's other columns (grade...)."""
+        h = self.holes
+        info: dict[str, object] = {
+            "hole": str(h.hole_id[i]) if h.hole_id is not None else f"#{i}",
+            "geozone": str(h.geozone[i]),
+            f"bench ({h.frame.length_unit})": h.bench_z_input(int(h.bench[i])),
+        }
+        extra = self.hole_attributes()
+        if extra is not None:
+            info.update({str(k): v for k, v in extra.iloc[i].items()})
+        return info
+
+    def hole_attributes(self):
+        """The input's columns other than x, y, z, geozone and hole id, one row per hole (``None``: none).
+
+        The engine reads only the columns it models; the rest (grades...) are
+        read here once and matched to the holes by position, which survives
+        the rows the reader drops or merges.
+        """
+        if not hasattr(self, "_attributes"):
+            self._attributes = _hole_attributes(self.input_path, self.holes)
+        return self._attributes
 
     # -- parameters and selection ------------------------------------------------
     def param(self, name: str):

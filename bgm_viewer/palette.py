@@ -1,7 +1,8 @@
 """Fixed colours: a qualitative palette for geozones and one colour per layer kind.
 
 Colours are RGB tuples of ints 0-255. Geozones take the palette in sorted
-label order, so the same project always looks the same. The layer colours are
+label order, so a geozone has one colour in every layer, the legend and every
+run on the same input. The layer colours are
 chosen away from the geozone palette so tests (and people) can tell an arrow
 from a hole.
 """
@@ -10,21 +11,22 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-#: Tableau-10-like qualitative palette (colour-blind friendlier order).
-GEOZONE_PALETTE: tuple[tuple[int, int, int], ...] = (
-    (31, 119, 180),  # blue
-    (255, 127, 14),  # orange
-    (44, 160, 44),  # green
-    (214, 39, 40),  # red
-    (148, 103, 189),  # purple
-    (140, 86, 75),  # brown
-    (227, 119, 194),  # pink
-    (127, 127, 127),  # grey
-    (188, 189, 34),  # olive
-    (23, 190, 207),  # teal
+#: Glasbey categorical palette (colorcet's ``glasbey_bw_minc_20_minl_30``, fixed here so the
+#: viewer does not depend on colorcet), without the colours too dark on the dark background
+#: or too near a layer colour: 32 geozones get distinct colours before any repeats.
+GEOZONE_HEX = (
+    "#028800", "#06acc6", "#98ff00", "#ffa530", "#ff8fc8", "#b0a5ff", "#94ad84", "#9a6900",
+    "#c86f66", "#9ee3ff", "#00c946", "#a977ad", "#b8bb02", "#009f7d", "#ff6200", "#56652b",
+    "#963f1f", "#91318f", "#ff3465", "#a0e492", "#8d9bb2", "#829126", "#78c7bb", "#bc9258",
+    "#e58fff", "#72b9ff", "#ad577d", "#ff4ab1", "#c25703", "#c244bd", "#007540", "#ba6ffe",
+)  # fmt: skip
+GEOZONE_PALETTE: tuple[tuple[int, int, int], ...] = tuple(
+    (int(h[1:3], 16), int(h[3:5], 16), int(h[5:7], 16)) for h in GEOZONE_HEX
 )
 
 BACKGROUND = (24, 26, 32)
+#: Axes grid, labels, scale bar and orientation widget.
+BEARINGS = (205, 210, 220)
 #: Colours of the layers that are not coloured by geozone.
 LAYER_COLOURS: dict[str, tuple[int, int, int]] = {
     "gvf": (255, 255, 0),  # arrows: pure yellow, in no geozone colour
@@ -35,6 +37,8 @@ LAYER_COLOURS: dict[str, tuple[int, int, int]] = {
     "wavefront": (255, 220, 120),
     "predicted": (240, 240, 240),
     "edge_map": (200, 200, 200),
+    "selected_source": (255, 255, 255),
+    "selected_target": (255, 250, 170),
 }
 
 

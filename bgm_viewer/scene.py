@@ -11,15 +11,25 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from contextlib import contextmanager, suppress
+from dataclasses import replace
 
 import numpy as np
 from psygnal import Signal
 
+from core.io.blastholes import LocalFrame
+
 from . import _vtkenv  # noqa: F401
 from .layers import Layer, ViewTransform
-from .palette import BACKGROUND, to_float
+from .palette import BACKGROUND, BEARINGS, to_float
 
 CAMERAS = ("iso", "top", "front", "side")
+#: Part of the picture (left, bottom, right, top; 0-1) the data is fitted into when the legend
+#: is drawn in it (off-screen pictures): the legend sits in the strip on the right.
+DATA_RECT_WITH_LEGEND = (0.03, 0.06, 0.76, 0.94)
+DATA_RECT = (0.05, 0.06, 0.95, 0.94)
+LEGEND_WIDTH = 0.2
+#: Surfaces with more triangles are drawn coarse while the camera moves (:meth:`SceneRenderer.set_interacting`).
+COARSE_ABOVE_FACES = 5000
 
 
 class Scene:
@@ -27,9 +37,18 @@ class Scene:
 
     changed = Signal(object, str)
 
-    def __init__(self, layers: Iterable[Layer] = (), *, vertical_exaggeration: float = 2.0, z_ref: float = 0.0):
+    def __init__(
+        self,
+        layers: Iterable[Layer] = (),
+        *,
+        vertical_exaggeration: float = 2.0,
+        z_ref: float = 0.0,
+        frame: LocalFrame | None = None,
+    ):
         self.layers: list[Layer] = []
         self._view = ViewTransform(vertical_exaggeration, z_ref)
+        #: The input's frame: axes and scale bar are labelled in its coordinates and units.
+        self.frame = frame or LocalFrame(0.0, 0.0)
         for layer in layers:
             self.add(layer)
 
@@ -79,8 +98,31 @@ class Scene:
         if value <= 0:
             raise ValueError("vertical exaggeration must be positive")
         if value != self._view.vertical_exaggeration:
-            self._view = ViewTransform(value, self._view.z_ref)
+            self._set_view(vertical_exaggeration=value)
+
+    def _set_view(self, **changes) -> None:
+        view = replace(self._view, **changes)
+        if view != self._view:
+            self._view = view
             self.changed.emit(None, "view")
+
+    @property
+    def hidden_geozones(self) -> frozenset[str]:
+        """Geozones whose holes, contours and surfaces are not drawn."""
+        return self._view.hidden_geozones
+
+    @hidden_geozones.setter
+    def hidden_geozones(self, labels: Iterable[str]) -> None:
+        self._set_view(hidden_geozones=frozenset(map(str, labels)))
+
+    @property
+    def hidden_benches_m(self) -> frozenset[float]:
+        """Bench elevations (metres) whose holes and contours are not drawn."""
+        return self._view.hidden_benches_m
+
+    @hidden_benches_m.setter
+    def hidden_benches_m(self, levels: Iterable[float]) -> None:
+        self._set_view(hidden_benches_m=frozenset(float(z) for z in levels))
 
     def set_visible_only(self, names: Iterable[str]) -> None:
         """Show exactly the named layers (unknown names raise ``KeyError``)."""
@@ -114,15 +156,21 @@ class SceneRenderer:
     ``auto_render``: call ``plotter.render()`` after each change (the Qt window does).
     """
 
-    def __init__(self, plotter, scene: Scene, *, legend: bool = True, auto_render: bool = False):
+    def __init__(self, plotter, scene: Scene, *, legend: bool = True, auto_render: bool = False, bearings: bool = True):
         self.plotter = plotter
         self.scene = scene
         self.show_legend = legend
+        self.show_bearings = bearings
         self.auto_render = auto_render
         self.actors: dict[str, list] = {}
         self._legend_shown: list | None = None
         self._batching = 0
         self._legend_stale = False
+        self._bearings_stale = False
+        self._bearings_shown: tuple | None = None
+        self._ruler: object | None = None
+        self.clip: tuple[str, float, str] | None = None
+        self.elevation_range_m: tuple[float | None, float | None] = (None, None)
         with suppress(Exception):
             plotter.disable_anti_aliasing()
         ren_win = getattr(plotter, "ren_win", None)
@@ -135,6 +183,10 @@ class SceneRenderer:
         for layer in scene.layers:
             self._rebuild(layer)
         self._update_legend()
+        if bearings:
+            with suppress(Exception):  # an orientation widget needs an interactor on some platforms
+                plotter.add_axes(xlabel="E", ylabel="N", zlabel="Up", color=to_float(BEARINGS), line_width=2)
+            self._update_bearings()
         scene.changed.connect(self._on_change)
 
     # -- updates -----------------------------------------------------------
@@ -150,12 +202,16 @@ class SceneRenderer:
             self._rebuild(layer)
         if what in ("visible", "added", "data", "color") or layer is None:
             self._legend_stale = True
+        if what in ("visible", "added", "data", "frame") or layer is None:
+            self._bearings_stale = True
         if not self._batching:
             self._refresh()
 
     def _refresh(self) -> None:
         if self._legend_stale:
             self._update_legend()
+        if self._bearings_stale:
+            self._update_bearings()
         if self.auto_render:
             self.plotter.render()
 
@@ -182,13 +238,126 @@ class SceneRenderer:
         for actor in self.actors.pop(layer.name, []):
             self.plotter.remove_actor(actor, render=False)
         actors = []
+        planes = self._clipping_planes()
         for k, item in enumerate(layer.build(self.scene.view)):
             actor = self.plotter.add_mesh(
                 item.mesh, name=f"{layer.name}#{k}", reset_camera=False, render=False, **item.style
             )
             actor.SetVisibility(layer.visible)
+            for plane in planes:
+                actor.GetMapper().AddClippingPlane(plane)
             actors.append(actor)
         self.actors[layer.name] = actors
+
+    # -- coarse surfaces while the camera moves -----------------------------
+    def set_interacting(self, moving: bool) -> None:
+        """Draw big surfaces coarse while the camera moves, in full again when it stops.
+
+        Software OpenGL draws about a million triangles a second: Kennecott's
+        surfaces (half a million triangles) took 300 ms a frame. While the
+        user turns the view each surface is replaced by a quadric clustering
+        of itself (a few thousand triangles, made once per surface), opaque;
+        at rest the surfaces drawn are exactly those exported.
+        """
+        layer = self.scene.get("surfaces")
+        for actor in self.actors.get("surfaces", []):
+            mapper = actor.GetMapper()
+            full = getattr(actor, "_full_mesh", None)
+            # blending translucent faces over the whole view costs more than drawing them
+            actor.GetProperty().SetOpacity(1.0 if moving or layer is None else layer.opacity)
+            if moving:
+                mesh = mapper.GetInput()
+                if mesh.GetNumberOfCells() < COARSE_ABOVE_FACES:
+                    continue
+                if getattr(actor, "_coarse_mesh", None) is None:
+                    actor._full_mesh, actor._coarse_mesh = mesh, _coarse(mesh)
+                mapper.SetInputData(actor._coarse_mesh)
+            elif full is not None:
+                mapper.SetInputData(full)
+
+    # -- picking -----------------------------------------------------------
+    def pick(self, x_px: float, y_px: float, tolerance: float = 0.01) -> tuple[str, int] | None:
+        """The layer and item under display pixel ``(x_px, y_px)`` (VTK's: origin bottom left).
+
+        The item is what the layer's meshes carry for each point: a hole's
+        index (``"hole"``) or an item's index in the layer (``"item"``).
+        ``None`` when nothing pickable is under the pixel.
+        """
+        import vtk
+
+        picker = vtk.vtkPointPicker()
+        picker.SetTolerance(tolerance)
+        picker.PickFromListOn()
+        owner = {}
+        for name, actors in self.actors.items():
+            for actor in actors:
+                if actor.GetVisibility() and actor.GetPickable():
+                    picker.AddPickList(actor)
+                    owner[id(actor)] = name
+        if not owner or not picker.Pick(float(x_px), float(y_px), 0.0, self.plotter.renderer):
+            return None
+        actor, pid = picker.GetActor(), picker.GetPointId()
+        if actor is None or pid < 0 or id(actor) not in owner:
+            return None
+        data = actor.GetMapper().GetInput().GetPointData()
+        for key in ("hole", "item"):
+            arr = data.GetArray(key)
+            if arr is not None:
+                return owner[id(actor)], int(arr.GetTuple1(pid))
+        return None
+
+    # -- clipping: a section plane and an elevation range ------------------
+    def set_clip(self, axis: str | None, value: float = 0.0, keep: str = "below") -> None:
+        """Cut the picture at ``axis`` (``"x"``, ``"y"``, ``"z"``; ``None`` for no cut) = ``value``.
+
+        ``value`` is in drawn coordinates (local metres; z as displayed, with
+        the vertical exaggeration); ``keep`` is ``"below"`` or ``"above"``
+        that value. Only the mappers' clipping planes change: nothing is rebuilt.
+        """
+        if axis is not None and (axis not in "xyz" or len(axis) != 1 or keep not in ("below", "above")):
+            raise ValueError(f"clip axis must be x, y or z and keep below or above, got {axis!r}, {keep!r}")
+        self.clip = None if axis is None else (axis, float(value), keep)
+        self._apply_clipping()
+
+    def set_elevation_range(self, z_min_m: float | None = None, z_max_m: float | None = None) -> None:
+        """Show only what lies between two elevations (metres; ``None``: no limit)."""
+        self.elevation_range_m = (z_min_m, z_max_m)
+        self._apply_clipping()
+
+    def _clipping_planes(self) -> list:
+        import vtk
+
+        planes: list[tuple[tuple[float, ...], tuple[float, ...]]] = []
+        if self.clip is not None:
+            axis, value, keep = self.clip
+            k = "xyz".index(axis)
+            normal = tuple(float(i == k) * (-1.0 if keep == "below" else 1.0) for i in range(3))
+            origin = tuple(float(i == k) * value for i in range(3))
+            planes.append((origin, normal))
+        lo, hi = self.elevation_range_m
+        view = self.scene.view
+        if lo is not None:
+            planes.append(((0.0, 0.0, float(view.z(lo)) - 1e-6), (0.0, 0.0, 1.0)))
+        if hi is not None:
+            planes.append(((0.0, 0.0, float(view.z(hi)) + 1e-6), (0.0, 0.0, -1.0)))
+        out = []
+        for origin, normal in planes:  # VTK keeps the side the normal points to
+            plane = vtk.vtkPlane()
+            plane.SetOrigin(*origin)
+            plane.SetNormal(*normal)
+            out.append(plane)
+        return out
+
+    def _apply_clipping(self) -> None:
+        planes = self._clipping_planes()
+        for actors in self.actors.values():
+            for actor in actors:
+                mapper = actor.GetMapper()
+                mapper.RemoveAllClippingPlanes()
+                for plane in planes:
+                    mapper.AddClippingPlane(plane)
+        if not self._batching and self.auto_render:
+            self.plotter.render()
 
     def _update_legend(self) -> None:
         self._legend_stale = False
@@ -199,21 +368,87 @@ class SceneRenderer:
         with suppress(Exception):
             self.plotter.remove_legend(render=False)
         if entries:
-            self.plotter.add_legend(
-                [[label, to_float(rgb)] for label, rgb in entries],
+            rows = min(len(entries), 36)
+            height = min(0.026 * rows, 0.94)
+            legend = self.plotter.add_legend(
+                [[label, to_float(rgb)] for label, rgb in entries[:rows]],
                 bcolor=(0.1, 0.1, 0.12),
                 border=False,
-                size=(0.16, min(0.026 * len(entries), 0.5)),
-                loc="upper right",
+                size=(LEGEND_WIDTH - 0.01, height),
                 face="rectangle",
             )
+            # in the strip right of the data rectangle (pyvista's "upper right" drifts left with long labels)
+            legend.GetPositionCoordinate().SetValue(1.0 - LEGEND_WIDTH, 0.98 - height)
+            legend.GetPosition2Coordinate().SetValue(LEGEND_WIDTH - 0.01, height)
+
+    # -- bearings: axes grid, scale bar ------------------------------------
+    def data_bounds(self) -> tuple[float, ...] | None:
+        """Bounds ``(xmin, xmax, ymin, ymax, zmin, zmax)`` of the visible layers as drawn (display z)."""
+        boxes = [a.GetBounds() for name, actors in self.actors.items() for a in actors if a.GetVisibility() and name]
+        boxes = [b for b in boxes if np.all(np.isfinite(b)) and b[1] >= b[0]]
+        if not boxes:
+            return None
+        arr = np.array(boxes)
+        return tuple(float(v) for pair in zip(arr[:, 0::2].min(axis=0), arr[:, 1::2].max(axis=0)) for v in pair)
+
+    def _update_bearings(self) -> None:
+        """A labelled box grid in the input's coordinates and units, and a scale bar, around the visible data."""
+        self._bearings_stale = False
+        if not self.show_bearings:
+            return
+        bounds = self.data_bounds()
+        key = None if bounds is None else tuple(np.round(bounds, 3)) + (self.scene.vertical_exaggeration,)
+        if key == self._bearings_shown:
+            return
+        self._bearings_shown = key
+        p = self.plotter
+        p.remove_bounds_axes()
+        if self._ruler is not None:
+            p.remove_actor(self._ruler, render=False)
+            self._ruler = None
+        if bounds is None:
+            return
+        frame, view = self.scene.frame, self.scene.view
+        unit = frame.length_unit
+        x0, x1, y0, y1, z0, z1 = bounds
+        xin = frame.to_input(np.array([[x0, y0], [x1, y1]]))
+        zin = frame.z_to_input(view.z_from_display(np.array([z0, z1])))
+        colour = to_float(BEARINGS)
+        p.show_bounds(
+            bounds=bounds,
+            axes_ranges=[xin[0, 0], xin[1, 0], xin[0, 1], xin[1, 1], zin[0], zin[1]],
+            xtitle=f"Easting ({unit})",
+            ytitle=f"Northing ({unit})",
+            ztitle=f"Elevation ({unit})",
+            grid="back",
+            location="outer",
+            color=colour,
+            font_size=12,
+            bold=False,
+            n_xlabels=4,
+            n_ylabels=4,
+            n_zlabels=3,
+            fmt="%.0f",
+            render=False,
+        )
+        length = nice_length((x1 - x0) / frame.metres_per_unit / 4)
+        a = np.array([x0, y0, z0])
+        self._ruler = scale_bar(a, a + [length * frame.metres_per_unit, 0.0, 0.0], f"{length:g} {unit}", colour)
+        # not Plotter.add_ruler: it resets the camera
+        p.add_actor(self._ruler, reset_camera=False, pickable=False, render=False)
 
     # -- camera ------------------------------------------------------------
     def set_camera(self, camera: str | None = "iso") -> None:
-        """``iso``, ``top``, ``front``, ``side``, or ``"x,y,z"`` for a view direction."""
+        """``iso``, ``top``, ``front``, ``side``, or ``"x,y,z"`` for a view direction; then fit the data.
+
+        The visible data fill the picture (less the legend's strip when the
+        legend is drawn in it), whatever the window's shape at the time:
+        call it again after a resize or a change of vertical exaggeration.
+        """
         p = self.plotter
         camera = camera or "iso"
-        p.reset_camera()
+        p.camera.SetWindowCenter(0.0, 0.0)
+        p.disable_parallel_projection()
         if camera == "top":
             p.view_xy()
             p.enable_parallel_projection()
@@ -231,7 +466,89 @@ class SceneRenderer:
             if len(vec) != 3:
                 raise ValueError(f"camera direction needs three numbers, got {camera!r}")
             p.view_vector(vec, viewup=(0, 0, 1))
-        p.reset_camera()
+        self.fit()
+
+    def fit(self) -> None:
+        """Zoom and centre the camera (keeping its direction) so the visible data fill the data rectangle."""
+        p = self.plotter
+        bounds = self.data_bounds()
+        p.camera.SetWindowCenter(0.0, 0.0)
+        p.reset_camera(bounds=bounds) if bounds is not None else p.reset_camera()
+        if bounds is None:
+            return
+        legend = self.show_legend and bool(self._legend_shown)
+        rect = np.array(DATA_RECT_WITH_LEGEND if legend else DATA_RECT) * 2 - 1  # view coordinates
+        corners = np.array(np.meshgrid(*np.reshape(bounds, (3, 2)), indexing="ij")).reshape(3, -1).T
+        for _ in range(3):  # perspective: each zoom moves the corners a little differently
+            v = _view_points(p.renderer, corners)
+            span = np.maximum(v.max(axis=0) - v.min(axis=0), 1e-9)
+            scale = float(min((rect[2] - rect[0]) / span[0], (rect[3] - rect[1]) / span[1]))
+            if abs(scale - 1.0) < 0.01:
+                break
+            p.camera.Zoom(scale)
+            p.renderer.ResetCameraClippingRange()
+        v = _view_points(p.renderer, corners)
+        centre = (v.min(axis=0) + v.max(axis=0)) / 2
+        target = np.array([(rect[0] + rect[2]) / 2, (rect[1] + rect[3]) / 2])
+        # the window centre moves the picture, not the camera: rotation stays about the data
+        p.camera.SetWindowCenter(*(centre - target))
+        p.renderer.ResetCameraClippingRange()
+
+
+def _view_points(renderer, xyz: np.ndarray) -> np.ndarray:
+    """View coordinates (-1..1 across the viewport) of world points."""
+    out = np.empty((len(xyz), 2))
+    for i, q in enumerate(xyz):
+        renderer.SetWorldPoint(q[0], q[1], q[2], 1.0)
+        renderer.WorldToView()
+        out[i] = renderer.GetViewPoint()[:2]
+    return out
+
+
+def _coarse(mesh, divisions: int = 48):
+    """A few-thousand-triangle stand-in of ``mesh`` (``vtkQuadricClustering`` on a ``divisions``-cube grid)."""
+    import vtk
+
+    cluster = vtk.vtkQuadricClustering()
+    cluster.SetInputData(mesh)
+    cluster.SetNumberOfDivisions(divisions, divisions, max(divisions // 4, 8))
+    cluster.AutoAdjustNumberOfDivisionsOn()
+    cluster.Update()
+    out = vtk.vtkPolyData()
+    out.DeepCopy(cluster.GetOutput())
+    return out
+
+
+def scale_bar(a, b, title: str, colour) -> object:
+    """A bar between world points ``a`` and ``b`` with end ticks and ``title`` (a ``vtkAxisActor2D``)."""
+    import vtk
+
+    bar = vtk.vtkAxisActor2D()
+    for coord, point in ((bar.GetPositionCoordinate(), a), (bar.GetPosition2Coordinate(), b)):
+        coord.SetCoordinateSystemToWorld()
+        coord.SetValue(*(float(v) for v in point))
+    bar.SetTitle(title)
+    bar.AdjustLabelsOff()
+    bar.SetNumberOfLabels(2)
+    bar.SetLabelVisibility(False)
+    bar.SetFontFactor(0.9)
+    bar.SetTickLength(8)
+    bar.GetProperty().SetColor(*colour)
+    bar.GetProperty().SetLineWidth(3)
+    title_text = bar.GetTitleTextProperty()
+    title_text.SetColor(*colour)
+    title_text.SetShadow(False)
+    title_text.SetBold(True)
+    title_text.SetItalic(False)
+    return bar
+
+
+def nice_length(approx: float) -> float:
+    """The 1, 2 or 5 times a power of ten closest below ``approx`` (a scale bar's length)."""
+    if not np.isfinite(approx) or approx <= 0:
+        return 1.0
+    power = 10.0 ** np.floor(np.log10(approx))
+    return float(max(m for m in (1.0, 2.0, 5.0) if m * power <= approx * (1 + 1e-9)) * power)
 
 
 def world_to_pixels(plotter, xyz: np.ndarray) -> np.ndarray:

@@ -7,6 +7,7 @@ rendering). This module never imports Qt.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from core.errors import BGMInputError
 from core.io.atomic import atomic_path
 
 from . import _vtkenv  # noqa: F401  (before pyvista)
-from .builders import build_scene, parse_layers
+from .builders import build_scene, empty_layer_reasons, parse_layers
 from .model import STEPS, ViewerModel
 from .scene import Scene, SceneRenderer
 
@@ -33,6 +34,7 @@ _NEEDS = {
     "trajectories": "morph",
     "predicted contours": "prediction",
     "surfaces": "surface",
+    "selected components": "morph",
 }
 
 
@@ -46,10 +48,12 @@ def no_aa_theme():
     return theme
 
 
-def plotter_for(scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True):
-    """An off-screen plotter with ``scene`` drawn and the camera set."""
+def plotter_for(
+    scene: Scene, *, window_size=DEFAULT_SIZE, camera: str | None = "iso", legend: bool = True, bearings: bool = True
+):
+    """An off-screen plotter with ``scene`` drawn (with axes grid and scale bar unless ``bearings`` is false)."""
     plotter = pv.Plotter(off_screen=True, window_size=[int(v) for v in window_size], theme=no_aa_theme())
-    renderer = SceneRenderer(plotter, scene, legend=legend)
+    renderer = SceneRenderer(plotter, scene, legend=legend, bearings=bearings)
     renderer.set_camera(camera)
     return plotter, renderer
 
@@ -127,8 +131,12 @@ def render_screenshot(
             visible=parse_layers(layers),
             vertical_exaggeration=vertical_exaggeration or model.vertical_exaggeration,
         )
-    if not any(layer.visible and layer.build(scene.view) for layer in scene.layers):
-        raise BGMInputError("the picture would be blank: the chosen layers hold nothing for this selection")
+    reasons = empty_layer_reasons(scene, model.holes, model.result, model.selection)
+    if all(not layer.visible or layer.name in reasons for layer in scene.layers):
+        why = "; ".join(f"{name}: {text}" for name, text in reasons.items())
+        raise BGMInputError(f"the picture would be blank: the chosen layers hold nothing for this selection ({why})")
+    for name, text in reasons.items():
+        print(f"bgm: note: layer {name!r} is empty: {text}", file=sys.stderr)
     out_png = Path(out_png)
     plotter, _ = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)
     try:

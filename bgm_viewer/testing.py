@@ -6,16 +6,23 @@ import functools
 import warnings
 
 
-@functools.lru_cache(maxsize=2)
-def small_holes(seed: int = 3):
-    """A 3-bench synthetic mine of about 900 holes (extraction takes about a second)."""
-    from core.io.blastholes import blastholes_from_table
+@functools.lru_cache(maxsize=4)
+def small_holes(seed: int = 3, unit: str = "m"):
+    """A 3-bench synthetic mine of about 900 holes (extraction takes about a second).
+
+    ``unit="ft"``: the same mine with its coordinates written in feet.
+    """
+    from core.io.blastholes import FEET_TO_METRES, blastholes_from_table
     from core.synthetic.blobs import make_mine, sample_blastholes
 
     mine = make_mine(seed=seed, n_benches=3, extent_m=(140.0, 100.0), n_pods=1)
+    table = sample_blastholes(mine, seed=seed + 1)
+    if unit == "ft":
+        for c in ("x", "y", "z"):
+            table[c] = table[c] / FEET_TO_METRES
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return blastholes_from_table(sample_blastholes(mine, seed=seed + 1), source=f"small mine {seed}")
+        return blastholes_from_table(table, length_unit=unit, source=f"small mine {seed} ({unit})")
 
 
 def small_model(seed: int = 3, until: str = "surface"):

@@ -11,6 +11,7 @@ import os
 import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 
 pytestmark = pytest.mark.gui
@@ -171,3 +172,82 @@ def test_no_prompt_when_saved(window, monkeypatch):
     )
     assert not window.model.dirty
     assert window.close()
+
+
+def test_panels_speak_the_inputs_units_and_sliders_keep_values(qtbot):
+    """A feet input: the alignment panel says ft and shows feet; a slider never rounds a value."""
+    model = ViewerModel(small_holes(unit="ft"))
+    win = MainWindow(model, debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        assert "(ft)" in win._unit_labels[0].text() and "(ft)" in win._unit_labels[1].text()
+        t_m = win.model.current_translation_m()
+        assert t_m is not None
+        np.testing.assert_allclose([win.dx_spin.value(), win.dy_spin.value()], np.divide(t_m, 0.3048), atol=0.01)
+        spacing = win.param_controls["snake_max_iterations"]  # any slider: values set are kept exactly
+        ctl = win.param_controls["entropy_threshold"]
+        ctl.set_value(0.5)
+        assert ctl.value() == 0.5
+        ctl.slider.setValue(0.5)  # as the user leaves it at the label's 0.5
+        assert win.model.param("entropy_threshold") == 0.5
+        assert spacing.toolTip() and spacing.slider.toolTip() == spacing.toolTip()
+    finally:
+        win.model.dirty = False
+        win.close()
+
+
+def test_clicking_a_hole_reports_its_id_and_grade(qtbot, tmp_path):
+    """A click (press and release in place) on a known hole reports its id, geozone, bench and grade."""
+    from bgm_viewer.scene import world_to_pixels
+
+    holes = small_holes()
+    table = pd.DataFrame(
+        {
+            "x": holes.xy[:, 0],
+            "y": holes.xy[:, 1],
+            "z": holes.z,
+            "geozone": holes.geozone,
+            "hole_id": [f"H{i:04d}" for i in range(len(holes.xy))],
+            "cu_pct": np.round(np.arange(len(holes.xy)) * 0.001, 3),
+        }
+    )
+    path = tmp_path / "holes.csv"
+    table.to_csv(path, index=False)
+    win = MainWindow(ViewerModel(str(path)), debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        win.set_camera("top")
+        h = win.model.holes
+        i = int(h.on_bench(0)[len(h.on_bench(0)) // 2])
+        z = win.scene.view.z(h.bench_levels_m[0])
+        col, row = world_to_pixels(win.plotter, np.array([[*h.xy[i], z]]))[0]
+        x, y = int(round(col)), int(round(win.plotter.window_size[1] - 1 - row))
+        iren = win.plotter.iren.interactor
+        for event in ("LeftButtonPressEvent", "LeftButtonReleaseEvent"):
+            iren.SetEventInformation(x, y, 0, 0)
+            iren.InvokeEvent(event)
+        want = table.iloc[
+            int(np.argmin(np.hypot(table.x - h.xy[i, 0] - h.frame.origin_x, table.y - h.xy[i, 1] - h.frame.origin_y)))
+        ]
+        assert want.hole_id in win.picked_label.text()
+        assert f"cu_pct {want.cu_pct}" in win.statusBar().currentMessage()
+        assert f"geozone {want.geozone}" in win.statusBar().currentMessage()
+    finally:
+        win.model.dirty = False
+        win.close()
+
+
+def test_exports_the_view_at_a_chosen_size_and_the_shown_surfaces(window, tmp_path):
+    from PIL import Image
+
+    png = tmp_path / "view.png"
+    window.export_screenshot(png, (640, 360))
+    img = np.asarray(Image.open(png))
+    assert img.shape[:2] == (360, 640) and img[..., :3].std() > 5
+    written = window.export_surfaces(tmp_path / "surfaces")
+    assert set(written) == set(window.model.result.surfaces)
+    for files in written.values():
+        assert {"ply", "obj", "stl"} <= set(files) and all(p.stat().st_size > 0 for p in files.values())
+    assert "Shift" in __import__("bgm_viewer.app").app.SHORTCUTS_HTML

@@ -128,27 +128,32 @@ def bench_offscreen(model: ViewerModel, n_frames: int = 36) -> None:
     plotter.close()
 
 
-def bench_window() -> None:
+def bench_window(name: str, source, geozone: str, bench: int, sliders: bool) -> None:
+    """The Qt window on ``source``: first picture, slider changes (``sliders``), rotation with every layer on."""
     from qtpy import QtWidgets
 
     from bgm_viewer.app import MainWindow
+    from bgm_viewer.builders import LAYER_NAMES
 
     app = QtWidgets.QApplication.instance() or QtWidgets.QApplication([])
-    model = ViewerModel(None, cache=False)
-    model.select("g1", 0, 0)
+    model = ViewerModel(source)
+    model.select(geozone, bench, 0)
     t0 = time.perf_counter()
     win = MainWindow(model, debounce_ms=0)
     win.show()
     shown: list[float] = []
     win.resultShown.connect(lambda: shown.append(time.perf_counter()))
-    win.wait_idle(300)
-    print(f"window: first picture {shown[0] - t0:.2f} s, whole pipeline {time.perf_counter() - t0:.2f} s")
-    for name, values in CHANGES:
+    win.wait_idle(900)
+    print(
+        f"window on {name}: first picture {shown[0] - t0:.2f} s, whole pipeline with "
+        f"{len(win.model.result.surfaces)} geozones' surfaces {time.perf_counter() - t0:.2f} s"
+    )
+    for param, values in CHANGES if sliders else ():
         lat, total = [], []
         for value in values:
             shown.clear()
             t = time.perf_counter()
-            win.param_controls[name].slider.setValue(value)
+            win.param_controls[param].slider.setValue(value)
             while not shown:
                 app.processEvents()
                 time.sleep(0.005)
@@ -156,9 +161,12 @@ def bench_window() -> None:
             win.wait_idle(300)
             total.append(time.perf_counter() - t)
         print(
-            f"window: {name} slider change -> updated contour shown: {['%.0f ms' % (x * 1000) for x in lat]}, "
-            f"all benches and the surface redone: {[f'{x:.1f} s' for x in total]}"
+            f"window on {name}: {param} slider change -> updated contour shown: "
+            f"{['%.0f ms' % (x * 1000) for x in lat]}, everything redone: {[f'{x:.1f} s' for x in total]}"
         )
+    for layer in LAYER_NAMES:
+        win.set_layer_visible(layer, True)
+    app.processEvents()
     # Rotate as a user does: a left drag through the VTK interactor, each move
     # handled and painted by Qt before the next.
     iren = win.plotter.iren.interactor
@@ -178,26 +186,31 @@ def bench_window() -> None:
     iren.InvokeEvent("LeftButtonReleaseEvent")
     app.processEvents()
     print(
-        f"window ({w} x {h} px view): frame time rotating with the mouse: median {np.median(ft) * 1000:.1f} ms, "
-        f"max {np.max(ft) * 1000:.1f} ms, {len(renders)} renders for 36 moves (target < 50 ms)"
+        f"window on {name} ({w} x {h} px view, every layer on): frame time rotating with the mouse: "
+        f"median {np.median(ft) * 1000:.1f} ms, max {np.max(ft) * 1000:.1f} ms, "
+        f"{len(renders)} renders for 36 moves (target < 50 ms)"
     )
     win.model.dirty = False
     win.close()
     sys.stdout.flush()
-    os._exit(0)  # skip interpreter teardown of VTK/Qt objects
 
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--window", action="store_true", help="also drive the Qt window (needs a display)")
+    ap.add_argument("--window-only", action="store_true", help="only drive the Qt window")
     args = ap.parse_args()
-    demo = None
-    for name, (source, geozone, bench) in INPUTS.items():
-        if source is not None and not Path(source).exists():
-            print(f"{name}: not found at {source}; skipped")
-            continue
-        model = bench_pipeline(name, source, geozone, bench)
-        demo = demo or model
-    bench_offscreen(demo)
-    if args.window:
-        bench_window()
+    found = {k: v for k, v in INPUTS.items() if v[0] is None or Path(v[0]).exists()}
+    for name in INPUTS.keys() - found.keys():
+        print(f"{name}: not found at {INPUTS[name][0]}; skipped")
+    if not args.window_only:
+        demo = None
+        for name, (source, geozone, bench) in found.items():
+            model = bench_pipeline(name, source, geozone, bench)
+            demo = demo or model
+        bench_offscreen(demo)
+    if args.window or args.window_only:
+        for name, (source, geozone, bench) in found.items():
+            bench_window(name, source, geozone, bench, sliders=name == "demo")
+    sys.stdout.flush()
+    os._exit(0)  # skip interpreter teardown of VTK/Qt objects
