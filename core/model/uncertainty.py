@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-from scipy import ndimage, optimize, stats
+from scipy import ndimage, special
 from shapely.geometry import MultiPolygon
 from skimage import measure
 
@@ -315,6 +315,8 @@ def fit_scale(samples: Backtest, probability: float = DEFAULT_PROBABILITY, sourc
     t2 = samples.terms_m**2
     e2 = samples.error_m**2
     start = np.log(np.maximum(np.asarray(PRIOR_COEFFICIENTS, float) ** 2, 1e-4))
+    from scipy import optimize  # only when fitting: it takes a tenth of a second to import
+
     result = optimize.minimize(
         _negative_log_likelihood, start, args=(t2, e2), method="L-BFGS-B", bounds=[(-18.0, 6.0)] * len(TERMS)
     )
@@ -383,7 +385,7 @@ def _fitted(parts: Sequence[Backtest], probability: float, source: str) -> Uncer
 
 def z_score(probability: float) -> float:
     """``z_q``: a two-sided band of ``z_q`` standard deviations holds ``probability`` of a normal error."""
-    return float(stats.norm.ppf(0.5 + probability / 2))
+    return float(special.ndtri(0.5 + probability / 2))
 
 
 @dataclass
@@ -418,7 +420,7 @@ class SectionUncertainty:
     @property
     def inside_probability(self) -> np.ndarray:
         """``P(inside) = Phi(F / sigma)`` on the grid."""
-        return stats.norm.cdf(self.field / np.maximum(self.sigma, 1e-9))
+        return special.ndtr(self.field / np.maximum(self.sigma, 1e-9))
 
     @property
     def predicted(self) -> MultiPolygon:
@@ -445,7 +447,7 @@ class SectionUncertainty:
         xy = np.asarray(xy, float).reshape(-1, 2)
         f = self.grid.sample(self.field, xy)
         s = np.maximum(self.grid.sample(self.sigma, xy), 1e-9)
-        return f, s, stats.norm.cdf(f / s)
+        return f, s, special.ndtr(f / s)
 
     def in_band(self, xy: np.ndarray) -> np.ndarray:
         """Whether each point lies in the band, ``|F_pred| <= z_q sigma``."""
