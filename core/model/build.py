@@ -587,13 +587,14 @@ def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict
         candidates = next_bench_candidates(holes)
     except ValueError as exc:
         return {"note": f"no suggestions: {exc}"}
-    first = plan_sampling(session, [g], 0, z_next, candidates)
-    section = first.sections.get(g)
+    # One bench below is one of the predicted levels: its uncertainty is already there.
+    at = [z for z in sections if np.isclose(z, z_next)]
+    section = sections[at[0]] if at else geozone_uncertainty(session, g, [z_next], model)[z_next]
     if section is None:
         return {"note": "no suggestions: no predicted boundary on the next bench"}
     in_band = int(section.in_band(candidates).sum()) if len(candidates) else 0
     budget = max(int(round(SUGGESTION_SHARE * in_band)), 1) if in_band else 0
-    plan = plan_sampling(session, [g], budget, z_next, candidates)
+    plan = plan_sampling(session, [g], budget, z_next, candidates, sections={g: section})
     write_suggestions(gdir / "suggestions.csv", suggestions_table(plan.suggestions, holes, z_next, plan.probability))
     picture = plot_sampling_map(plan, holes, gdir / "where_to_sample.png", f"{g}: next bench")
     width = band_width_m(section, holes.drilled_area(holes.n_benches - 1))

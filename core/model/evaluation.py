@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from functools import partial
+from functools import lru_cache, partial
 from pathlib import Path
 
 import numpy as np
@@ -522,6 +522,8 @@ def evaluate_geozone(
             regions = {float(levels[j]): regions_by_bench[j] for j in range(k + 1)}
             z_targets = [z for _, _, z in targets]
             methods = _predictors(holes, geozone, k, regions, z_targets, model_predictor, references, grid, height)
+            # Each prediction is scored by area and, on real data, on the holes: computed once.
+            methods = {name: lru_cache(maxsize=None)(predict) for name, predict in methods.items()}
             observed = regions_by_bench[k + 1]
             rows += _scores(methods, targets, truth, geozone, observed, holes.drilled_area(k + 1), k, float(levels[k]))
             if truth is None:
@@ -582,7 +584,7 @@ def _predictors(
 
 
 def _scores(
-    methods: dict[str, Callable[[float], MultiPolygon]],
+    methods: Mapping[str, Callable[[float], MultiPolygon]],
     targets: list[tuple[float, float, float]],
     truth: Truth | None,
     geozone: str,
@@ -609,7 +611,7 @@ def _scores(
 
 def _add_hole_scores(
     rows: list[dict],
-    methods: dict[str, Callable[[float], MultiPolygon]],
+    methods: Mapping[str, Callable[[float], MultiPolygon]],
     z: float,
     holes: Blastholes,
     geozone: str,

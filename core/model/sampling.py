@@ -322,21 +322,24 @@ def plan_sampling(
     z_m: float,
     candidates_m: np.ndarray | None = None,
     probability: float = DEFAULT_PROBABILITY,
+    sections: dict | None = None,
 ) -> SamplingPlan:
     """Choose ``budget`` holes at elevation ``z_m`` for ``geozones`` (one budget shared by all).
 
     ``session`` is a :class:`core.model.session.ModelSession`; candidates are
     a planned pattern's holes, or :func:`next_bench_candidates`. Geozones
     without a predicted section there with its uncertainty (at a bench level)
-    take no part.
+    take no part. ``sections`` (geozone -> SectionUncertainty at ``z_m``)
+    saves computing them again.
     """
     spacing = float(session.holes.hole_spacing_m)
     if candidates_m is None:
         candidates_m = next_bench_candidates(session.holes)
-    sections = {}
-    for g in geozones:
-        section = geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
-        if section is not None:
-            sections[g] = section
+    if sections is None:
+        sections = {}
+        for g in geozones:
+            section = geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
+            if section is not None:
+                sections[g] = section
     chosen = suggest_holes(sections, candidates_m, budget, spacing)
     return SamplingPlan(float(z_m), float(probability), np.asarray(candidates_m, float), sections, chosen)
