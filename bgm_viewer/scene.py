@@ -30,6 +30,8 @@ DATA_RECT = (0.05, 0.06, 0.95, 0.94)
 LEGEND_WIDTH = 0.2
 #: Surfaces with more triangles are drawn coarse while the camera moves (:meth:`SceneRenderer.set_interacting`).
 COARSE_ABOVE_FACES = 5000
+#: Polylines with more points are drawn decimated while the camera moves.
+DECIMATE_ABOVE_POINTS = 4000
 
 
 class Scene:
@@ -249,31 +251,23 @@ class SceneRenderer:
             actors.append(actor)
         self.actors[layer.name] = actors
 
-    # -- coarse surfaces while the camera moves -----------------------------
+    # -- a lighter picture while the camera moves ---------------------------
     def set_interacting(self, moving: bool) -> None:
-        """Draw big surfaces coarse while the camera moves, in full again when it stops.
+        """Draw a light stand-in of the scene while the camera moves, the full one when it stops.
 
-        Software OpenGL draws about a million triangles a second: Kennecott's
-        surfaces (half a million triangles) took 300 ms a frame. While the
-        user turns the view each surface is replaced by a quadric clustering
-        of itself (a few thousand triangles, made once per surface), opaque;
-        at rest the surfaces drawn are exactly those exported.
+        Software OpenGL draws about a million triangles a second, and wide
+        lines and sphere-shaded points cost a fill per pixel: Kennecott with
+        every layer on took 53 ms a frame. While the user turns the view,
+        surfaces of more than :data:`COARSE_ABOVE_FACES` triangles become a
+        quadric clustering of themselves, polylines of more than
+        :data:`DECIMATE_ABOVE_POINTS` points a decimated copy, lines are one
+        pixel wide, points flat and everything opaque; stand-ins are made once
+        per mesh. At rest the meshes drawn are exactly those exported.
         """
-        layer = self.scene.get("surfaces")
-        for actor in self.actors.get("surfaces", []):
-            mapper = actor.GetMapper()
-            full = getattr(actor, "_full_mesh", None)
-            # blending translucent faces over the whole view costs more than drawing them
-            actor.GetProperty().SetOpacity(1.0 if moving or layer is None else layer.opacity)
-            if moving:
-                mesh = mapper.GetInput()
-                if mesh.GetNumberOfCells() < COARSE_ABOVE_FACES:
-                    continue
-                if getattr(actor, "_coarse_mesh", None) is None:
-                    actor._full_mesh, actor._coarse_mesh = mesh, _coarse(mesh)
-                mapper.SetInputData(actor._coarse_mesh)
-            elif full is not None:
-                mapper.SetInputData(full)
+        for actors in self.actors.values():
+            for actor in actors:
+                if actor.GetVisibility():
+                    _light_stand_in(actor, moving)
 
     # -- picking -----------------------------------------------------------
     def pick(self, x_px: float, y_px: float, tolerance: float = 0.01) -> tuple[str, int] | None:
@@ -431,6 +425,7 @@ class SceneRenderer:
             fmt="%.0f",
             render=False,
         )
+        _interior_labels(getattr(p.renderer, "cube_axes_actor", None), n_labels=4)
         length = nice_length((x1 - x0) / frame.metres_per_unit / 4)
         a = np.array([x0, y0, z0])
         self._ruler = scale_bar(a, a + [length * frame.metres_per_unit, 0.0, 0.0], f"{length:g} {unit}", colour)
@@ -495,6 +490,24 @@ class SceneRenderer:
         p.renderer.ResetCameraClippingRange()
 
 
+def _interior_labels(axes, n_labels: int) -> None:
+    """Label the easting and northing axes of ``axes`` (a ``vtkCubeAxesActor``) at their inner ticks only.
+
+    The end labels of two axes meet at the box's corners, where seven-digit
+    mine-grid coordinates printed over one another were unreadable.
+    """
+    import vtk
+
+    if axes is None:
+        return
+    for axis, (lo, hi) in enumerate((axes.GetXAxisRange(), axes.GetYAxisRange())):
+        labels = vtk.vtkStringArray()
+        for k in range(n_labels):
+            inner = 0 < k < n_labels - 1
+            labels.InsertNextValue(f"{lo + (hi - lo) * k / (n_labels - 1):.0f}" if inner else "")
+        axes.SetAxisLabels(axis, labels)
+
+
 def _view_points(renderer, xyz: np.ndarray) -> np.ndarray:
     """View coordinates (-1..1 across the viewport) of world points."""
     out = np.empty((len(xyz), 2))
@@ -505,7 +518,50 @@ def _view_points(renderer, xyz: np.ndarray) -> np.ndarray:
     return out
 
 
-def _coarse(mesh, divisions: int = 48):
+def _light_stand_in(actor, moving: bool) -> None:
+    """Swap ``actor`` to its light stand-in (``moving``) or back to its own mesh and look."""
+    mapper, prop = actor.GetMapper(), actor.GetProperty()
+    if not moving:
+        saved = getattr(actor, "_at_rest", None)
+        if saved is not None:
+            mesh, width, spheres, opacity = saved
+            mapper.SetInputData(mesh)
+            prop.SetLineWidth(width)
+            prop.SetRenderPointsAsSpheres(spheres)
+            prop.SetOpacity(opacity)
+            actor._at_rest = None
+        return
+    if getattr(actor, "_at_rest", None) is not None:
+        return  # already light
+    mesh = mapper.GetInput()
+    actor._at_rest = (mesh, prop.GetLineWidth(), prop.GetRenderPointsAsSpheres(), prop.GetOpacity())
+    if getattr(actor, "_stand_in", None) is None or actor._stand_in[0] is not mesh:
+        light = mesh
+        if mesh is not None and mesh.GetNumberOfPolys() > COARSE_ABOVE_FACES:
+            light = _coarse(mesh)
+        elif mesh is not None and mesh.GetNumberOfLines() and mesh.GetNumberOfPoints() > DECIMATE_ABOVE_POINTS:
+            light = _decimated_lines(mesh)
+        actor._stand_in = (mesh, light)
+    mapper.SetInputData(actor._stand_in[1])
+    prop.SetLineWidth(1.0)
+    prop.SetRenderPointsAsSpheres(False)
+    prop.SetOpacity(1.0)  # blending translucent faces over the whole view costs more than drawing them
+
+
+def _decimated_lines(mesh, keep: float = 0.25):
+    """``mesh``'s polylines with about ``keep`` of their points (``vtkDecimatePolylineFilter``)."""
+    import vtk
+
+    decimate = vtk.vtkDecimatePolylineFilter()
+    decimate.SetInputData(mesh)
+    decimate.SetTargetReduction(1.0 - keep)
+    decimate.Update()
+    out = vtk.vtkPolyData()
+    out.DeepCopy(decimate.GetOutput())
+    return out
+
+
+def _coarse(mesh, divisions: int = 32):
     """A few-thousand-triangle stand-in of ``mesh`` (``vtkQuadricClustering`` on a ``divisions``-cube grid)."""
     import vtk
 

@@ -163,3 +163,34 @@ def test_a_mouse_drag_is_measured_on_the_bench_plane(model, camera):
         assert display_to_plane(plotter, *display[0], z) is None
     finally:
         plotter.close()
+
+
+def test_a_moving_camera_draws_light_stand_ins_and_the_exact_scene_at_rest(model, monkeypatch):
+    import bgm_viewer.scene as scene_module
+
+    monkeypatch.setattr(scene_module, "COARSE_ABOVE_FACES", 50)
+    monkeypatch.setattr(scene_module, "DECIMATE_ABOVE_POINTS", 50)
+    scene = build_scene(
+        model.holes, model.result, model.selection, visible=["blastholes", "contours", "trajectories", "surfaces"]
+    )
+    plotter, renderer = plotter_for(scene, window_size=SIZE, camera="iso", legend=False)
+    try:
+        at_rest = np.asarray(plotter.screenshot(None, return_img=True))[..., :3].copy()
+        actors = [a for layer in ("contours", "surfaces") for a in renderer.actors[layer]]
+        meshes = [a.GetMapper().GetInput() for a in actors]
+        sizes = [(m.GetNumberOfPoints(), m.GetNumberOfPolys()) for m in meshes]
+        widths = [a.GetProperty().GetLineWidth() for a in actors]
+        renderer.set_interacting(True)
+        moving = [a.GetMapper().GetInput() for a in actors]
+        assert all(m.GetNumberOfPoints() < n for m, (n, _) in zip(moving, sizes, strict=True) if n > 50)
+        assert all(a.GetProperty().GetLineWidth() == 1.0 for a in actors)
+        plotter.render()
+        light = np.asarray(plotter.screenshot(None, return_img=True))[..., :3].copy()
+        assert _not_background(light).mean() > 0.01, "the stand-in scene is blank"
+        renderer.set_interacting(False)
+        assert all(a.GetMapper().GetInput() is m for a, m in zip(actors, meshes, strict=True))
+        assert [a.GetProperty().GetLineWidth() for a in actors] == widths
+        plotter.render()
+        assert np.array_equal(np.asarray(plotter.screenshot(None, return_img=True))[..., :3], at_rest)
+    finally:
+        plotter.close()

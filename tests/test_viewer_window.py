@@ -251,3 +251,27 @@ def test_exports_the_view_at_a_chosen_size_and_the_shown_surfaces(window, tmp_pa
     for files in written.values():
         assert {"ply", "obj", "stl"} <= set(files) and all(p.stat().st_size > 0 for p in files.values())
     assert "Shift" in __import__("bgm_viewer.app").app.SHORTCUTS_HTML
+
+
+def test_the_window_picture_holds_the_rendered_view_and_the_docks(qtbot, tmp_path):
+    from qtpy import QtGui
+
+    from bgm_viewer.model import bodies
+    from bgm_viewer.palette import BACKGROUND, geozone_colours
+    from bgm_viewer.window_gallery import WINDOW_SIZE, window_picture
+
+    holes = small_holes()
+    out = window_picture(holes, ("blastholes", "contours", "surfaces"), tmp_path / "window.png")
+    picture = QtGui.QImage(str(out)).convertToFormat(QtGui.QImage.Format.Format_RGB888)
+    assert (picture.width(), picture.height()) == WINDOW_SIZE
+    img = np.frombuffer(picture.constBits(), np.uint8, picture.sizeInBytes())
+    img = img.reshape(picture.height(), picture.bytesPerLine())[:, : 3 * picture.width()].reshape(*WINDOW_SIZE[::-1], 3)
+    # the 3D view (an OpenGL surface a widget grab leaves black) sits between the docks
+    view = img[:, WINDOW_SIZE[0] // 3 : 2 * WINDOW_SIZE[0] // 3]
+    assert np.all(view == np.asarray(BACKGROUND, np.uint8), axis=-1).mean() > 0.2
+    shown = bodies(holes)  # the host rock's holes are unticked so that the bodies show
+    for g, rgb in geozone_colours(holes.geozones).items():
+        drawn = np.all(view == np.asarray(rgb, np.uint8), axis=-1).sum()
+        assert drawn > 20 if g in shown else drawn == 0, f"{g}: {drawn} pixels"
+    # the docks are drawn too: the left third is mostly Qt's light panels, not the view
+    assert img[:, : WINDOW_SIZE[0] // 6].mean() > 150
