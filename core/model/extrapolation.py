@@ -13,18 +13,12 @@ This module carries on exactly that part. On a grid over the geozone, bench
 boundary on that bench (positive inside; the paper's SDF convention,
 section 3.2.1). A boundary that moves steadily across itself changes ``F``
 linearly with depth at every point, whichever way it moves along itself.
-Per cell, a weighted least-squares line ``F(u) = a + b u`` is fitted over the
-known benches (``u`` = height above the deepest bench, in bench heights;
-recent benches weigh more, by ``memory ** u``), and the section ``f`` bench
-heights below is ``{a - damping * b * f > 0}``.
-
-How much of the trend to trust is learnt from the geozone's own benches by
-backtesting (:func:`choose_trend`): each upper bench is predicted from the
-benches above it, for every candidate ``(memory, damping)``, and the
-candidate with the best F1 over those benches is kept. A body that moves
-steadily keeps its trend (damping near 1); one whose movement is shape noise
-(pods, reversals) is held (damping 0), with the intercept ``a`` a denoised
-section rather than the last bench's raw one.
+Per cell, the change of ``F`` between the last two benches that observed it
+is the rate of movement (:func:`fit_trend`), averaged along the boundary
+(:func:`smoothed_rate`) and damped where successive bench pairs disagree
+(:func:`local_persistence`: a body that moves steadily keeps its trend, one
+whose movement reverses or is shape noise is held); the section ``f`` bench
+heights below is ``{F_last + persistence * rate * f > 0}``.
 
 Where a bench was not drilled its boundary is unknown, not absent: the
 drilling frontier is not a boundary. ``F_j`` measures the distance to the

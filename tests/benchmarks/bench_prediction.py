@@ -199,10 +199,11 @@ def main() -> None:
             print(f"  {family} {seed}: {len(df)} rows, {cpu:.0f} s CPU", flush=True)
             results.append((family, df))
     wall = time.perf_counter() - start
-    synthetic = pd.concat([df for f, df in results if f != "kennecott" and len(df)], ignore_index=True)
+    synthetic = [df for f, df in results if f != "kennecott" and len(df)]
     if args.save:
         pd.concat([df for _, df in results if len(df)], ignore_index=True).to_csv(args.save, index=False)
-    print_tables(synthetic, args.families)
+    if synthetic:  # none with `--families` and no family named: Kennecott only
+        print_tables(pd.concat(synthetic, ignore_index=True), args.families)
     kennecott = [df for f, df in results if f == "kennecott"]
     if kennecott:
         print_kennecott(kennecott[0])
