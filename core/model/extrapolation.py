@@ -43,6 +43,14 @@ from core.geometry.grid import Grid
 #: bench's section errs by a fraction of a spacing that does not repeat from bench to
 #: bench, and averaging along the boundary cancels it (chosen on the tuning seeds only).
 RATE_SMOOTHING_SPACINGS = 1.5
+#: Neighbourhood over which the boundary's movement is averaged as a displacement when the
+#: last section is carried along it (:meth:`DepthTrend.field`), in hole spacings, and the
+#: number of direction classes it is averaged within (:func:`smooth_by_direction`). Chosen
+#: on the tuning seeds only: every neighbourhood from 0.5 to 6 spacings gained over adding
+#: the movement to ``F``; 3 spacings within 4 directions was best pooled, and kept splits
+#: moving apart where one class for all directions froze their inner boundaries.
+TRANSPORT_SMOOTHING_SPACINGS = 3.0
+TRANSPORT_DIRECTIONS = 4
 #: Neighbourhood over which the persistence of movement is measured, in hole spacings.
 PERSISTENCE_SPACINGS = 3.0
 #: Signed distances are capped at this many hole spacings: a boundary far away
@@ -240,9 +248,12 @@ class DepthTrend:
 
     Per cell: the signed distance ``f_last`` at the deepest bench that
     observed the cell (elevation ``z_last``), its change per bench height
-    downwards ``rate`` and how much of it carries on, ``persistence``; so
-    ``F(z) = f_last + persistence * rate * (z_last - z) / bench_height_m`` (``rate`` is
-    the change per bench height from ``z_last`` in the direction of extrapolation).
+    downwards ``rate`` (in the direction of extrapolation) and how much of it
+    carries on, ``persistence``. The boundary moves ``m = persistence * rate *
+    (z_last - z) / bench_height_m`` metres outwards (along ``-grad F``), and
+    ``F(z)`` is ``f_last`` carried by that movement (:meth:`field`).
+    ``transport_smoothing_m``: the neighbourhood over which the movement is
+    averaged as a displacement.
     """
 
     grid: Grid
@@ -252,16 +263,72 @@ class DepthTrend:
     z_last: np.ndarray
     rate: np.ndarray
     persistence: np.ndarray
+    transport_smoothing_m: float = 0.0
+
+    def movement(self, z_m: float) -> np.ndarray:
+        """Metres the boundary moves outwards from ``z_last`` to ``z_m``, per cell."""
+        return self.persistence * self.rate * (self.z_last - z_m) / self.bench_height_m
 
     def field(self, z_m: float) -> np.ndarray:
-        """Signed distance to the predicted boundary at elevation ``z_m`` (past the deepest bench)."""
-        return self.f_last + self.persistence * self.rate * (self.z_last - z_m) / self.bench_height_m
+        """Signed distance to the predicted boundary at elevation ``z_m`` (past the deepest bench).
+
+        The last signed distance is transported (semi-Lagrangian, as the
+        level set of ALGORITHMS.md is advected) by the displacement
+        ``-m n``, ``n = grad F / |grad F|``: ``F(x) = f_last(x + m n)``. For
+        a section that moves by a translation the displacement is that
+        translation at both of its boundaries, so a strip or fold limb that
+        moves further than its half-width per bench is carried whole, where
+        adding ``m`` to ``F`` (exact only where ``F`` is linear along the
+        movement) thinned it at its ridge. The displacement is averaged over
+        ``transport_smoothing_m`` among cells whose boundary faces the same
+        way (:func:`smooth_by_direction`). Where ``F`` has no direction (its
+        cap, ridges) ``f_last + m`` is kept.
+        """
+        added = self.f_last + self.movement(z_m)
+        if self.transport_smoothing_m <= 0:
+            return added
+        h = self.grid.cell_size_m
+        g_r, g_c = np.gradient(self.f_last)
+        norm = np.hypot(g_r, g_c)
+        directed = norm > 0.2 * h  # a distance changes by h per cell; caps and ridges do not
+        move = np.where(directed, self.movement(z_m), 0.0) / h / np.maximum(norm, 1e-9)
+        d_r, d_c = smooth_by_direction(
+            move * g_r, move * g_c, np.arctan2(g_r, g_c), directed, self.transport_smoothing_m / h
+        )
+        rows, cols = np.indices(self.f_last.shape, dtype=float)
+        carried = ndimage.map_coordinates(self.f_last, [rows + d_r, cols + d_c], order=1, mode="nearest")
+        return np.where(directed, carried, added)
 
     def region(self, z_m: float) -> MultiPolygon:
         field = self.field(z_m)
         if not (field > 0).any():
             return MultiPolygon()
         return self.grid.polygons_from_field(field, 0.0)
+
+
+def smooth_by_direction(
+    d_r: np.ndarray, d_c: np.ndarray, theta: np.ndarray, valid: np.ndarray, sigma_cells: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A displacement field averaged over a Gaussian neighbourhood among cells facing the same way.
+
+    Each section's boundary errs by a fraction of a hole spacing that does
+    not repeat from bench to bench; averaging the displacement along the
+    boundary cancels it. Averaged across a narrow gap, the opposite
+    displacements of two parts moving apart (a split) would cancel too, so
+    each cell averages only with cells whose boundary normal ``theta``
+    (radians) points its way: :data:`TRANSPORT_DIRECTIONS` overlapping
+    direction classes weighted ``max(cos(theta - theta_k), 0) ** 4``.
+    ``valid``: cells whose displacement counts. Returns the averaged ``(d_r, d_c)``.
+    """
+    out_r, out_c, total = np.zeros_like(d_r), np.zeros_like(d_c), np.zeros_like(d_r)
+    for k in range(TRANSPORT_DIRECTIONS):
+        w = np.maximum(np.cos(theta - 2 * np.pi * k / TRANSPORT_DIRECTIONS), 0.0) ** 4 * valid
+        norm = np.maximum(ndimage.gaussian_filter(w, sigma_cells), 1e-3)
+        out_r += w * ndimage.gaussian_filter(w * d_r, sigma_cells) / norm
+        out_c += w * ndimage.gaussian_filter(w * d_c, sigma_cells) / norm
+        total += w
+    total = np.maximum(total, 1e-9)
+    return out_r / total, out_c / total
 
 
 def smoothed_rate(rate: np.ndarray, fields: BenchFields, smoothing_m: float) -> np.ndarray:
@@ -278,4 +345,13 @@ def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     f_last, z_last, rate = fit_trend(fields, bench_height_m)
     rate = smoothed_rate(rate, fields, RATE_SMOOTHING_SPACINGS * hole_spacing_m)
     persistence = local_persistence(fields, PERSISTENCE_SPACINGS * hole_spacing_m)
-    return DepthTrend(fields.grid, float(fields.z_m[-1]), bench_height_m, f_last, z_last, rate, persistence)
+    return DepthTrend(
+        fields.grid,
+        float(fields.z_m[-1]),
+        bench_height_m,
+        f_last,
+        z_last,
+        rate,
+        persistence,
+        TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
+    )
