@@ -155,3 +155,22 @@ def test_a_geozone_that_pinched_out_is_predicted_absent_and_isolated_holes_grow_
     predicted = predict_geozone(model, [z], holes.hole_spacing_m)[z]
     # Nothing where the body was, and no more than the holes' own patch out there.
     assert predicted.area < 600.0, predicted.area
+
+
+def test_a_strip_moving_further_than_its_half_width_is_carried_whole(monkeypatch):
+    import core.model.extrapolation as extrapolation
+
+    sections = [_strip(12.0 * k, width=18.0) for k in range(5)]  # 12 m a bench, half-width 9 m
+    holes = _bench_table(sections)
+    within = holes.drilled_area(3).buffer(-12.0)
+
+    def scores():
+        predicted, _, truth = _predict_next(holes, sections, 4)
+        p, t = predicted.intersection(within), truth.intersection(within)
+        return iou(p, t), p.area / t.area
+
+    carried, carried_area = scores()
+    monkeypatch.setattr(extrapolation, "TRANSPORT_SMOOTHING_SPACINGS", 0.0)  # the movement added to F instead
+    added, added_area = scores()
+    assert carried > 0.6 and carried_area < 1.4, (carried, carried_area)
+    assert carried > added + 0.05 and carried_area < added_area, (carried, added, carried_area, added_area)
