@@ -199,14 +199,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.last_update_seconds = float("nan")
         # Only the newest of a burst of worker results is drawn (drawing costs more than computing some).
         self._latest: tuple | None = None
-        self._show_timer = QtCore.QTimer(self)
-        self._show_timer.setSingleShot(True)
-        self._show_timer.setInterval(0)
-        self._show_timer.timeout.connect(self._show_latest)
-        self._debounce = QtCore.QTimer(self)
-        self._debounce.setSingleShot(True)
-        self._debounce.setInterval(debounce_ms)
-        self._debounce.timeout.connect(self._start_queued)
+        self._show_timer = self._single_shot(0, self._show_latest)
+        self._debounce = self._single_shot(debounce_ms, self._start_queued)
 
         # no multi-sampling: software rendering is ~4x slower with it (see issue 6)
         self.plotter = _single_render(QtInteractor(self, multi_samples=0, auto_update=False))
@@ -245,6 +239,13 @@ class MainWindow(QtWidgets.QMainWindow):
             self.request("contours", immediate=True)
 
     # ------------------------------------------------------------------ building
+    def _single_shot(self, interval_ms: int, slot) -> QtCore.QTimer:
+        timer = QtCore.QTimer(self)
+        timer.setSingleShot(True)
+        timer.setInterval(interval_ms)
+        timer.timeout.connect(slot)
+        return timer
+
     def _build_menus(self) -> None:
         m = self.menuBar().addMenu("&File")
         m.addAction("&Open blastholes...", self.open_input_dialog, QtGui.QKeySequence.StandardKey.Open)

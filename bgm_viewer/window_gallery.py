@@ -32,7 +32,7 @@ def window_picture(source, layers, out_png: Path, timeout_s: float = 900.0) -> P
     ``source``: what :class:`~bgm_viewer.model.ViewerModel` opens (a path, blastholes, or
     ``None`` for the demo).
     """
-    from qtpy import QtGui, QtWidgets
+    from qtpy import QtWidgets
 
     from core.io.atomic import atomic_path
 
@@ -55,14 +55,32 @@ def window_picture(source, layers, out_png: Path, timeout_s: float = 900.0) -> P
         win.wait_idle(timeout_s)
     win.fit_view()
     _settle(app)
-    # the screen holds the rendered OpenGL view; a widget grab would leave it black
-    picture = QtGui.QGuiApplication.primaryScreen().grabWindow(0, win.x(), win.y(), win.width(), win.height())
+    picture = _window_with_view(win)
     with atomic_path(out_png) as tmp:
         if not picture.save(str(tmp), "PNG"):
             raise RuntimeError(f"could not write {out_png}")
     win.model.dirty = False  # nothing to save: no prompt on close
     win.close()
     return out_png
+
+
+def _window_with_view(win):
+    """The window's widgets (``QWidget.grab``) with the 3D view's own rendering painted in.
+
+    A widget grab leaves the OpenGL view black, and grabbing the screen
+    takes whatever window lies on top; VTK's render of the view is exact.
+    """
+    import numpy as np
+    from qtpy import QtCore, QtGui
+
+    picture = win.grab()
+    view = win.plotter.interactor
+    rgb = np.ascontiguousarray(np.asarray(win.plotter.screenshot(None, return_img=True))[..., :3])
+    image = QtGui.QImage(rgb.data, rgb.shape[1], rgb.shape[0], 3 * rgb.shape[1], QtGui.QImage.Format.Format_RGB888)
+    painter = QtGui.QPainter(picture)
+    painter.drawImage(QtCore.QRect(view.mapTo(win, QtCore.QPoint(0, 0)), view.size()), image)
+    painter.end()
+    return picture
 
 
 def _settle(app, seconds: float = 1.0) -> None:

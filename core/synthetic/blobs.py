@@ -181,6 +181,30 @@ class SyntheticMine:
         return [HOST, *self.geozones]
 
 
+def _random_pods(rng, n_pods: int, extent_m, top_m: float, depth_total: float, bench_height_m: float, harmonics):
+    """Small lenses that exist over part of the depth range (the pods of :func:`make_mine`)."""
+    w, h = extent_m
+    pods = []
+    for _ in range(n_pods):
+        z_from = top_m - rng.uniform(0.0, 0.6) * depth_total
+        length = rng.uniform(1.5, 3.5) * bench_height_m
+        pods.append(
+            Blob(
+                centre_top=(rng.uniform(-0.4 * w, 0.4 * w), rng.uniform(-0.4 * h, 0.4 * h)),
+                velocity=(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2)),
+                radius_top_m=rng.uniform(10.0, 16.0),
+                radius_rate=0.0,
+                aspect=rng.uniform(1.0, 1.6),
+                angle_rad=rng.uniform(0, np.pi),
+                harmonics=harmonics(0.08),
+                z_top_m=top_m,
+                z_from_m=z_from,
+                z_to_m=z_from - length,
+            )
+        )
+    return pods
+
+
 def make_mine(
     seed: int = 0,
     n_benches: int = 7,
@@ -252,25 +276,7 @@ def make_mine(
         )
         for sgn in (-1.0, 1.0)
     ]
-    # Pods: small lenses that exist over part of the depth range.
-    pods = []
-    for _ in range(n_pods):
-        z_from = top_m - rng.uniform(0.0, 0.6) * depth_total
-        length = rng.uniform(1.5, 3.5) * bench_height_m
-        pods.append(
-            Blob(
-                centre_top=(rng.uniform(-0.4 * w, 0.4 * w), rng.uniform(-0.4 * h, 0.4 * h)),
-                velocity=(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2)),
-                radius_top_m=rng.uniform(10.0, 16.0),
-                radius_rate=0.0,
-                aspect=rng.uniform(1.0, 1.6),
-                angle_rad=rng.uniform(0, np.pi),
-                harmonics=harmonics(0.08),
-                z_top_m=top_m,
-                z_from_m=z_from,
-                z_to_m=z_from - length,
-            )
-        )
+    pods = _random_pods(rng, n_pods, extent_m, top_m, depth_total, bench_height_m, harmonics)
     return SyntheticMine(
         geozones={"g1": [dipping], "g2": lobes, "g3": pods},
         extent_m=(-w / 2, -h / 2, w / 2, h / 2),
