@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy import ndimage
@@ -286,20 +287,35 @@ class DepthTrend:
         way (:func:`smooth_by_direction`). Where ``F`` has no direction (its
         cap, ridges) ``f_last + m`` is kept.
         """
-        added = self.f_last + self.movement(z_m)
+        movement = self.movement(z_m)
+        added = self.f_last + movement
         if self.transport_smoothing_m <= 0:
             return added
+        g_r, g_c, norm, directed = self._normals
+        move = np.where(directed, movement, 0.0) / self.grid.cell_size_m / np.maximum(norm, 1e-9)
+        d_r, d_c = smooth_by_direction(move * g_r, move * g_c, self._direction_classes, self._sigma_cells)
+        rows, cols = np.indices(self.f_last.shape, dtype=float)
+        carried = ndimage.map_coordinates(self.f_last, [rows + d_r, cols + d_c], order=1, mode="nearest")
+        return np.where(directed, carried, added)
+
+    # What the transport needs of the last section alone: made once per trend, not per elevation.
+    @cached_property
+    def _sigma_cells(self) -> float:
+        return self.transport_smoothing_m / self.grid.cell_size_m
+
+    @cached_property
+    def _normals(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``grad f_last`` (per cell), its length and where it has a direction."""
         h = self.grid.cell_size_m
         g_r, g_c = np.gradient(self.f_last)
         norm = np.hypot(g_r, g_c)
         directed = norm > 0.2 * h  # a distance changes by h per cell; caps and ridges do not
-        move = np.where(directed, self.movement(z_m), 0.0) / h / np.maximum(norm, 1e-9)
-        d_r, d_c = smooth_by_direction(
-            move * g_r, move * g_c, np.arctan2(g_r, g_c), directed, self.transport_smoothing_m / h
-        )
-        rows, cols = np.indices(self.f_last.shape, dtype=float)
-        carried = ndimage.map_coordinates(self.f_last, [rows + d_r, cols + d_c], order=1, mode="nearest")
-        return np.where(directed, carried, added)
+        return g_r, g_c, norm, directed
+
+    @cached_property
+    def _direction_classes(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        g_r, g_c, _, directed = self._normals
+        return direction_classes(np.arctan2(g_r, g_c), directed, self._sigma_cells)
 
     def region(self, z_m: float) -> MultiPolygon:
         field = self.field(z_m)
@@ -308,8 +324,22 @@ class DepthTrend:
         return self.grid.polygons_from_field(field, 0.0)
 
 
+def direction_classes(theta: np.ndarray, valid: np.ndarray, sigma_cells: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Weights of :data:`TRANSPORT_DIRECTIONS` overlapping classes of boundary normal, and their local sums.
+
+    Class ``k`` weighs a cell ``max(cos(theta - theta_k), 0) ** 4`` (``theta``:
+    the normal's angle, radians; 0 where not ``valid``); its local sum is the
+    weight's Gaussian average over ``sigma_cells`` (at least 1e-3).
+    """
+    classes = []
+    for k in range(TRANSPORT_DIRECTIONS):
+        w = np.maximum(np.cos(theta - 2 * np.pi * k / TRANSPORT_DIRECTIONS), 0.0) ** 4 * valid
+        classes.append((w, np.maximum(ndimage.gaussian_filter(w, sigma_cells), 1e-3)))
+    return classes
+
+
 def smooth_by_direction(
-    d_r: np.ndarray, d_c: np.ndarray, theta: np.ndarray, valid: np.ndarray, sigma_cells: float
+    d_r: np.ndarray, d_c: np.ndarray, classes: list[tuple[np.ndarray, np.ndarray]], sigma_cells: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """A displacement field averaged over a Gaussian neighbourhood among cells facing the same way.
 
@@ -317,17 +347,14 @@ def smooth_by_direction(
     not repeat from bench to bench; averaging the displacement along the
     boundary cancels it. Averaged across a narrow gap, the opposite
     displacements of two parts moving apart (a split) would cancel too, so
-    each cell averages only with cells whose boundary normal ``theta``
-    (radians) points its way: :data:`TRANSPORT_DIRECTIONS` overlapping
-    direction classes weighted ``max(cos(theta - theta_k), 0) ** 4``.
-    ``valid``: cells whose displacement counts. Returns the averaged ``(d_r, d_c)``.
+    each cell averages only with cells whose boundary normal points its way:
+    within each of the :func:`direction_classes`, weighted by its class
+    weight. Returns the averaged ``(d_r, d_c)``.
     """
     out_r, out_c, total = np.zeros_like(d_r), np.zeros_like(d_c), np.zeros_like(d_r)
-    for k in range(TRANSPORT_DIRECTIONS):
-        w = np.maximum(np.cos(theta - 2 * np.pi * k / TRANSPORT_DIRECTIONS), 0.0) ** 4 * valid
-        norm = np.maximum(ndimage.gaussian_filter(w, sigma_cells), 1e-3)
-        out_r += w * ndimage.gaussian_filter(w * d_r, sigma_cells) / norm
-        out_c += w * ndimage.gaussian_filter(w * d_c, sigma_cells) / norm
+    for w, local in classes:
+        out_r += w * ndimage.gaussian_filter(w * d_r, sigma_cells) / local
+        out_c += w * ndimage.gaussian_filter(w * d_c, sigma_cells) / local
         total += w
     total = np.maximum(total, 1e-9)
     return out_r / total, out_c / total
