@@ -197,6 +197,7 @@ def suggest_holes(
     names = list(sections)
     if not len(xy) or not names or budget <= 0:
         return []
+    sections = {g: sections[g].as_observed() for g in names}
     at = {g: sections[g].at(xy) for g in names}
     info = np.stack([binary_entropy(at[g][2]) for g in names])  # (geozones, candidates)
     weights = influence_matrix(xy, INFLUENCE_SPACINGS * hole_spacing_m)
@@ -270,6 +271,7 @@ def revealed_field(
     xy = np.asarray(xy_m, float).reshape(-1, 2)
     if not len(xy):
         return section.field.copy()
+    section = section.as_observed()
     f, s, _ = section.at(xy)
     sign = np.where(np.asarray(inside, bool), 1.0, -1.0)
     a = sign * f / s
