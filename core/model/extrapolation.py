@@ -90,6 +90,11 @@ class BenchFields:
     weight: np.ndarray
     drilled: np.ndarray
 
+    @property
+    def cap_m(self) -> float:
+        """The largest ``|F|`` the fields hold (their cap, where a boundary is far; 0 without benches)."""
+        return float(np.max(np.abs(self.distance))) if self.distance.size else 0.0
+
     def down_to(self, z_m: float) -> BenchFields:
         """The benches at or above ``z_m`` only (what was known when the bench at ``z_m`` was the deepest)."""
         n = int(np.sum(self.z_m >= z_m - 1e-6))
@@ -266,7 +271,7 @@ class DepthTrend:
     z_last: np.ndarray
     rate: np.ndarray
     persistence: np.ndarray
-    transport_smoothing_m: float = 0.0
+    transport_smoothing_m: float
 
     def movement(self, z_m: float) -> np.ndarray:
         """Metres the boundary moves outwards from ``z_last`` to ``z_m``, per cell."""

@@ -205,7 +205,7 @@ def section_distance(fields: BenchFields, region) -> np.ndarray:
     boundary, by distance transform elsewhere, capped as the fields are (a
     boundary that far says nothing here).
     """
-    cap = float(np.max(np.abs(fields.distance))) if fields.distance.size else 0.0
+    cap = fields.cap_m
     if region.is_empty:
         return np.full(fields.grid.shape, -cap)
     return np.clip(region_signed_distance(fields.grid, region), -cap, cap)
@@ -421,10 +421,10 @@ class SectionUncertainty:
     sigma : (rows, cols) float
         Scale of its error against the true boundary (metres; :func:`true_boundary_sigma`).
     scale : UncertaintyScale
-    observed_sigma : (rows, cols) float, optional
+    observed_sigma : (rows, cols) float
         Scale of its error against the boundary the bench's holes will show
-        (the calibrated scale, placement included; ``sigma`` if not given):
-        what sampling plans for (:meth:`as_observed`).
+        (the calibrated scale, placement included): what sampling plans for
+        (:meth:`as_observed`).
     """
 
     grid: Grid
@@ -433,7 +433,7 @@ class SectionUncertainty:
     field: np.ndarray
     sigma: np.ndarray
     scale: UncertaintyScale
-    observed_sigma: np.ndarray | None = None
+    observed_sigma: np.ndarray
 
     def as_observed(self) -> SectionUncertainty:
         """The same section about the boundary its holes will show: sampling's view.
@@ -443,8 +443,7 @@ class SectionUncertainty:
         error included (on the tuning seeds, planning on the true-boundary
         scale lost 0.5-1.4 IoU points of the suggestions' value per family).
         """
-        observed = self.sigma if self.observed_sigma is None else self.observed_sigma
-        return dataclasses.replace(self, sigma=observed, observed_sigma=observed)
+        return dataclasses.replace(self, sigma=self.observed_sigma)
 
     @property
     def half_width(self) -> np.ndarray:
@@ -574,8 +573,7 @@ def section_uncertainty(
         known = fields.down_to(z_m) if down else BenchFields(*_below(fields, z_m))
         sigmas.append((_sigma(known, down, z_m, hole_spacing_m, scales[down]), scales[down]))
     sigma = 1.0 / np.sqrt(sum(1.0 / np.maximum(s, 1e-9) ** 2 for s, _ in sigmas))
-    cap = float(np.max(np.abs(fields.distance))) if fields.distance.size else 0.0
-    true_sigma = true_boundary_sigma(sigma, hole_spacing_m, cap, probability)
+    true_sigma = true_boundary_sigma(sigma, hole_spacing_m, fields.cap_m, probability)
     if region is None:
         region = predicted_region(fields, z_m, hole_spacing_m)
     field = section_distance(fields, region)
