@@ -147,6 +147,36 @@ def test_a_single_mislabelled_hole_gives_no_contour_and_is_reported():
     assert len(kept) == 1 and list(kept[0].holes) == [odd]
 
 
+def test_label_noise_on_a_bench_drilled_sparser_than_the_table_is_still_absorbed():
+    # Patterns change from bench to bench: a dense 5 m bench over a 6.5 m one (both jittered by 8%).
+    # The noise test's first ring must be the sparse bench's own, or its single mislabelled holes
+    # are no longer surrounded and each becomes a contour.
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    rng = np.random.default_rng(3)
+    dense = hex_grid(40, 40, 5.0) + rng.normal(0, 0.4, (1600, 2))
+    sparse = hex_grid(24, 24, 6.5) + rng.normal(0, 0.52, (576, 2))
+    labels = np.full(len(sparse), "g0", dtype=object)
+    odd = rng.choice(np.flatnonzero((np.abs(sparse - sparse.mean(axis=0)) < 60).all(axis=1)), 8, replace=False)
+    labels[odd] = "g1"
+    table = pd.DataFrame(
+        {
+            "x": np.r_[dense[:, 0], sparse[:, 0]],
+            "y": np.r_[dense[:, 1], sparse[:, 1]],
+            "z": np.r_[np.full(len(dense), 500.0), np.full(len(sparse), 490.0)],
+            "geozone": np.r_[np.full(len(dense), "g0", dtype=object), labels],
+        }
+    )
+    holes = blastholes_from_table(table, source="constructed")
+    assert holes.hole_spacing_m < 5.5  # the table's median is the dense bench's
+    contours = extract_bench(holes, 1)
+    assert not [c for c in contours if c.geozone == "g1"]
+    [host] = [c for c in contours if c.geozone == "g0"]
+    assert len(host.isolated_holes) == len(odd) and set(holes.geozone[host.isolated_holes]) == {"g1"}
+
+
 def test_label_noise_is_one_or_two_surrounded_holes_not_a_thin_body():
     xy = hex_grid(20, 20)
     labels = np.full(len(xy), "g0", dtype=object)

@@ -182,7 +182,9 @@ def test_the_command_line_applies_a_projects_parameters(tmp_path):
     csv, _ = _small_csv(tmp_path, 12)
     bgm("correspond", csv, "--geozone", "g1", "--out", tmp_path / "default.json")
     project = tmp_path / "p.json"
-    project.write_text(json.dumps({"format": "bgm-project", "version": 1, "parameters": {"min_component_holes": 1}}))
+    # Mislabelled single holes kept as components, and components of one hole modelled.
+    parameters = {"min_component_holes": 1, "keep_isolated_holes": True}
+    project.write_text(json.dumps({"format": "bgm-project", "version": 1, "parameters": parameters}))
     bgm("correspond", csv, "--geozone", "g1", "--project", project, "--out", tmp_path / "tuned.json")
     assert min(_source_sizes(tmp_path / "default.json")) >= 3
     assert min(_source_sizes(tmp_path / "tuned.json")) < 3, "the project's min_component_holes = 1 was not applied"
