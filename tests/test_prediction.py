@@ -174,3 +174,37 @@ def test_a_strip_moving_further_than_its_half_width_is_carried_whole(monkeypatch
     added, added_area = scores()
     assert carried > 0.6 and carried_area < 1.4, (carried, carried_area)
     assert carried > added + 0.05 and carried_area < added_area, (carried, added, carried_area, added_area)
+
+
+def _lens_fields(lenses_per_bench, drilled_per_bench):
+    """Bench fields of a geozone made of round lenses ``(x, y, r)`` per bench, 10 m benches, 6 m spacing."""
+    from core.geometry.grid import Grid, as_multipolygon
+    from core.model.extrapolation import bench_fields
+
+    grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
+    regions = {
+        k: as_multipolygon(shapely.union_all([Point(x, y).buffer(r) for x, y, r in lenses]))
+        for k, lenses in enumerate(lenses_per_bench)
+    }
+    drilled = {k: grid.rasterize(box) for k, box in enumerate(drilled_per_bench)}
+    z = {k: 500.0 - 10.0 * k for k in range(len(lenses_per_bench))}
+    return bench_fields(regions, drilled, z, grid, 6.0, 18.0)
+
+
+def test_a_lens_only_older_benches_saw_is_carried_on_only_where_the_geozones_bodies_continue():
+    from core.model.extrapolation import body_continuity, depth_trend
+
+    everywhere, left = shapely.box(0, 0, 200, 160), shapely.box(0, 0, 100, 160)
+    drilled = [everywhere, everywhere, everywhere, left]  # the deepest bench did not drill the right half
+    lens = (150.0, 80.0, 15.0)  # seen on benches 1 and 2, right half
+    # Lenses a bench tall: every other body ends at the next bench.
+    short = [[(40, 30, 15)], [(40, 130, 15), lens], [(40, 30, 15), lens], [(70, 130, 12)]]
+    # The same lens in a geozone whose bodies go on down.
+    long = [[(50, 40, 15), lens], [(50, 40, 15), lens], [(50, 40, 15), lens], [(50, 40, 15)]]
+    for lenses, carried in ((short, False), (long, True)):
+        fields = _lens_fields(lenses, drilled)
+        continuity = body_continuity(fields, 10.0)
+        assert (continuity == 1.0) if carried else (continuity < 0.4), continuity
+        predicted = depth_trend(fields, 10.0, 6.0).region(465.0)  # half a bench below the deepest
+        assert predicted.contains(Point(150, 80)) == carried, (carried, continuity)
+        assert predicted.contains(Point(50, 40) if carried else Point(70, 130))  # the deepest bench's own body

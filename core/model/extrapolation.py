@@ -65,6 +65,9 @@ CAP_SPACINGS = 8.0
 #: held the fastest strips (chosen on the tuning seeds only: +0.4 and +1.1 F1 at 5 and
 #: 10 m, strips +1.3 and +3.2, pods -0.3 and -0.4).
 MIN_DIP_DEG = 30.0
+#: Evidence of a cell that only benches above the deepest observed is kept while the geozone's
+#: bodies are more likely than not to reach the predicted elevation (:func:`body_continuity`).
+STALE_EVIDENCE_PROBABILITY = 0.5
 
 
 @dataclass
@@ -261,7 +264,12 @@ class DepthTrend:
     (z_last - z) / bench_height_m`` metres outwards (along ``-grad F``), and
     ``F(z)`` is ``f_last`` carried by that movement (:meth:`field`).
     ``transport_smoothing_m``: the neighbourhood over which the movement is
-    averaged as a displacement.
+    averaged as a displacement. ``continuity`` is the share of the geozone's
+    bodies that reach the next bench (:func:`body_continuity`) and
+    ``f_deepest`` the deepest bench's signed distance: where the benches above
+    it saw the geozone and the deepest did not drill, the geozone is kept only
+    while ``continuity ** benches`` stays at least
+    :data:`STALE_EVIDENCE_PROBABILITY`.
     """
 
     grid: Grid
@@ -272,6 +280,8 @@ class DepthTrend:
     rate: np.ndarray
     persistence: np.ndarray
     transport_smoothing_m: float
+    continuity: float
+    f_deepest: np.ndarray
 
     def movement(self, z_m: float) -> np.ndarray:
         """Metres the boundary moves outwards from ``z_last`` to ``z_m``, per cell."""
@@ -290,18 +300,26 @@ class DepthTrend:
         movement) thinned it at its ridge. The displacement is averaged over
         ``transport_smoothing_m`` among cells whose boundary faces the same
         way (:func:`smooth_by_direction`). Where ``F`` has no direction (its
-        cap, ridges) ``f_last + m`` is kept.
+        cap, ridges) ``f_last + m`` is kept. Where only benches above the
+        deepest saw the geozone and its bodies have likely ended by ``z_m``
+        (see the class), the deepest bench's evidence is taken instead.
         """
         movement = self.movement(z_m)
-        added = self.f_last + movement
-        if self.transport_smoothing_m <= 0:
-            return added
-        g_r, g_c, norm, directed = self._normals
-        move = np.where(directed, movement, 0.0) / self.grid.cell_size_m / np.maximum(norm, 1e-9)
-        d_r, d_c = smooth_by_direction(move * g_r, move * g_c, self._direction_classes, self._sigma_cells)
-        rows, cols = np.indices(self.f_last.shape, dtype=float)
-        carried = ndimage.map_coordinates(self.f_last, [rows + d_r, cols + d_c], order=1, mode="nearest")
-        return np.where(directed, carried, added)
+        field = self.f_last + movement
+        if self.transport_smoothing_m > 0:
+            g_r, g_c, norm, directed = self._normals
+            move = np.where(directed, movement, 0.0) / self.grid.cell_size_m / np.maximum(norm, 1e-9)
+            d_r, d_c = smooth_by_direction(move * g_r, move * g_c, self._direction_classes, self._sigma_cells)
+            rows, cols = np.indices(self.f_last.shape, dtype=float)
+            carried = ndimage.map_coordinates(self.f_last, [rows + d_r, cols + d_c], order=1, mode="nearest")
+            field = np.where(directed, carried, field)
+        return np.where(self._ended(z_m), np.minimum(field, self.f_deepest), field)
+
+    def _ended(self, z_m: float) -> np.ndarray:
+        """Cells whose evidence is older than the deepest bench and whose bodies have likely ended by ``z_m``."""
+        benches = np.abs(self.z_last - z_m) / self.bench_height_m
+        stale = self.z_last != self.z_ref_m
+        return stale & (self.continuity**benches < STALE_EVIDENCE_PROBABILITY)
 
     # What the transport needs of the last section alone: made once per trend, not per elevation.
     @cached_property
@@ -365,6 +383,34 @@ def smooth_by_direction(
     return out_r / total, out_c / total
 
 
+def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
+    """The share of a geozone's bodies that reach the next bench, by area, in [0, 1].
+
+    A body is a connected part of the geozone inside a bench's drilled area;
+    it reaches the next bench when that bench has the geozone within the
+    furthest a boundary moves per bench (:data:`MIN_DIP_DEG`) of it. Only
+    bodies the next bench drilled (half of their area or more) count. Layers,
+    strips and folds reach every next bench (1.0 on every synthetic family
+    but pods); lenses a bench or two tall do not (pods: median 0.5). 1.0
+    where nothing can be counted.
+    """
+    reach_cells = bench_height_m / np.tan(np.radians(MIN_DIP_DEG)) / fields.grid.cell_size_m
+    reached = counted = 0.0
+    for j in range(len(fields.z_m) - 1):
+        bodies, n = ndimage.label((fields.distance[j] > 0) & fields.drilled[j])
+        below = fields.distance[j + 1] > 0
+        if n == 0 or not fields.drilled[j + 1].any():
+            continue
+        ids = np.arange(1, n + 1)
+        area = ndimage.sum_labels(np.ones(bodies.shape), bodies, ids)
+        drilled_next = ndimage.mean(fields.drilled[j + 1], bodies, ids) >= 0.5
+        near = ndimage.distance_transform_edt(~below) <= reach_cells if below.any() else np.zeros(below.shape, bool)
+        reaches = ndimage.maximum(near, bodies, ids) > 0
+        counted += float(np.sum(area[drilled_next]))
+        reached += float(np.sum(area[drilled_next & reaches]))
+    return reached / counted if counted else 1.0
+
+
 def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
     """The geozone's :class:`DepthTrend` from its benches' :class:`BenchFields`."""
     f_last, z_last, rate = fit_trend(fields, bench_height_m)
@@ -378,4 +424,6 @@ def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
         rate,
         persistence,
         TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
+        body_continuity(fields, bench_height_m),
+        fields.distance[-1],
     )
