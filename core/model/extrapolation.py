@@ -402,10 +402,11 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
         if n == 0 or not fields.drilled[j + 1].any():
             continue
         ids = np.arange(1, n + 1)
-        area = ndimage.sum_labels(np.ones(bodies.shape), bodies, ids)
+        area = np.bincount(bodies.ravel(), minlength=n + 1)[1:].astype(float)
         drilled_next = ndimage.mean(fields.drilled[j + 1], bodies, ids) >= 0.5
-        near = ndimage.distance_transform_edt(~below) <= reach_cells if below.any() else np.zeros(below.shape, bool)
-        reaches = ndimage.maximum(near, bodies, ids) > 0
+        reaches = np.zeros(n, bool)
+        if below.any():
+            reaches = ndimage.minimum(ndimage.distance_transform_edt(~below), bodies, ids) <= reach_cells
         counted += float(np.sum(area[drilled_next]))
         reached += float(np.sum(area[drilled_next & reaches]))
     return reached / counted if counted else 1.0

@@ -588,11 +588,10 @@ def true_boundary_sigma(sigma: np.ndarray, hole_spacing_m: float, cap_m: float, 
     first outside, variance ``s^2 / 12``. It is taken out of ``sigma^2``, down
     to that variance: the prediction rests on benches whose boundaries were
     placed no better, and the backtest cannot tell how much of a small error
-    was placement. Where the band
-    reaches the signed distance's cap ``cap_m`` (``z_q sigma >= cap_m``) it is
-    left as it is: there the backtests' errors were censored at the cap (the
-    prediction had no boundary nearby, a body appeared) and the band holds
-    everything the cap does.
+    was placement. Where the band reaches the signed distance's cap ``cap_m``
+    (``z_q sigma >= cap_m``) it is left as it is: there the backtests' errors
+    were censored at the cap (the prediction had no boundary nearby, a body
+    appeared) and the band holds everything the cap does.
     """
     placement = hole_spacing_m**2 / 12
     exact = np.sqrt(np.maximum(sigma**2 - placement, placement))
