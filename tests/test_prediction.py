@@ -208,3 +208,29 @@ def test_a_lens_only_older_benches_saw_is_carried_on_only_where_the_geozones_bod
         predicted = depth_trend(fields, 10.0, 6.0).region(465.0)  # half a bench below the deepest
         assert predicted.contains(Point(150, 80)) == carried, (carried, continuity)
         assert predicted.contains(Point(50, 40) if carried else Point(70, 130))  # the deepest bench's own body
+
+
+def test_a_strip_moving_further_than_its_half_width_moves_both_of_its_edges():
+    from core.geometry.grid import Grid
+    from core.model.extrapolation import bench_distance, boundary_movement
+
+    grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
+    drilled = np.ones(grid.shape, bool)
+    # 16 m wide, 12 m a bench: the trailing edge is nearer the older leading edge than its own old place
+    older, newer = (
+        bench_distance(grid.rasterize(shapely.box(x, -10, x + 16, 170)), drilled, 2.0, 48.0, 18.0)[0]
+        for x in (80.0, 92.0)
+    )
+    moved = boundary_movement(older, newer, 2.0, 17.3)
+    row = grid.shape[0] // 2
+    x = grid.x0 + np.arange(grid.shape[1]) * grid.cell_size_m
+    for edge, outwards in ((92.0, -12.0), (108.0, 12.0)):  # trailing edge retreats, leading edge advances
+        near = np.abs(x - edge) < 3.0
+        assert np.allclose(moved[row, near], outwards, atol=2.0), (edge, moved[row, near])
+    # One bench below, both edges have moved on: the change of F held the trailing edge (IoU 0.72).
+    sections = [_strip(12.0 * k, width=16.0) for k in range(5)]
+    holes = _bench_table(sections)
+    predicted, nil, truth = _predict_next(holes, sections, 4)
+    within = holes.drilled_area(3).buffer(-12.0)
+    scored = iou(predicted.intersection(within), truth.intersection(within))
+    assert scored > 0.78 and scored > iou(nil.intersection(within), truth.intersection(within)) + 0.3, scored

@@ -13,8 +13,10 @@ This module carries on exactly that part. On a grid over the geozone, bench
 boundary on that bench (positive inside; the paper's SDF convention,
 section 3.2.1). A boundary that moves steadily across itself changes ``F``
 linearly with depth at every point, whichever way it moves along itself.
-Per cell, the change of ``F`` between the last two benches that observed it
-is the rate of movement (:func:`fit_trend`), damped where successive bench pairs disagree
+Per cell, the movement across itself of the nearest boundary between the
+last two benches that observed it, matched along its normal to the boundary
+facing the same way (:func:`boundary_movement`), is the rate of movement
+(:func:`fit_trend`), damped where successive bench pairs disagree
 (:func:`local_persistence`: a body that moves steadily keeps its trend, one
 whose movement reverses or is shape noise is held). The boundary moves by
 ``persistence * rate * f`` across itself ``f`` bench heights below, and the
@@ -222,20 +224,75 @@ def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
     return last, before
 
 
+def boundary_movement(older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float) -> np.ndarray:
+    """How far the boundary nearest each cell moved outwards from one bench to the next, metres.
+
+    ``F_newer - F_older`` at a cell is the movement only while the nearest
+    boundary on both benches is the same one: in a strip that moved further
+    than its half-width, the trailing edge's cells are nearer the older
+    leading edge, and the trailing edge seemed to stand still while the
+    leading one advanced (the strip widened, 10% of its area on the tuning
+    seeds). Here each point of the newer boundary is matched along its normal
+    to the nearest boundary of the older bench that faces the same way (``F``
+    rising inwards along it), within ``reach_m`` (the furthest a boundary
+    moves, :data:`MIN_DIP_DEG`); the outward distance between the two is the
+    movement, and every cell takes the movement of its nearest boundary point.
+
+    Parameters
+    ----------
+    older, newer : (rows, cols) float
+        Signed distances (positive inside) on the two benches, metres.
+    cell_size_m, reach_m : float
+
+    Returns
+    -------
+    (rows, cols) float
+        Outward movement, metres (negative where the boundary retreated);
+        nan where the nearest boundary has no counterpart within the reach
+        (a body appearing) and everywhere when ``newer`` has no boundary.
+    """
+    g_r, g_c = np.gradient(newer)
+    norm = np.hypot(g_r, g_c)
+    band = (np.abs(newer) <= cell_size_m) & (norm > 0.2 * cell_size_m)
+    if not band.any():
+        return np.full(newer.shape, np.nan)
+    n_r, n_c = g_r[band] / norm[band], g_c[band] / norm[band]
+    rows, cols = np.nonzero(band)
+    to_boundary = newer[band] / cell_size_m  # from each band cell to the boundary point, along -normal
+    steps = np.arange(-reach_m, reach_m + 1e-9, 0.5 * cell_size_m) / cell_size_m
+    along = [
+        (rows - to_boundary * n_r)[:, None] + steps * n_r[:, None],
+        (cols - to_boundary * n_c)[:, None] + steps * n_c[:, None],
+    ]
+    f = ndimage.map_coordinates(older, along, order=1, mode="nearest")
+    entering = (f[:, :-1] <= 0) & (f[:, 1:] > 0)  # the older boundary, facing the same way
+    t = np.where(entering, f[:, :-1] / np.where(entering, f[:, :-1] - f[:, 1:], 1.0), 0.0)
+    offset_m = (steps[:-1] + t * (steps[1] - steps[0])) * cell_size_m
+    nearest = np.argmin(np.where(entering, np.abs(offset_m), np.inf), axis=1)
+    pick = np.arange(len(nearest))
+    moved = np.full(newer.shape, np.nan)
+    moved[band] = np.where(entering[pick, nearest], offset_m[pick, nearest], np.nan)
+    _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
+    return moved[r, c]
+
+
 def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per cell, the last observed signed distance, where it was observed and its change with depth.
 
     Each cell's trend rests on the last two benches drilled there (the
     deepest one, ``j1``, and the one above it that was drilled there,
-    ``j2``): the change from ``F_j2`` to ``F_j1`` per bench height. A cell
-    drilled by one bench only has no change; a cell none drilled takes the
-    deepest bench's nearest evidence, with no change.
+    ``j2``): the :func:`boundary_movement` of its nearest boundary from
+    ``j2`` to ``j1``, per bench height; where that boundary has no
+    counterpart, the change from ``F_j2`` to ``F_j1``, held where faster than
+    a boundary moves (:data:`MIN_DIP_DEG`). A cell drilled by one bench only
+    has no change; a cell none drilled takes the deepest bench's nearest
+    evidence, with no change.
 
     Returns
     -------
     f_last, z_last, rate : (rows, cols) float
-        ``F_j1``, the elevation of ``j1`` (metres) and the change of ``F`` per
-        bench height downwards.
+        ``F_j1``, the elevation of ``j1`` (metres) and the outward movement
+        of the boundary per bench height downwards.
     """
     last, before = last_observations(fields)
     z = fields.z_m
@@ -243,14 +300,25 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     def take(idx: np.ndarray) -> np.ndarray:
         return np.take_along_axis(fields.distance, np.maximum(idx, 0)[None], axis=0)[0]
 
-    f1, f2 = take(last), take(before)
-    z1, z2 = z[np.maximum(last, 0)], z[np.maximum(before, 0)]
+    f_last = take(last)
+    fastest_m = bench_height_m / np.tan(np.radians(MIN_DIP_DEG))
     two = (last >= 0) & (before >= 0)
-    rate = np.where(two, (f1 - f2) / np.where(two, z2 - z1, 1.0), 0.0) * bench_height_m
-    # Held where the change is no movement (see MIN_DIP_DEG).
-    rate = np.where(np.abs(rate) > bench_height_m / np.tan(np.radians(MIN_DIP_DEG)), 0.0, rate)
+    # signed: negative when extrapolating upwards (fields reversed), as the rate is per bench in that direction
+    benches = np.where(two, z[np.maximum(before, 0)] - z[np.maximum(last, 0)], bench_height_m) / bench_height_m
+    # Where a boundary has no counterpart (the inner edges of a split, a lens appearing) the change of F
+    # is all the benches say, held where faster than a boundary moves.
+    rate = np.where(two, (f_last - take(before)) / benches, 0.0)
+    rate = np.where(np.abs(rate) > fastest_m, 0.0, rate)
+    pairs = {(int(a), int(b)) for a, b in zip(last[two], before[two])} if fastest_m > 0 else set()
+    for j1, j2 in pairs:
+        cells = (last == j1) & (before == j2)
+        gap = float(benches[cells][0])
+        moved = boundary_movement(
+            fields.distance[j2], fields.distance[j1], fields.grid.cell_size_m, fastest_m * abs(gap)
+        )
+        rate[cells] = np.where(np.isnan(moved[cells]), rate[cells], moved[cells] / gap)
     observed = last >= 0
-    return np.where(observed, f1, fields.distance[-1]), np.where(observed, z1, z[-1]), rate
+    return np.where(observed, f_last, fields.distance[-1]), np.where(observed, z[np.maximum(last, 0)], z[-1]), rate
 
 
 @dataclass
