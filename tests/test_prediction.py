@@ -223,7 +223,7 @@ def test_a_strip_moving_further_than_its_half_width_moves_both_of_its_edges():
     )
     moved = boundary_movement(older, newer, 2.0, 17.3)
     row = grid.shape[0] // 2
-    x = grid.x0 + np.arange(grid.shape[1]) * grid.cell_size_m
+    x = grid.cell_centres()[0][row]
     for edge, outwards in ((92.0, -12.0), (108.0, 12.0)):  # trailing edge retreats, leading edge advances
         near = np.abs(x - edge) < 3.0
         assert np.allclose(moved[row, near], outwards, atol=2.0), (edge, moved[row, near])

@@ -309,6 +309,9 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     # is all the benches say, held where faster than a boundary moves.
     rate = np.where(two, (f_last - take(before)) / benches, 0.0)
     rate = np.where(np.abs(rate) > fastest_m, 0.0, rate)
+    # A bench height below zero (fields handed bottom first to predict_geozone by the uncertainty
+    # backtest upwards) held every change before the matching and still does: that caller's fix needs
+    # the band recalibrated.
     pairs = {(int(a), int(b)) for a, b in zip(last[two], before[two])} if fastest_m > 0 else set()
     for j1, j2 in pairs:
         cells = (last == j1) & (before == j2)
