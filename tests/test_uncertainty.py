@@ -16,6 +16,7 @@ from core.model.extrapolation import bench_fields
 from core.model.sampling import estimate_pattern, lay_out, revealed_field, suggest_holes
 from core.model.uncertainty import (
     Backtest,
+    backtest,
     band_width_m,
     fit_scale,
     section_uncertainty,
@@ -261,3 +262,14 @@ def test_the_band_is_about_the_true_boundary_not_the_holes_placement_of_it():
     # Never below the placement of the benches the prediction rests on; a band reaching the cap stays.
     assert true_boundary_sigma(np.array([0.5]), spacing, 1e3, 0.9)[0] == pytest.approx(spacing / np.sqrt(12))
     assert true_boundary_sigma(np.array([30.0]), spacing, 40.0, 0.9)[0] == 30.0
+
+
+def test_an_upward_backtest_predicts_each_bench_from_the_benches_below_it_only():
+    # Between benches the band also rests on extrapolating upwards; its calibration must not see the bench it predicts.
+    fields = strip_fields(REVERSING).reversed()
+    assert list(fields.through(970.0).z_m) == [950.0, 960.0, 970.0]
+    up = backtest(fields, HEIGHT_M, SPACING_M)
+    down = backtest(strip_fields(REVERSING), HEIGHT_M, SPACING_M)
+    # The strip moves 8 m every bench: predicted from one side, a bench is missed by metres, either way.
+    assert np.median(np.abs(up.error_m)) > 2.0
+    assert np.median(np.abs(up.error_m)) == pytest.approx(np.median(np.abs(down.error_m)), rel=0.25)

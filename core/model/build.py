@@ -119,7 +119,7 @@ def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelPa
             [c for c in model.contours if c.bench <= k],
             pairs,
             model.minor,
-            fields=None if model.fields is None else model.fields.down_to(float(holes.bench_levels_m[k])),
+            fields=None if model.fields is None else model.fields.through(float(holes.bench_levels_m[k])),
         )
         return predict_geozone(partial, list(z_targets_m), holes.hole_spacing_m, params)
 

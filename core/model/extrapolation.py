@@ -100,9 +100,14 @@ class BenchFields:
         """The largest ``|F|`` the fields hold (their cap, where a boundary is far; 0 without benches)."""
         return float(np.max(np.abs(self.distance))) if self.distance.size else 0.0
 
-    def down_to(self, z_m: float) -> BenchFields:
-        """The benches at or above ``z_m`` only (what was known when the bench at ``z_m`` was the deepest)."""
-        n = int(np.sum(self.z_m >= z_m - 1e-6))
+    def through(self, z_m: float) -> BenchFields:
+        """The benches from the first through ``z_m``, in their order: what was known when that was the last.
+
+        Top first (extrapolating down), the benches at or above ``z_m``; bottom
+        first (:meth:`reversed`, extrapolating up), those at or below it.
+        """
+        upwards = len(self.z_m) > 1 and self.z_m[0] < self.z_m[-1]
+        n = int(np.sum(self.z_m <= z_m + 1e-6)) if upwards else int(np.sum(self.z_m >= z_m - 1e-6))
         return BenchFields(self.grid, self.z_m[:n], self.distance[:n], self.weight[:n], self.drilled[:n])
 
     def reversed(self) -> BenchFields:
@@ -309,10 +314,7 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     # is all the benches say, held where faster than a boundary moves.
     rate = np.where(two, (f_last - take(before)) / benches, 0.0)
     rate = np.where(np.abs(rate) > fastest_m, 0.0, rate)
-    # A bench height below zero (fields handed bottom first to predict_geozone by the uncertainty
-    # backtest upwards) held every change before the matching and still does: that caller's fix needs
-    # the band recalibrated.
-    pairs = {(int(a), int(b)) for a, b in zip(last[two], before[two])} if fastest_m > 0 else set()
+    pairs = {(int(a), int(b)) for a, b in zip(last[two], before[two])}
     for j1, j2 in pairs:
         cells = (last == j1) & (before == j2)
         gap = float(benches[cells][0])

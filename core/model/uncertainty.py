@@ -190,9 +190,11 @@ def predicted_region(fields: BenchFields, z_m: float, hole_spacing_m: float) -> 
     """The section the model predicts at ``z_m`` from ``fields`` alone (outside their benches).
 
     :func:`core.model.prediction.predict_geozone` on a model that knows only
-    the fields: below the deepest bench (above the top one) it extrapolates
-    them, exactly as ``bgm predict`` and ``bgm build`` do.
+    the fields (in either order): below the deepest bench (above the top one)
+    it extrapolates them, exactly as ``bgm predict`` and ``bgm build`` do.
     """
+    if len(fields.z_m) > 1 and fields.z_m[0] < fields.z_m[-1]:
+        fields = fields.reversed()  # a model's benches are top first; it extrapolates up or down itself
     model = GeozoneModel("", [], [], fields=fields)
     return predict_geozone(model, [float(z_m)], hole_spacing_m)[float(z_m)]
 
@@ -275,7 +277,7 @@ def backtest(
 ) -> Backtest:
     """Predict each known bench from the benches above it and measure the errors at its true boundary.
 
-    Bench ``j`` is predicted from ``fields.down_to(z_{j-m})`` for every ``m``
+    Bench ``j`` is predicted from ``fields.through(z_{j-m})`` for every ``m``
     in ``depths`` with ``j - m >= 0``: the trend's ``F`` at ``z_j`` is sampled
     at the points of the ``F_j = 0`` set inside bench ``j``'s drilled area
     (:func:`boundary_points`) that the known benches observed (elsewhere the
@@ -294,7 +296,7 @@ def backtest(
         for m in depths:
             if j - m < 0:
                 continue
-            known = fields.down_to(float(fields.z_m[j - m]))
+            known = fields.through(float(fields.z_m[j - m]))
             seen = pts[_observed(known, pts)]
             if not len(seen):
                 continue
@@ -570,7 +572,7 @@ def section_uncertainty(
         if down not in scales:
             scales[down] = direction_scale(fields, down, hole_spacing_m, probability, pooled)
         # Between benches each direction extrapolates only the benches on its side.
-        known = fields.down_to(z_m) if down else BenchFields(*_below(fields, z_m))
+        known = fields.through(z_m) if down else BenchFields(*_below(fields, z_m))
         sigmas.append((_sigma(known, down, z_m, hole_spacing_m, scales[down]), scales[down]))
     sigma = 1.0 / np.sqrt(sum(1.0 / np.maximum(s, 1e-9) ** 2 for s, _ in sigmas))
     true_sigma = true_boundary_sigma(sigma, hole_spacing_m, fields.cap_m, probability)

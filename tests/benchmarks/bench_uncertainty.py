@@ -1,6 +1,6 @@
 """Calibration of the uncertainty band, and the value of suggested holes, on every synthetic family and on Kennecott.
 
-    python tests/benchmarks/bench_uncertainty.py [--seeds 8] [--tuning] [--workers 2] [--no-kennecott]
+    python tests/benchmarks/bench_uncertainty.py [--seeds 8] [--tuning] [--workers 2] [--no-kennecott] [--between]
 
 Calibration (:mod:`core.model.uncertainty`): for every non-host geozone and
 every bench ``k + 1`` with at least two benches above it, the benches down to
@@ -25,6 +25,11 @@ revealed labels (:func:`core.model.sampling.revealed_field`, the same
 estimator for every strategy) and scored by IoU against the truth inside the
 bench's drilled area (pooled over geozones: summed intersections over summed
 unions). ``0%`` is the prediction alone.
+
+``--between`` adds the band half-way between benches (synthetic only): the
+section of the paper's trajectories, its band combined from the extrapolations
+from above and from below, each calibrated on its own direction's backtest,
+scored against the true section there inside both benches' drilled areas.
 
 Seeds: the first ``--seeds`` held-out seeds of each family
 (:data:`core.synthetic.scenarios.HELD_OUT_SEEDS`, all eight by default: with two, a family's
@@ -92,7 +97,7 @@ class Case:
 
     def __init__(self, holes, mine=None):
         self.holes, self.mine = holes, mine
-        session = ModelSession(holes)
+        self.session = session = ModelSession(holes)
         contours = session.contours()
         self.geozones = [g for g in holes.geozones if g != HOST] if mine is not None else list(holes.geozones)
         self.fields = {
@@ -114,11 +119,11 @@ class Case:
     def section(self, g: str, k: int):
         """The section of ``g`` on bench ``k + 1`` predicted from benches down to ``k``, with its band."""
         z_known = float(self.holes.bench_levels_m[k])
-        known = self.fields[g].down_to(z_known)
+        known = self.fields[g].through(z_known)
         height = float(np.median(-np.diff(known.z_m)))
 
         def pooled():
-            return [backtest(self.fields[o].down_to(z_known), height, self.spacing) for o in self.fields if o != g]
+            return [backtest(self.fields[o].through(z_known), height, self.spacing) for o in self.fields if o != g]
 
         return section_uncertainty(known, float(self.holes.bench_levels_m[k + 1]), self.spacing, PROBABILITY, pooled)
 
@@ -154,6 +159,38 @@ def calibration_rows(case: Case) -> list[dict]:
                     "source": section.scale.source,
                 }
             )
+    return rows
+
+
+def between_rows(case: Case) -> list[dict]:
+    """Coverage of the band half-way between benches (synthetic only; ``--between``).
+
+    There the section comes from the paper's trajectories and the band combines
+    the extrapolations from the bench above and the bench below, each
+    calibrated on its own direction's backtest (what ``bgm build`` writes).
+    """
+    holes, rows = case.holes, []
+    height = float(np.median(-np.diff(holes.bench_levels_m)))
+    for g in case.geozones:
+        model = case.session.geozone_model(g)
+        for k in range(holes.n_benches - 1):
+            z = float(holes.bench_levels_m[k]) - height / 2
+            region = case.session.predict(g, [z], model)[z]
+            section = section_uncertainty(model.fields, z, case.spacing, PROBABILITY, region=region)
+            area = holes.drilled_area(k).intersection(holes.drilled_area(k + 1))
+            truth = case.mine.section_in(holes.frame, g, z).intersection(area)
+            pts = true_boundary_points(truth, area, section.grid.cell_size_m) if section is not None else []
+            if len(pts):
+                inside = int(section.in_band(pts).sum())
+                rows.append(
+                    {
+                        "geozone": g,
+                        "bench": k,
+                        "points": len(pts),
+                        "inside": inside,
+                        "width_m": band_width_m(section, area),
+                    }
+                )
     return rows
 
 
@@ -214,8 +251,8 @@ def value_rows(case: Case, hidden: int) -> list[dict]:
 STRATEGIES = ("suggested", "random", "sub-grid")
 
 
-def run(job: tuple[str, int]) -> tuple[pd.DataFrame, pd.DataFrame, float]:
-    family, seed = job
+def run(job: tuple[str, int, bool]) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, float]:
+    family, seed, between = job
     start = time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BGMWarning)
@@ -227,10 +264,11 @@ def run(job: tuple[str, int]) -> tuple[pd.DataFrame, pd.DataFrame, float]:
         calibration = pd.DataFrame(calibration_rows(case))
         n = case.holes.n_benches
         value = pd.DataFrame([r for hidden in (n - 2, n - 1) for r in value_rows(case, hidden)])
-    for df in (calibration, value):
+        halfway = pd.DataFrame(between_rows(case) if between and case.mine is not None else [])
+    for df in (calibration, value, halfway):
         df.insert(0, "seed", seed)
         df.insert(0, "family", family)
-    return calibration, value, time.process_time() - start
+    return calibration, value, halfway, time.process_time() - start
 
 
 def calibration_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -281,12 +319,15 @@ def main() -> None:
     parser.add_argument("--families", default=",".join(FAMILIES))
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-kennecott", action="store_true")
+    parser.add_argument(
+        "--between", action="store_true", help="also the band half-way between benches (runs the whole pipeline)"
+    )
     args = parser.parse_args()
     seeds = (TUNING_SEEDS if args.tuning else HELD_OUT_SEEDS)[: args.seeds]
     families = [f for f in args.families.split(",") if f]
-    jobs = [(f, s) for f in families for s in seeds]
+    jobs = [(f, s, args.between) for f in families for s in seeds]
     if not args.no_kennecott and KENNECOTT.exists():
-        jobs.insert(0, ("kennecott", 0))
+        jobs.insert(0, ("kennecott", 0, False))
     elif not args.no_kennecott:
         print(f"Kennecott data not found at {KENNECOTT}: skipped")
     start = time.perf_counter()
@@ -302,6 +343,14 @@ def main() -> None:
         pooled = calibration_table(synthetic.assign(family="all synthetic"))
         table = pd.concat([table, pooled], ignore_index=True)
     print(table.to_string(index=False))
+    halfway = pd.concat([r[2] for r in results], ignore_index=True)
+    if len(halfway):
+        print("\nCalibration half-way between benches (the band from both sides):")
+        rows = [("all synthetic", halfway), *halfway.groupby("family", sort=False)]
+        for family, part in rows:
+            coverage = 100 * part["inside"].sum() / part["points"].sum()
+            width = float(np.nanmedian(part["width_m"]))
+            print(f"  {family:13s} {len(part):4d} sections  coverage {coverage:5.1f}%  median width {width:.1f} m")
     for family, part in (
         ("all synthetic", value[value["family"] != "kennecott"]),
         ("kennecott", value[value["family"] == "kennecott"]),
@@ -320,7 +369,7 @@ def main() -> None:
             t = value_table(part)
             cells = [f"{i}: {r['suggested']:.1f}/{r['random']:.1f}/{r['sub-grid']:.1f}" for i, r in t.iterrows()]
             print(f"  {family:9s} " + "  ".join(cells))
-    cpu = sum(r[2] for r in results)
+    cpu = sum(r[3] for r in results)
     print(f"\nWall {time.perf_counter() - start:.0f} s, CPU {cpu:.0f} s on {args.workers} workers, {len(jobs)} inputs.")
 
 
