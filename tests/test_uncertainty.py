@@ -273,3 +273,16 @@ def test_an_upward_backtest_predicts_each_bench_from_the_benches_below_it_only()
     # The strip moves 8 m every bench: predicted from one side, a bench is missed by metres, either way.
     assert np.median(np.abs(up.error_m)) > 2.0
     assert np.median(np.abs(up.error_m)) == pytest.approx(np.median(np.abs(down.error_m)), rel=0.25)
+
+
+def test_half_way_between_benches_the_band_holds_the_boundary_narrower_than_from_one_side():
+    fields = strip_fields(STEADY)  # west edge at 50 + 3k m on bench k
+    z = 1000.0 - 2.5 * HEIGHT_M  # half-way between benches 2 and 3: the edge at 57.5 m
+    section = box(57.5, -50.0, 87.5, SIDE_M + 50.0)  # what the trajectories give there
+    between = section_uncertainty(fields, z, SPACING_M, 0.9, region=section)
+    below = section_uncertainty(fields.through(980.0), z, SPACING_M, 0.9)  # bench 2 the deepest known
+    edge = np.column_stack([np.full(20, 57.5), np.linspace(20, 140, 20)])
+    assert between.in_band(edge).all()
+    # Two benches' placement errors partly cancel half-way: less than a one-sided band's floor.
+    assert band_width_m(between) < 0.8 * band_width_m(below)
+    assert band_width_m(between) < 2 * z_score(0.9) * SPACING_M / np.sqrt(12)

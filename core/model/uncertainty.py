@@ -574,15 +574,20 @@ def section_uncertainty(
         # Between benches each direction extrapolates only the benches on its side.
         known = fields.through(z_m) if down else BenchFields(*_below(fields, z_m))
         sigmas.append((_sigma(known, down, z_m, hole_spacing_m, scales[down]), scales[down]))
-    sigma = 1.0 / np.sqrt(sum(1.0 / np.maximum(s, 1e-9) ** 2 for s, _ in sigmas))
-    true_sigma = true_boundary_sigma(sigma, hole_spacing_m, fields.cap_m, probability)
+    precisions = [1.0 / np.maximum(s, 1e-9) ** 2 for s, _ in sigmas]
+    sigma = 1.0 / np.sqrt(sum(precisions))
+    # Combined by their precisions, the two benches' placement errors (independent) partly cancel.
+    placement_share = sum((p * sigma**2) ** 2 for p in precisions)
+    true_sigma = true_boundary_sigma(sigma, hole_spacing_m, fields.cap_m, probability, placement_share)
     if region is None:
         region = predicted_region(fields, z_m, hole_spacing_m)
     field = section_distance(fields, region)
     return SectionUncertainty(fields.grid, float(z_m), float(probability), field, true_sigma, sigmas[0][1], sigma)
 
 
-def true_boundary_sigma(sigma: np.ndarray, hole_spacing_m: float, cap_m: float, probability: float) -> np.ndarray:
+def true_boundary_sigma(
+    sigma: np.ndarray, hole_spacing_m: float, cap_m: float, probability: float, placement_share=1.0
+) -> np.ndarray:
     """The scale of the error against the true boundary, from the scale calibrated on extracted ones.
 
     The backtests' truth is each bench's extracted boundary, placed by holes
@@ -590,12 +595,16 @@ def true_boundary_sigma(sigma: np.ndarray, hole_spacing_m: float, cap_m: float, 
     first outside, variance ``s^2 / 12``. It is taken out of ``sigma^2``, down
     to that variance: the prediction rests on benches whose boundaries were
     placed no better, and the backtest cannot tell how much of a small error
-    was placement. Where the band reaches the signed distance's cap ``cap_m``
+    was placement. Between benches the section rests on two benches whose
+    placement errors are independent: weighted ``w`` and ``1 - w`` (by the
+    precisions of the two directions), ``placement_share = w^2 + (1 - w)^2``
+    of that variance remains (1/2 half-way), and both the part taken out and
+    the floor are that share. Where the band reaches the signed distance's cap ``cap_m``
     (``z_q sigma >= cap_m``) it is left as it is: there the backtests' errors
     were censored at the cap (the prediction had no boundary nearby, a body
     appeared) and the band holds everything the cap does.
     """
-    placement = hole_spacing_m**2 / 12
+    placement = placement_share * hole_spacing_m**2 / 12
     exact = np.sqrt(np.maximum(sigma**2 - placement, placement))
     return np.where(z_score(probability) * sigma >= cap_m, sigma, exact)
 
