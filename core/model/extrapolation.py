@@ -100,14 +100,18 @@ class BenchFields:
         """The largest ``|F|`` the fields hold (their cap, where a boundary is far; 0 without benches)."""
         return float(np.max(np.abs(self.distance))) if self.distance.size else 0.0
 
+    @property
+    def upwards(self) -> bool:
+        """Whether the benches are bottom first (:meth:`reversed`: extrapolated upwards)."""
+        return len(self.z_m) > 1 and self.z_m[0] < self.z_m[-1]
+
     def through(self, z_m: float) -> BenchFields:
         """The benches from the first through ``z_m``, in their order: what was known when that was the last.
 
         Top first (extrapolating down), the benches at or above ``z_m``; bottom
         first (:meth:`reversed`, extrapolating up), those at or below it.
         """
-        upwards = len(self.z_m) > 1 and self.z_m[0] < self.z_m[-1]
-        n = int(np.sum(self.z_m <= z_m + 1e-6)) if upwards else int(np.sum(self.z_m >= z_m - 1e-6))
+        n = int(np.sum(self.z_m <= z_m + 1e-6)) if self.upwards else int(np.sum(self.z_m >= z_m - 1e-6))
         return BenchFields(self.grid, self.z_m[:n], self.distance[:n], self.weight[:n], self.drilled[:n])
 
     def reversed(self) -> BenchFields:

@@ -193,7 +193,7 @@ def predicted_region(fields: BenchFields, z_m: float, hole_spacing_m: float) -> 
     the fields (in either order): below the deepest bench (above the top one)
     it extrapolates them, exactly as ``bgm predict`` and ``bgm build`` do.
     """
-    if len(fields.z_m) > 1 and fields.z_m[0] < fields.z_m[-1]:
+    if fields.upwards:
         fields = fields.reversed()  # a model's benches are top first; it extrapolates up or down itself
     model = GeozoneModel("", [], [], fields=fields)
     return predict_geozone(model, [float(z_m)], hole_spacing_m)[float(z_m)]
@@ -494,8 +494,9 @@ class SectionUncertainty:
 
 
 def _bench_height(fields: BenchFields) -> float:
+    """The median height between successive benches (metres, positive in either order; 1 with one bench)."""
     levels = fields.z_m
-    return float(np.median(-np.diff(levels))) if len(levels) > 1 else 1.0
+    return float(np.median(np.abs(np.diff(levels)))) if len(levels) > 1 else 1.0
 
 
 def _direction(fields: BenchFields, down: bool) -> BenchFields:
@@ -515,9 +516,9 @@ def direction_scale(
     return calibrate(backtest(used, _bench_height(fields), hole_spacing_m), pooled, probability)
 
 
-def _sigma(fields: BenchFields, down: bool, z_m: float, hole_spacing_m: float, scale: UncertaintyScale) -> np.ndarray:
-    used = _direction(fields, down)
-    trend = depth_trend(used, _bench_height(fields), hole_spacing_m)
+def _sigma(used: BenchFields, z_m: float, hole_spacing_m: float, scale: UncertaintyScale) -> np.ndarray:
+    """The calibrated scale at ``z_m`` of extrapolating ``used`` (in the order extrapolated)."""
+    trend = depth_trend(used, _bench_height(used), hole_spacing_m)
     return scale.sigma(scale_terms(used, trend, z_m, hole_spacing_m))
 
 
@@ -572,8 +573,8 @@ def section_uncertainty(
         if down not in scales:
             scales[down] = direction_scale(fields, down, hole_spacing_m, probability, pooled)
         # Between benches each direction extrapolates only the benches on its side.
-        known = fields.through(z_m) if down else BenchFields(*_below(fields, z_m))
-        sigmas.append((_sigma(known, down, z_m, hole_spacing_m, scales[down]), scales[down]))
+        known = _direction(fields, down).through(z_m)
+        sigmas.append((_sigma(known, z_m, hole_spacing_m, scales[down]), scales[down]))
     precisions = [1.0 / np.maximum(s, 1e-9) ** 2 for s, _ in sigmas]
     sigma = 1.0 / np.sqrt(sum(precisions))
     # Combined by their precisions, the two benches' placement errors (independent) partly cancel.
@@ -586,7 +587,11 @@ def section_uncertainty(
 
 
 def true_boundary_sigma(
-    sigma: np.ndarray, hole_spacing_m: float, cap_m: float, probability: float, placement_share=1.0
+    sigma: np.ndarray,
+    hole_spacing_m: float,
+    cap_m: float,
+    probability: float,
+    placement_share: float | np.ndarray = 1.0,
 ) -> np.ndarray:
     """The scale of the error against the true boundary, from the scale calibrated on extracted ones.
 
@@ -617,12 +622,6 @@ def directions(fields: BenchFields, z_m: float) -> tuple[bool, ...]:
     if levels[-1] < z_m < levels[0]:
         return (True, False)
     return (bool(z_m < levels[-1]),)
-
-
-def _below(fields: BenchFields, z_m: float) -> tuple:
-    """The fields of the benches below ``z_m`` (what extrapolating upwards to ``z_m`` rests on)."""
-    keep = fields.z_m <= z_m + 1e-6
-    return fields.grid, fields.z_m[keep], fields.distance[keep], fields.weight[keep], fields.drilled[keep]
 
 
 def band_width_m(section: SectionUncertainty, within=None) -> float:
