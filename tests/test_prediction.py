@@ -234,3 +234,21 @@ def test_a_strip_moving_further_than_its_half_width_moves_both_of_its_edges():
     within = holes.drilled_area(3).buffer(-12.0)
     scored = iou(predicted.intersection(within), truth.intersection(within))
     assert scored > 0.78 and scored > iou(nil.intersection(within), truth.intersection(within)) + 0.3, scored
+
+
+def test_a_lens_growing_in_a_geozone_whose_bodies_end_is_held_and_a_body_that_goes_on_keeps_growing():
+    from core.model.extrapolation import body_continuity, depth_trend
+
+    everywhere = shapely.box(0, 0, 200, 160)
+    growing = [(150.0, 80.0, 8.0), (150.0, 80.0, 14.0)]  # benches 1 and 2: 6 m wider a bench
+    # Lenses a bench tall beside it: every other body ends at the next bench.
+    lenses = [[(40, 30, 15)], [(40, 130, 15), growing[0]], [growing[1]]]
+    # The same growth in a geozone whose bodies go on down.
+    layers = [[(50, 40, 15)], [(50, 40, 15), growing[0]], [(50, 40, 15), growing[1]]]
+    for sections, grows in ((lenses, False), (layers, True)):
+        fields = _lens_fields(sections, [everywhere] * 3)
+        continuity = body_continuity(fields, 10.0)
+        assert (continuity == 1.0) if grows else (continuity < 0.3), continuity
+        predicted = depth_trend(fields, 10.0, 6.0).region(475.0)  # one bench below the deepest: r 20 if it grows
+        assert predicted.contains(Point(150 + 12.0, 80)), grows  # the deepest bench's section stays
+        assert predicted.contains(Point(150 + 17.0, 80)) == grows, (grows, continuity)
