@@ -115,18 +115,6 @@ def test_a_strip_moving_8_m_per_bench_is_predicted_within_a_hole_spacing():
     assert iou(predicted.intersection(drilled), truth.intersection(drilled)) > 0.75
 
 
-def test_one_bench_out_of_step_does_not_undo_a_movement_the_benches_above_repeated():
-    # 8 m a bench, but the fourth bench's contact stands where the third's was (0, 8, 16, 16, 24).
-    sections = [_strip(offset) for offset in (0.0, 8.0, 16.0, 16.0, 24.0, 32.0)]
-    holes = _bench_table(sections)
-    predicted, _, truth = _predict_next(holes, sections, 5)
-    drilled = holes.drilled_area(4).buffer(-12.0)
-    edge = shapely.get_coordinates(predicted.boundary.intersection(drilled))
-    assert len(edge)
-    # The last three benches alone say the movement does not repeat, and hold it 8 m short.
-    assert shapely.distance(truth.boundary, shapely.points(edge)).max() < holes.hole_spacing_m
-
-
 def test_movement_that_reverses_every_bench_is_predicted_no_worse_than_holding():
     from core.model.evaluation import f1_score, precision_recall
 

@@ -197,10 +197,9 @@ def bench_fields(
 def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
     """How much of the last bench-to-bench change carries on at each cell, in [0, 1].
 
-    The agreement of each change of the signed distance (``d1 = F_j - F_j-1``)
-    with the one before (``d2 = F_j-1 - F_j-2``), summed over every three
-    successive benches that observed a cell and over a Gaussian neighbourhood
-    of ``smoothing_m``::
+    The agreement of the last change of the signed distance (``d1 = F_k -
+    F_k-1``) with the one before (``d2 = F_k-1 - F_k-2``) over a Gaussian
+    neighbourhood of ``smoothing_m``::
 
         rho = 2 sum(d1 d2) / sum(d1^2 + d2^2)   in [-1, 1]
 
@@ -210,28 +209,23 @@ def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
     repeated movement is at least as large as what does not repeat (section
     noise lowers ``rho`` of a steady boundary towards 1/2 when it is as
     large as the movement), none where the movement reverses or is noise.
-    Every bench triple counts, not the last only: one misplaced section does
-    not undo a movement the benches above repeated (tuning seeds: +0.1 F1
-    pooled at 5 and 10 m, Kennecott +0.2). Where the last three benches did
-    not all observe a cell it is 1 (nothing says the movement does not carry
-    on). Changes faster than a boundary moves (:data:`MIN_DIP_DEG`) are left
-    out: they are bodies appearing.
+    Where fewer than three benches observed a cell it is 1 (nothing says the
+    movement does not carry on). Changes faster than a boundary moves
+    (:data:`MIN_DIP_DEG`) are left out: they are bodies appearing.
     """
     if len(fields.z_m) < 3:
         return np.ones(fields.grid.shape)
+    d1 = fields.distance[-1] - fields.distance[-2]
+    d2 = fields.distance[-2] - fields.distance[-3]
+    seen = np.prod(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0).astype(float)
     h = float(abs(fields.z_m[-2] - fields.z_m[-1]))
     fastest = h / np.tan(np.radians(MIN_DIP_DEG))
+    w = seen * ((np.abs(d1) <= fastest) & (np.abs(d2) <= fastest))
     sigma = smoothing_m / fields.grid.cell_size_m
-    agree, energy = np.zeros(fields.grid.shape), np.zeros(fields.grid.shape)
-    for j in range(2, len(fields.z_m)):
-        d1 = fields.distance[j] - fields.distance[j - 1]
-        d2 = fields.distance[j - 1] - fields.distance[j - 2]
-        seen = np.prod(fields.weight[j - 2 : j + 1] >= OBSERVED_WEIGHT, axis=0).astype(float)
-        w = seen * ((np.abs(d1) <= fastest) & (np.abs(d2) <= fastest))
-        agree += ndimage.gaussian_filter(w * d1 * d2, sigma)
-        energy += ndimage.gaussian_filter(w * (d1**2 + d2**2), sigma)
+    agree = ndimage.gaussian_filter(w * d1 * d2, sigma)
+    energy = ndimage.gaussian_filter(w * (d1**2 + d2**2), sigma)
     rho = 2 * agree / np.maximum(energy, 1e-9)
-    support = ndimage.gaussian_filter(w, sigma)  # the last triple's
+    support = ndimage.gaussian_filter(w, sigma)
     return np.where((support > 0.05) & (energy > 0), np.clip(2 * rho, 0.0, 1.0), 1.0)
 
 
