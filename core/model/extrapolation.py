@@ -73,7 +73,7 @@ MIN_DIP_DEG = 30.0
 #: persistence, ``continuity`` the share of the geozone's bodies that reach the next bench
 #: (:func:`body_continuity`). A lens's section widens only down to its middle and its radius
 #: goes as a square root of the depth from its tip: growth seen between two benches has
-#: mostly stopped or turned by the next one (on the tuning seeds 10-25% of the pods' carried
+#: mostly stopped or turned by the next one (on the tuning seeds 2-22% of the pods' carried
 #: growth was right). Layers, strips and folds reach every next bench (continuity 1) and keep
 #: their growth. Chosen on the tuning seeds only among powers 1, 2, 4, 8 and holding all
 #: growth once a body ends: pods +0.8 and +1.0 F1 points at 5 and 10 m with 4 (1: +0.5,
