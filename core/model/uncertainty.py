@@ -513,7 +513,7 @@ def direction_scale(
 ) -> UncertaintyScale:
     """The calibrated scale of predictions below the deepest bench (``down``) or above the top one."""
     used = _direction(fields, down)
-    return calibrate(backtest(used, _bench_height(fields), hole_spacing_m), pooled, probability)
+    return calibrate(backtest(used, _bench_height(used), hole_spacing_m), pooled, probability)
 
 
 def _sigma(used: BenchFields, z_m: float, hole_spacing_m: float, scale: UncertaintyScale) -> np.ndarray:
