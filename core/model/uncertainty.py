@@ -512,8 +512,13 @@ def direction_scale(
     pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
 ) -> UncertaintyScale:
     """The calibrated scale of predictions below the deepest bench (``down``) or above the top one."""
+    return calibrate(direction_backtest(fields, down, hole_spacing_m), pooled, probability)
+
+
+def direction_backtest(fields: BenchFields, down: bool, hole_spacing_m: float) -> Backtest:
+    """:func:`backtest` of extrapolating ``fields`` downwards (``down``) or upwards, at their bench height."""
     used = _direction(fields, down)
-    return calibrate(backtest(used, _bench_height(used), hole_spacing_m), pooled, probability)
+    return backtest(used, _bench_height(used), hole_spacing_m)
 
 
 def _sigma(used: BenchFields, z_m: float, hole_spacing_m: float, scale: UncertaintyScale) -> np.ndarray:
@@ -660,9 +665,7 @@ def session_backtest(session, geozone: str, down: bool = True, model: GeozoneMod
         fields = session.bench_fields(geozone, own)
     spacing = float(session.holes.hole_spacing_m)
     key = content_key("backtest", engine_fingerprint(), fields.z_m, fields.distance, fields.drilled, spacing, down)
-    return session.store.get(
-        "backtest", key, lambda: backtest(_direction(fields, down), _bench_height(fields), spacing)
-    )
+    return session.store.get("backtest", key, lambda: direction_backtest(fields, down, spacing))
 
 
 def _backtests(session, geozones: list[str], down: bool) -> list[Backtest]:
