@@ -103,6 +103,13 @@ def _predict_next(holes, sections, known_benches):
     return predict_geozone(model, [z], holes.hole_spacing_m)[z], model.region_at_bench(known_benches - 1), local
 
 
+def _f1(region, truth, within) -> float:
+    """F1 of a predicted region against the true one, inside ``within`` (the next bench's drilled area)."""
+    from core.model.evaluation import f1_score, precision_recall
+
+    return f1_score(*precision_recall(region, truth, within)[:2])
+
+
 def test_a_strip_moving_8_m_per_bench_is_predicted_within_a_hole_spacing():
     sections = [_strip(8.0 * k) for k in range(5)]
     holes = _bench_table(sections)
@@ -116,24 +123,20 @@ def test_a_strip_moving_8_m_per_bench_is_predicted_within_a_hole_spacing():
 
 
 def test_movement_that_reverses_every_bench_is_predicted_no_worse_than_holding():
-    from core.model.evaluation import f1_score, precision_recall
-
     sections = [_strip(8.0 * (k % 2)) for k in range(5)]  # 0, 8, 0, 8, 0 m
     holes = _bench_table(sections)
     predicted, nil, truth = _predict_next(holes, sections, 4)
     within = holes.drilled_area(3)
-    model_f1 = f1_score(*precision_recall(predicted, truth, within)[:2])
-    nil_f1 = f1_score(*precision_recall(nil, truth, within)[:2])
+    model_f1, nil_f1 = _f1(predicted, truth, within), _f1(nil, truth, within)
     assert model_f1 >= nil_f1 - 0.01, (model_f1, nil_f1)
 
 
 def _wobbly_disc(rng, centre, radius=40.0, amplitude=0.12):
-    """A disc whose radius carries harmonics 2-5 of random amplitude (up to ``amplitude``) and phase."""
-    theta = np.linspace(0, 2 * np.pi, 180, endpoint=False)
-    r = radius * (
-        1 + sum(rng.uniform(0, amplitude) * np.cos(k * theta + rng.uniform(0, 2 * np.pi)) for k in range(2, 6))
-    )
-    return shapely.Polygon(np.c_[centre[0] + r * np.cos(theta), centre[1] + r * np.sin(theta)])
+    """The generator's :class:`Blob` section: a disc whose radius carries harmonics 2-5 of random amplitude and phase."""
+    from core.synthetic.blobs import Blob
+
+    harmonics = tuple((rng.uniform(0, amplitude), rng.uniform(0, 2 * np.pi)) for _ in range(2, 6))
+    return Blob(tuple(centre), (0.0, 0.0), radius, 0.0, 1.0, 0.0, harmonics, z_top_m=0.0).section(0.0)
 
 
 @pytest.mark.parametrize(("step_m", "amplitude"), [(0.0, 0.12), (6.0, 0.06)])
@@ -145,8 +148,6 @@ def test_shape_noise_is_held_and_a_noisy_body_that_moves_is_carried(step_m, ampl
     repeat and are held. A body moving a steady 6 m per bench with half that
     noise is carried on past holding.
     """
-    from core.model.evaluation import f1_score, precision_recall
-
     scores = []
     for seed in range(3):
         rng = np.random.default_rng(seed)
@@ -154,7 +155,7 @@ def test_shape_noise_is_held_and_a_noisy_body_that_moves_is_carried(step_m, ampl
         holes = _bench_table(sections)
         predicted, nil, truth = _predict_next(holes, sections, 4)
         within = holes.drilled_area(3)
-        scores.append([f1_score(*precision_recall(p, truth, within)[:2]) for p in (predicted, nil)])
+        scores.append([_f1(p, truth, within) for p in (predicted, nil)])
     model_f1, nil_f1 = np.mean(scores, axis=0)
     if step_m:
         assert model_f1 > nil_f1 + 0.015, (model_f1, nil_f1)
