@@ -769,26 +769,39 @@ def make_demo_data(
         str | None,
         typer.Option(help="Synthetic family instead of the demo: strips, widening, folds, splits, pods or mix."),
     ] = None,
+    shape: Annotated[
+        str | None,
+        typer.Option(
+            help="A shape outside the families instead (no default was tuned on them): ring, "
+            "'faulted strip', inclusion, 'pivoting contact', 'angular body' or arc."
+        ),
+    ] = None,
 ) -> None:
-    """Regenerate the bundled synthetic demo blastholes (assets/demo_blastholes.csv), or a synthetic family's."""
+    """Regenerate the bundled synthetic demo blastholes (assets/demo_blastholes.csv), or a synthetic family's or shape's."""
     from core.io.atomic import atomic_write_text, check_output
     from core.model.build import truth_sidecar
     from core.synthetic.blobs import demo_dataset
     from core.synthetic.scenarios import scenario
+    from core.synthetic.shapes import shape_scenario
 
     if seed < 0:
         raise BGMInputError(f"--seed must be 0 or more, got {seed}")
+    if family is not None and shape is not None:
+        raise BGMInputError("give --family or --shape, not both")
     check_output(out)
     check_output(truth_sidecar(out))
-    if family is None:
-        _, table = demo_dataset(seed)
-        spec = {"generator": "core.synthetic.demo_dataset", "seed": seed}
-    else:
-        try:
+    try:
+        if family is not None:
             _, table, _ = scenario(family, seed)
-        except ValueError as exc:
-            raise BGMInputError(str(exc)) from None
-        spec = {"generator": "core.synthetic.scenario", "family": family, "seed": seed}
+            spec = {"generator": "core.synthetic.scenario", "family": family, "seed": seed}
+        elif shape is not None:
+            _, table, _ = shape_scenario(shape, seed)
+            spec = {"generator": "core.synthetic.shape_scenario", "shape": shape, "seed": seed}
+        else:
+            _, table = demo_dataset(seed)
+            spec = {"generator": "core.synthetic.demo_dataset", "seed": seed}
+    except ValueError as exc:
+        raise BGMInputError(str(exc)) from None
     atomic_write_text(out, table.to_csv(index=False))
     # The generator knows the true sections: record how to regenerate them for evaluation.
     atomic_write_text(truth_sidecar(out), json.dumps(spec))

@@ -19,7 +19,17 @@ from core.model.evaluation import truth_from_mine
 from core.synthetic import drilling, families
 from core.synthetic.blobs import HOST, Blob, SyntheticMine
 from core.synthetic.scenarios import FAMILIES, HELD_OUT_SEEDS, TUNING_SEEDS, make_family, scenario
-from core.synthetic.solids import DippingContact, DippingLayer, GrowingBody, star_outline, straight_or_bent_trace
+from core.synthetic.shapes import SHAPES, make_shape, shape_scenario
+from core.synthetic.solids import (
+    Clipped,
+    DippingContact,
+    DippingLayer,
+    GrowingBody,
+    Hollow,
+    PivotingContact,
+    star_outline,
+    straight_or_bent_trace,
+)
 
 SEEDS = TUNING_SEEDS[:3]
 
@@ -265,6 +275,60 @@ def test_a_narrowing_body_pinches_out():
     assert body.section(75.0).is_empty
 
 
+def test_a_hollow_body_is_a_ring_and_a_clipped_one_a_fault_block():
+    ring = Hollow(
+        GrowingBody(shapely.Point(0, 0).buffer(40.0, quad_segs=64), 100.0, 0.5),
+        GrowingBody(shapely.Point(0, 0).buffer(15.0, quad_segs=64), 100.0, 0.0),
+    )
+    section = ring.section(80.0)  # outside 50 m, core 15 m
+    assert section.area == pytest.approx(np.pi * (50.0**2 - 15.0**2), rel=0.01)
+    assert len(shapely.get_parts(section)[0].interiors) == 1
+    block = Clipped(ring, box(0, -100, 100, 100))
+    assert block.section(80.0).area == pytest.approx(section.area / 2, rel=0.01)
+
+
+def test_a_pivoting_contact_stands_still_at_its_pivot_and_turns_with_depth():
+    contact = PivotingContact((10.0, -5.0), 0.0, np.radians(0.5), 100.0)
+    top, below = contact.section(100.0), contact.section(80.0)  # 10 degrees apart
+    assert top.contains(shapely.Point(11.0, 0.0)) and not top.contains(shapely.Point(9.0, 0.0))
+    # 100 m along strike from the pivot the contact has moved 100 tan(10 deg) = 17.6 m across.
+    assert below.boundary.distance(shapely.Point(10.0, 95.0)) == pytest.approx(100 * np.sin(np.radians(10)), rel=0.01)
+    assert below.boundary.distance(shapely.Point(10.0, -5.0)) < 1e-6
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_every_shape_is_deterministic_valid_and_drilled(shape):
+    mine, table, true = shape_scenario(shape, HELD_OUT_SEEDS[0])
+    again = make_shape(shape, HELD_OUT_SEEDS[0])
+    assert len(mine.geozones) == (2 if shape == "inclusion" else 1)
+    for g in mine.geozones:
+        for z in mine.bench_levels_m:
+            region = mine.section(g, float(z))
+            assert region.is_valid and region.area > 500.0, (shape, g, z)
+            assert region.symmetric_difference(again.section(g, float(z))).area == 0.0
+        assert (true == g).sum() > 20
+    other = make_shape(shape, HELD_OUT_SEEDS[1])
+    z = float(mine.bench_levels_m[3])
+    assert mine.section("g1", z).symmetric_difference(other.section("g1", z)).area > 100.0
+
+
+def test_shapes_have_their_defining_features():
+    """A ring has a hole, a faulted strip two offset blocks, an inclusion's contact a pipe-shaped hole."""
+    for seed in HELD_OUT_SEEDS[:3]:
+        z = lambda mine: float(mine.bench_levels_m[3])  # noqa: E731
+        ring = make_shape("ring", seed)
+        assert any(p.interiors for p in shapely.get_parts(ring.section("g1", z(ring))))
+        faulted = make_shape("faulted strip", seed)
+        assert len(shapely.get_parts(faulted.section("g1", z(faulted)))) == 2
+        inclusion = make_shape("inclusion", seed)
+        pipe, zone = inclusion.section("g1", z(inclusion)), inclusion.section("g2", z(inclusion))
+        assert pipe.intersection(zone).area < 1e-6 and zone.convex_hull.contains(pipe.centroid)
+        body = make_shape("angular body", seed)
+        square, top = body.geozones["g1"][0], float(body.bench_levels_m[0])
+        moved = np.subtract(square.section(top - 10).centroid.coords[0], square.section(top).centroid.coords[0])
+        assert np.hypot(*moved) == pytest.approx(10 * np.hypot(*square.velocity), rel=1e-6)
+
+
 # ---------------------------------------------------------------------------
 # Drilling
 
@@ -429,3 +493,25 @@ def test_make_demo_data_writes_the_demo_by_default_and_a_family_on_request(tmp_p
     )
     bad = bgm("make-demo-data", "--family", "blobs", "--out", tmp_path / "x.csv", check=False)
     assert bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "unknown family" in bad.stderr
+
+
+def test_make_demo_data_writes_a_shape_whose_truth_the_build_can_read(tmp_path):
+    from clirun import bgm
+
+    path = tmp_path / "ring.csv"
+    assert bgm("make-demo-data", "--shape", "ring", "--seed", "3", "--out", path).returncode == 0
+    assert json.loads(truth_sidecar(path).read_text()) == {
+        "generator": "core.synthetic.shape_scenario",
+        "shape": "ring",
+        "seed": 3,
+    }
+    holes = read(pd.read_csv(path))
+    mine, table, _ = shape_scenario("ring", 3)
+    assert len(holes.xy) == len(table)
+    truth, expected = load_truth(path, holes), truth_from_mine(mine, holes.frame)
+    z = float(holes.bench_levels_m[2])
+    assert truth("g1", z).area > 0 and truth("g1", z).symmetric_difference(expected("g1", z)).area < 1e-6
+    both = bgm("make-demo-data", "--shape", "ring", "--family", "pods", "--out", tmp_path / "x.csv")
+    assert both.returncode == 2 and "not both" in both.stderr
+    bad = bgm("make-demo-data", "--shape", "blob", "--out", tmp_path / "x.csv")
+    assert bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "unknown shape" in bad.stderr

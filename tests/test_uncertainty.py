@@ -286,3 +286,30 @@ def test_half_way_between_benches_the_band_holds_the_boundary_narrower_than_from
     # Two benches' placement errors partly cancel half-way: less than a one-sided band's floor.
     assert band_width_m(between) < 0.8 * band_width_m(below)
     assert band_width_m(between) < 2 * z_score(0.9) * SPACING_M / np.sqrt(12)
+
+
+def test_the_map_shades_a_band_inside_the_hole_of_another():
+    """A ring's band: around its outside an annulus, around its core another one inside the first's hole."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from core.io.uncertainty_export import shade_polygons
+
+    def annulus(r_out, r_in):
+        return shapely.Point(0, 0).buffer(r_out).difference(shapely.Point(0, 0).buffer(r_in))
+
+    fig = Figure(figsize=(4, 4), dpi=50)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_axes((0, 0, 1, 1))
+    shade_polygons(ax, shapely.MultiPolygon([annulus(10, 4), annulus(50, 40)]), color="red", lw=0)
+    ax.set_xlim(-55, 55)
+    ax.set_ylim(-55, 55)
+    canvas.draw()
+    pixels = np.asarray(canvas.buffer_rgba())
+
+    def colour(x, y):
+        col, row = ax.transData.transform((x, y))
+        return tuple(pixels[int(pixels.shape[0] - row), int(col), :3])
+
+    assert colour(7, 0) == colour(45, 0) == (255, 0, 0)  # both bands shaded
+    assert colour(0, 0) == colour(25, 0) == (255, 255, 255)  # the core and the ring itself open

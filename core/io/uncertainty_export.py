@@ -177,6 +177,26 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     return xy, labels, z
 
 
+def shade_polygons(ax, geometry, **style) -> None:
+    """Fill every polygon of ``geometry`` on the matplotlib axes ``ax``, its holes left open.
+
+    Each polygon is one compound path (exterior counter-clockwise, holes
+    clockwise), so a hole shows whatever lies under it: the band around a
+    ring's core, inside the hole of the band around its outside, stays shaded.
+    """
+    import shapely
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path as PlotPath
+
+    for poly in shapely.get_parts(geometry):
+        if poly.is_empty:
+            continue
+        poly = shapely.geometry.polygon.orient(poly, 1.0)
+        rings = [poly.exterior, *poly.interiors]
+        path = PlotPath.make_compound_path(*(PlotPath(np.asarray(r.coords), closed=True) for r in rings))
+        ax.add_patch(PathPatch(path, **style))
+
+
 def plot_sampling_map(plan, holes: Blastholes, path: str | Path, title: str = "") -> Path | None:
     """A map of the band and the suggested holes on the bench to sample (PNG), or None without matplotlib.
 
@@ -194,10 +214,7 @@ def plot_sampling_map(plan, holes: Blastholes, path: str | Path, title: str = ""
     fig = Figure(figsize=(6.5, 6.0), dpi=110)
     ax = fig.add_subplot()
     for section in plan.sections.values():
-        for poly in to_input_geometry(section.band, holes).geoms:  # the band, shaded (its holes left white)
-            ax.fill(*np.asarray(poly.exterior.coords).T, color="#f4a261", alpha=0.45, lw=0)
-            for ring in poly.interiors:
-                ax.fill(*np.asarray(ring.coords).T, color="white", lw=0)
+        shade_polygons(ax, to_input_geometry(section.band, holes), color="#f4a261", alpha=0.45, lw=0)
         for poly in to_input_geometry(section.predicted, holes).geoms:  # the predicted boundary
             for ring in [poly.exterior, *poly.interiors]:
                 ax.plot(*np.asarray(ring.coords).T, color="#264653", lw=1.0)

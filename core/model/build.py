@@ -77,7 +77,9 @@ def load_truth(path: Path, holes: Blastholes):
     ``{"generator": "core.synthetic.make_mine", "kwargs": {...}}`` or
     ``{"generator": "core.synthetic.scenario", "family": "strips", "seed": 7}``
     (optionally with ``n_benches``, ``bench_height_m`` and ``units``, see
-    :func:`core.synthetic.scenarios.scenario`).
+    :func:`core.synthetic.scenarios.scenario`) or
+    ``{"generator": "core.synthetic.shape_scenario", "shape": "ring", "seed": 7}``
+    (the same options, :func:`core.synthetic.shapes.make_shape`).
     Returns a callable ``truth(geozone, z_m)`` in the engine's local frame.
     """
     side = truth_sidecar(Path(path))
@@ -86,6 +88,7 @@ def load_truth(path: Path, holes: Blastholes):
     from core.model.evaluation import truth_from_mine
     from core.synthetic.blobs import demo_dataset, make_mine
     from core.synthetic.scenarios import make_family
+    from core.synthetic.shapes import make_shape
 
     try:
         spec = json.loads(side.read_text())
@@ -96,6 +99,9 @@ def load_truth(path: Path, holes: Blastholes):
         elif spec.get("generator") == "core.synthetic.scenario":
             layout = {k: spec[k] for k in ("n_benches", "bench_height_m", "units") if k in spec}
             mine = make_family(spec["family"], spec["seed"], **layout)
+        elif spec.get("generator") == "core.synthetic.shape_scenario":
+            layout = {k: spec[k] for k in ("n_benches", "bench_height_m", "units") if k in spec}
+            mine = make_shape(spec["shape"], spec["seed"], **layout)
         else:
             raise ValueError(f"unknown generator {spec.get('generator')!r}")
     except (ValueError, KeyError, TypeError) as exc:

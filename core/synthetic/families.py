@@ -614,7 +614,7 @@ def compose(
     for _ in range(20):
         geozones = assemble(rng, layout, plan(rng))
         if len(geozones) >= 2:
-            return _mine(rng, layout, geozones, units)
+            return placed_mine(rng, layout, geozones, units)
     raise RuntimeError(f"could not place two geozones in {family} mine {seed}")
 
 
@@ -677,7 +677,10 @@ def _fits_bench(region, pit: Polygon, other, crossing: bool, max_outside: float 
     return True, inside >= 30.0
 
 
-def _mine(rng: np.random.Generator, layout: Layout, geozones: list[tuple[str, Geozone]], units: str) -> SyntheticMine:
+def placed_mine(
+    rng: np.random.Generator, layout: Layout, geozones: list[tuple[str, Geozone]], units: str
+) -> SyntheticMine:
+    """The mine of ``(kind, geozone)`` pairs placed in ``layout``: geozones g1, g2, ... at a mine-grid origin near (650 km, 7,400 km)."""
     if units not in UNITS:
         raise ValueError(f"unknown units {units!r}: use one of {', '.join(UNITS)}")
     origin = (

@@ -17,6 +17,8 @@ Seeds come in two disjoint sets:
 from __future__ import annotations
 
 import zlib
+from collections.abc import Mapping
+from typing import Any
 
 import pandas as pd
 
@@ -53,7 +55,13 @@ def make_family(
 
 
 def scenario(
-    family: str, seed: int, *, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m"
+    family: str,
+    seed: int,
+    *,
+    n_benches: int = 7,
+    bench_height_m: float = 10.0,
+    units: str = "m",
+    drilling: Mapping[str, Any] | None = None,
 ) -> tuple[SyntheticMine, pd.DataFrame, pd.Series]:
     """The mine of ``family`` at ``seed``, drilled.
 
@@ -68,6 +76,10 @@ def scenario(
     units : {"m", "ft"}
         Units of the table (the geometry is the same; feet coordinates are
         metres / 0.3048).
+    drilling : mapping, optional
+        Keyword arguments of :func:`~core.synthetic.drilling.drill_mine`
+        other than the seed (hole spacing, label noise, ...): the defaults
+        otherwise.
 
     Returns
     -------
@@ -79,5 +91,5 @@ def scenario(
         True geozone of every hole, indexed by ``hole_id``; never give it to the engine.
     """
     mine = make_family(family, seed, n_benches=n_benches, bench_height_m=bench_height_m, units=units)
-    table, true_labels = drill_mine(mine, seed=[int(seed), zlib.crc32(family.encode()), 1])
+    table, true_labels = drill_mine(mine, seed=[int(seed), zlib.crc32(family.encode()), 1], **(drilling or {}))
     return mine, table, true_labels

@@ -15,6 +15,11 @@ operation (a buffer and a translation) and costs well under a millisecond.
 * :class:`GrowingBody` -- an outline whose boundary moves outward (widening) or
   inward (narrowing) by a fixed distance per metre of depth, optionally
   drifting; it pinches out where it narrows to nothing.
+* :class:`PivotingContact` -- everything on one side of a straight contact that
+  turns about a fixed point with depth (its dip changes along strike).
+* :class:`Hollow` and :class:`Clipped` -- one solid less another (a ring, a
+  body with a core of other rock), and a solid cut by a fixed plan polygon (one
+  block of a faulted layer).
 """
 
 from __future__ import annotations
@@ -25,6 +30,8 @@ import numpy as np
 import shapely
 from shapely import affinity
 from shapely.geometry import LineString, MultiPolygon, Polygon
+
+from core.synthetic.blobs import Solid
 
 
 def _moved(trace_m: np.ndarray, velocity: tuple[float, float], depth_m: float) -> np.ndarray:
@@ -203,3 +210,49 @@ def offset_trace(trace_m: np.ndarray, distance_m: float) -> np.ndarray:
     tangent /= np.linalg.norm(tangent, axis=1)[:, None]
     left = np.column_stack([-tangent[:, 1], tangent[:, 0]])
     return trace_m + distance_m * left
+
+
+@dataclass(frozen=True, eq=False)
+class PivotingContact:
+    """Everything on one side of a straight contact through ``pivot_m`` that turns with depth.
+
+    At elevation ``z`` the contact's normal (pointing into the region) is at
+    ``normal_rad + (z_ref_m - z) * turn_rad_per_m``: the contact stands still
+    at the pivot and moves faster the further along strike from it, as a
+    contact whose dip changes along strike does.
+    """
+
+    pivot_m: tuple[float, float]
+    normal_rad: float
+    turn_rad_per_m: float
+    z_ref_m: float
+    far_m: float = 5000.0
+
+    def section(self, z_m: float) -> Polygon:
+        a = self.normal_rad + (self.z_ref_m - z_m) * self.turn_rad_per_m
+        n = np.array([np.cos(a), np.sin(a)])
+        t = np.array([-n[1], n[0]]) * self.far_m
+        p = np.asarray(self.pivot_m, float)
+        return Polygon([p + t, p + t + n * self.far_m, p - t + n * self.far_m, p - t])
+
+
+@dataclass(frozen=True, eq=False)
+class Hollow:
+    """The section of ``outer`` less that of ``inner``: a ring, or a body around a core of other rock."""
+
+    outer: Solid
+    inner: Solid
+
+    def section(self, z_m: float) -> Polygon | MultiPolygon:
+        return self.outer.section(z_m).difference(self.inner.section(z_m))
+
+
+@dataclass(frozen=True, eq=False)
+class Clipped:
+    """The section of ``solid`` inside the fixed plan polygon ``keep_m`` (one block of a faulted body)."""
+
+    solid: Solid
+    keep_m: Polygon
+
+    def section(self, z_m: float) -> Polygon | MultiPolygon:
+        return self.solid.section(z_m).intersection(self.keep_m)
