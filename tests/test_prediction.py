@@ -288,3 +288,18 @@ def test_a_lens_growing_in_a_geozone_whose_bodies_end_is_held_and_a_body_that_go
         predicted = depth_trend(fields, 10.0, 6.0).region(475.0)  # one bench below the deepest: r 20 if it grows
         assert predicted.contains(Point(150 + 12.0, 80)), grows  # the deepest bench's section stays
         assert predicted.contains(Point(150 + 17.0, 80)) == grows, (grows, continuity)
+
+
+def test_a_far_boundarys_movement_does_not_raise_a_body_where_no_boundary_is_near():
+    """Cells past the cap of the signed distance have no boundary near: a far one's movement does not move them.
+
+    The deepest bench drilled only the left half; the right half was last seen two benches up, and
+    seven benches of a disc's growth (7 m a bench, 49 m) exceed the cap (8 spacings, 48 m).
+    """
+    from core.model.extrapolation import depth_trend
+
+    everywhere, left = shapely.box(0, 0, 200, 160), shapely.box(0, 0, 100, 160)
+    fields = _lens_fields([[(40, 80, 15)], [(40, 80, 22)], [(40, 80, 29)]], [everywhere, everywhere, left])
+    predicted = depth_trend(fields, 10.0, 6.0).region(420.0)  # six benches below the deepest
+    assert len(predicted.geoms) == 1 and predicted.contains(Point(40 + 29 + 20, 80))
+    assert not predicted.intersects(shapely.box(150, 0, 200, 160))

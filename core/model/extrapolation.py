@@ -58,7 +58,8 @@ TRANSPORT_DIRECTIONS = 4
 #: Neighbourhood over which the persistence of movement is measured, in hole spacings.
 PERSISTENCE_SPACINGS = 3.0
 #: Signed distances are capped at this many hole spacings: a boundary far away
-#: says nothing about how the one nearby moves.
+#: says nothing about how the one nearby moves, and a cell at the cap is not moved
+#: by the movement of its nearest boundary (:func:`depth_trend`).
 CAP_SPACINGS = 8.0
 #: Shallowest dip taken as movement of a boundary (degrees). A change of the
 #: signed distance faster than ``1 / tan(dip)`` bench heights per bench is a
@@ -504,6 +505,9 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
 def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
     """The geozone's :class:`DepthTrend` from its benches' :class:`BenchFields`."""
     f_last, z_last, rate = fit_trend(fields, bench_height_m)
+    # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
+    # its signed distance (carried over many benches it would raise a body out of nothing there).
+    rate = np.where(np.abs(f_last) >= CAP_SPACINGS * hole_spacing_m - 1e-6, 0.0, rate)
     continuity = body_continuity(fields, bench_height_m)
     persistence = local_persistence(fields, PERSISTENCE_SPACINGS * hole_spacing_m)
     persistence = np.where(rate > 0, persistence * continuity**GROWTH_CONTINUITY_POWER, persistence)
