@@ -150,7 +150,8 @@ def offset_interval(
     return (float(lo), float(hi)) if lo <= hi else None
 
 
-def _unit(angle_rad: float) -> np.ndarray:
+def unit_vector(angle_rad: float) -> np.ndarray:
+    """The plan direction at ``angle_rad`` (counter-clockwise from +x)."""
     return np.array([np.cos(angle_rad), np.sin(angle_rad)])
 
 
@@ -182,7 +183,7 @@ def strip_style(rng: np.random.Generator) -> StripStyle:
 
 
 def _strip_trace(layout: Layout, style: StripStyle, offset_m: float, shift_per_m: float) -> np.ndarray:
-    normal = _unit(style.strike_rad + np.pi / 2)
+    normal = unit_vector(style.strike_rad + np.pi / 2)
     return straight_or_bent_trace(
         tuple(offset_m * normal),
         style.strike_rad,
@@ -233,7 +234,7 @@ def strips_builder(style: StripStyle, widths_m: tuple[float, ...]) -> Builder:
         )
         if c is None:
             return []
-        normal = _unit(style.strike_rad + np.pi / 2)
+        normal = unit_vector(style.strike_rad + np.pi / 2)
         velocity = tuple(shift * normal)
         if len(widths_m) == 1:
             trace = _strip_trace(layout, style, c, shift)
@@ -259,7 +260,7 @@ def contact_builder(style: StripStyle) -> Builder:
         )
         if c is None:
             return []
-        normal = _unit(style.strike_rad + np.pi / 2)
+        normal = unit_vector(style.strike_rad + np.pi / 2)
         trace = _strip_trace(layout, style, c, shift)
         # The geozone is the smaller side at mid-depth, leaving room for layers on the other.
         side = tuple(normal * (1.0 if c + shift * layout.depth_m / 2 >= 0 else -1.0))
@@ -319,7 +320,7 @@ def growing_body_builder(sign: float) -> Builder:
         z_ref = layout.top_m if sign < 0 else float(layout.levels_m[-1])
         drift = np.zeros(2)
         if rng.random() < 0.5:
-            drift = rng.uniform(0.1, 0.5) * _unit(rng.uniform(0, 2 * np.pi))
+            drift = rng.uniform(0.1, 0.5) * unit_vector(rng.uniform(0, 2 * np.pi))
         mid = len(layout.levels_m) // 2
         centre_mid = rng.uniform(-0.7, 0.7, 2) * layout.reach_m(mid)
         centre_ref = centre_mid + drift * (float(layout.levels_m[mid]) - z_ref)
@@ -348,7 +349,7 @@ def wedge_builder(sign: float) -> Builder:
         c, shift = _fitting_offset(rng, layout, style.shift_per_m, wide / 2 + style.bend_m, wide / 2 + style.bend_m)
         if c is None:
             return []
-        normal = _unit(style.strike_rad + np.pi / 2)
+        normal = unit_vector(style.strike_rad + np.pi / 2)
         trace = _strip_trace(layout, style, c, shift)
         layer = DippingLayer(trace, tuple(shift * normal), layout.top_m, top_width / 2, top_width / 2, sign * rate)
         return [[layer]]
@@ -382,7 +383,7 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
 
     def build(rng: np.random.Generator, layout: Layout) -> list[Geozone]:
         axis = float(rng.uniform(0, 2 * np.pi))
-        along, across = _unit(axis), _unit(axis + np.pi / 2)
+        along, across = unit_vector(axis), unit_vector(axis + np.pi / 2)
         widths = rng.uniform(12.0, 30.0, n_layers)
         gaps = np.where(rng.random(n_layers) < 0.3, 0.0, rng.uniform(12.0, 30.0, n_layers))
         inner = np.r_[0.0, np.cumsum(widths[:-1] + gaps[:-1])]  # inner contact of each layer, outward from layer 0's
@@ -454,8 +455,8 @@ def lobes_builder(merging: bool) -> Builder:
         apart = r_out.sum() + rng.uniform(12.0, 35.0)
         d_top, d_bottom = (apart, joined) if merging else (joined, apart)
         sep = (d_bottom - d_top) / layout.depth_m
-        u = _unit(rng.uniform(0, np.pi))
-        drift = rng.uniform(0, 0.4) * _unit(rng.uniform(0, 2 * np.pi))
+        u = unit_vector(rng.uniform(0, np.pi))
+        drift = rng.uniform(0, 0.4) * unit_vector(rng.uniform(0, 2 * np.pi))
         mid = len(layout.levels_m) // 2
         centre_top = rng.uniform(-0.75, 0.75, 2) * layout.reach_m(mid) - drift * (layout.top_m - layout.levels_m[mid])
         lobes = []
@@ -481,7 +482,7 @@ def dipping_body_builder() -> Builder:
     """A single body 20-35 m in radius drifting 0.3-0.9 m per metre of depth, changing size a little."""
 
     def build(rng: np.random.Generator, layout: Layout) -> list[Geozone]:
-        velocity = rng.uniform(0.3, 0.9) * _unit(rng.uniform(0, 2 * np.pi))
+        velocity = rng.uniform(0.3, 0.9) * unit_vector(rng.uniform(0, 2 * np.pi))
         mid = len(layout.levels_m) // 2
         centre_top = rng.uniform(-0.75, 0.75, 2) * layout.reach_m(mid) - velocity * (
             layout.top_m - layout.levels_m[mid]
@@ -531,7 +532,7 @@ def pods_builder(n_pods: int) -> Builder:
         z_to = z_from - float(rng.uniform(1.0, 3.5)) * h
         drifting = rng.random() < 0.3
         speed = rng.uniform(0.3, 1.0) if drifting else rng.uniform(0.0, 0.1)
-        velocity = speed * _unit(rng.uniform(0, 2 * np.pi))
+        velocity = speed * unit_vector(rng.uniform(0, 2 * np.pi))
         k = int(np.argmin(np.abs(layout.levels_m - 0.5 * (z_from + z_to))))
         centre_mid = rng.uniform(-0.8, 0.8, 2) * layout.reach_m(k)
         pod = Blob(

@@ -35,7 +35,7 @@ from shapely.geometry import Point
 
 from core.synthetic.blobs import SyntheticMine
 from core.synthetic.drilling import drill_mine
-from core.synthetic.families import Geozone, Layout, family_rng, new_layout, placed_mine, star_outline
+from core.synthetic.families import Geozone, Layout, family_rng, new_layout, placed_mine, star_outline, unit_vector
 from core.synthetic.solids import (
     Clipped,
     DippingContact,
@@ -50,8 +50,9 @@ from core.synthetic.solids import (
 SHAPES: tuple[str, ...] = ("ring", "faulted strip", "inclusion", "pivoting contact", "angular body", "arc")
 
 
-def _unit(angle_rad: float) -> np.ndarray:
-    return np.array([np.cos(angle_rad), np.sin(angle_rad)])
+def _deepest_reach_m(layout: Layout) -> float:
+    """Half the smaller side of the deepest bench's pit: where a shape's middle bench is placed from."""
+    return layout.reach_m(len(layout.levels_m) - 1)
 
 
 def _half_plane(normal: np.ndarray, far_m: float = 5000.0) -> shapely.Polygon:
@@ -61,8 +62,8 @@ def _half_plane(normal: np.ndarray, far_m: float = 5000.0) -> shapely.Polygon:
 
 
 def _ring(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
-    r_last = layout.reach_m(len(layout.levels_m) - 1)
-    drift = rng.uniform(0.1, 0.3) * _unit(rng.uniform(0, 2 * np.pi))
+    r_last = _deepest_reach_m(layout)
+    drift = rng.uniform(0.1, 0.3) * unit_vector(rng.uniform(0, 2 * np.pi))
     centre = rng.uniform(-0.2, 0.2, 2) * r_last - drift * 0.5 * layout.depth_m
     aspect, angle = rng.uniform(1.0, 1.4), rng.uniform(0, np.pi)
     disc = star_outline(tuple(centre), rng.uniform(40.0, 55.0), aspect, angle)
@@ -77,14 +78,14 @@ def _ring(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]
 
 def _faulted_strip(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
     strike = rng.uniform(0, np.pi)
-    across = _unit(strike + np.pi / 2)
+    across = unit_vector(strike + np.pi / 2)
     speed = rng.uniform(0.2, 1.0) * rng.choice([-1.0, 1.0])
     throw = rng.uniform(15.0, 40.0) * rng.choice([-1.0, 1.0])
     width = rng.uniform(16.0, 32.0)
-    r_last = layout.reach_m(len(layout.levels_m) - 1)
+    r_last = _deepest_reach_m(layout)
     # The strip's middle bench crosses the pit's middle half.
     offset = rng.uniform(-0.3, 0.3) * r_last - speed * 0.5 * layout.depth_m - 0.5 * throw
-    fault = _unit(strike + rng.uniform(np.radians(50), np.radians(130)))  # a vertical fault through the centre
+    fault = unit_vector(strike + rng.uniform(np.radians(50), np.radians(130)))  # a vertical fault through the centre
     sides = [_half_plane(s * np.array([-fault[1], fault[0]])) for s in (1.0, -1.0)]
     blocks = []
     for side, shift in zip(sides, (0.0, throw)):
@@ -96,15 +97,15 @@ def _faulted_strip(rng: np.random.Generator, layout: Layout) -> list[tuple[str, 
 
 def _inclusion(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
     normal = rng.uniform(0, 2 * np.pi)
-    side = _unit(normal)
+    side = unit_vector(normal)
     speed = rng.uniform(0.2, 0.8)
-    r_last = layout.reach_m(len(layout.levels_m) - 1)
+    r_last = _deepest_reach_m(layout)
     # The contact crosses the pit's middle half at mid depth; the region is on the side of ``side``.
     start = (rng.uniform(-0.3, 0.1) * r_last - speed * 0.5 * layout.depth_m) * side
     trace = straight_or_bent_trace(tuple(start), normal + np.pi / 2, 1000.0)
     contact = DippingContact(trace, tuple(speed * side), layout.top_m, tuple(side))
-    drift = rng.uniform(0.0, 0.4) * _unit(rng.uniform(0, 2 * np.pi))
-    along = _unit(normal + np.pi / 2) * rng.uniform(-0.3, 0.3) * r_last
+    drift = rng.uniform(0.0, 0.4) * unit_vector(rng.uniform(0, 2 * np.pi))
+    along = unit_vector(normal + np.pi / 2) * rng.uniform(-0.3, 0.3) * r_last
     centre = start + speed * 0.5 * layout.depth_m * side + rng.uniform(35.0, 55.0) * side + along
     pipe_outline = star_outline(tuple(centre - drift * 0.5 * layout.depth_m), rng.uniform(14.0, 24.0), 1.2, 0.0)
     pipe = GrowingBody(pipe_outline, layout.top_m, rng.uniform(-0.1, 0.1), tuple(drift))
@@ -112,7 +113,7 @@ def _inclusion(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geoz
 
 
 def _pivoting_contact(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
-    r_last = layout.reach_m(len(layout.levels_m) - 1)
+    r_last = _deepest_reach_m(layout)
     pivot = rng.uniform(-0.4, 0.4, 2) * r_last
     turn = np.radians(rng.uniform(0.15, 0.4)) * rng.choice([-1.0, 1.0])
     normal = rng.uniform(0, 2 * np.pi) - turn * 0.5 * layout.depth_m
@@ -120,8 +121,8 @@ def _pivoting_contact(rng: np.random.Generator, layout: Layout) -> list[tuple[st
 
 
 def _angular_body(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
-    r_last = layout.reach_m(len(layout.levels_m) - 1)
-    velocity = rng.uniform(0.3, 0.9) * _unit(rng.uniform(0, 2 * np.pi))
+    r_last = _deepest_reach_m(layout)
+    velocity = rng.uniform(0.3, 0.9) * unit_vector(rng.uniform(0, 2 * np.pi))
     centre = rng.uniform(-0.3, 0.3, 2) * r_last - velocity * 0.5 * layout.depth_m
     a, b = rng.uniform(40.0, 80.0), rng.uniform(40.0, 70.0)
     box = affinity.rotate(shapely.box(-a / 2, -b / 2, a / 2, b / 2), rng.uniform(0, 90.0))
@@ -132,11 +133,11 @@ def _angular_body(rng: np.random.Generator, layout: Layout) -> list[tuple[str, G
 def _arc(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
     direction = rng.uniform(0, 2 * np.pi)
     distance = rng.uniform(90.0, 150.0)
-    centre = tuple(-distance * _unit(direction))
+    centre = tuple(-distance * unit_vector(direction))
     speed = rng.uniform(0.2, 0.8) * rng.choice([-1.0, 1.0])
     width = rng.uniform(16.0, 30.0)
     # The arc's middle bench passes within 0.3 of the pit's half width of its centre.
-    inner = distance + rng.uniform(-0.3, 0.3) * layout.reach_m(len(layout.levels_m) - 1) - speed * 0.5 * layout.depth_m
+    inner = distance + rng.uniform(-0.3, 0.3) * _deepest_reach_m(layout) - speed * 0.5 * layout.depth_m
     arc = Hollow(
         GrowingBody(Point(centre).buffer(inner + width, quad_segs=64), layout.top_m, speed),
         GrowingBody(Point(centre).buffer(inner, quad_segs=64), layout.top_m, speed),
