@@ -43,6 +43,7 @@ from core.synthetic.solids import (
     GrowingBody,
     Hollow,
     PivotingContact,
+    half_plane,
     straight_or_bent_trace,
 )
 
@@ -53,12 +54,6 @@ SHAPES: tuple[str, ...] = ("ring", "faulted strip", "inclusion", "pivoting conta
 def _deepest_reach_m(layout: Layout) -> float:
     """Half the smaller side of the deepest bench's pit: where a shape's middle bench is placed from."""
     return layout.reach_m(len(layout.levels_m) - 1)
-
-
-def _half_plane(normal: np.ndarray, far_m: float = 5000.0) -> shapely.Polygon:
-    """The plan on the ``normal`` side of the line through the origin normal to it."""
-    t = np.array([-normal[1], normal[0]]) * far_m
-    return shapely.Polygon([t, t + normal * far_m, -t + normal * far_m, -t])
 
 
 def _ring(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
@@ -86,7 +81,7 @@ def _faulted_strip(rng: np.random.Generator, layout: Layout) -> list[tuple[str, 
     # The strip's middle bench crosses the pit's middle half.
     offset = rng.uniform(-0.3, 0.3) * r_last - speed * 0.5 * layout.depth_m - 0.5 * throw
     fault = unit_vector(strike + rng.uniform(np.radians(50), np.radians(130)))  # a vertical fault through the centre
-    sides = [_half_plane(s * np.array([-fault[1], fault[0]])) for s in (1.0, -1.0)]
+    sides = [half_plane((0.0, 0.0), s * np.array([-fault[1], fault[0]])) for s in (1.0, -1.0)]
     blocks = []
     for side, shift in zip(sides, (0.0, throw)):
         trace = straight_or_bent_trace(tuple((offset + shift) * across), strike, 1000.0)

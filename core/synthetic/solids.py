@@ -212,6 +212,14 @@ def offset_trace(trace_m: np.ndarray, distance_m: float) -> np.ndarray:
     return trace_m + distance_m * left
 
 
+def half_plane(point_m, normal: np.ndarray, far_m: float = 5000.0) -> Polygon:
+    """The plan on the ``normal`` side of the line through ``point_m`` (a square ``far_m`` deep and twice as long)."""
+    n = np.asarray(normal, float)
+    t = np.array([-n[1], n[0]]) * far_m
+    p = np.asarray(point_m, float)
+    return Polygon([p + t, p + t + n * far_m, p - t + n * far_m, p - t])
+
+
 @dataclass(frozen=True, eq=False)
 class PivotingContact:
     """Everything on one side of a straight contact through ``pivot_m`` that turns with depth.
@@ -230,10 +238,7 @@ class PivotingContact:
 
     def section(self, z_m: float) -> Polygon:
         a = self.normal_rad + (self.z_ref_m - z_m) * self.turn_rad_per_m
-        n = np.array([np.cos(a), np.sin(a)])
-        t = np.array([-n[1], n[0]]) * self.far_m
-        p = np.asarray(self.pivot_m, float)
-        return Polygon([p + t, p + t + n * self.far_m, p - t + n * self.far_m, p - t])
+        return half_plane(self.pivot_m, np.array([np.cos(a), np.sin(a)]), self.far_m)
 
 
 @dataclass(frozen=True, eq=False)
