@@ -39,6 +39,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import shapely
 from scipy import ndimage
 from shapely.geometry import MultiPolygon
 
@@ -168,6 +169,44 @@ def bench_distance(region: np.ndarray, drilled: np.ndarray, cell_size_m: float, 
     return np.clip(distance, -cap_m, cap_m), off * cell_size_m
 
 
+def exact_near_boundary(distance: np.ndarray, region: MultiPolygon, drilled: np.ndarray, grid: Grid) -> np.ndarray:
+    """The signed distance made exact in the drilled cells next to the region's boundary.
+
+    :func:`bench_distance` measures ``F`` between cell centres: every cell
+    inside is at least one cell from one outside, and the zero level falls
+    half-way between them, wherever the contour runs between the two. Held
+    on a bench, that half-cell error alone lost against the contours
+    themselves (holding the last bench). In the ring of cells next to the
+    boundary (``|F| <= 1.5`` cells) ``|F|`` becomes the exact distance to the
+    contour (the paper's SDF, section 3.2.1), its sign kept; where the nearest
+    stretch of contour is further than the raster's own boundary (a contour
+    run along the drilling frontier, which is no boundary), ``F`` is kept.
+
+    Parameters
+    ----------
+    distance : (rows, cols) float
+        ``F`` of :func:`bench_distance`, metres.
+    region : MultiPolygon
+        The region ``distance`` was made from (its raster on ``grid``).
+    drilled : (rows, cols) bool
+    grid : Grid
+
+    Returns
+    -------
+    (rows, cols) float
+    """
+    h = grid.cell_size_m
+    ring = (np.abs(distance) <= 1.5 * h) & drilled
+    if region.is_empty or not ring.any():
+        return distance
+    x, y = grid.cell_centres()
+    exact = shapely.distance(region.boundary, shapely.points(x[ring], y[ring]))
+    raster = distance[ring]
+    out = distance.copy()
+    out[ring] = np.where(exact <= np.abs(raster) + 0.5 * h, np.sign(raster) * np.maximum(exact, 1e-3 * h), raster)
+    return out
+
+
 def bench_fields(
     regions: Mapping[int, MultiPolygon],
     drilled: Mapping[int, np.ndarray],
@@ -184,7 +223,7 @@ def bench_fields(
     for k in benches:
         region = grid.rasterize(regions[k]) if not regions[k].is_empty else np.zeros(grid.shape, bool)
         d, off = bench_distance(region, drilled[k], h, cap, reach_m)
-        dist.append(d)
+        dist.append(exact_near_boundary(d, regions[k], drilled[k], grid))
         weight.append(np.exp(-off / hole_spacing_m))
     return BenchFields(
         grid,

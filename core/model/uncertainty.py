@@ -425,7 +425,8 @@ class SectionUncertainty:
     scale : UncertaintyScale
     observed_sigma : (rows, cols) float
         Scale of its error against the boundary the bench's holes will show
-        (the calibrated scale, placement included): what sampling plans for
+        (the calibrated scale, placement included, at least the placement
+        error of :func:`true_boundary_sigma`): what sampling plans for
         (:meth:`as_observed`).
     """
 
@@ -588,7 +589,10 @@ def section_uncertainty(
     if region is None:
         region = predicted_region(fields, z_m, hole_spacing_m)
     field = section_distance(fields, region)
-    return SectionUncertainty(fields.grid, float(z_m), float(probability), field, true_sigma, sigmas[0][1], sigma)
+    # The boundary the holes will show is placed by them to within their spacing, however well the benches
+    # above were predicted (their backtests' contours may hold no placement error: exact constructed ones).
+    observed = np.sqrt(np.maximum(sigma**2, placement_share * hole_spacing_m**2 / 12))
+    return SectionUncertainty(fields.grid, float(z_m), float(probability), field, true_sigma, sigmas[0][1], observed)
 
 
 def true_boundary_sigma(
