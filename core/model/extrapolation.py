@@ -199,8 +199,8 @@ def exact_near_boundary(distance: np.ndarray, region: MultiPolygon, drilled: np.
     ring = (np.abs(distance) <= 1.5 * h) & drilled
     if region.is_empty or not ring.any():
         return distance
-    x, y = grid.cell_centres()
-    exact = shapely.distance(region.boundary, shapely.points(x[ring], y[ring]))
+    xy = grid.rc_to_xy(np.argwhere(ring))  # the ring's centres only: a full grid of centres per bench is waste
+    exact = shapely.distance(region.boundary, shapely.points(xy))
     raster = distance[ring]
     out = distance.copy()
     out[ring] = np.where(exact <= np.abs(raster) + 0.5 * h, np.sign(raster) * np.maximum(exact, 1e-3 * h), raster)

@@ -591,8 +591,17 @@ def section_uncertainty(
     field = section_distance(fields, region)
     # The boundary the holes will show is placed by them to within their spacing, however well the benches
     # above were predicted (their backtests' contours may hold no placement error: exact constructed ones).
-    observed = np.sqrt(np.maximum(sigma**2, placement_share * hole_spacing_m**2 / 12))
+    observed = np.sqrt(np.maximum(sigma**2, placement_variance(hole_spacing_m, placement_share)))
     return SectionUncertainty(fields.grid, float(z_m), float(probability), field, true_sigma, sigmas[0][1], observed)
+
+
+def placement_variance(hole_spacing_m: float, placement_share: float | np.ndarray = 1.0) -> float | np.ndarray:
+    """Variance of a boundary placed by holes: uniform between the last hole inside and the first outside.
+
+    ``placement_share * s^2 / 12``; the share is what two benches' independent placements leave
+    between them (see :func:`true_boundary_sigma`).
+    """
+    return placement_share * hole_spacing_m**2 / 12
 
 
 def true_boundary_sigma(
@@ -618,7 +627,7 @@ def true_boundary_sigma(
     were censored at the cap (the prediction had no boundary nearby, a body
     appeared) and the band holds everything the cap does.
     """
-    placement = placement_share * hole_spacing_m**2 / 12
+    placement = placement_variance(hole_spacing_m, placement_share)
     exact = np.sqrt(np.maximum(sigma**2 - placement, placement))
     return np.where(z_score(probability) * sigma >= cap_m, sigma, exact)
 
