@@ -246,6 +246,47 @@ def test_a_lens_only_older_benches_saw_is_carried_on_only_where_the_geozones_bod
         assert predicted.contains(Point(50, 40) if carried else Point(70, 130))  # the deepest bench's own body
 
 
+def test_a_lens_only_older_benches_saw_is_dropped_where_the_next_bench_rarely_confirmed_the_geozones_sections():
+    """Lenses that jump 14 m a bench all reach the next bench, yet a carried section is rarely there.
+
+    Body continuity counts each lens as continuing (a lens within the furthest a boundary moves of
+    it below); the backtest of the geozone's own benches finds its carried sections mostly wrong,
+    and the lens that only the benches above the deepest saw is not carried on. The same lens in a
+    geozone whose lenses stay put is.
+    """
+    from core.model.extrapolation import body_continuity, carried_precision, depth_trend
+
+    everywhere, left = shapely.box(0, 0, 200, 160), shapely.box(0, 0, 100, 160)
+    drilled = [everywhere, everywhere, everywhere, left]  # the deepest bench did not drill the right half
+    lens = (150.0, 80.0, 8.0)  # seen on benches 1 and 2, right half
+    jumping = [[(40, 40, 8)], [(54, 40, 8), lens], [(40, 40, 8), lens], [(54, 40, 8)]]
+    staying = [[(40, 40, 8)], [(40, 40, 8), lens], [(40, 40, 8), lens], [(40, 40, 8)]]
+    for lenses, carried in ((jumping, False), (staying, True)):
+        fields = _lens_fields(lenses, drilled)
+        assert body_continuity(fields, 10.0) == 1.0
+        confirmed = carried_precision(fields, 10.0, 6.0, prior=1.0)
+        assert (confirmed > 0.9) if carried else (confirmed < 0.5), confirmed
+        predicted = depth_trend(fields, 10.0, 6.0).region(465.0)  # half a bench below the deepest
+        assert predicted.contains(Point(150, 80)) == carried, (carried, confirmed)
+
+
+def test_a_backtest_of_a_few_cells_at_the_edge_of_the_drilling_does_not_drop_a_body():
+    """The next bench drilled only the edge of a large lens, where its boundary moved: a backtest of a few cells.
+
+    Scored alone those cells are mostly wrong; worth less than one of the geozone's bodies, they leave
+    the prior (nothing counted against the lens) and the lens the deeper bench did not drill is carried on.
+    """
+    from core.model.extrapolation import carried_precision, depth_trend, typical_body_cells
+
+    everywhere, edge = shapely.box(0, 0, 200, 160), shapely.box(0, 0, 134, 160)
+    fields = _lens_fields([[(150.0, 80.0, 20.0)], [(150.0, 80.0, 17.0)]], [everywhere, edge])
+    precision = carried_precision(fields, 10.0, 6.0, prior=1.0)
+    confirmed, predicted = (sum(c) for c in zip(*fields.confirmed.values()))
+    assert 0 < predicted < 0.2 * typical_body_cells(fields) and confirmed / predicted < 0.5, (confirmed, predicted)
+    assert precision > 0.8, precision
+    assert depth_trend(fields, 10.0, 6.0).region(485.0).contains(Point(160, 80))  # half a bench below
+
+
 def test_a_strip_moving_further_than_its_half_width_moves_both_of_its_edges():
     from core.geometry.grid import Grid
     from core.model.extrapolation import bench_distance, boundary_movement
