@@ -574,18 +574,24 @@ def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m
     of the drilling says little, and where nothing was predicted that the next
     bench drilled (too few benches), the prior stands.
     """
-    confirmed = predicted = 0
-    for j in range(len(fields.z_m) - 1):
-        key = (j, bench_height_m, hole_spacing_m)
-        if key not in fields.confirmed:
-            known = fields.through(float(fields.z_m[j]))
-            inside = (
-                _trend(known, bench_height_m, hole_spacing_m).field(float(fields.z_m[j + 1])) > 0
-            ) & fields.drilled[j + 1]
-            fields.confirmed[key] = (int(np.sum(inside & (fields.distance[j + 1] > 0))), int(np.sum(inside)))
-        confirmed, predicted = confirmed + fields.confirmed[key][0], predicted + fields.confirmed[key][1]
+    pairs = [_pair_backtest(fields, j, bench_height_m, hole_spacing_m) for j in range(len(fields.z_m) - 1)]
+    confirmed, predicted = np.array(pairs, dtype=float).reshape(-1, 2).sum(axis=0)
     weight = typical_body_cells(fields)
     return (confirmed + prior * weight) / (predicted + weight) if predicted + weight > 0 else prior
+
+
+def _pair_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spacing_m: float) -> tuple[int, int]:
+    """Cells of bench ``j + 1``'s drilled area predicted inside from the benches down to ``j``: (confirmed, predicted).
+
+    Kept in ``fields.confirmed``: it rests only on the benches down to ``j + 1``.
+    """
+    key = (j, bench_height_m, hole_spacing_m)
+    if key not in fields.confirmed:
+        known = fields.through(float(fields.z_m[j]))
+        inside = _trend(known, bench_height_m, hole_spacing_m).field(float(fields.z_m[j + 1])) > 0
+        inside &= fields.drilled[j + 1]
+        fields.confirmed[key] = (int(np.sum(inside & (fields.distance[j + 1] > 0))), int(np.sum(inside)))
+    return fields.confirmed[key]
 
 
 def typical_body_cells(fields: BenchFields) -> float:
