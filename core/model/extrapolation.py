@@ -575,7 +575,7 @@ def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m
     bench drilled (too few benches), the prior stands.
     """
     pairs = [_pair_backtest(fields, j, bench_height_m, hole_spacing_m) for j in range(len(fields.z_m) - 1)]
-    confirmed, predicted = np.array(pairs, dtype=float).reshape(-1, 2).sum(axis=0)
+    confirmed, predicted = sum(c for c, _ in pairs), sum(p for _, p in pairs)
     weight = typical_body_cells(fields)
     return (confirmed + prior * weight) / (predicted + weight) if predicted + weight > 0 else prior
 
