@@ -850,8 +850,20 @@ def load_plugins(target: typer.Typer = app) -> list[str]:
     return loaded
 
 
-def _import_uninterrupted() -> None:
-    """Import the libraries that swallow Ctrl-C during their own import, with Ctrl-C held until done."""
+#: The engine's commands that never write surfaces, so never load trimesh (most of a second to import).
+_WITHOUT_SURFACES = frozenset(
+    {"contours", "correspond", "morph", "predict", "evaluate", "parameters", "suggest", "make-demo-data"}
+)
+
+
+def _import_uninterrupted(argv: list[str]) -> None:
+    """Import the libraries that swallow Ctrl-C during their own import, with Ctrl-C held until done.
+
+    Only for commands that may load them: ``build``, ``demo`` and add-ons.
+    """
+    command = next((a for a in argv if not a.startswith("-")), None)
+    if command in _WITHOUT_SURFACES:
+        return
     with _ctrl_c_held():
         import trimesh  # noqa: F401  (its optional-import guards catch BaseException)
 
@@ -893,7 +905,7 @@ def _run() -> int:
     warnings.filterwarnings("ignore")
     warnings.filterwarnings("always", category=BGMWarning)
     try:
-        _import_uninterrupted()
+        _import_uninterrupted(sys.argv[1:])
         load_plugins()
         return 130 if _INTERRUPTS else (app(prog_name="bgm", standalone_mode=False) or 0)
     except click.NoArgsIsHelpError:

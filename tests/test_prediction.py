@@ -281,7 +281,7 @@ def test_a_backtest_of_a_few_cells_at_the_edge_of_the_drilling_does_not_drop_a_b
     everywhere, edge = shapely.box(0, 0, 200, 160), shapely.box(0, 0, 134, 160)
     fields = _lens_fields([[(150.0, 80.0, 20.0)], [(150.0, 80.0, 17.0)]], [everywhere, edge])
     precision = carried_precision(fields, 10.0, 6.0, prior=1.0)
-    confirmed, predicted = (sum(c) for c in zip(*fields.confirmed.values()))
+    confirmed, predicted = (sum(c) for c in zip(*(v for k, v in fields.memo.items() if k[0] == "backtest")))
     assert 0 < predicted < 0.2 * typical_body_cells(fields) and confirmed / predicted < 0.5, (confirmed, predicted)
     assert precision > 0.8, precision
     assert depth_trend(fields, 10.0, 6.0).region(485.0).contains(Point(160, 80))  # half a bench below

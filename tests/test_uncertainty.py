@@ -244,6 +244,25 @@ def test_predict_writes_bands_and_probability_grid_beside_its_output(strip_csv, 
     assert grid["p_inside"][1, row, col(83.0)] > 0.9 > 0.1 > grid["p_inside"][1, row, col(30.0)]
 
 
+def test_predict_starts_without_the_surface_library(strip_csv, tmp_path):
+    # trimesh takes most of a second to import: only commands that write surfaces load it.
+    import os
+    import subprocess
+    import sys
+
+    probe = "import atexit, sys; atexit.register(lambda: print('trimesh loaded:', 'trimesh' in sys.modules)); "
+    env = {**os.environ, "BGM_CACHE_DIR": str(tmp_path / "cache")}
+
+    def loaded(*args) -> bool:
+        code = probe + "from core.cli import main; main()"
+        run = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True, env=env)
+        assert run.returncode == 0, run.stderr
+        return "trimesh loaded: True" in run.stdout
+
+    assert not loaded("predict", strip_csv, "--geozone", "ore", "--elevations", "940", "--out", tmp_path / "p.geojson")
+    assert loaded("build", "--help")  # build imports it up front, with Ctrl-C held (see core.cli)
+
+
 def test_the_band_is_about_the_true_boundary_not_the_holes_placement_of_it():
     # Backtest errors against extracted boundaries = the prediction's error against the true one plus
     # where holes 6 m apart placed it (uniform over a spacing). Calibrated on those, then the placement

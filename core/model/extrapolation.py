@@ -108,10 +108,11 @@ class BenchFields:
         How directly the bench observed each cell: 1 where drilled, falling
         off with the distance to its drilled area.
     drilled : (b, rows, cols) bool
-    confirmed : dict
-        Memo of :func:`carried_precision`'s backtest of each bench pair,
-        shared with the benches' :meth:`through` views (a pair's backtest
-        rests only on the benches down to it, the same in every view).
+    memo : dict
+        Results that rest only on the first benches, shared with the
+        benches' :meth:`through` views (the same in every view): each bench
+        pair's backtest (:func:`carried_precision`) and the
+        :func:`depth_trend` of the first ``n`` benches.
     """
 
     grid: Grid
@@ -119,7 +120,11 @@ class BenchFields:
     distance: np.ndarray
     weight: np.ndarray
     drilled: np.ndarray
-    confirmed: dict = field(default_factory=dict, repr=False, compare=False)
+    memo: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __getstate__(self) -> dict:
+        # The memo is remade at need: not stored or sent with the fields (it holds whole trends).
+        return {**self.__dict__, "memo": {}}
 
     @property
     def cap_m(self) -> float:
@@ -138,9 +143,7 @@ class BenchFields:
         first (:meth:`reversed`, extrapolating up), those at or below it.
         """
         n = int(np.sum(self.z_m <= z_m + 1e-6)) if self.upwards else int(np.sum(self.z_m >= z_m - 1e-6))
-        return BenchFields(
-            self.grid, self.z_m[:n], self.distance[:n], self.weight[:n], self.drilled[:n], self.confirmed
-        )
+        return BenchFields(self.grid, self.z_m[:n], self.distance[:n], self.weight[:n], self.drilled[:n], self.memo)
 
     def reversed(self) -> BenchFields:
         """Bottom bench first: extrapolating from it extrapolates upwards."""
@@ -556,10 +559,17 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
 
 
 def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
-    """The geozone's :class:`DepthTrend` from its benches' :class:`BenchFields`."""
-    trend = _trend(fields, bench_height_m, hole_spacing_m)
-    confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
-    return replace(trend, carried_precision=confirmed)
+    """The geozone's :class:`DepthTrend` from its benches' :class:`BenchFields`.
+
+    Kept in ``fields.memo``: a prediction and the uncertainty of each of its
+    elevations ask for the same trend.
+    """
+    key = ("trend", len(fields.z_m), bench_height_m, hole_spacing_m)
+    if key not in fields.memo:
+        trend = _trend(fields, bench_height_m, hole_spacing_m)
+        confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
+        fields.memo[key] = replace(trend, carried_precision=confirmed)
+    return fields.memo[key]
 
 
 def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m: float, prior: float) -> float:
@@ -583,15 +593,15 @@ def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m
 def _pair_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spacing_m: float) -> tuple[int, int]:
     """Cells of bench ``j + 1``'s drilled area predicted inside from the benches down to ``j``: (confirmed, predicted).
 
-    Kept in ``fields.confirmed``: it rests only on the benches down to ``j + 1``.
+    Kept in ``fields.memo``: it rests only on the benches down to ``j + 1``.
     """
-    key = (j, bench_height_m, hole_spacing_m)
-    if key not in fields.confirmed:
+    key = ("backtest", j, bench_height_m, hole_spacing_m)
+    if key not in fields.memo:
         known = fields.through(float(fields.z_m[j]))
         inside = _trend(known, bench_height_m, hole_spacing_m).field(float(fields.z_m[j + 1])) > 0
         inside &= fields.drilled[j + 1]
-        fields.confirmed[key] = (int(np.sum(inside & (fields.distance[j + 1] > 0))), int(np.sum(inside)))
-    return fields.confirmed[key]
+        fields.memo[key] = (int(np.sum(inside & (fields.distance[j + 1] > 0))), int(np.sum(inside)))
+    return fields.memo[key]
 
 
 def typical_body_cells(fields: BenchFields) -> float:
