@@ -189,8 +189,11 @@ def test_a_geozone_that_pinched_out_is_predicted_absent_and_isolated_holes_grow_
     model = model_geozone(holes, "a")
     z = float(holes.bench_levels_m[-1]) - 10.0
     predicted = predict_geozone(model, [z], holes.hole_spacing_m)[z]
-    # Nothing where the body was, and no more than the holes' own patch out there.
-    assert predicted.area < 600.0, predicted.area
+    # Nothing where the body was, and out there no further from the holes' own patch than it is wide.
+    origin = np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) - [650_000, 7_400_000]
+    assert predicted.intersection(shapely.affinity.translate(P(100, 80).buffer(40), *-origin)).is_empty
+    patch = min(holes.drilled_area(4).geoms, key=lambda g: g.area)
+    assert predicted.within(patch.buffer(np.sqrt(patch.area / np.pi) + 1.0)), predicted.bounds
 
 
 def test_a_strip_moving_further_than_its_half_width_is_carried_whole(monkeypatch):
@@ -360,3 +363,30 @@ def test_a_bench_held_as_it_is_keeps_its_contour_to_a_tenth_of_a_cell(offset_cel
     held = grid.polygons_from_field(fields.distance[0], 0.0)
     mean_error_cells = held.symmetric_difference(body).area / body.length / 2.0
     assert mean_error_cells < 0.1, mean_error_cells
+
+
+def test_a_strip_crossing_the_edge_of_the_drilling_goes_on_past_it():
+    """Past the drilled area a bench's evidence is the nearest drilled ground its contours place.
+
+    The drilled area reaches 0.75 spacings past the outermost holes, a contour about half of that: the
+    fringe of a geozone's own holes outside its contour is no evidence of another geozone. A strip
+    crossing the last row of holes and the host on either side of it go on past the frontier, and
+    between them they cover the ground there (before, a quarter of it was left to neither).
+    """
+    from core.model.pipeline import geozone_fields
+
+    holes = _bench_table([shapely.box(70, -10, 110, 200)])  # holes at y 0-156, the strip across them
+    contours = extract_contours(holes)
+    fields = {g: geozone_fields(holes, [c for c in contours if c.geozone == g], 10.0) for g in ("a", "host")}
+    grid = fields["a"].grid
+    offset = np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) - [650_000, 7_400_000]
+
+    def inside(geozone, x, y):
+        return grid.sample(fields[geozone].distance[0], np.array([[x, y]]) - offset)[0] > 0
+
+    for y in (162.0, 170.0, 178.0):  # 6-22 m past the last row
+        assert inside("a", 90.0, y) and not inside("host", 90.0, y), y
+        assert inside("host", 40.0, y) and inside("host", 140.0, y) and not inside("a", 40.0, y), y
+    past = (fields["a"].weight[0] < 0.5) & (grid.cell_centres()[1] + offset[1] > 160.0)
+    claimed = (fields["a"].distance[0] > 0).astype(int) + (fields["host"].distance[0] > 0)
+    assert np.mean(claimed[past] == 1) > 0.95, np.mean(claimed[past] == 1)

@@ -150,7 +150,14 @@ class BenchFields:
         return BenchFields(self.grid, self.z_m[::-1], self.distance[::-1], self.weight[::-1], self.drilled[::-1])
 
 
-def bench_distance(region: np.ndarray, drilled: np.ndarray, cell_size_m: float, cap_m: float, reach_m: float):
+def bench_distance(
+    region: np.ndarray,
+    drilled: np.ndarray,
+    cell_size_m: float,
+    cap_m: float,
+    reach_m: float,
+    unclaimed: np.ndarray | None = None,
+):
     """Signed distance to a region's boundary where only drilled cells count as evidence.
 
     Parameters
@@ -162,6 +169,14 @@ def bench_distance(region: np.ndarray, drilled: np.ndarray, cell_size_m: float, 
         bench's evidence reaches at most. It reaches no further than the
         drilled patch it comes from is wide (its equivalent radius): a
         handful of isolated holes says nothing about the ground around them.
+    unclaimed : (rows, cols) bool, optional
+        Drilled cells outside the region that say nothing of the ground past
+        the drilled area: the fringe of the geozone's own holes its contours
+        leave out (the drilled area reaches 0.75 spacings past the outermost
+        holes, a contour about half of that). Counted as the other side
+        there, they cut the geozone off at the frontier: on the Kennecott
+        benches a third of the ground the next bench drilled beyond the last
+        one was left to no geozone at all.
 
     Returns
     -------
@@ -176,9 +191,14 @@ def bench_distance(region: np.ndarray, drilled: np.ndarray, cell_size_m: float, 
         return np.full(region.shape, -cap_m), np.full(region.shape, big)
     inside = region & drilled
     outside = drilled & ~region
-    d_in = ndimage.distance_transform_edt(~inside) * cell_size_m if inside.any() else np.full(region.shape, big)
-    d_out = ndimage.distance_transform_edt(~outside) * cell_size_m if outside.any() else np.full(region.shape, big)
+
+    def to(cells: np.ndarray) -> np.ndarray:
+        return ndimage.distance_transform_edt(~cells) * cell_size_m if cells.any() else np.full(region.shape, big)
+
+    d_in, d_out = to(inside), to(outside)
     off, (rows, cols) = ndimage.distance_transform_edt(~drilled, return_indices=True)
+    if unclaimed is not None and (outside & unclaimed).any():
+        d_out = np.where(off > 0, to(outside & ~unclaimed), d_out)
     patches, n = ndimage.label(drilled)
     radius = np.sqrt(np.bincount(patches.ravel(), minlength=n + 1) / np.pi) * cell_size_m
     reach = np.minimum(reach_m, radius[patches[rows, cols]])
@@ -231,15 +251,19 @@ def bench_fields(
     grid: Grid,
     hole_spacing_m: float,
     reach_m: float,
+    unclaimed: Mapping[int, np.ndarray] | None = None,
 ) -> BenchFields:
-    """:class:`BenchFields` of the given benches (bench index -> region, drilled mask on ``grid``, elevation)."""
+    """:class:`BenchFields` of the given benches (bench index -> region, drilled mask on ``grid``, elevation).
+
+    ``unclaimed``: per bench, the drilled cells that are no evidence past the drilled area (:func:`bench_distance`).
+    """
     benches = sorted(regions, key=lambda k: -z_m[k])
     h = grid.cell_size_m
     cap = CAP_SPACINGS * hole_spacing_m
     dist, weight = [], []
     for k in benches:
         region = grid.rasterize(regions[k]) if not regions[k].is_empty else np.zeros(grid.shape, bool)
-        d, off = bench_distance(region, drilled[k], h, cap, reach_m)
+        d, off = bench_distance(region, drilled[k], h, cap, reach_m, None if unclaimed is None else unclaimed[k])
         dist.append(exact_near_boundary(d, regions[k], drilled[k], grid))
         weight.append(np.exp(-off / hole_spacing_m))
     return BenchFields(

@@ -255,15 +255,20 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
     lo, hi = holes.xy.min(axis=0), holes.xy.max(axis=0)
     cell = max(FIELD_CELL_SPACINGS * spacing, float(np.max(hi - lo)) / FIELD_MAX_CELLS)
     grid = Grid.covering((lo[0], lo[1], hi[0], hi[1]), cell, margin_cells=8)
-    regions, drilled, z = {}, {}, {}
+    geozone = contours[0].geozone if contours else None
+    regions, drilled, z, unclaimed = {}, {}, {}, {}
     for k in np.unique(holes.bench[holes.bench >= 0]):  # benches with holes: an empty level says nothing
         on = holes.on_bench(k)
         polys = [c.polygon for c in contours if c.bench == k and not c.polygon.is_empty]
         regions[k] = shapely.union_all(polys) if polys else shapely.MultiPolygon()
         z[k] = float(holes.bench_levels_m[k])
-        distance = hole_distances(holes.xy[on], np.full(len(on), "hole"), ["hole"], grid)[0]
-        drilled[k] = drilled_mask(distance, spacing, cell)
-    return bench_fields(regions, drilled, z, grid, spacing, reach_spacings * spacing)
+        mine = holes.geozone[on] == geozone
+        nearest = hole_distances(holes.xy[on], np.full(len(on), "hole"), ["hole"], grid)[0]
+        drilled[k] = drilled_mask(nearest, spacing, cell)
+        # Cells nearer one of the geozone's holes than any other's (those outside its contours are its fringe).
+        own = hole_distances(holes.xy[on], np.where(mine, "own", ""), ["own"], grid)[0] if mine.any() else np.inf
+        unclaimed[k] = drilled[k] & (own <= nearest + 1e-9)
+    return bench_fields(regions, drilled, z, grid, spacing, reach_spacings * spacing, unclaimed)
 
 
 #: Cell size of a geozone's field grid, in hole spacings (a quarter gained 0.3 F1 on the

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+from shapely import affinity
 from shapely.geometry import Polygon, box
 
 from core.io.blastholes import FEET_TO_METRES
@@ -120,6 +121,7 @@ def drill_mine(
     label_noise_range: tuple[float, float] = (0.01, 0.03),
     partial_fraction: float = 0.35,
     z_scatter_fraction: float = 0.05,
+    pushback_range_m: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[pd.DataFrame, pd.Series]:
     """Drill every bench of ``mine`` and label its holes, as a mine would.
 
@@ -140,6 +142,12 @@ def drill_mine(
         Chance that a bench below the first is only partly drilled.
     z_scatter_fraction : float
         Hole elevations scatter uniformly by this fraction of the bench height.
+    pushback_range_m : (float, float)
+        How far each bench's pit lies sideways of the one above (metres, drawn
+        once per mine, in a random heading, cut to the mine's extent): each
+        bench drills ground on one side that no bench above drilled, as a pit
+        pushed back in stages does (on the Kennecott benches, 29% of the next
+        bench's geozone area lies off the deepest known bench's drilling). None by default.
 
     Returns
     -------
@@ -156,10 +164,17 @@ def drill_mine(
     height = float(np.median(-np.diff(levels))) if len(levels) > 1 else 10.0
     step = pit_step_m(mine.extent_m, len(levels), height)
     noise = float(rng.uniform(*label_noise_range))
+    pushback = np.zeros(2)
+    if pushback_range_m[1] > 0:  # drawn only when asked: the default drilling's draws stay as they were
+        heading = rng.uniform(0, 2 * np.pi)
+        pushback = rng.uniform(*pushback_range_m) * np.array([np.cos(heading), np.sin(heading)])
     mpu = float(mine.metres_per_unit)
     frames, truths = [], []
     for k, z in enumerate(levels):
         outline = pit_outline(mine.extent_m, k, step)
+        if pushback.any():  # the middle bench's pit where it was; none past the mine's extent, where its geology ends
+            shifted = affinity.translate(outline, *((k - (len(levels) - 1) / 2) * pushback))
+            outline = shifted.intersection(box(*mine.extent_m))
         footprint = bench_drilled_area(outline, rng, partial=k > 0 and rng.random() < partial_fraction)
         mine.footprints[float(z)] = footprint
         spacing = rng.uniform(*spacing_range_m)

@@ -13,7 +13,8 @@ on held-out seeds only:
   strip, a contact around a pipe, a pivoting contact, an angular body, an arc),
   which no default was chosen on, drilled the default way;
 * ``drilling`` -- every family drilled otherwise (:data:`DRILLING`): patterns of
-  9-12 m and 3-4 m, 6-10% label noise, 15 m benches in feet, 6 m benches.
+  9-12 m and 3-4 m, 6-10% label noise, 15 m benches in feet, 6 m benches, and each
+  bench's pit 20-40 m sideways of the one above (a pushback: ground no bench above drilled).
   Depths are half and one bench height, whatever the bench height.
 
 Prints the F1 of each method per shape (or per drilling and family) and
@@ -51,6 +52,7 @@ DRILLING: dict[str, tuple[dict, dict]] = {
     "label noise 6-10%": ({}, {"label_noise_range": (0.06, 0.10)}),
     "15 m benches, feet": ({"bench_height_m": 15.0, "units": "ft"}, {}),
     "6 m benches": ({"bench_height_m": 6.0}, {}),
+    "pushback 20-40 m a bench": ({}, {"pushback_range_m": (20.0, 40.0)}),
 }
 
 
@@ -90,6 +92,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--part", nargs="*", default=["shapes", "drilling"], choices=("shapes", "drilling"))
     parser.add_argument("--limit", type=int, default=None, help="Held-out seeds per case (shapes: all 8, drilling: 2).")
+    parser.add_argument("--drilling", nargs="*", default=list(DRILLING), choices=list(DRILLING))
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
     jobs = []
@@ -97,7 +100,7 @@ def main() -> None:
         jobs += [("shapes", s, seed) for s in SHAPES for seed in HELD_OUT_SEEDS[: args.limit or len(HELD_OUT_SEEDS)]]
     if "drilling" in args.part:
         seeds = HELD_OUT_SEEDS[: args.limit or 2]
-        jobs += [("drilling", f"{d}|{f}", seed) for d in DRILLING for f in FAMILIES for seed in seeds]
+        jobs += [("drilling", f"{d}|{f}", seed) for d in args.drilling for f in FAMILIES for seed in seeds]
     print(f"{len(jobs)} cases on {args.workers} processes (held-out seeds)")
     start = time.perf_counter()
     results: dict[str, list[pd.DataFrame]] = {"shapes": [], "drilling": []}
