@@ -175,7 +175,7 @@ def bench_distance(
         leave out (the drilled area reaches 0.75 spacings past the outermost
         holes, a contour about half of that). Counted as the other side
         there, they cut the geozone off at the frontier: on the Kennecott
-        benches a third of the ground the next bench drilled beyond the last
+        benches 20-40% of the ground the next bench drilled beyond the last
         one was left to no geozone at all.
 
     Returns
