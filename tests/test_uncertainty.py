@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pandas as pd
@@ -246,10 +249,6 @@ def test_predict_writes_bands_and_probability_grid_beside_its_output(strip_csv, 
 
 def test_predict_starts_without_the_surface_library(strip_csv, tmp_path):
     # trimesh takes most of a second to import: only commands that write surfaces load it.
-    import os
-    import subprocess
-    import sys
-
     probe = "import atexit, sys; atexit.register(lambda: print('trimesh loaded:', 'trimesh' in sys.modules)); "
     env = {**os.environ, "BGM_CACHE_DIR": str(tmp_path / "cache")}
 

@@ -246,7 +246,9 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
 
     The grid covers the holes with cells of half a hole spacing (at most
     :data:`FIELD_MAX_CELLS` along a side); a bench's drilled area is the raster
-    form of :meth:`Blastholes.drilled_area`.
+    form of :meth:`Blastholes.drilled_area`. Drilled cells nearer one of the
+    geozone's own holes than any other hole are no evidence past the drilled
+    area where its contours leave them out (``unclaimed``, :func:`bench_distance`).
     """
     from core.extraction.transition import drilled_mask, hole_distances
     from core.geometry.grid import Grid
