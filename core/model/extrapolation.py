@@ -111,8 +111,8 @@ class BenchFields:
     memo : dict
         Results that rest only on the first benches, shared with the
         benches' :meth:`through` views (the same in every view): each bench
-        pair's backtest (:func:`carried_precision`) and the
-        :func:`depth_trend` of the first ``n`` benches.
+        pair's backtest (:func:`carried_precision`) and the trend of the
+        first ``n`` benches, before and after its backtest (:func:`depth_trend`).
     """
 
     grid: Grid
@@ -588,11 +588,19 @@ def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     Kept in ``fields.memo``: a prediction and the uncertainty of each of its
     elevations ask for the same trend.
     """
-    key = ("trend", len(fields.z_m), bench_height_m, hole_spacing_m)
-    if key not in fields.memo:
+
+    def compute() -> DepthTrend:
         trend = _trend(fields, bench_height_m, hole_spacing_m)
         confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
-        fields.memo[key] = replace(trend, carried_precision=confirmed)
+        return replace(trend, carried_precision=confirmed)  # shares the trend's arrays
+
+    return _memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)
+
+
+def _memoised(fields: BenchFields, key: tuple, compute):
+    """``fields.memo[key]``, computed once (``key`` names what it rests on: the first benches, see :class:`BenchFields`)."""
+    if key not in fields.memo:
+        fields.memo[key] = compute()
     return fields.memo[key]
 
 
@@ -619,13 +627,14 @@ def _pair_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spac
 
     Kept in ``fields.memo``: it rests only on the benches down to ``j + 1``.
     """
-    key = ("backtest", j, bench_height_m, hole_spacing_m)
-    if key not in fields.memo:
+
+    def compute() -> tuple[int, int]:
         known = fields.through(float(fields.z_m[j]))
         inside = _trend(known, bench_height_m, hole_spacing_m).field(float(fields.z_m[j + 1])) > 0
         inside &= fields.drilled[j + 1]
-        fields.memo[key] = (int(np.sum(inside & (fields.distance[j + 1] > 0))), int(np.sum(inside)))
-    return fields.memo[key]
+        return int(np.sum(inside & (fields.distance[j + 1] > 0))), int(np.sum(inside))
+
+    return _memoised(fields, ("backtest", j, bench_height_m, hole_spacing_m), compute)
 
 
 def typical_body_cells(fields: BenchFields) -> float:
@@ -636,7 +645,16 @@ def typical_body_cells(fields: BenchFields) -> float:
 
 
 def _trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
-    """The depth trend with the share of bodies reaching the next bench as its :attr:`DepthTrend.carried_precision`."""
+    """The depth trend with the share of bodies reaching the next bench as its :attr:`DepthTrend.carried_precision`.
+
+    Kept in ``fields.memo``: the backtest of the next bench pair and :func:`depth_trend` of the
+    same benches both start from it.
+    """
+    key = ("trend before its backtest", len(fields.z_m), bench_height_m, hole_spacing_m)
+    return _memoised(fields, key, lambda: _fitted_trend(fields, bench_height_m, hole_spacing_m))
+
+
+def _fitted_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
     f_last, z_last, rate = fit_trend(fields, bench_height_m)
     # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
     # its signed distance (carried over many benches it would raise a body out of nothing there).
