@@ -122,6 +122,21 @@ def test_a_strip_moving_8_m_per_bench_is_predicted_within_a_hole_spacing():
     assert iou(predicted.intersection(drilled), truth.intersection(drilled)) > 0.75
 
 
+@pytest.mark.parametrize("known_benches", [2, 4])
+def test_a_layer_dipping_shallower_than_30_degrees_is_carried_on(known_benches):
+    """A layer dipping 24 degrees moves 22 m per 10 m bench: its sections barely overlap.
+
+    That is faster than the usual bound of a boundary's movement (``MIN_DIP_DEG``);
+    the benches' own alignment shows it, and it is carried on rather than held.
+    """
+    sections = [_strip(22.0 * k, width=60.0) for k in range(5)]
+    holes = _bench_table(sections, extent=(300.0, 240.0))
+    predicted, nil, truth = _predict_next(holes, sections, known_benches)
+    within = holes.drilled_area(known_benches - 1).buffer(-12.0)  # away from where drilling stopped
+    model_f1, nil_f1 = _f1(predicted, truth, within), _f1(nil, truth, within)
+    assert model_f1 > 0.8 and model_f1 > nil_f1 + 0.15, (model_f1, nil_f1)
+
+
 def test_movement_that_reverses_every_bench_is_predicted_no_worse_than_holding():
     sections = [_strip(8.0 * (k % 2)) for k in range(5)]  # 0, 8, 0, 8, 0 m
     holes = _bench_table(sections)

@@ -69,7 +69,9 @@ CAP_SPACINGS = 8.0
 #: shallowest contacts a pit's benches follow (the synthetic strips dip 35-80 degrees);
 #: 34 degrees, the linear reference's bound (:class:`core.model.evaluation.LinearSDF`),
 #: held the fastest strips (chosen on the tuning seeds only: +0.4 and +1.1 F1 at 5 and
-#: 10 m, strips +1.3 and +3.2, pods -0.3 and -0.4).
+#: 10 m, strips +1.3 and +3.2, pods -0.3 and -0.4). It is a floor: where a bench pair's
+#: sections align at a larger translation (a shallower contact), that is the bound for the
+#: pair (:func:`movement_reach_m`).
 MIN_DIP_DEG = 30.0
 #: A boundary's outward movement (a body growing) carries on by ``continuity ** 4`` of its
 #: persistence, ``continuity`` the share of the geozone's bodies that reach the next bench
@@ -291,17 +293,20 @@ def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
     noise lowers ``rho`` of a steady boundary towards 1/2 when it is as
     large as the movement), none where the movement reverses or is noise.
     Where fewer than three benches observed a cell it is 1 (nothing says the
-    movement does not carry on). Changes faster than a boundary moves
-    (:data:`MIN_DIP_DEG`) are left out: they are bodies appearing.
+    movement does not carry on). Changes faster than a boundary of the
+    geozone moves (:func:`movement_reach_m`) are left out: they are bodies
+    appearing.
     """
     if len(fields.z_m) < 3:
         return np.ones(fields.grid.shape)
-    d1 = fields.distance[-1] - fields.distance[-2]
-    d2 = fields.distance[-2] - fields.distance[-3]
     seen = np.prod(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0).astype(float)
+    n = len(fields.z_m)
     h = float(abs(fields.z_m[-2] - fields.z_m[-1]))
     fastest = h / np.tan(np.radians(MIN_DIP_DEG))
-    w = seen * ((np.abs(d1) <= fastest) & (np.abs(d2) <= fastest))
+    reach1, reach2 = movement_reach_m(fields, n - 2, n - 1, fastest), movement_reach_m(fields, n - 3, n - 2, fastest)
+    d1 = fields.distance[-1] - fields.distance[-2]
+    d2 = fields.distance[-2] - fields.distance[-3]
+    w = seen * ((np.abs(d1) <= reach1) & (np.abs(d2) <= reach2))
     sigma = smoothing_m / fields.grid.cell_size_m
     agree = ndimage.gaussian_filter(w * d1 * d2, sigma)
     energy = ndimage.gaussian_filter(w * (d1**2 + d2**2), sigma)
@@ -378,13 +383,46 @@ def boundary_movement(older: np.ndarray, newer: np.ndarray, cell_size_m: float, 
     return moved[r, c]
 
 
+def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: float) -> float:
+    """How far a boundary of the geozone may have moved from bench ``older`` to ``newer``, metres.
+
+    At least ``fastest_m`` (:data:`MIN_DIP_DEG`); further where the geozone as
+    a whole moved further: the translation that best aligns the older bench's
+    section with the newer's signed distance (FFT cross-correlation, paper
+    section 3.2.1, eqs. (10)-(12)) inside the area both drilled, taken when the
+    section moved by it overlaps the newer one better than the section held
+    does and by at least half (a contact dipping shallower than the benches'
+    usual, not lenses that appear elsewhere). Kept in ``fields.memo``.
+    """
+    from core.correspondence.alignment import fft_translation, shift_mask
+
+    def compute() -> float:
+        both = fields.drilled[older] & fields.drilled[newer]
+        source, target = (fields.distance[older] > 0) & both, (fields.distance[newer] > 0) & both
+        if not source.any() or not target.any():
+            return fastest_m
+        d_row, d_col = fft_translation(source, np.where(both, fields.distance[newer], 0.0))
+        shift_m = float(np.hypot(d_row, d_col)) * fields.grid.cell_size_m
+        if shift_m <= fastest_m:
+            return fastest_m
+        moved = shift_mask(source, int(d_row), int(d_col)) & both
+
+        def overlap(a: np.ndarray) -> float:
+            return float(np.sum(a & target)) / max(float(np.sum(a | target)), 1.0)
+
+        confirmed = overlap(moved) >= max(0.5, overlap(source))
+        return shift_m + fields.grid.cell_size_m if confirmed else fastest_m
+
+    return _memoised(fields, ("reach", older, newer, fastest_m), compute)
+
+
 def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per cell, the last observed signed distance, where it was observed and its change with depth.
 
     Each cell's trend rests on the last two benches drilled there (the
     deepest one, ``j1``, and the one above it that was drilled there,
     ``j2``): the :func:`boundary_movement` of its nearest boundary from
-    ``j2`` to ``j1``, per bench height; where that boundary has no
+    ``j2`` to ``j1`` (within :func:`movement_reach_m`), per bench height; where that boundary has no
     counterpart, the change from ``F_j2`` to ``F_j1``, held where faster than
     a boundary moves (:data:`MIN_DIP_DEG`). A cell drilled by one bench only
     has no change; a cell none drilled takes the deepest bench's nearest
@@ -415,9 +453,8 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     for j1, j2 in pairs:
         cells = (last == j1) & (before == j2)
         gap = float(benches[cells][0])
-        moved = boundary_movement(
-            fields.distance[j2], fields.distance[j1], fields.grid.cell_size_m, fastest_m * abs(gap)
-        )
+        reach = movement_reach_m(fields, j2, j1, fastest_m * abs(gap))
+        moved = boundary_movement(fields.distance[j2], fields.distance[j1], fields.grid.cell_size_m, reach)
         rate[cells] = np.where(np.isnan(moved[cells]), rate[cells], moved[cells] / gap)
     observed = last >= 0
     return np.where(observed, f_last, fields.distance[-1]), np.where(observed, z[np.maximum(last, 0)], z[-1]), rate

@@ -19,6 +19,9 @@ with one shape (plus the host ``g0``), drilled like any family's mine:
   (sharp corners).
 * ``arc`` -- a curved layer 16-30 m wide moving across itself, centred 90-150 m
   from the pit's centre (strong curvature).
+* ``shallow layer`` -- a layer 30-60 m wide dipping 16-29 degrees: 18-35 m
+  sideways per 10 m of depth, faster than any family's contacts (a bench's
+  section barely overlaps the one above).
 
 Rates are per metre of depth, as in the families.
 """
@@ -48,7 +51,15 @@ from core.synthetic.solids import (
 )
 
 #: Shape names, in the order reports list them.
-SHAPES: tuple[str, ...] = ("ring", "faulted strip", "inclusion", "pivoting contact", "angular body", "arc")
+SHAPES: tuple[str, ...] = (
+    "ring",
+    "faulted strip",
+    "inclusion",
+    "pivoting contact",
+    "angular body",
+    "arc",
+    "shallow layer",
+)
 
 
 def _deepest_reach_m(layout: Layout) -> float:
@@ -140,6 +151,18 @@ def _arc(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
     return [("arc", [arc])]
 
 
+def _shallow_layer(rng: np.random.Generator, layout: Layout) -> list[tuple[str, Geozone]]:
+    strike = rng.uniform(0, np.pi)
+    across = unit_vector(strike + np.pi / 2)
+    speed = rng.uniform(1.8, 3.5) * rng.choice([-1.0, 1.0])
+    width = rng.uniform(30.0, 60.0)
+    # The layer's middle bench crosses the pit's middle half; above and below it may leave the pit.
+    offset = rng.uniform(-0.3, 0.3) * _deepest_reach_m(layout) - speed * 0.5 * layout.depth_m
+    trace = straight_or_bent_trace(tuple(offset * across), strike, 1000.0)
+    layer = DippingLayer(trace, tuple(speed * across), layout.top_m, width / 2, width / 2)
+    return [("shallow layer", [layer])]
+
+
 _BUILDERS = {
     "ring": _ring,
     "faulted strip": _faulted_strip,
@@ -147,6 +170,7 @@ _BUILDERS = {
     "pivoting contact": _pivoting_contact,
     "angular body": _angular_body,
     "arc": _arc,
+    "shallow layer": _shallow_layer,
 }
 
 
