@@ -331,6 +331,36 @@ def test_a_strip_moving_further_than_its_half_width_moves_both_of_its_edges():
     assert scored > 0.78 and scored > iou(nil.intersection(within), truth.intersection(within)) + 0.3, scored
 
 
+@pytest.mark.parametrize(("width_m", "step_m"), [(20.0, 14.0), (30.0, 20.0)])
+def test_a_strip_moving_steadily_further_than_its_half_width_keeps_its_movement(width_m, step_m):
+    """Persistence along trajectories: each edge's movement is compared with its own movement a bench before.
+
+    At a fixed cell the signed distance of such a strip rises and then falls
+    (the cell crosses its ridge), which read as movement that reverses.
+    """
+    from core.geometry.grid import Grid
+    from core.model.extrapolation import BenchFields, bench_distance, local_persistence
+
+    grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
+    drilled = np.ones(grid.shape, bool)
+    left = [60.0 + step_m * k for k in range(3)]
+    distance = np.array(
+        [
+            bench_distance(grid.rasterize(shapely.box(x, -10, x + width_m, 170)), drilled, 2.0, 48.0, 18.0)[0]
+            for x in left
+        ]
+    )
+    fields = BenchFields(
+        grid, np.array([500.0, 490.0, 480.0]), distance, np.ones_like(distance), np.stack([drilled] * 3)
+    )
+    persistence = local_persistence(fields, 18.0)
+    row = grid.shape[0] // 2
+    x = grid.cell_centres()[0][row]
+    for edge in (left[-1], left[-1] + width_m):
+        near = np.abs(x - edge) < 3.0
+        assert persistence[row, near].min() > 0.95, (edge, persistence[row, near])
+
+
 def test_a_lens_growing_in_a_geozone_whose_bodies_end_is_held_and_a_body_that_goes_on_keeps_growing():
     from core.model.extrapolation import body_continuity, depth_trend
 

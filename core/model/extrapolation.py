@@ -280,9 +280,11 @@ def bench_fields(
 def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
     """How much of the last bench-to-bench change carries on at each cell, in [0, 1].
 
-    The agreement of the last change of the signed distance (``d1 = F_k -
-    F_k-1``) with the one before (``d2 = F_k-1 - F_k-2``) over a Gaussian
-    neighbourhood of ``smoothing_m``::
+    The agreement of the last movement of the boundary (``d1``) with the one
+    before along its trajectory (``d2``, :func:`movements_along_trajectories`;
+    where there is no trajectory, the changes of the signed distance ``F_k -
+    F_k-1`` and ``F_k-1 - F_k-2``) over a Gaussian neighbourhood of
+    ``smoothing_m``::
 
         rho = 2 sum(d1 d2) / sum(d1^2 + d2^2)   in [-1, 1]
 
@@ -304,8 +306,7 @@ def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
     h = float(abs(fields.z_m[-2] - fields.z_m[-1]))
     fastest = h / np.tan(np.radians(MIN_DIP_DEG))
     reach1, reach2 = movement_reach_m(fields, n - 2, n - 1, fastest), movement_reach_m(fields, n - 3, n - 2, fastest)
-    d1 = fields.distance[-1] - fields.distance[-2]
-    d2 = fields.distance[-2] - fields.distance[-3]
+    d1, d2 = movements_along_trajectories(fields, reach1, reach2)
     w = seen * ((np.abs(d1) <= reach1) & (np.abs(d2) <= reach2))
     sigma = smoothing_m / fields.grid.cell_size_m
     agree = ndimage.gaussian_filter(w * d1 * d2, sigma)
@@ -313,6 +314,35 @@ def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
     rho = 2 * agree / np.maximum(energy, 1e-9)
     support = ndimage.gaussian_filter(w, sigma)
     return np.where((support > 0.05) & (energy > 0), np.clip(2 * rho, 0.0, 1.0), 1.0)
+
+
+def movements_along_trajectories(
+    fields: BenchFields, reach1_m: float, reach2_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The last two bench-to-bench changes at each cell, ``(d1, d2)`` in metres, outwards.
+
+    ``d1`` is the :func:`boundary_movement` of the cell's nearest boundary
+    over the last bench pair and ``d2`` the movement, over the pair before,
+    of the boundary point it came from (along its trajectory, as the paper's
+    particles follow the front). The changes of the signed distance at the
+    cell itself (``F_k - F_k-1`` and ``F_k-1 - F_k-2``) are the same for a
+    boundary moving less than its body's half-width per bench; for one moving
+    further they mix the movements of two boundaries (the leading edge's and
+    the trailing edge's) and a steady movement looks like one that reverses.
+    Where a boundary has no counterpart they are taken instead.
+    """
+    f = fields.distance
+    cell = fields.grid.cell_size_m
+    d1, d2 = f[-1] - f[-2], f[-2] - f[-3]
+    moved1, origin = boundary_movement(f[-2], f[-1], cell, reach1_m, with_origin=True)
+    moved2 = boundary_movement(f[-3], f[-2], cell, reach2_m)
+    traced = np.isfinite(moved1)
+    before = np.full(moved1.shape, np.nan)
+    before[traced] = ndimage.map_coordinates(
+        np.nan_to_num(moved2, nan=np.inf), origin[:, traced], order=0, mode="nearest"
+    )
+    traced &= np.isfinite(before)
+    return np.where(traced, moved1, d1), np.where(traced, before, d2)
 
 
 #: A bench observed a cell when the cell lies within this weight of its drilled
@@ -331,7 +361,9 @@ def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
     return last, before
 
 
-def boundary_movement(older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float) -> np.ndarray:
+def boundary_movement(
+    older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float, with_origin: bool = False
+):
     """How far the boundary nearest each cell moved outwards from one bench to the next, metres.
 
     ``F_newer - F_older`` at a cell is the movement only while the nearest
@@ -351,18 +383,26 @@ def boundary_movement(older: np.ndarray, newer: np.ndarray, cell_size_m: float, 
         Signed distances (positive inside) on the two benches, metres.
     cell_size_m, reach_m : float
 
+    with_origin : bool
+        Also return where on the older boundary each cell's boundary point
+        came from (the end of its trajectory on the bench above).
+
     Returns
     -------
     (rows, cols) float
         Outward movement, metres (negative where the boundary retreated);
         nan where the nearest boundary has no counterpart within the reach
         (a body appearing) and everywhere when ``newer`` has no boundary.
+    (2, rows, cols) float
+        With ``with_origin``: the (row, col) of that older boundary point, in
+        cells (the boundary point itself where there is no counterpart).
     """
     g_r, g_c = np.gradient(newer)
     norm = np.hypot(g_r, g_c)
     band = (np.abs(newer) <= cell_size_m) & (norm > 0.2 * cell_size_m)
     if not band.any():
-        return np.full(newer.shape, np.nan)
+        nan = np.full(newer.shape, np.nan)
+        return (nan, np.stack([nan, nan])) if with_origin else nan
     n_r, n_c = g_r[band] / norm[band], g_c[band] / norm[band]
     rows, cols = np.nonzero(band)
     to_boundary = newer[band] / cell_size_m  # from each band cell to the boundary point, along -normal
@@ -377,10 +417,17 @@ def boundary_movement(older: np.ndarray, newer: np.ndarray, cell_size_m: float, 
     offset_m = (steps[:-1] + t * (steps[1] - steps[0])) * cell_size_m
     nearest = np.argmin(np.where(entering, np.abs(offset_m), np.inf), axis=1)
     pick = np.arange(len(nearest))
+    matched = entering[pick, nearest]
     moved = np.full(newer.shape, np.nan)
-    moved[band] = np.where(entering[pick, nearest], offset_m[pick, nearest], np.nan)
+    moved[band] = np.where(matched, offset_m[pick, nearest], np.nan)
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
-    return moved[r, c]
+    if not with_origin:
+        return moved[r, c]
+    # The older boundary point each band cell's boundary point was matched to, along its normal.
+    along = np.where(matched, offset_m[pick, nearest], 0.0) / cell_size_m - to_boundary
+    origin = np.full((2, *newer.shape), np.nan)
+    origin[0][band], origin[1][band] = rows + along * n_r, cols + along * n_c
+    return moved[r, c], origin[:, r, c]
 
 
 def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: float) -> float:
