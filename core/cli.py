@@ -773,7 +773,7 @@ def make_demo_data(
         str | None,
         typer.Option(
             help="A shape outside the families instead (no default was tuned on them): ring, "
-            "'faulted strip', inclusion, 'pivoting contact', 'angular body' or arc."
+            "'faulted strip', inclusion, 'pivoting contact', 'angular body', arc or 'shallow layer'."
         ),
     ] = None,
 ) -> None:

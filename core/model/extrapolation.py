@@ -15,10 +15,11 @@ section 3.2.1). A boundary that moves steadily across itself changes ``F``
 linearly with depth at every point, whichever way it moves along itself.
 Per cell, the movement across itself of the nearest boundary between the
 last two benches that observed it, matched along its normal to the boundary
-facing the same way (:func:`boundary_movement`), is the rate of movement
-(:func:`fit_trend`), damped where successive bench pairs disagree
-(:func:`local_persistence`: a body that moves steadily keeps its trend, one
-whose movement reverses or is shape noise is held). A geozone whose bodies
+facing the same way (:func:`boundary_movement`, as far as the geozone's
+sections moved: :func:`movement_reach_m`), is the rate of movement
+(:func:`fit_trend`), damped where successive bench pairs disagree along the
+boundary's trajectory (:func:`local_persistence`: a body that moves steadily
+keeps its trend, one whose movement reverses or is shape noise is held). A geozone whose bodies
 end between benches (lenses) has its growth held as well
 (:data:`GROWTH_CONTINUITY_POWER`). The boundary moves by
 ``persistence * rate * f`` across itself ``f`` bench heights below, and the
@@ -331,11 +332,10 @@ def movements_along_trajectories(
     the trailing edge's) and a steady movement looks like one that reverses.
     Where a boundary has no counterpart they are taken instead.
     """
-    f = fields.distance
-    cell = fields.grid.cell_size_m
+    f, n = fields.distance, len(fields.z_m)
     d1, d2 = f[-1] - f[-2], f[-2] - f[-3]
-    moved1, origin = boundary_movement(f[-2], f[-1], cell, reach1_m, with_origin=True)
-    moved2 = boundary_movement(f[-3], f[-2], cell, reach2_m)
+    moved1, origin = pair_movement(fields, n - 2, n - 1, reach1_m)
+    moved2, _ = pair_movement(fields, n - 3, n - 2, reach2_m)
     traced = np.isfinite(moved1)
     before = np.full(moved1.shape, np.nan)
     before[traced] = ndimage.map_coordinates(
@@ -430,6 +430,20 @@ def boundary_movement(
     return moved[r, c], origin[:, r, c]
 
 
+def pair_movement(fields: BenchFields, older: int, newer: int, reach_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`boundary_movement` from bench ``older`` to ``newer`` with its origins, kept in ``fields.memo``.
+
+    A trend, its persistence and the backtests of the benches above ask for the same
+    pairs; :func:`depth_trend` drops them once its trend is made.
+    """
+
+    def compute() -> tuple[np.ndarray, np.ndarray]:
+        f = fields.distance
+        return boundary_movement(f[older], f[newer], fields.grid.cell_size_m, reach_m, with_origin=True)
+
+    return _memoised(fields, ("movement", older, newer, reach_m), compute)
+
+
 def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: float) -> float:
     """How far a boundary of the geozone may have moved from bench ``older`` to ``newer``, metres.
 
@@ -501,7 +515,7 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
         cells = (last == j1) & (before == j2)
         gap = float(benches[cells][0])
         reach = movement_reach_m(fields, j2, j1, fastest_m * abs(gap))
-        moved = boundary_movement(fields.distance[j2], fields.distance[j1], fields.grid.cell_size_m, reach)
+        moved, _ = pair_movement(fields, j2, j1, reach)
         rate[cells] = np.where(np.isnan(moved[cells]), rate[cells], moved[cells] / gap)
     observed = last >= 0
     return np.where(observed, f_last, fields.distance[-1]), np.where(observed, z[np.maximum(last, 0)], z[-1]), rate
@@ -676,6 +690,8 @@ def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     def compute() -> DepthTrend:
         trend = _trend(fields, bench_height_m, hole_spacing_m)
         confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
+        for key in [key for key in fields.memo if key[0] == "movement"]:
+            del fields.memo[key]  # three grids a bench pair: kept only while the trend and its backtests are made
         return replace(trend, carried_precision=confirmed)  # shares the trend's arrays
 
     return _memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)

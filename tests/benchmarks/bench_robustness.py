@@ -10,8 +10,9 @@ against nil, linear and implicit in the same pass) where none of that holds,
 on held-out seeds only:
 
 * ``shapes`` -- every shape of :mod:`core.synthetic.shapes` (a ring, a faulted
-  strip, a contact around a pipe, a pivoting contact, an angular body, an arc),
-  which no default was chosen on, drilled the default way;
+  strip, a contact around a pipe, a pivoting contact, an angular body, an arc,
+  a layer dipping 16-29 degrees), which no default was chosen on, drilled the
+  default way;
 * ``drilling`` -- every family drilled otherwise (:data:`DRILLING`): patterns of
   9-12 m and 3-4 m, 6-10% label noise, 15 m benches in feet, 6 m benches, and each
   bench's pit 20-40 m sideways of the one above (a pushback: ground no bench above drilled).
