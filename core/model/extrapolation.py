@@ -44,6 +44,7 @@ import shapely
 from scipy import ndimage
 from shapely.geometry import MultiPolygon
 
+from core.correspondence.alignment import fft_translation, shift_mask
 from core.geometry.grid import Grid
 
 #: Neighbourhood over which the boundary's movement is averaged as a displacement when the
@@ -361,10 +362,18 @@ def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
     return last, before
 
 
-def boundary_movement(
-    older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float, with_origin: bool = False
-):
+def boundary_movement(older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float) -> np.ndarray:
     """How far the boundary nearest each cell moved outwards from one bench to the next, metres.
+
+    The movement of :func:`traced_boundary_movement`, without where it came from.
+    """
+    return traced_boundary_movement(older, newer, cell_size_m, reach_m)[0]
+
+
+def traced_boundary_movement(
+    older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """How far the boundary nearest each cell moved outwards from one bench to the next, and from where.
 
     ``F_newer - F_older`` at a cell is the movement only while the nearest
     boundary on both benches is the same one: in a strip that moved further
@@ -383,26 +392,22 @@ def boundary_movement(
         Signed distances (positive inside) on the two benches, metres.
     cell_size_m, reach_m : float
 
-    with_origin : bool
-        Also return where on the older boundary each cell's boundary point
-        came from (the end of its trajectory on the bench above).
-
     Returns
     -------
-    (rows, cols) float
+    moved : (rows, cols) float
         Outward movement, metres (negative where the boundary retreated);
         nan where the nearest boundary has no counterpart within the reach
         (a body appearing) and everywhere when ``newer`` has no boundary.
-    (2, rows, cols) float
-        With ``with_origin``: the (row, col) of that older boundary point, in
-        cells (the boundary point itself where there is no counterpart).
+    origin : (2, rows, cols) float
+        Where on the older boundary the cell's boundary point came from (the
+        end of its trajectory on the bench above), (row, col) in cells; the
+        boundary point itself where there is no counterpart.
     """
     g_r, g_c = np.gradient(newer)
     norm = np.hypot(g_r, g_c)
     band = (np.abs(newer) <= cell_size_m) & (norm > 0.2 * cell_size_m)
     if not band.any():
-        nan = np.full(newer.shape, np.nan)
-        return (nan, np.stack([nan, nan])) if with_origin else nan
+        return np.full(newer.shape, np.nan), np.full((2, *newer.shape), np.nan)
     n_r, n_c = g_r[band] / norm[band], g_c[band] / norm[band]
     rows, cols = np.nonzero(band)
     to_boundary = newer[band] / cell_size_m  # from each band cell to the boundary point, along -normal
@@ -421,8 +426,6 @@ def boundary_movement(
     moved = np.full(newer.shape, np.nan)
     moved[band] = np.where(matched, offset_m[pick, nearest], np.nan)
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
-    if not with_origin:
-        return moved[r, c]
     # The older boundary point each band cell's boundary point was matched to, along its normal.
     along = np.where(matched, offset_m[pick, nearest], 0.0) / cell_size_m - to_boundary
     origin = np.full((2, *newer.shape), np.nan)
@@ -431,7 +434,7 @@ def boundary_movement(
 
 
 def pair_movement(fields: BenchFields, older: int, newer: int, reach_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`boundary_movement` from bench ``older`` to ``newer`` with its origins, kept in ``fields.memo``.
+    """:func:`traced_boundary_movement` from bench ``older`` to ``newer``, kept in ``fields.memo``.
 
     A trend, its persistence and the backtests of the benches above ask for the same
     pairs; :func:`depth_trend` drops them once its trend is made.
@@ -439,7 +442,7 @@ def pair_movement(fields: BenchFields, older: int, newer: int, reach_m: float) -
 
     def compute() -> tuple[np.ndarray, np.ndarray]:
         f = fields.distance
-        return boundary_movement(f[older], f[newer], fields.grid.cell_size_m, reach_m, with_origin=True)
+        return traced_boundary_movement(f[older], f[newer], fields.grid.cell_size_m, reach_m)
 
     return _memoised(fields, ("movement", older, newer, reach_m), compute)
 
@@ -455,7 +458,6 @@ def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: flo
     does and by at least half (a contact dipping shallower than the benches'
     usual, not lenses that appear elsewhere). Kept in ``fields.memo``.
     """
-    from core.correspondence.alignment import fft_translation, shift_mask
 
     def compute() -> float:
         both = fields.drilled[older] & fields.drilled[newer]
