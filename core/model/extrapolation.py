@@ -455,8 +455,9 @@ def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: flo
     section with the newer's signed distance (FFT cross-correlation, paper
     section 3.2.1, eqs. (10)-(12)) inside the area both drilled, taken when the
     section moved by it overlaps the newer one better than the section held
-    does and by at least half (a contact dipping shallower than the benches'
-    usual, not lenses that appear elsewhere). Kept in ``fields.memo``.
+    does and by at least half, and the held section is within ``fastest_m`` of
+    the newer one (a contact dipping shallower than the benches' usual, not a
+    lens ending and another beginning further away). Kept in ``fields.memo``.
     """
 
     def compute() -> float:
@@ -473,7 +474,9 @@ def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: flo
         def overlap(a: np.ndarray) -> float:
             return float(np.sum(a & target)) / max(float(np.sum(a | target)), 1.0)
 
-        confirmed = overlap(moved) >= max(0.5, overlap(source))
+        # the section moved, not a body vanishing and another appearing further away than a boundary moves
+        gap_m = float(ndimage.distance_transform_edt(~target)[source].min()) * fields.grid.cell_size_m
+        confirmed = gap_m <= fastest_m and overlap(moved) >= max(0.5, overlap(source))
         return shift_m + fields.grid.cell_size_m if confirmed else fastest_m
 
     return _memoised(fields, ("reach", older, newer, fastest_m), compute)
