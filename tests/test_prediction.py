@@ -138,23 +138,16 @@ def test_a_layer_dipping_shallower_than_30_degrees_is_carried_on(known_benches):
 
 
 def test_a_body_moves_as_far_as_its_sections_align_but_a_lens_does_not_jump():
-    from core.geometry.grid import Grid
-    from core.model.extrapolation import BenchFields, bench_distance, movement_reach_m
+    from core.model.extrapolation import movement_reach_m
 
-    grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
-    drilled = np.ones(grid.shape, bool)
-
-    def fields(*centres):
-        d = np.array(
-            [bench_distance(grid.rasterize(Point(c).buffer(r)), drilled, 2.0, 48.0, 18.0)[0] for c, r in centres]
-        )
-        return BenchFields(grid, np.array([500.0, 490.0]), d, np.ones_like(d), np.stack([drilled] * 2))
-
+    everywhere = [shapely.box(0, 0, 200, 160)] * 2
     fastest = 10.0 / np.tan(np.radians(30.0))
     # a body 50 m across moving 28 m a bench: further than a 30-degree dip, its sections still touch
-    assert movement_reach_m(fields(((60.0, 80.0), 25.0), ((88.0, 80.0), 25.0)), 0, 1, fastest) >= 28.0
+    moving = _lens_fields([[(60.0, 80.0, 25.0)], [(88.0, 80.0, 25.0)]], everywhere)
+    assert movement_reach_m(moving, 0, 1, fastest) >= 28.0
     # a lens ending and another as large beginning 60 m away: not a movement
-    assert movement_reach_m(fields(((60.0, 80.0), 10.0), ((120.0, 80.0), 10.0)), 0, 1, fastest) == fastest
+    jumping = _lens_fields([[(60.0, 80.0, 10.0)], [(120.0, 80.0, 10.0)]], everywhere)
+    assert movement_reach_m(jumping, 0, 1, fastest) == fastest
 
 
 def test_movement_that_reverses_every_bench_is_predicted_no_worse_than_holding():
