@@ -329,7 +329,7 @@ def test_a_strip_moving_further_than_its_half_width_moves_both_of_its_edges():
         bench_distance(grid.rasterize(shapely.box(x, -10, x + 16, 170)), drilled, 2.0, 48.0, 18.0)[0]
         for x in (80.0, 92.0)
     )
-    moved = boundary_movement(older, newer, 2.0, 17.3)
+    moved, _ = boundary_movement(older, newer, 2.0, 17.3)
     row = grid.shape[0] // 2
     x = grid.cell_centres()[0][row]
     for edge, outwards in ((92.0, -12.0), (108.0, 12.0)):  # trailing edge retreats, leading edge advances

@@ -306,7 +306,7 @@ def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
     seen = np.prod(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0).astype(float)
     n = len(fields.z_m)
     h = float(abs(fields.z_m[-2] - fields.z_m[-1]))
-    fastest = h / np.tan(np.radians(MIN_DIP_DEG))
+    fastest = fastest_movement_m(h)
     reach1, reach2 = movement_reach_m(fields, n - 2, n - 1, fastest), movement_reach_m(fields, n - 3, n - 2, fastest)
     d1, d2 = movements_along_trajectories(fields, reach1, reach2)
     w = seen * ((np.abs(d1) <= reach1) & (np.abs(d2) <= reach2))
@@ -362,15 +362,7 @@ def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
     return last, before
 
 
-def boundary_movement(older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float) -> np.ndarray:
-    """How far the boundary nearest each cell moved outwards from one bench to the next, metres.
-
-    The movement of :func:`traced_boundary_movement`, without where it came from.
-    """
-    return traced_boundary_movement(older, newer, cell_size_m, reach_m)[0]
-
-
-def traced_boundary_movement(
+def boundary_movement(
     older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """How far the boundary nearest each cell moved outwards from one bench to the next, and from where.
@@ -434,17 +426,25 @@ def traced_boundary_movement(
 
 
 def pair_movement(fields: BenchFields, older: int, newer: int, reach_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`traced_boundary_movement` from bench ``older`` to ``newer``, kept in ``fields.memo``.
+    """:func:`boundary_movement` from bench ``older`` to ``newer``, kept in ``fields.memo``.
 
     A trend, its persistence and the backtests of the benches above ask for the same
-    pairs; :func:`depth_trend` drops them once its trend is made.
+    pairs; :func:`depth_trend` drops them (:data:`_MOVEMENTS`) once its trend is made.
     """
-
-    def compute() -> tuple[np.ndarray, np.ndarray]:
+    movements = fields.memo.setdefault(_MOVEMENTS, {})
+    if (older, newer, reach_m) not in movements:
         f = fields.distance
-        return traced_boundary_movement(f[older], f[newer], fields.grid.cell_size_m, reach_m)
+        movements[older, newer, reach_m] = boundary_movement(f[older], f[newer], fields.grid.cell_size_m, reach_m)
+    return movements[older, newer, reach_m]
 
-    return _memoised(fields, ("movement", older, newer, reach_m), compute)
+
+#: The memo's entry of bench pairs' movements: three grids a pair, kept only while a trend is made.
+_MOVEMENTS = ("movements",)
+
+
+def fastest_movement_m(bench_height_m: float) -> float:
+    """How far a boundary moves across itself in ``bench_height_m`` at the shallowest usual dip (:data:`MIN_DIP_DEG`)."""
+    return bench_height_m / float(np.tan(np.radians(MIN_DIP_DEG)))
 
 
 def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: float) -> float:
@@ -475,8 +475,11 @@ def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: flo
             return float(np.sum(a & target)) / max(float(np.sum(a | target)), 1.0)
 
         # the section moved, not a body vanishing and another appearing further away than a boundary moves
-        gap_m = float(ndimage.distance_transform_edt(~target)[source].min()) * fields.grid.cell_size_m
-        confirmed = gap_m <= fastest_m and overlap(moved) >= max(0.5, overlap(source))
+        held = overlap(source)
+        gap_m = (
+            0.0 if held > 0 else float(ndimage.distance_transform_edt(~target)[source].min()) * fields.grid.cell_size_m
+        )
+        confirmed = gap_m <= fastest_m and overlap(moved) >= max(0.5, held)
         return shift_m + fields.grid.cell_size_m if confirmed else fastest_m
 
     return _memoised(fields, ("reach", older, newer, fastest_m), compute)
@@ -507,7 +510,7 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
         return np.take_along_axis(fields.distance, np.maximum(idx, 0)[None], axis=0)[0]
 
     f_last = take(last)
-    fastest_m = bench_height_m / np.tan(np.radians(MIN_DIP_DEG))
+    fastest_m = fastest_movement_m(bench_height_m)
     two = (last >= 0) & (before >= 0)
     # signed: negative when extrapolating upwards (fields reversed), as the rate is per bench in that direction
     benches = np.where(two, z[np.maximum(before, 0)] - z[np.maximum(last, 0)], bench_height_m) / bench_height_m
@@ -667,7 +670,7 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
     but pods); lenses a bench or two tall do not (pods: median 0.5). 1.0
     where nothing can be counted.
     """
-    reach_cells = bench_height_m / np.tan(np.radians(MIN_DIP_DEG)) / fields.grid.cell_size_m
+    reach_cells = fastest_movement_m(bench_height_m) / fields.grid.cell_size_m
     reached = counted = 0.0
     for j in range(len(fields.z_m) - 1):
         bodies, n = ndimage.label((fields.distance[j] > 0) & fields.drilled[j])
@@ -695,8 +698,7 @@ def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     def compute() -> DepthTrend:
         trend = _trend(fields, bench_height_m, hole_spacing_m)
         confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
-        for key in [key for key in fields.memo if key[0] == "movement"]:
-            del fields.memo[key]  # three grids a bench pair: kept only while the trend and its backtests are made
+        fields.memo.pop(_MOVEMENTS, None)
         return replace(trend, carried_precision=confirmed)  # shares the trend's arrays
 
     return _memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)
