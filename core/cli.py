@@ -488,7 +488,7 @@ def _write_uncertainty(session, geozone: str, levels: list[float], model, probab
     from core.model.uncertainty import geozone_uncertainty
 
     z_m = [float(session.holes.frame.z_to_local(v)) for v in levels]
-    sections = geozone_uncertainty(session, geozone, z_m, model, probability, session.predict(geozone, z_m, model))
+    sections = geozone_uncertainty(session, geozone, z_m, model, probability)
     write_geojson(band_features(sections, session.holes, geozone), paths[0])
     write_probability_grid(paths[1], probability_grid(sections, session.holes, geozone))
     at_benches = [v for v, z in zip(levels, z_m) if sections[z] is None]

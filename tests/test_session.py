@@ -66,6 +66,22 @@ def test_a_second_run_on_the_same_input_is_read_from_disk(holes, tmp_path):
     assert _translations(fresh) == _translations(model)
 
 
+def test_the_uncertainty_of_a_prediction_is_read_back_and_follows_the_parameters(holes, tmp_path):
+    """A repeated ``bgm predict`` reads its bands back; its calibration may pool every geozone's contours."""
+    from core.model.uncertainty import geozone_uncertainty
+
+    z = [float(holes.bench_levels_m[-1]) - 5.0]
+    session = _session(holes, tmp_path)
+    first = geozone_uncertainty(session, "g1", z)[z[0]]
+    assert _computed(session)["uncertainty"] == 1
+    again = _session(holes, tmp_path)
+    read = geozone_uncertainty(again, "g1", z)[z[0]]
+    assert _computed(again) == {} and np.array_equal(read.sigma, first.sigma)
+    changed = _session(holes, tmp_path, entropy_threshold=0.2)
+    geozone_uncertainty(changed, "g1", z)
+    assert _computed(changed)["uncertainty"] == 1
+
+
 def test_a_changed_hole_label_recomputes_its_bench_and_what_follows(holes, tmp_path):
     _session(holes, tmp_path).geozone_model("g1")
     on = holes.on_bench(1)

@@ -584,7 +584,7 @@ def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict
     from core.model.uncertainty import DEFAULT_PROBABILITY, band_width_m, geozone_uncertainty
 
     holes, g = session.holes, model.geozone
-    sections = geozone_uncertainty(session, g, list(predictions), model, DEFAULT_PROBABILITY, predictions)
+    sections = geozone_uncertainty(session, g, list(predictions), model, DEFAULT_PROBABILITY)
     write_geojson(band_features(sections, holes, g), gdir / "uncertainty.geojson")
     write_probability_grid(gdir / "p_inside.npz", probability_grid(sections, holes, g))
     levels = holes.bench_levels_m

@@ -201,6 +201,21 @@ class ModelSession:
             float(self.holes.hole_spacing_m),
         )
 
+    def uncertainty_key(self, model: GeozoneModel, z_m: list[float], probability: float) -> str:
+        """Key of the uncertainty of the model's sections at ``z_m``.
+
+        Its calibration may pool the other geozones' backtests: their contours
+        rest on the same holes and contour parameters as the model's own.
+        """
+        return content_key(
+            "uncertainty",
+            self._model_key(model),
+            [float(z) for z in z_m],
+            float(probability),
+            stage_values(self.params, "contours"),
+            stage_values(self.params, "prediction"),
+        )
+
     # -- contours (paper section 2) ------------------------------------------------------------
     def bench_contours(self, bench: int) -> list[Contour]:
         """Contours of every geozone on one bench."""

@@ -691,7 +691,6 @@ def geozone_uncertainty(
     z_m: Sequence[float],
     model: GeozoneModel | None = None,
     probability: float = DEFAULT_PROBABILITY,
-    regions: dict | None = None,
 ) -> dict[float, SectionUncertainty | None]:
     """The calibrated uncertainty of the geozone's predicted section at each elevation (metres).
 
@@ -704,8 +703,6 @@ def geozone_uncertainty(
         The geozone's model (computed by the session when omitted).
     probability : float
         The band's probability of holding the true boundary.
-    regions : dict, optional
-        The predicted sections by elevation (``session.predict``); predicted when omitted.
 
     Returns
     -------
@@ -717,7 +714,8 @@ def geozone_uncertainty(
     -----
     The scale is calibrated on the geozone's own backtest; when that is too
     short, the backtests of the input's other geozones are pooled (computed
-    only then; see :func:`calibrate`).
+    only then; see :func:`calibrate`). Kept in the session's store (on its
+    disk cache): a repeated ``bgm predict`` reads it back.
     """
     if not 0 < probability < 1:
         raise ValueError(f"the band's probability must lie between 0 and 1, got {probability}")
@@ -725,18 +723,26 @@ def geozone_uncertainty(
     z_m = [float(z) for z in z_m]
     if model.fields is None or not len(model.fields.z_m):
         return dict.fromkeys(z_m)
-    regions = regions if regions is not None else session.predict(geozone, z_m, model)
+    fields = model.fields
+    key = session.uncertainty_key(model, z_m, probability)
+    return session.store.get("uncertainty", key, lambda: _sections(session, model, fields, z_m, probability))
+
+
+def _sections(session, model: GeozoneModel, fields: BenchFields, z_m: list[float], probability: float) -> dict:
+    """:func:`geozone_uncertainty` computed (its scales calibrated once per direction)."""
+    geozone = model.geozone
+    regions = session.predict(geozone, z_m, model)
     spacing = float(session.holes.hole_spacing_m)
     scales: dict[bool, UncertaintyScale] = {}
     out: dict[float, SectionUncertainty | None] = {}
     others = [g for g in session.holes.geozones if g != geozone]
     for z in z_m:
-        for down in directions(model.fields, z):
+        for down in directions(fields, z):
             if down not in scales:
                 scales[down] = calibrate(
                     session_backtest(session, geozone, down, model),
                     functools.partial(_backtests, session, others, down),
                     probability,
                 )
-        out[z] = section_uncertainty(model.fields, z, spacing, probability, region=regions.get(z), scales=scales)
+        out[z] = section_uncertainty(fields, z, spacing, probability, region=regions.get(z), scales=scales)
     return out
