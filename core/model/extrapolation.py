@@ -17,9 +17,10 @@ Per cell, the movement across itself of the nearest boundary between the
 last two benches that observed it, matched along its normal to the boundary
 facing the same way (:func:`boundary_movement`, as far as the geozone's
 sections moved: :func:`movement_reach_m`), is the rate of movement
-(:func:`fit_trend`), damped where successive bench pairs disagree along the
-boundary's trajectory (:func:`local_persistence`: a body that moves steadily
-keeps its trend, one whose movement reverses or is shape noise is held). A geozone whose bodies
+(:func:`fit_trend`), damped as far as successive bench pairs disagree along
+the trajectories of the geozone's boundary (:func:`geozone_persistence`: a
+geozone whose bodies move steadily keeps its trend, one whose movement
+reverses or is shape noise is held). A geozone whose bodies
 end between benches (lenses) has its growth held as well
 (:data:`GROWTH_CONTINUITY_POWER`). The boundary moves by
 ``persistence * rate * f`` across itself ``f`` bench heights below, and the
@@ -58,8 +59,10 @@ from core.geometry.grid import Grid
 #: the transport, no longer gained: 0.1 and 0.4 F1 points better without).
 TRANSPORT_SMOOTHING_SPACINGS = 3.0
 TRANSPORT_DIRECTIONS = 4
-#: Neighbourhood over which the persistence of movement is measured, in hole spacings.
-PERSISTENCE_SPACINGS = 3.0
+#: Cells within this many cells of the deepest boundary measure the persistence of its movement
+#: (:func:`geozone_persistence`); every cell takes the movement of its nearest boundary point,
+#: and cells far from it would weigh a boundary by the empty ground around it.
+PERSISTENCE_BAND_CELLS = 2.0
 #: Signed distances are capped at this many hole spacings: a boundary far away
 #: says nothing about how the one nearby moves, and a cell at the cap is not moved
 #: by the movement of its nearest boundary (:func:`depth_trend`).
@@ -279,14 +282,14 @@ def bench_fields(
     )
 
 
-def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
-    """How much of the last bench-to-bench change carries on at each cell, in [0, 1].
+def geozone_persistence(fields: BenchFields) -> float:
+    """How much of the last bench-to-bench movement carries on, for the geozone's boundary as a whole, in [0, 1].
 
     The agreement of the last movement of the boundary (``d1``) with the one
     before along its trajectory (``d2``, :func:`movements_along_trajectories`;
     where there is no trajectory, the changes of the signed distance ``F_k -
-    F_k-1`` and ``F_k-1 - F_k-2``) over a Gaussian neighbourhood of
-    ``smoothing_m``::
+    F_k-1`` and ``F_k-1 - F_k-2``), summed over the cells on the deepest
+    boundary that three benches observed::
 
         rho = 2 sum(d1 d2) / sum(d1^2 + d2^2)   in [-1, 1]
 
@@ -296,26 +299,29 @@ def local_persistence(fields: BenchFields, smoothing_m: float) -> np.ndarray:
     repeated movement is at least as large as what does not repeat (section
     noise lowers ``rho`` of a steady boundary towards 1/2 when it is as
     large as the movement), none where the movement reverses or is noise.
-    Where fewer than three benches observed a cell it is 1 (nothing says the
+    With fewer than three benches, or no such cell, it is 1 (nothing says the
     movement does not carry on). Changes faster than a boundary of the
     geozone moves (:func:`movement_reach_m`) are left out: they are bodies
     appearing.
+
+    Measured over the whole boundary rather than per neighbourhood
+    (:data:`PERSISTENCE_BAND_CELLS`): a lens's boundary gives a few dozen
+    cells, whose agreement by chance is as often positive as not, and a
+    local estimate clipped at 0 kept half of every lens's noise.
     """
     if len(fields.z_m) < 3:
-        return np.ones(fields.grid.shape)
-    seen = np.prod(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0).astype(float)
+        return 1.0
     n = len(fields.z_m)
-    h = float(abs(fields.z_m[-2] - fields.z_m[-1]))
-    fastest = fastest_movement_m(h)
+    fastest = fastest_movement_m(float(abs(fields.z_m[-2] - fields.z_m[-1])))
     reach1, reach2 = movement_reach_m(fields, n - 2, n - 1, fastest), movement_reach_m(fields, n - 3, n - 2, fastest)
     d1, d2 = movements_along_trajectories(fields, reach1, reach2)
-    w = seen * ((np.abs(d1) <= reach1) & (np.abs(d2) <= reach2))
-    sigma = smoothing_m / fields.grid.cell_size_m
-    agree = ndimage.gaussian_filter(w * d1 * d2, sigma)
-    energy = ndimage.gaussian_filter(w * (d1**2 + d2**2), sigma)
-    rho = 2 * agree / np.maximum(energy, 1e-9)
-    support = ndimage.gaussian_filter(w, sigma)
-    return np.where((support > 0.05) & (energy > 0), np.clip(2 * rho, 0.0, 1.0), 1.0)
+    seen = np.all(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0)
+    on_boundary = np.abs(fields.distance[-1]) <= PERSISTENCE_BAND_CELLS * fields.grid.cell_size_m
+    w = seen & on_boundary & (np.abs(d1) <= reach1) & (np.abs(d2) <= reach2)
+    energy = float(np.sum(d1[w] ** 2 + d2[w] ** 2))
+    if energy <= 0:
+        return 1.0
+    return float(np.clip(4 * np.sum(d1[w] * d2[w]) / energy, 0.0, 1.0))
 
 
 def movements_along_trajectories(
@@ -767,7 +773,7 @@ def _fitted_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: fl
     # its signed distance (carried over many benches it would raise a body out of nothing there).
     rate = np.where(np.abs(f_last) >= CAP_SPACINGS * hole_spacing_m - 1e-6, 0.0, rate)
     continuity = body_continuity(fields, bench_height_m)
-    persistence = local_persistence(fields, PERSISTENCE_SPACINGS * hole_spacing_m)
+    persistence = geozone_persistence(fields)
     persistence = np.where(rate > 0, persistence * continuity**GROWTH_CONTINUITY_POWER, persistence)
     return DepthTrend(
         fields.grid,

@@ -217,7 +217,7 @@ def movement_inconsistency(fields: BenchFields, smoothing_m: float) -> np.ndarra
     """How much the movement changed between the last two bench pairs, metres per bench (RMS nearby).
 
     With ``d1 = F_k - F_k-1`` and ``d2 = F_k-1 - F_k-2`` (as
-    :func:`core.model.extrapolation.local_persistence`), the root mean square
+    :func:`core.model.extrapolation.geozone_persistence`), the root mean square
     of ``d1 - d2`` over a Gaussian neighbourhood of ``smoothing_m``, where the
     three benches drilled the cell and the changes are movements (not bodies
     appearing). 0 for a boundary moving steadily, twice the movement for one
