@@ -146,8 +146,9 @@ def predict_geozone(
     where the geozone is on neither); below the deepest bench of the table
     (above the top one) the depth trend of :mod:`core.model.extrapolation`
     over every bench, so a geozone that pinched out above the deepest bench is
-    predicted absent below it. ``hole_spacing_m`` sets the persistence
-    neighbourhood; ``params`` is unused (kept for callers).
+    predicted absent below it. ``hole_spacing_m`` sets the trend's
+    neighbourhoods (the transport's smoothing, the distance cap); ``params``
+    is unused (kept for callers).
     """
     fields = model.fields
     pairs = [p for p in model.pairs if p.correspondence is not None]
