@@ -258,6 +258,30 @@ def _lens_fields(lenses_per_bench, drilled_per_bench):
     return bench_fields(regions, drilled, z, grid, 6.0, 18.0)
 
 
+def test_a_lens_that_grew_twice_by_chance_among_lenses_that_change_at_random_is_held():
+    """How much of the movement carries on is read from the geozone's whole boundary.
+
+    Five lenses grow and shrink back, or shrink and grow back, by 3 m; a sixth
+    grows 3 m on both bench pairs (10, 13, 16 m), as a lens among them may by
+    chance. Judged on its own boundary it moves steadily (a neighbourhood of
+    three spacings grew it to 19 m a bench below); judged with the geozone's,
+    its growth is no more likely to go on than theirs, and it is held.
+    """
+    from core.model.extrapolation import depth_trend, geozone_persistence
+
+    everywhere = shapely.box(0, 0, 200, 160)
+    others = [(40, 40, 1), (100, 40, -1), (160, 40, 1), (40, 120, -1), (100, 120, 1)]
+    benches = [
+        [(x, y, 12 + sign * change) for x, y, sign in others] + [(160, 120, radius)]
+        for change, radius in zip((0.0, 3.0, 0.0), (10.0, 13.0, 16.0))
+    ]
+    fields = _lens_fields(benches, [everywhere] * 3)
+    assert geozone_persistence(fields) < 0.1
+    below = depth_trend(fields, 10.0, 6.0).region(470.0)
+    assert below.contains(Point(160 + 14.0, 120)) and not below.contains(Point(160 + 17.0, 120))
+    assert below.contains(Point(40 + 10.0, 40)) and not below.contains(Point(40 + 13.0, 40))
+
+
 def test_a_lens_only_older_benches_saw_is_carried_on_only_where_the_geozones_bodies_continue():
     from core.model.extrapolation import body_continuity, depth_trend
 
