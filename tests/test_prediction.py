@@ -138,10 +138,10 @@ def test_a_layer_dipping_shallower_than_30_degrees_is_carried_on(known_benches):
 
 
 def test_a_body_moves_as_far_as_its_sections_align_but_a_lens_does_not_jump():
-    from core.model.extrapolation import movement_reach_m
+    from core.model.extrapolation import fastest_movement_m, movement_reach_m
 
     everywhere = [shapely.box(0, 0, 200, 160)] * 2
-    fastest = 10.0 / np.tan(np.radians(30.0))
+    fastest = fastest_movement_m(10.0)
     # a body 50 m across moving 28 m a bench: further than a 30-degree dip, its sections still touch
     moving = _lens_fields([[(60.0, 80.0, 25.0)], [(88.0, 80.0, 25.0)]], everywhere)
     assert movement_reach_m(moving, 0, 1, fastest) >= 28.0

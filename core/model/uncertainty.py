@@ -59,7 +59,7 @@ from skimage import measure
 
 from core.geometry.grid import Grid, as_multipolygon
 from core.geometry.sdf import region_signed_distance
-from core.model.extrapolation import MIN_DIP_DEG, BenchFields, DepthTrend, depth_trend, last_observations
+from core.model.extrapolation import BenchFields, DepthTrend, depth_trend, fastest_movement_m, last_observations
 from core.model.pipeline import GeozoneModel
 from core.model.prediction import predict_geozone
 
@@ -74,7 +74,7 @@ TERMS = ("spacing", "depth", "carried movement", "held movement", "inconsistent 
 #: not carry on. A pit's first benches are often drilled too sparsely to backtest on (Kennecott's top
 #: bench: 1% of the next one's area); with 45 degrees (one bench height) the band held 71% of bench 2's
 #: boundary there.
-PRIOR_COEFFICIENTS = (0.5, float(1 / np.tan(np.radians(MIN_DIP_DEG))), 0.0, 1.0, 1.0)
+PRIOR_COEFFICIENTS = (0.5, fastest_movement_m(1.0), 0.0, 1.0, 1.0)
 #: Where the maximum-likelihood fit of the coefficients starts (:func:`fit_scale`): the prior with a
 #: bench height per bench of depth. Fits of few, heavy-tailed backtests (pods) have several optima;
 #: this start is the one the band was measured with.
