@@ -237,6 +237,31 @@ def test_with_two_benches_shape_noise_is_nearly_held_and_a_split_still_moves_apa
     assert split[0] > split[1] + 0.05, split
 
 
+def test_a_noisy_body_keeps_its_steady_movement_and_drops_its_wobble():
+    """The outlines' movement and the finer changes carry on as far as each repeats (issue 12: damp only what is not).
+
+    A disc moving 6 m a bench whose outline wobbles at random (harmonics 2-5, up to 6% of
+    its radius each, new every bench): one figure for the whole movement damped the steady
+    translation to about half in 2 of these 6 cases.
+    """
+    from core.geometry.grid import Grid, as_multipolygon
+    from core.model.extrapolation import bench_fields, geozone_persistence
+
+    grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
+    everywhere = grid.rasterize(shapely.box(0, 0, 200, 160))
+    figures = []
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        sections = {k: as_multipolygon(_wobbly_disc(rng, (80.0 + 6.0 * k, 80.0), amplitude=0.06)) for k in range(3)}
+        fields = bench_fields(
+            sections, dict.fromkeys(range(3), everywhere), {k: 500.0 - 10 * k for k in range(3)}, grid, 6.0, 36.0
+        )
+        figures.append(geozone_persistence(fields))
+    outline, finer = np.array(figures).T
+    assert outline.min() > 0.95, figures
+    assert finer.mean() < 0.3, figures
+
+
 def test_a_split_continues_as_two_parts():
     from shapely.geometry import Point as P
 
@@ -322,7 +347,7 @@ def test_a_lens_that_grew_twice_by_chance_among_lenses_that_change_at_random_is_
         for change, radius in zip((0.0, 3.0, 0.0), (10.0, 13.0, 16.0))
     ]
     fields = _lens_fields(benches, [everywhere] * 3)
-    assert geozone_persistence(fields) < 0.1
+    assert geozone_persistence(fields)[0] < 0.1  # the outlines' movement (growth here)
     below = depth_trend(fields, 10.0, 6.0).region(470.0)
     assert below.contains(Point(160 + 14.0, 120)) and not below.contains(Point(160 + 17.0, 120))
     assert below.contains(Point(40 + 10.0, 40)) and not below.contains(Point(40 + 13.0, 40))
@@ -436,7 +461,7 @@ def test_a_strip_moving_steadily_further_than_its_half_width_keeps_its_movement(
     fields = BenchFields(
         grid, np.array([500.0, 490.0, 480.0]), distance, np.ones_like(distance), np.stack([drilled] * 3)
     )
-    assert geozone_persistence(fields) > 0.95
+    assert geozone_persistence(fields)[0] > 0.95  # the outlines' movement
 
 
 def test_a_lens_growing_in_a_geozone_whose_bodies_end_is_held_and_a_body_that_goes_on_keeps_growing():

@@ -17,15 +17,17 @@ Per cell, the movement across itself of the nearest boundary between the
 last two benches that observed it, matched along its normal to the boundary
 facing the same way (:func:`boundary_movement`, as far as the geozone's
 sections moved: :func:`movement_reach_m`), is the rate of movement
-(:func:`fit_trend`), damped as far as successive bench pairs disagree along
-the trajectories of the geozone's boundary (:func:`geozone_persistence`: a
-geozone whose bodies move steadily keeps its trend, one whose movement
-reverses or is shape noise is held; with two benches known, only
-the movement of each outline as a whole is carried, :func:`outline_movement`).
-A geozone whose bodies end between benches (lenses) has its growth held as well
-(:data:`GROWTH_CONTINUITY_POWER`). The boundary moves by
-``persistence * rate * f`` across itself ``f`` bench heights below, and the
-last section is carried along that movement (:meth:`DepthTrend.field`).
+(:func:`fit_trend`). It is split into the movement of each outline as a
+whole (its translation, growth and elongation, :func:`outline_movement`) and
+the finer changes, and each part is carried on as far as successive bench
+pairs agree on it along the trajectories of the geozone's boundary
+(:func:`geozone_persistence`: a geozone whose bodies move steadily keeps its
+trend, one whose movement reverses or is shape noise is held; with two
+benches known, only the outlines' movement is carried). A geozone whose
+bodies end between benches (lenses) has its growth held as well
+(:data:`GROWTH_CONTINUITY_POWER`). The boundary moves by ``carried * f``
+across itself ``f`` bench heights below, and the last section is carried
+along that movement (:meth:`DepthTrend.field`).
 
 Where a bench was not drilled its boundary is unknown, not absent: the
 drilling frontier is not a boundary. ``F_j`` measures the distance to the
@@ -79,8 +81,8 @@ CAP_SPACINGS = 8.0
 #: sections align at a larger translation (a shallower contact), that is the bound for the
 #: pair (:func:`movement_reach_m`).
 MIN_DIP_DEG = 30.0
-#: A boundary's outward movement (a body growing) carries on by ``continuity ** 4`` of its
-#: persistence, ``continuity`` the share of the geozone's bodies that reach the next bench
+#: A boundary's outward movement (a body growing) carries on by ``continuity ** 4`` of what
+#: its persistence carries, ``continuity`` the share of the geozone's bodies that reach the next bench
 #: (:func:`body_continuity`). A lens's section widens only down to its middle and its radius
 #: goes as a square root of the depth from its tip: growth seen between two benches has
 #: mostly stopped or turned by the next one (on the tuning seeds 2-22% of the pods' carried
@@ -283,14 +285,16 @@ def bench_fields(
     )
 
 
-def geozone_persistence(fields: BenchFields) -> float:
+def geozone_persistence(fields: BenchFields) -> tuple[float, float]:
     """How much of the last bench-to-bench movement carries on, for the geozone's boundary as a whole, in [0, 1].
 
-    The agreement of the last movement of the boundary (``d1``) with the one
-    before along its trajectory (``d2``, :func:`movements_along_trajectories`;
-    where there is no trajectory, the changes of the signed distance ``F_k -
-    F_k-1`` and ``F_k-1 - F_k-2``), summed over the cells on the deepest
-    boundary that three benches observed::
+    Two figures: for the movement of each outline as a whole and for the
+    finer changes (:func:`outline_movement`). For each, the agreement of the
+    last movement of the boundary (``d1``) with the one before along its
+    trajectory (``d2``, :func:`movements_along_trajectories`; where there is
+    no trajectory, the changes of the signed distance ``F_k - F_k-1`` and
+    ``F_k-1 - F_k-2``), summed over the cells on the deepest boundary that
+    three benches observed::
 
         rho = 2 sum(d1 d2) / sum(d1^2 + d2^2)   in [-1, 1]
 
@@ -300,10 +304,14 @@ def geozone_persistence(fields: BenchFields) -> float:
     repeated movement is at least as large as what does not repeat (section
     noise lowers ``rho`` of a steady boundary towards 1/2 when it is as
     large as the movement), none where the movement reverses or is noise.
-    With fewer than three benches, or no such cell, it is 1 (nothing says the
-    movement does not carry on). Changes faster than a boundary of the
-    geozone moves (:func:`movement_reach_m`) are left out: they are bodies
-    appearing.
+    The two parts are judged apart because they repeat apart: a strip's
+    outline moves steadily while its edges wobble from bench to bench, and a
+    body splitting pinches at its neck bench after bench, which its outline's
+    movement does not hold. With fewer than three benches nothing tells
+    either: the outlines' movement is carried (1) and the finer changes are
+    not (0). A part with no such cell, or no change on them, is carried (1).
+    Changes faster than a boundary of the geozone moves
+    (:func:`movement_reach_m`) are left out: they are bodies appearing.
 
     Measured over the whole boundary rather than per neighbourhood
     (:data:`PERSISTENCE_BAND_CELLS`): a lens's boundary gives a few dozen
@@ -311,7 +319,7 @@ def geozone_persistence(fields: BenchFields) -> float:
     local estimate clipped at 0 kept half of every lens's noise.
     """
     if len(fields.z_m) < 3:
-        return 1.0
+        return 1.0, 0.0
     n = len(fields.z_m)
     fastest = fastest_movement_m(float(abs(fields.z_m[-2] - fields.z_m[-1])))
     reach1, reach2 = movement_reach_m(fields, n - 2, n - 1, fastest), movement_reach_m(fields, n - 3, n - 2, fastest)
@@ -319,10 +327,17 @@ def geozone_persistence(fields: BenchFields) -> float:
     seen = np.all(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0)
     on_boundary = np.abs(fields.distance[-1]) <= PERSISTENCE_BAND_CELLS * fields.grid.cell_size_m
     w = seen & on_boundary & (np.abs(d1) <= reach1) & (np.abs(d2) <= reach2)
-    energy = float(np.sum(d1[w] ** 2 + d2[w] ** 2))
-    if energy <= 0:
-        return 1.0
-    return float(np.clip(4 * np.sum(d1[w] * d2[w]) / energy, 0.0, 1.0))
+    h = fields.grid.cell_size_m
+    # d2 is carried to the deepest boundary along the trajectories: both parts are fitted on its outlines
+    outline1 = outline_movement(np.where(w, d1, 0.0), w, fields.distance[-1], h)
+    outline2 = outline_movement(np.where(w, d2, 0.0), w, fields.distance[-1], h)
+    return _agreement(outline1[w], outline2[w]), _agreement((d1 - outline1)[w], (d2 - outline2)[w])
+
+
+def _agreement(d1: np.ndarray, d2: np.ndarray) -> float:
+    """``clip(4 sum(d1 d2) / sum(d1^2 + d2^2), 0, 1)``, 1 without change (:func:`geozone_persistence`)."""
+    energy = float(np.sum(d1**2 + d2**2))
+    return float(np.clip(4 * np.sum(d1 * d2) / energy, 0.0, 1.0)) if energy > 0 else 1.0
 
 
 def movements_along_trajectories(
@@ -492,7 +507,7 @@ def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: flo
     return _memoised(fields, ("reach", older, newer, fastest_m), compute)
 
 
-def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per cell, the last observed signed distance, where it was observed and its change with depth.
 
     Each cell's trend rests on the last two benches drilled there (the
@@ -502,14 +517,15 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     counterpart, the change from ``F_j2`` to ``F_j1``, held where faster than
     a boundary moves (:data:`MIN_DIP_DEG`). A cell drilled by one bench only
     has no change; a cell none drilled takes the deepest bench's nearest
-    evidence, with no change. With two benches known, a measured movement is
-    only the part that moves its outline as a whole (:func:`outline_movement`).
+    evidence, with no change.
 
     Returns
     -------
     f_last, z_last, rate : (rows, cols) float
         ``F_j1``, the elevation of ``j1`` (metres) and the outward movement
         of the boundary per bench height downwards.
+    matched : (rows, cols) bool
+        Where ``rate`` is the movement of a boundary matched on both benches.
     """
     last, before = last_observations(fields)
     z = fields.z_m
@@ -537,9 +553,7 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
         rate[cells] = np.where(matched[cells], moved[cells] / gap, rate[cells])
     observed = last >= 0
     f_last = np.where(observed, f_last, fields.distance[-1])
-    if len(z) == 2:  # no bench pair before to tell a change that repeats (geozone_persistence)
-        rate = outline_movement(rate, matched, f_last, fields.grid.cell_size_m)
-    return f_last, np.where(observed, z[np.maximum(last, 0)], z[-1]), rate
+    return f_last, np.where(observed, z[np.maximum(last, 0)], z[-1]), rate, matched
 
 
 def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, cell_size_m: float) -> np.ndarray:
@@ -553,16 +567,21 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
         a + b cos t + c sin t + d cos 2t + e sin 2t
 
     (``a`` growth, ``(b, c)`` a translation, ``(d, e)`` the normal movement of
-    a stretch along an axis: a body elongating or splitting). Every cell in
-    ``matched`` (its boundary's movement measured, :func:`boundary_movement`)
-    takes the fit at its nearest boundary cell; the others keep ``rate``.
+    a stretch along an axis: a body elongating or splitting), bounded by the
+    5th and 95th percentiles of the movement measured on the stretch (on a
+    long winding contact whose normals point some way at a few cells only,
+    the harmonics alone made up movements of 10-20 m a bench that no cell
+    showed). Every cell in ``matched`` (its boundary's movement measured,
+    :func:`boundary_movement`) takes the fit at its nearest boundary cell;
+    the others keep ``rate``.
 
-    With two benches known, nothing tells a change that carries on from
-    shape noise (:func:`geozone_persistence` needs three). The finer changes
-    are the noise: carried on, they lost 2.9 F1 points to holding the last
-    bench on a constructed body whose outline changes at random from bench to
-    bench; fitted, 0.8 (BENCHMARKS.md). A fit without the elongation held
-    that noise entirely but lost 4.5 points on a body splitting in two.
+    The finer changes are what shape noise is made of, and with two benches
+    known nothing tells them from a change that carries on
+    (:func:`geozone_persistence`). Carried on, they lost 2.9 F1 points to
+    holding the last bench on a constructed body whose outline changes at
+    random from bench to bench; the outline's movement alone, 0.8
+    (BENCHMARKS.md). Without the elongation that noise was held entirely but
+    a body splitting in two lost 4.5 points.
     """
     g_r, g_c = np.gradient(f_last)
     norm = np.hypot(g_r, g_c)
@@ -578,7 +597,7 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
         fit, cells = use & (owner == stretch), owner == stretch
         if fit.sum() >= design.shape[1]:
             coef, *_ = np.linalg.lstsq(design[fit], values[fit], rcond=None)
-            fitted[cells] = design[cells] @ coef
+            fitted[cells] = np.clip(design[cells] @ coef, *np.percentile(values[fit], [5, 95]))
     on_band = np.full(rate.shape, np.nan)
     on_band[band] = fitted
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
@@ -591,11 +610,13 @@ class DepthTrend:
     """A geozone's signed distance below its deepest bench (see the module docstring).
 
     Per cell: the signed distance ``f_last`` at the deepest bench that
-    observed the cell (elevation ``z_last``), its change per bench height
-    downwards ``rate`` (in the direction of extrapolation) and how much of it
-    carries on, ``persistence``. The boundary moves ``m = persistence * rate *
-    (z_last - z) / bench_height_m`` metres outwards (along ``-grad F``), and
-    ``F(z)`` is ``f_last`` carried by that movement (:meth:`field`).
+    observed the cell (elevation ``z_last``), the outward movement of its
+    boundary per bench height downwards ``rate`` (in the direction of
+    extrapolation) and the part of it that carries on, ``carried``
+    (:func:`geozone_persistence`, :data:`GROWTH_CONTINUITY_POWER`). The
+    boundary moves ``m = carried * (z_last - z) / bench_height_m`` metres
+    outwards (along ``-grad F``), and ``F(z)`` is ``f_last`` carried by that
+    movement (:meth:`field`).
     ``transport_smoothing_m``: the neighbourhood over which the movement is
     averaged as a displacement. ``carried_precision`` is the share of a
     carried section the next bench confirms (:func:`carried_precision`) and
@@ -611,14 +632,14 @@ class DepthTrend:
     f_last: np.ndarray
     z_last: np.ndarray
     rate: np.ndarray
-    persistence: np.ndarray
+    carried: np.ndarray
     transport_smoothing_m: float
     carried_precision: float
     f_deepest: np.ndarray
 
     def movement(self, z_m: float) -> np.ndarray:
         """Metres the boundary moves outwards from ``z_last`` to ``z_m``, per cell."""
-        return self.persistence * self.rate * (self.z_last - z_m) / self.bench_height_m
+        return self.carried * (self.z_last - z_m) / self.bench_height_m
 
     def field(self, z_m: float) -> np.ndarray:
         """Signed distance to the predicted boundary at elevation ``z_m`` (past the deepest bench).
@@ -819,13 +840,15 @@ def _trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) ->
 
 
 def _fitted_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
-    f_last, z_last, rate = fit_trend(fields, bench_height_m)
+    f_last, z_last, rate, matched = fit_trend(fields, bench_height_m)
     # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
     # its signed distance (carried over many benches it would raise a body out of nothing there).
     rate = np.where(np.abs(f_last) >= CAP_SPACINGS * hole_spacing_m - 1e-6, 0.0, rate)
     continuity = body_continuity(fields, bench_height_m)
-    persistence = geozone_persistence(fields)
-    persistence = np.where(rate > 0, persistence * continuity**GROWTH_CONTINUITY_POWER, persistence)
+    outline = outline_movement(rate, matched, f_last, fields.grid.cell_size_m)
+    kept_outline, kept_finer = geozone_persistence(fields)
+    carried = kept_outline * outline + kept_finer * (rate - outline)
+    carried = np.where(carried > 0, carried * continuity**GROWTH_CONTINUITY_POWER, carried)
     return DepthTrend(
         fields.grid,
         float(fields.z_m[-1]),
@@ -833,7 +856,7 @@ def _fitted_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: fl
         f_last,
         z_last,
         rate,
-        persistence,
+        carried,
         TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
         continuity,
         fields.distance[-1],

@@ -7,11 +7,11 @@ from that point to the predicted boundary. This module models it as
 ``N(0, sigma^2)`` with a per-cell scale built from what the trend knows
 (paper, Discussion: slope predictions to target sampling)::
 
-    sigma^2 = (c0 s)^2 + (c1 h d)^2 + (c2 p |r| d)^2 + (c3 (1 - p) |r| d)^2
+    sigma^2 = (c0 s)^2 + (c1 h d)^2 + (c2 |m| d)^2 + (c3 |r - m| d)^2
 
 with ``s`` the hole spacing, ``h`` the bench height, ``d`` the depth below
-the cell's last observed bench in bench heights, ``r`` its change of ``F`` per
-bench and ``p`` its persistence. The terms are: where holes can place a
+the cell's last observed bench in bench heights, ``r`` the movement of its
+boundary per bench and ``m`` the part of it carried on. The terms are: where holes can place a
 boundary at all (``s``); the vertical distance to the last observation (a
 boundary dipping at 45 degrees moves across itself by as much); the movement
 the prediction carries on (its disagreement with holding the last bench, the
@@ -173,13 +173,12 @@ def scale_terms(fields: BenchFields, trend: DepthTrend, z_m: float, hole_spacing
     ``fields`` are the benches the trend extrapolates (for the consistency of their movement).
     """
     depth = np.abs(trend.z_last - z_m) / trend.bench_height_m  # bench heights from the last observation, either way
-    movement = np.abs(trend.rate) * depth
     return np.stack(
         [
             np.full(trend.f_last.shape, hole_spacing_m),
             depth * trend.bench_height_m,
-            trend.persistence * movement,
-            (1.0 - trend.persistence) * movement,
+            np.abs(trend.carried) * depth,
+            np.abs(trend.rate - trend.carried) * depth,
             movement_inconsistency(fields, CONSISTENCY_SPACINGS * hole_spacing_m) * depth,
         ],
         axis=-1,
