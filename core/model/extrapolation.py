@@ -570,8 +570,8 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     a stretch along an axis: a body elongating or splitting), bounded by the
     5th and 95th percentiles of the movement measured on the stretch (on a
     long winding contact whose normals point some way at a few cells only,
-    the harmonics alone made up movements of 10-20 m a bench that no cell
-    showed). Every cell in ``matched`` (its boundary's movement measured,
+    the harmonics alone made up movements no cell showed: single geozones of
+    the mix family lost 10-27 F1 points). Every cell in ``matched`` (its boundary's movement measured,
     :func:`boundary_movement`) takes the fit at its nearest boundary cell;
     the others keep ``rate``.
 
