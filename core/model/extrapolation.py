@@ -328,9 +328,8 @@ def geozone_persistence(fields: BenchFields) -> tuple[float, float]:
     on_boundary = np.abs(fields.distance[-1]) <= PERSISTENCE_BAND_CELLS * fields.grid.cell_size_m
     w = seen & on_boundary & (np.abs(d1) <= reach1) & (np.abs(d2) <= reach2)
     h = fields.grid.cell_size_m
-    # d2 is carried to the deepest boundary along the trajectories: both parts are fitted on its outlines
-    outline1 = outline_movement(np.where(w, d1, 0.0), w, fields.distance[-1], h)
-    outline2 = outline_movement(np.where(w, d2, 0.0), w, fields.distance[-1], h)
+    # d2 is carried to the deepest boundary along the trajectories: both are fitted on its outlines, at once
+    outline1, outline2 = outline_movement(np.where(w, [d1, d2], 0.0), w, fields.distance[-1], h)
     return _agreement(outline1[w], outline2[w]), _agreement((d1 - outline1)[w], (d2 - outline2)[w])
 
 
@@ -573,7 +572,8 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     the harmonics alone made up movements no cell showed: single geozones of
     the mix family lost 10-27 F1 points). Every cell in ``matched`` (its boundary's movement measured,
     :func:`boundary_movement`) takes the fit at its nearest boundary cell;
-    the others keep ``rate``.
+    the others keep ``rate``. ``rate`` may hold several movements stacked on
+    a first axis, fitted on the same outlines at once.
 
     The finer changes are what shape noise is made of, and with two benches
     known nothing tells them from a change that carries on
@@ -589,19 +589,20 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     stretches, n = ndimage.label(band, structure=np.ones((3, 3)))
     if n == 0:
         return rate
-    owner, values, use = stretches[band], rate[band], matched[band]
+    owner, use = stretches[band], matched[band]
+    values = rate[..., band].reshape(-1, owner.size).T  # (band cells, movements)
     n_r, n_c = -g_r[band] / norm[band], -g_c[band] / norm[band]
     design = np.column_stack([np.ones(owner.size), n_r, n_c, n_r**2 - n_c**2, 2 * n_r * n_c])
-    fitted = np.full(owner.size, np.nan)
+    fitted = np.full(values.shape, np.nan)
     for stretch in np.unique(owner[use]):
         fit, cells = use & (owner == stretch), owner == stretch
         if fit.sum() >= design.shape[1]:
             coef, *_ = np.linalg.lstsq(design[fit], values[fit], rcond=None)
-            fitted[cells] = np.clip(design[cells] @ coef, *np.percentile(values[fit], [5, 95]))
+            fitted[cells] = np.clip(design[cells] @ coef, *np.percentile(values[fit], [5, 95], axis=0))
     on_band = np.full(rate.shape, np.nan)
-    on_band[band] = fitted
+    on_band[..., band] = fitted.T.reshape(rate[..., band].shape)
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
-    nearest = on_band[r, c]
+    nearest = on_band[..., r, c]
     return np.where(matched & np.isfinite(nearest), nearest, rate)
 
 
