@@ -8,7 +8,7 @@ import pytest
 from conftest import synthetic
 
 from core.errors import BGMInputError
-from core.io.blastholes import BGMWarning, detect_benches, read_blastholes
+from core.io.blastholes import BGMWarning, detect_benches, median_hole_spacing, read_blastholes
 
 
 def small_table(n_per_bench: int = 40, benches=(100.0, 90.0, 80.0), seed: int = 0) -> pd.DataFrame:
@@ -36,6 +36,25 @@ def test_columns_found_by_name_and_labels_stay_strings(tmp_path):
     assert np.allclose(holes.bench_levels_m, [100.0, 90.0, 80.0], atol=0.5)  # holes scatter +-1 m
     assert holes.bench_height_m == pytest.approx(10.0)
     assert 5.0 < holes.hole_spacing_m < 6.5
+
+
+@pytest.mark.parametrize("pattern", ["staggered", "square"])
+def test_holes_collared_off_their_pattern_read_at_its_spacing(pattern):
+    """Every length of the engine is in hole spacings: scatter off the pattern must not shrink the spacing.
+
+    Holes collared 0.3 of a spacing off a 6 m pattern (standard deviation each
+    way) bring their nearest neighbour to 3.6 m (median) on either pattern.
+    """
+    rng = np.random.default_rng(0)
+    i, j = np.meshgrid(np.arange(40.0), np.arange(40.0))
+    if pattern == "staggered":
+        xy = np.column_stack([(i + (j % 2) / 2).ravel(), (j * np.sqrt(3) / 2).ravel()]) * 6.0
+    else:
+        xy = np.column_stack([i.ravel(), j.ravel()]) * 6.0
+    bench = np.zeros(len(xy), int)
+    assert median_hole_spacing(xy, bench) == pytest.approx(6.0)
+    scattered = xy + rng.normal(0.0, 0.3 * 6.0, xy.shape)
+    assert median_hole_spacing(scattered, bench) == pytest.approx(6.0, rel=0.1)
 
 
 def test_explicit_columns_and_other_delimiters(tmp_path):

@@ -184,7 +184,7 @@ def extract_contours(
 
 
 def bench_spacing(xy: np.ndarray, table_spacing_m: float) -> float:
-    """The hole spacing extraction uses on one bench: the bench's own median nearest-neighbour distance.
+    """The hole spacing extraction uses on one bench: the bench's own (:func:`median_hole_spacing`).
 
     Patterns change from bench to bench (5 to 7 m on one pit, a 25 m
     exploration grid under a 3 m grade-control bench). Every length of

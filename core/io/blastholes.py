@@ -814,16 +814,30 @@ def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = 0.75
     return as_multipolygon(discs.buffer(spacing_m, quad_segs=6).buffer(-spacing_m, quad_segs=6))
 
 
+#: The neighbour whose distance is a hole's spacing: on a staggered or a square pattern its three
+#: nearest neighbours are a spacing away, and holes collared off the pattern bring the nearest closer.
+SPACING_NEIGHBOUR = 3
+
+
 def median_hole_spacing(xy: np.ndarray, bench: np.ndarray) -> float:
-    """Median nearest-neighbour distance between holes of the same bench (metres)."""
+    """Median distance from a hole to its third-nearest neighbour on the same bench (metres).
+
+    The nearest neighbour is the spacing of a regular pattern only: holes
+    collared off a staggered 6 m pattern by 0.3 of a spacing (standard
+    deviation) put its median at 3.6 m, the third-nearest's at 5.9 m (square
+    pattern: 3.9 and 6.4 m); 5.2 and 5.9 m at 0.08, the synthetic drilling's.
+    Every length of the engine is in spacings: on the tuning seeds drilled
+    0.3 off, widening, splits and folds were predicted at 86.8, 84.8 and 91.0
+    F1 at 5 m with the nearest neighbour's, 95.1, 93.3 and 95.8 with this.
+    """
     distances = []
     for k in np.unique(bench):
-        pts = xy[bench == k]
+        pts = np.unique(xy[bench == k], axis=0)  # coincident holes are one collar
         if len(pts) < 2:
             continue
-        d, _ = cKDTree(pts).query(pts, k=2)
-        distances.append(d[:, 1][d[:, 1] > 0])
+        nth = SPACING_NEIGHBOUR if len(pts) > SPACING_NEIGHBOUR else 1  # a few holes: their nearest
+        d, _ = cKDTree(pts).query(pts, k=nth + 1)
+        distances.append(d[:, -1])
     if not distances:
         return float("nan")
-    alld = np.concatenate(distances)
-    return float(np.median(alld)) if len(alld) else float("nan")
+    return float(np.median(np.concatenate(distances)))

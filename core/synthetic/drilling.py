@@ -122,6 +122,7 @@ def drill_mine(
     partial_fraction: float = 0.35,
     z_scatter_fraction: float = 0.05,
     pushback_range_m: tuple[float, float] = (0.0, 0.0),
+    collar_scatter_spacings: float = 0.08,
 ) -> tuple[pd.DataFrame, pd.Series]:
     """Drill every bench of ``mine`` and label its holes, as a mine would.
 
@@ -135,7 +136,7 @@ def drill_mine(
         :func:`numpy.random.default_rng` takes).
     spacing_range_m : (float, float)
         Hole spacing, drawn per bench (metres); the burden is ``sqrt(3)/2`` of
-        it (staggered pattern) and holes are jittered by 8% of it.
+        it (staggered pattern).
     label_noise_range : (float, float)
         Range of the mine's label noise rate, drawn once per mine.
     partial_fraction : float
@@ -148,6 +149,9 @@ def drill_mine(
         bench drills ground on one side that no bench above drilled, as a pit
         pushed back in stages does (on the Kennecott benches, 29% of the next
         bench's geozone area lies off the deepest known bench's drilling). None by default.
+    collar_scatter_spacings : float
+        How far holes are collared off the pattern: the standard deviation of
+        their offset (each way), in spacings.
 
     Returns
     -------
@@ -178,7 +182,7 @@ def drill_mine(
         footprint = bench_drilled_area(outline, rng, partial=k > 0 and rng.random() < partial_fraction)
         mine.footprints[float(z)] = footprint
         spacing = rng.uniform(*spacing_range_m)
-        xy = drill_pattern(footprint, spacing, rng.uniform(0, np.pi), 0.08 * spacing, rng)
+        xy = drill_pattern(footprint, spacing, rng.uniform(0, np.pi), collar_scatter_spacings * spacing, rng)
         # Round as the table will be written, so the truth is that of the written holes.
         xy_table = np.round((xy + np.asarray(mine.origin)) / mpu, 2)
         xy = xy_table * mpu - np.asarray(mine.origin)
