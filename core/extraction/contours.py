@@ -50,7 +50,7 @@ from core.extraction.gvf import gvf_steady_state
 from core.extraction.noise import FIRST_RING_SPACINGS, absorbed_labels, isolated_holes
 from core.extraction.snake import evolve_snake, resample_closed
 from core.extraction.transition import TransitionField, bench_grid, edge_map, transition_field
-from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.grid import Grid, as_multipolygon, cells_covering
 from core.geometry.sdf import signed_distance
 from core.io.blastholes import Blastholes, median_hole_spacing
 
@@ -373,7 +373,7 @@ def _nearest_part(parts: np.ndarray, rc: np.ndarray) -> np.ndarray:
 def _window(grid: Grid, mask: np.ndarray, pad_m: float) -> tuple[Grid, tuple[slice, slice]]:
     """The part of ``grid`` around ``mask``'s cells plus ``pad_m``: a sub-grid and its index slices."""
     rows, cols = np.nonzero(mask)
-    pad = int(np.ceil(pad_m / grid.cell_size_m))
+    pad = cells_covering(pad_m, grid.cell_size_m)
     r0, c0 = max(rows.min() - pad, 0), max(cols.min() - pad, 0)
     r1, c1 = min(rows.max() + pad + 1, grid.shape[0]), min(cols.max() + pad + 1, grid.shape[1])
     h = grid.cell_size_m

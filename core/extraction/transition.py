@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from core.geometry.grid import Grid
+from core.geometry.grid import Grid, cells_covering
 
 #: Cell size of the bench grid, in hole spacings: fine enough to place a
 #: boundary to a quarter of the spacing the holes resolve.
@@ -83,7 +83,7 @@ def bench_grid(xy: np.ndarray, hole_spacing_m: float, margin_spacings: float = 3
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     span = float(np.max(hi - lo))
     cell = max(CELL_SPACINGS * hole_spacing_m, span / MAX_CELLS)
-    margin = int(np.ceil(margin_spacings * hole_spacing_m / cell))
+    margin = cells_covering(margin_spacings * hole_spacing_m, cell)
     return Grid.covering((lo[0], lo[1], hi[0], hi[1]), cell, margin_cells=margin)
 
 

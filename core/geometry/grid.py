@@ -21,6 +21,18 @@ from shapely.geometry import MultiPolygon, Polygon
 from skimage import draw, measure
 
 
+def cells_covering(length_m: float, cell_size_m: float) -> int:
+    """Whole cells that cover ``length_m``: the ceiling of the ratio, taken as the whole number it is within 1e-9.
+
+    Lengths in hole spacings over cells in hole spacings are whole numbers up to
+    rounding, which a bare ceiling turned into one cell more or not by the last
+    bit of the spacing: the same holes read in feet and in metres got windows a
+    cell apart and snakes 0.6 m apart.
+    """
+    ratio = length_m / cell_size_m
+    return int(np.ceil(ratio - 1e-9 * max(abs(ratio), 1.0)))
+
+
 @dataclass(frozen=True)
 class Grid:
     """A regular grid of square cells over the local frame.
@@ -51,8 +63,8 @@ class Grid:
         xmin, ymin, xmax, ymax = (float(b) for b in bounds)
         if not (cell_size_m > 0 and np.isfinite(cell_size_m)):
             raise ValueError(f"cell size must be positive, got {cell_size_m}")
-        cols = int(np.ceil((xmax - xmin) / cell_size_m)) + 1 + 2 * margin_cells
-        rows = int(np.ceil((ymax - ymin) / cell_size_m)) + 1 + 2 * margin_cells
+        cols = cells_covering(xmax - xmin, cell_size_m) + 1 + 2 * margin_cells
+        rows = cells_covering(ymax - ymin, cell_size_m) + 1 + 2 * margin_cells
         return cls(
             x0=xmin - margin_cells * cell_size_m,
             y0=ymin - margin_cells * cell_size_m,

@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Point, Polygon
 
 from core.errors import BGMInputError
-from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.grid import Grid, as_multipolygon, cells_covering
 from core.geometry.sdf import region_signed_distance
 from core.morph.backtracking import backtrack_trajectories
 from core.morph.trajectories import (
@@ -157,7 +157,7 @@ def reinitialise(phi: np.ndarray, cell_size_m: float, band_m: float | None = Non
         r0, r1, c0, c1 = 0, rows, 0, cols
         out = np.empty(phi.shape)
     else:
-        pad = int(np.ceil(band_m / h)) + 2
+        pad = cells_covering(band_m, h) + 2
         r0, r1 = max(int(r.min()) - pad, 0), min(int(r.max()) + pad + 1, rows)
         c0, c1 = max(int(c.min()) - pad, 0), min(int(c.max()) + pad + 1, cols)
         out = np.where(inside, band_m + 2 * h, -(band_m + 2 * h))
