@@ -7,6 +7,8 @@
   documentation says: cells the front never had to cross);
 * trajectories never cross;
 * exported meshes are watertight and re-read with the same faces;
+* a length in hole spacings over cells in hole spacings is the same whole number of
+  cells whatever the spacing;
 * reading: geozone labels merge exactly when they spell one number, columns
   are found whatever their case, spaces and order, two candidates for one
   role are refused, decimal commas and thousands separators read as numbers.
@@ -33,6 +35,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from core.correspondence.pair import correspond_pair, fft_translation
 from core.errors import BGMInputError
 from core.extraction.contours import extract_contours
+from core.geometry.grid import cells_covering
 from core.geometry.sdf import signed_distance
 from core.io.blastholes import (
     COLUMN_ALIASES,
@@ -125,6 +128,14 @@ def labelled_holes(draw):
 
 
 @settings(max_examples=100, **SETTINGS)
+@given(st.floats(0.5, 50.0), st.integers(1, 12), st.sampled_from([0.1, 0.25, 0.3, 0.5]))
+def test_lengths_in_spacings_cover_the_same_cells_whatever_the_spacing(spacing_m, spacings, cell_spacings):
+    """A bare ceiling of 3 s / (0.25 s) gave 12 or 13 cells by the last bit of ``s`` (feet against metres)."""
+    whole = spacings / cell_spacings
+    expected = math.ceil(round(whole, 6))
+    assert cells_covering(spacings * spacing_m, cell_spacings * spacing_m) == expected
+
+
 @given(labelled_holes())
 def test_extraction_returns_valid_closed_polygons_holding_their_holes(table):
     with warnings.catch_warnings():
