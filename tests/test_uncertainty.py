@@ -141,6 +141,14 @@ def test_the_pattern_of_a_bench_is_recovered_and_laid_out_again():
     assert np.median(cKDTree(xy).query(again)[0]) < 1.0
 
 
+def test_the_pattern_of_holes_collared_off_it_is_still_its_own():
+    """Holes 0.3 of a spacing off a 5 x 4.5 m pattern: the nearest neighbours' steps (3 m) are not the lattice."""
+    xy = pattern_holes() + np.random.default_rng(0).normal(0, 0.3 * 5.0, (len(pattern_holes()), 2))
+    pattern = estimate_pattern(xy)
+    assert pattern.spacing_m * pattern.burden_m == pytest.approx(5.0 * 4.5, rel=0.1)
+    assert min(pattern.spacing_m, pattern.burden_m) == pytest.approx(4.5, rel=0.15)
+
+
 def test_revealed_labels_pull_the_section_to_the_truth():
     section = next_section(REVERSING)  # holds the last bench: the west edge at 58 m; it goes back to 50 m
     xy = pattern_holes()
