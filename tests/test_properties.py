@@ -127,7 +127,7 @@ def labelled_holes(draw):
     return table
 
 
-@settings(max_examples=100, **SETTINGS)
+@settings(max_examples=300, **SETTINGS)
 @given(st.floats(0.5, 50.0), st.integers(1, 12), st.sampled_from([0.1, 0.25, 0.3, 0.5]))
 def test_lengths_in_spacings_cover_the_same_cells_whatever_the_spacing(spacing_m, spacings, cell_spacings):
     """A bare ceiling of 3 s / (0.25 s) gave 12 or 13 cells by the last bit of ``s`` (feet against metres)."""
@@ -136,6 +136,7 @@ def test_lengths_in_spacings_cover_the_same_cells_whatever_the_spacing(spacing_m
     assert cells_covering(spacings * spacing_m, cell_spacings * spacing_m) == expected
 
 
+@settings(max_examples=100, **SETTINGS)
 @given(labelled_holes())
 def test_extraction_returns_valid_closed_polygons_holding_their_holes(table):
     with warnings.catch_warnings():
