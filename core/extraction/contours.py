@@ -199,7 +199,7 @@ def bench_spacing(xy: np.ndarray, table_spacing_m: float) -> float:
     """
     if len(xy) < 2:
         return table_spacing_m
-    own = median_hole_spacing(xy, np.zeros(len(xy), int))
+    own = median_hole_spacing(xy)
     return float(own) if np.isfinite(own) and own > 0 else table_spacing_m
 
 

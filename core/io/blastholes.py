@@ -819,8 +819,8 @@ def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = 0.75
 SPACING_NEIGHBOUR = 3
 
 
-def median_hole_spacing(xy: np.ndarray, bench: np.ndarray) -> float:
-    """Median distance from a hole to its third-nearest neighbour on the same bench (metres).
+def median_hole_spacing(xy: np.ndarray, bench: np.ndarray | None = None) -> float:
+    """Median distance from a hole to its third-nearest neighbour on the same bench (metres; one bench by default).
 
     The nearest neighbour is the spacing of a regular pattern only: holes
     collared off a staggered 6 m pattern by 0.3 of a spacing (standard
@@ -830,6 +830,7 @@ def median_hole_spacing(xy: np.ndarray, bench: np.ndarray) -> float:
     0.3 off, widening, splits and folds were predicted at 86.8, 84.8 and 91.0
     F1 at 5 m with the nearest neighbour's, 95.1, 93.3 and 95.8 with this.
     """
+    bench = np.zeros(len(xy), int) if bench is None else bench
     distances = []
     for k in np.unique(bench):
         pts = np.unique(xy[bench == k], axis=0)  # coincident holes are one collar

@@ -113,7 +113,7 @@ def estimate_pattern(xy: np.ndarray, neighbours: int = 6) -> DrillPattern:
     d, idx = cKDTree(xy).query(xy, k=k + 1)
     steps = (xy[idx[:, 1:]] - xy[:, None, :]).reshape(-1, 2)
     length = d[:, 1:].ravel()
-    steps = steps[(length > 0) & (length <= 1.5 * median_hole_spacing(xy, np.zeros(len(xy), int)))]
+    steps = steps[(length > 0) & (length <= 1.5 * median_hole_spacing(xy))]
     along = _step_direction(steps)
     unit = along / np.hypot(*along)
     across_steps = steps[np.abs(unit[0] * steps[:, 1] - unit[1] * steps[:, 0]) > 0.25 * np.hypot(*along)]
