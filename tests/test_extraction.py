@@ -15,7 +15,7 @@ from core.extraction.boundary import (
     local_entropy,
     neighbour_table,
 )
-from core.extraction.contours import ExtractionParameters, extract_bench, extract_contours
+from core.extraction.contours import ExtractionParameters, extract_bench, extract_contours, onto_crest
 from core.extraction.gvf import gvf_explicit, gvf_residual, gvf_steady_state
 from core.extraction.noise import absorbed_labels, isolated_holes
 from core.extraction.snake import box_snake, evolve_snake
@@ -218,6 +218,40 @@ def test_a_strip_three_holes_wide_gets_one_thin_contour_of_its_width():
     )
     drilled = holes.drilled_area(0)
     assert iou(c.polygon.intersection(drilled), truth.intersection(drilled)) > 0.8
+
+
+def test_a_snake_stopped_inside_its_crest_is_put_on_it():
+    yy, xx = np.mgrid[:80, :80].astype(float)
+    sdf = 20.0 - np.hypot(yy - 40, xx - 40)  # a disc of radius 20 cells, positive inside
+    edge = np.exp(-np.square(sdf / 1.5))
+    angle = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    inside = 40 + 18.5 * np.column_stack([np.sin(angle), np.cos(angle)])  # 1.5 cells short, within the ridge
+    moved = onto_crest(inside, sdf, edge, smoothing_cells=4.0)
+    radius = np.hypot(*(moved - 40).T)
+    assert np.abs(radius - 20.0).max() < 0.1
+    far = 40 + 8.0 * np.column_stack([np.sin(angle), np.cos(angle)])  # no ridge there: left alone
+    assert np.array_equal(onto_crest(far, sdf, edge, 4.0), far)
+    point = np.full((30, 2), 40.0)  # a snake collapsed onto a point
+    assert np.array_equal(onto_crest(point, sdf, edge, 4.0), point)
+
+
+def test_a_small_pod_is_outlined_at_its_size_not_inside_it():
+    # A round pod of two spacings' radius, at random offsets and turns of the pattern: the holes'
+    # half-way boundary holds their share of the bench (a hole's cell each), and so must the contour
+    # (the snake stopped inside that line, 8% of the area short, before it was put on its crest).
+    rng = np.random.default_rng(3)
+    radius = 2 * 6.0
+    ratios = []
+    for _ in range(6):
+        turn = rng.uniform(0, np.pi)
+        rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+        xy = (hex_grid(30, 34) - [90.0, 88.0] + rng.uniform(0, 6.0, 2)) @ rotation.T
+        xy += rng.normal(0, 0.08 * 6.0, xy.shape)
+        holes = _bench(xy, np.where(np.hypot(*xy.T) < radius, "pod", "host"))
+        (pod,) = extract_bench(holes, 0, ["pod"])
+        assert pod.method == "snake"
+        ratios.append(pod.polygon.area / (len(pod.holes) * 6.0**2 * np.sqrt(3) / 2))
+    assert 0.95 <= np.mean(ratios) <= 1.05, ratios
 
 
 def test_two_bodies_two_rows_apart_get_two_contours():

@@ -31,6 +31,11 @@ sections (``tests/benchmarks/bench_extraction.py``):
 * The snake starts on the part's outline offset outward, not on its bounding
   box: a box around a strip that crosses the pit diagonally holds mostly
   other geozones, and the snake cannot find its way into the strip.
+* The converged snake is put on the crest of its edge map (:func:`onto_crest`):
+  the GVF of a curved ridge stops it inside the crest, and pods lost 8% of
+  their area to it (median IoU of pods 0.714 -> 0.743 on tuning seeds 0-11,
+  every other family within 0.003). The other geozones' regions are cut off
+  it along their field's zero set, not their cells' staircase.
 """
 
 from __future__ import annotations
@@ -253,8 +258,13 @@ def _claim_own_cells(transition: TransitionField, xy: np.ndarray, labels: np.nda
     owner = np.concatenate([labels, np.repeat(labels[pairs[:, 0]], len(t))])
     X, Y = transition.grid.cell_centres()
     radius = OWN_HOLE_SPACINGS * spacing_m
-    dist, nearest = cKDTree(points).query(np.column_stack([X.ravel(), Y.ravel()]), distance_upper_bound=radius)
-    near = np.isfinite(dist)
+    cells = np.column_stack([X.ravel(), Y.ravel()])
+    dist, nearest = cKDTree(points).query(cells, distance_upper_bound=radius)
+    near = np.flatnonzero(np.isfinite(dist))
+    # Only where the geozone's hole is the nearest: the chord between two host
+    # holes around a pod would otherwise cut into the pod's half of the way.
+    nearest_hole = cKDTree(xy).query(cells[near])[1]
+    near = near[labels[nearest_hole] == owner[nearest[near]]]
     code = {g: i for i, g in enumerate(transition.geozones)}
     flat = transition.label.ravel()
     flat[near] = np.array([code[g] for g in owner])[nearest[near]]
@@ -337,8 +347,7 @@ def _part_contour(
     )
     polygon = Polygon()
     xy = ev.xy[members]
-    label = ev.transition.label[rs, cs]
-    others = window.polygons_from_mask((label >= 0) & (label != i))
+    others = window.polygons_from_field(_others_field(ev, i, rs, cs), 0.0)
     if len(members) >= 3:
         snake, contour.fields = snake_contour(ev, i, mask, ev.xy[members[boundary]], params, keep_fields)
         # The cells around its own holes are the geozone's (see _claim_own_cells):
@@ -346,7 +355,8 @@ def _part_contour(
         if not snake.is_empty:
             missed = xy[~shapely.contains_xy(snake, xy[:, 0], xy[:, 1])]
             own = shapely.buffer(shapely.MultiPoint(missed), OWN_HOLE_SPACINGS * ev.spacing_m, quad_segs=4)
-            polygon = _largest_holding(snake.union(own).difference(others), xy)
+            claimed = window.polygons_from_mask(_claimed_against_field(ev, i, rs, cs))
+            polygon = _largest_holding(snake.union(own).union(claimed).difference(others), xy)
     if polygon.is_empty or shapely.contains_xy(polygon, xy[:, 0], xy[:, 1]).mean() < MIN_HOLES_INSIDE:
         # Too small for a snake, or the snake pinched off part of the region (a
         # parametric snake cannot split where the region narrows to one row):
@@ -354,6 +364,31 @@ def _part_contour(
         polygon, contour.method = _largest_holding(outline.difference(others), xy), "outline"
     contour.polygon = polygon
     return contour
+
+
+def _others_field(ev: BenchEvidence, i: int, rs: slice, cs: slice) -> np.ndarray:
+    """Field whose zero set bounds the other geozones' cells in a window (positive inside them).
+
+    Their field's zero set, not the cells' staircase, which would take slivers
+    off a snake that sits on that same line (4% of the area of a pod three
+    spacings across); cells that :func:`_claim_own_cells` gave to a hole's
+    geozone against the field are turned by half a cell.
+    """
+    field = ev.transition.others_sdf(i)[rs, cs]
+    label = ev.transition.label[rs, cs]
+    other = (label >= 0) & (label != i)
+    half = 0.5 * ev.transition.grid.cell_size_m
+    return np.where(other & (field <= 0), half, np.where(~other & (field > 0), -half, field))
+
+
+def _claimed_against_field(ev: BenchEvidence, i: int, rs: slice, cs: slice) -> np.ndarray:
+    """Cells of a window that :func:`_claim_own_cells` gave to geozone ``i`` where its field said another.
+
+    The snake follows the field; these cells around its holes near the
+    boundary are added to it, as the other geozones' are taken off it
+    (:func:`_others_field`), so neither side gains from the claims.
+    """
+    return (ev.transition.label[rs, cs] == i) & (ev.transition.region_sdf(i)[rs, cs] <= 0)
 
 
 def _nearest_part(parts: np.ndarray, rc: np.ndarray) -> np.ndarray:
@@ -439,6 +474,9 @@ def snake_contour(
         max_iterations=params.snake_max_iterations,
         keep_history=keep_fields,
     )
+    snake = onto_crest(snake, smooth / grid.cell_size_m, f, spacing / grid.cell_size_m)
+    if keep_fields:
+        history.append(snake)  # the viewer's last frame: the snake on its crest
     polygon = _largest_polygon(shapely.make_valid(Polygon(grid.rc_to_xy(snake))))
     fields = None
     if keep_fields:
@@ -452,6 +490,57 @@ def snake_contour(
             snake_iterations=iterations,
         )
     return polygon, fields
+
+
+def onto_crest(
+    snake_rc: np.ndarray, field_cells: np.ndarray, edge: np.ndarray, smoothing_cells: float, steps: int = 2
+) -> np.ndarray:
+    """Move the converged snake onto the zero set of the field whose edge map it followed, smoothly.
+
+    The GVF (section 2.5) diffuses the edge map's gradient, and on a curved
+    ridge the outside's inward vectors outweigh the inside's outward ones: the
+    snake stops inside the crest, by a fraction of a cell on a large body and
+    by enough to lose 10% of the area of a pod three spacings across. Where
+    the edge map holds a ridge (``edge > 0.1``), each point's distance to the
+    zero set along the field's gradient (a Newton step) is averaged along the
+    snake over ``smoothing_cells`` and the point moved by it: the bias goes,
+    the snake's smoothness over the drilling pattern's zig-zag stays;
+    elsewhere the snake's bridging stays as it is.
+
+    Parameters
+    ----------
+    snake_rc : (N, 2) float
+        Converged snake (row, col), points evenly spaced.
+    field_cells : (rows, cols) float
+        Signed distance (positive inside) the edge map was made from, in cells.
+    edge : (rows, cols) float
+        The edge map (section 2.4).
+    smoothing_cells : float
+        Standard deviation of the average along the snake, cells of arc length.
+    steps : int
+        Newton steps.
+    """
+    grad = np.gradient(field_cells)
+    x = np.asarray(snake_rc, float).copy()
+    on = ndimage.map_coordinates(edge, x.T, order=1, mode="nearest") > 0.1
+    if not on.any():
+        return x
+    arc = float(np.mean(np.hypot(*np.diff(np.vstack([x, x[:1]]), axis=0).T)))
+    if arc < 1e-6:  # collapsed onto a point: nothing to put anywhere
+        return x
+    sigma = min(smoothing_cells / arc, float(len(x)))  # wider than the ring is its mean
+    for _ in range(steps):
+        value = ndimage.map_coordinates(field_cells, x.T, order=1, mode="nearest")
+        g = np.column_stack([ndimage.map_coordinates(d, x.T, order=1, mode="nearest") for d in grad])
+        norm = np.hypot(g[:, 0], g[:, 1])
+        use = on & (norm > 0.2) & (np.abs(value) < 3.0)
+        distance = np.where(use, -value / np.maximum(norm, 1e-12), 0.0)
+        # Averaged over the points that measured it, so a stretch without a ridge does not dilute it.
+        weight = ndimage.gaussian_filter1d(use.astype(float), sigma, mode="wrap")
+        mean = ndimage.gaussian_filter1d(distance, sigma, mode="wrap") / np.maximum(weight, 1e-12)
+        move = np.clip(np.where(on & (weight > 0.05), mean, 0.0), -2.0, 2.0)
+        x += move[:, None] * g / np.maximum(norm, 1e-12)[:, None]
+    return x
 
 
 def _component_grid(bench_grid_: Grid, mask: np.ndarray, cells_across: int, spacing_m: float) -> Grid:

@@ -77,6 +77,17 @@ class TransitionField:
             margin = np.full(self.grid.shape, np.inf)
         return np.minimum(margin, self.drilled_sdf)
 
+    def others_sdf(self, i: int) -> np.ndarray:
+        """Signed distance to the region of every geozone but ``i`` (positive inside it, drilled area only), metres.
+
+        Its zero set is the one :meth:`region_sdf` has between geozones, to a
+        fraction of a cell, where the cells of :attr:`label` make a staircase.
+        """
+        if len(self.geozones) == 1:  # nothing else: "far outside" everywhere, finite for marching squares
+            return np.full(self.grid.shape, -float(np.hypot(*self.grid.shape)) * self.grid.cell_size_m)
+        others = np.max(np.delete(self.phi, i, axis=0), axis=0)
+        return np.minimum(0.5 * (others - self.phi[i]), self.drilled_sdf)
+
 
 def bench_grid(xy: np.ndarray, hole_spacing_m: float, margin_spacings: float = 3.0) -> Grid:
     """Grid over a bench's holes with cells of :data:`CELL_SPACINGS` spacings (at most :data:`MAX_CELLS` across)."""
