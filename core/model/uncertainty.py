@@ -31,10 +31,10 @@ documented prior :data:`PRIOR_COEFFICIENTS` is used.
 
 The backtests measure errors against each bench's extracted boundary, which
 holes place only to within their spacing: the true boundary lies somewhere
-between the last hole inside and the first outside, about uniformly, a
-placement error of variance ``s^2 / 12`` that the calibrated ``sigma``
-includes and the true boundary lacks. :func:`true_boundary_sigma` takes it
-out (down to ``s / sqrt(12)``), so the band is about the geology, not about
+between the last hole inside and the first outside, a placement error of
+about :data:`PLACEMENT_SPACINGS` spacings (standard deviation) that the
+calibrated ``sigma`` includes and the true boundary lacks.
+:func:`true_boundary_sigma` takes it out (down to that), so the band is about the geology, not about
 the next bench's contours; sampling plans on the calibrated scale
 (:meth:`SectionUncertainty.as_observed`).
 
@@ -91,6 +91,13 @@ CONSISTENCY_SPACINGS = 3.0
 #: A change of the signed distance faster than this many bench heights per bench is a body appearing or
 #: vanishing, not a boundary moving (a dip of 34 degrees); it is left out of the movement's consistency.
 FASTEST_MOVE_BENCHES = 1.5
+#: Standard deviation of where extraction puts a boundary against where it is, in hole spacings. Between
+#: the last hole inside and the first outside, uniformly, it would be ``1 / sqrt(12)`` = 0.29; measured
+#: (the contours of :mod:`core.extraction.contours` against the true sections): 0.17 on straight
+#: boundaries through a staggered pattern (``tests/test_uncertainty.py``), 0.18-0.21 on the synthetic
+#: families' tuning seeds. The smoothed half-way line averages the neighbouring holes' evidence, and a
+#: boundary across a staggered pattern meets rows much closer together than a spacing.
+PLACEMENT_SPACINGS = 0.19
 #: Boundary rings around fewer holes than this are label noise, not boundaries (see :func:`boundary_points`);
 #: the pipeline's ``min_component_holes``.
 NOISE_RING_HOLES = 3
@@ -595,12 +602,12 @@ def section_uncertainty(
 
 
 def placement_variance(hole_spacing_m: float, placement_share: float | np.ndarray = 1.0) -> float | np.ndarray:
-    """Variance of a boundary placed by holes: uniform between the last hole inside and the first outside.
+    """Variance of a boundary placed by holes: ``placement_share * (PLACEMENT_SPACINGS s)^2``.
 
-    ``placement_share * s^2 / 12``; the share is what two benches' independent placements leave
-    between them (see :func:`true_boundary_sigma`).
+    The share is what two benches' independent placements leave between them
+    (see :func:`true_boundary_sigma`).
     """
-    return placement_share * hole_spacing_m**2 / 12
+    return placement_share * (PLACEMENT_SPACINGS * hole_spacing_m) ** 2
 
 
 def true_boundary_sigma(
@@ -613,8 +620,7 @@ def true_boundary_sigma(
     """The scale of the error against the true boundary, from the scale calibrated on extracted ones.
 
     The backtests' truth is each bench's extracted boundary, placed by holes
-    to within their spacing: uniformly between the last hole inside and the
-    first outside, variance ``s^2 / 12``. It is taken out of ``sigma^2``, down
+    to within their spacing (:func:`placement_variance`). It is taken out of ``sigma^2``, down
     to that variance: the prediction rests on benches whose boundaries were
     placed no better, and the backtest cannot tell how much of a small error
     was placement. Between benches the section rests on two benches whose
