@@ -374,7 +374,7 @@ def _others_field(ev: BenchEvidence, i: int, rs: slice, cs: slice) -> np.ndarray
     spacings across); cells that :func:`_claim_own_cells` gave to a hole's
     geozone against the field are turned by half a cell.
     """
-    field = ev.transition.others_sdf(i)[rs, cs]
+    field = ev.transition.others_sdf(i, (rs, cs))
     label = ev.transition.label[rs, cs]
     other = (label >= 0) & (label != i)
     half = 0.5 * ev.transition.grid.cell_size_m
@@ -388,7 +388,7 @@ def _claimed_against_field(ev: BenchEvidence, i: int, rs: slice, cs: slice) -> n
     boundary are added to it, as the other geozones' are taken off it
     (:func:`_others_field`), so neither side gains from the claims.
     """
-    return (ev.transition.label[rs, cs] == i) & (ev.transition.region_sdf(i)[rs, cs] <= 0)
+    return (ev.transition.label[rs, cs] == i) & (ev.transition.region_sdf(i, (rs, cs)) <= 0)
 
 
 def _nearest_part(parts: np.ndarray, rc: np.ndarray) -> np.ndarray:

@@ -64,29 +64,31 @@ class TransitionField:
     drilled_sdf: np.ndarray
     label: np.ndarray
 
-    def region_sdf(self, i: int) -> np.ndarray:
+    def region_sdf(self, i: int, window: tuple[slice, slice] = (slice(None), slice(None))) -> np.ndarray:
         """Signed distance to the boundary of geozone ``i``'s region (positive inside), metres.
 
         The margin of its field over the strongest other geozone, halved (both
-        move with the boundary), capped by the drilled-area distance.
+        move with the boundary), capped by the drilled-area distance; on the
+        cells of ``window`` (row and column slices) only, if given.
         """
+        phi = self.phi[(slice(None), *window)]
         if len(self.geozones) > 1:
-            others = np.max(np.delete(self.phi, i, axis=0), axis=0)
-            margin = 0.5 * (self.phi[i] - others)
+            margin = 0.5 * (phi[i] - np.max(np.delete(phi, i, axis=0), axis=0))
         else:
-            margin = np.full(self.grid.shape, np.inf)
-        return np.minimum(margin, self.drilled_sdf)
+            margin = np.full(phi.shape[1:], np.inf)
+        return np.minimum(margin, self.drilled_sdf[window])
 
-    def others_sdf(self, i: int) -> np.ndarray:
+    def others_sdf(self, i: int, window: tuple[slice, slice] = (slice(None), slice(None))) -> np.ndarray:
         """Signed distance to the region of every geozone but ``i`` (positive inside it, drilled area only), metres.
 
         Its zero set is the one :meth:`region_sdf` has between geozones, to a
         fraction of a cell, where the cells of :attr:`label` make a staircase.
         """
+        phi = self.phi[(slice(None), *window)]
         if len(self.geozones) == 1:  # nothing else: "far outside" everywhere, finite for marching squares
-            return np.full(self.grid.shape, -float(np.hypot(*self.grid.shape)) * self.grid.cell_size_m)
-        others = np.max(np.delete(self.phi, i, axis=0), axis=0)
-        return np.minimum(0.5 * (others - self.phi[i]), self.drilled_sdf)
+            return np.full(phi.shape[1:], -float(np.hypot(*self.grid.shape)) * self.grid.cell_size_m)
+        margin = 0.5 * (np.max(np.delete(phi, i, axis=0), axis=0) - phi[i])
+        return np.minimum(margin, self.drilled_sdf[window])
 
 
 def bench_grid(xy: np.ndarray, hole_spacing_m: float, margin_spacings: float = 3.0) -> Grid:
