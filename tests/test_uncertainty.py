@@ -301,7 +301,9 @@ def test_the_placement_taken_out_is_where_extraction_puts_a_straight_boundary():
     rng = np.random.default_rng(5)
     spacing = 6.0
     rows, cols = np.meshgrid(np.arange(34), np.arange(30), indexing="ij")
-    pattern = np.column_stack([(cols * spacing + (rows % 2) * spacing / 2).ravel(), (rows * spacing * 0.866).ravel()])
+    pattern = np.column_stack(
+        [(cols * spacing + (rows % 2) * spacing / 2).ravel(), (rows * spacing * np.sqrt(3) / 2).ravel()]
+    )
     offsets = []
     for _ in range(8):
         xy = pattern - [90.0, 88.0] + rng.normal(0, 0.08 * spacing, pattern.shape)

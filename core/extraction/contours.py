@@ -247,8 +247,9 @@ def _claim_own_cells(transition: TransitionField, xy: np.ndarray, labels: np.nda
 
     Cells within :data:`OWN_HOLE_SPACINGS` of a hole, or of the segment to a
     neighbour of the same geozone in the first ring of the pattern, take the
-    hole's geozone (in place): a contour holds its own holes, and a connected
-    component (section 2.1) stays one region where smoothing thinned it.
+    hole's geozone (in place) where their nearest hole is of it: a contour
+    holds its own holes, and a connected component (section 2.1) stays one
+    region where smoothing thinned it.
     """
     pairs = cKDTree(xy).query_pairs(FIRST_RING_SPACINGS * spacing_m, output_type="ndarray")
     pairs = pairs[labels[pairs[:, 0]] == labels[pairs[:, 1]]]
@@ -261,8 +262,7 @@ def _claim_own_cells(transition: TransitionField, xy: np.ndarray, labels: np.nda
     cells = np.column_stack([X.ravel(), Y.ravel()])
     dist, nearest = cKDTree(points).query(cells, distance_upper_bound=radius)
     near = np.flatnonzero(np.isfinite(dist))
-    # Only where the geozone's hole is the nearest: the chord between two host
-    # holes around a pod would otherwise cut into the pod's half of the way.
+    # The chord between two host holes around a pod would otherwise cut into the pod's half of the way.
     nearest_hole = cKDTree(xy).query(cells[near])[1]
     near = near[labels[nearest_hole] == owner[nearest[near]]]
     code = {g: i for i, g in enumerate(transition.geozones)}

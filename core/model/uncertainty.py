@@ -34,8 +34,9 @@ holes place only to within their spacing: the true boundary lies somewhere
 between the last hole inside and the first outside, a placement error of
 about :data:`PLACEMENT_SPACINGS` spacings (standard deviation) that the
 calibrated ``sigma`` includes and the true boundary lacks.
-:func:`true_boundary_sigma` takes it out (down to that), so the band is about the geology, not about
-the next bench's contours; sampling plans on the calibrated scale
+:func:`true_boundary_sigma` takes it out (down to that), so the band is
+about the geology, not about the next bench's contours; sampling plans on
+the calibrated scale
 (:meth:`SectionUncertainty.as_observed`).
 
 From that ``sigma``: ``P(inside) = Phi(F / sigma)`` and the band
