@@ -76,3 +76,34 @@ def iou(a, b) -> float:
 @pytest.fixture(scope="session")
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+def hex_grid(nx: int, ny: int, spacing: float = 6.0) -> np.ndarray:
+    """A staggered pattern of ``ny`` rows of ``nx`` holes (metres, origin at the first hole)."""
+    rows = np.arange(ny) * spacing * np.sqrt(3) / 2
+    pts = [(i * spacing + (j % 2) * spacing / 2, y) for j, y in enumerate(rows) for i in range(nx)]
+    return np.array(pts, dtype=float)
+
+
+CONSTRUCTED_ORIGIN = np.array([650_000.0, 7_400_000.0])
+
+
+def constructed_bench(xy: np.ndarray, labels: np.ndarray):
+    """Holes of one labelled bench read into the engine (mine-grid origin, two benches alike)."""
+    import pandas as pd
+
+    table = pd.DataFrame(
+        {"x": xy[:, 0] + CONSTRUCTED_ORIGIN[0], "y": xy[:, 1] + CONSTRUCTED_ORIGIN[1], "geozone": labels}
+    )
+    return blastholes_from_table(pd.concat([table.assign(z=500.0), table.assign(z=490.0)]), source="constructed")
+
+
+def constructed_offset(holes) -> np.ndarray:
+    """What to add to the engine's local metres to get a constructed bench's own (pre-offset) coordinates."""
+    return holes.frame.to_input(np.zeros((1, 2)))[0] - CONSTRUCTED_ORIGIN
+
+
+def constructed_local(holes, geometry):
+    """A geometry given in a constructed bench's own (pre-offset) coordinates, in the engine's frame."""
+    o = constructed_offset(holes)
+    return shapely.affinity.translate(geometry, -o[0], -o[1])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
-from conftest import component_truth, iou, synthetic
+from conftest import component_truth, constructed_bench, constructed_local, hex_grid, iou, synthetic
 from scipy import ndimage
 
 from core.extraction.boundary import (
@@ -20,12 +20,6 @@ from core.extraction.gvf import gvf_explicit, gvf_residual, gvf_steady_state
 from core.extraction.noise import absorbed_labels, isolated_holes
 from core.extraction.snake import box_snake, evolve_snake
 from core.io.reporting import containment
-
-
-def hex_grid(nx: int, ny: int, spacing: float = 6.0) -> np.ndarray:
-    rows = np.arange(ny) * spacing * np.sqrt(3) / 2
-    pts = [(i * spacing + (j % 2) * spacing / 2, y) for j, y in enumerate(rows) for i in range(nx)]
-    return np.array(pts, dtype=float)
 
 
 def test_components_are_separated_clusters_ordered_by_size():
@@ -92,43 +86,16 @@ def test_snake_converges_onto_a_circle_from_its_bounding_box():
     assert np.abs(r - 40.0).max() < 1.5
 
 
-def _bench(xy, labels, spacing=6.0):
-    """Holes of one labelled bench read into the engine (mine-grid origin, two benches)."""
-    import pandas as pd
-
-    from core.io.blastholes import blastholes_from_table
-
-    n = len(xy)
-    table = pd.DataFrame(
-        {
-            "x": np.concatenate([xy[:, 0], xy[:, 0]]) + 650_000.0,
-            "y": np.concatenate([xy[:, 1], xy[:, 1]]) + 7_400_000.0,
-            "z": np.r_[np.full(n, 500.0), np.full(n, 490.0)],
-            "geozone": np.concatenate([labels, labels]),
-        }
-    )
-    return blastholes_from_table(table, source="constructed")
-
-
 def test_snake_contour_hugs_a_concave_outline():
     # An L-shaped body in host rock: the contour must follow the inner corner.
     xy = hex_grid(24, 24)
     body = (xy[:, 0] > 30) & (xy[:, 0] < 100) & (xy[:, 1] > 25) & (xy[:, 1] < 95) & ~((xy[:, 0] > 65) & (xy[:, 1] > 60))
-    holes = _bench(xy, np.where(body, "g1", "g0"))
+    holes = constructed_bench(xy, np.where(body, "g1", "g0"))
     [c] = extract_bench(holes, 0, ["g1"], keep_fields=True)
     assert c.method == "snake" and c.polygon.is_valid
     truth = shapely.Polygon([(30, 25), (100, 25), (100, 60), (65, 60), (65, 95), (30, 95)])
-    local = shapely.affinity.translate(
-        truth, *(-np.asarray(holes.frame.to_input(np.zeros((1, 2)))[0]) + [650_000.0, 7_400_000.0])
-    )
-    assert iou(c.polygon, local) > 0.9
+    assert iou(c.polygon, constructed_local(holes, truth)) > 0.9
     assert c.fields.snake_history_m and c.fields.gvf.shape[0] == 2
-
-
-def _local(holes, geometry):
-    """A geometry given in the constructed bench's own (pre-offset) coordinates, in the engine's frame."""
-    o = holes.frame.to_input(np.zeros((1, 2)))[0] - [650_000.0, 7_400_000.0]
-    return shapely.affinity.translate(geometry, -o[0], -o[1])
 
 
 def test_a_single_mislabelled_hole_gives_no_contour_and_is_reported():
@@ -136,7 +103,7 @@ def test_a_single_mislabelled_hole_gives_no_contour_and_is_reported():
     labels = np.full(len(xy), "g0", dtype=object)
     odd = int(np.argmin(np.hypot(xy[:, 0] - 60, xy[:, 1] - 50)))
     labels[odd] = "g1"
-    holes = _bench(xy, labels)
+    holes = constructed_bench(xy, labels)
     contours = extract_bench(holes, 0)
     assert not [c for c in contours if c.geozone == "g1"]
     [host] = [c for c in contours if c.geozone == "g0"]
@@ -201,7 +168,7 @@ def test_a_strip_three_holes_wide_gets_one_thin_contour_of_its_width():
     offset = (xy - [90.0, 75.0]) @ normal
     width = 3 * 6.0 * np.sqrt(3) / 2  # three rows of a 6 m staggered pattern, across the strip
     labels = np.where(np.abs(offset) < width / 2, "g1", "g0")
-    holes = _bench(xy, labels)
+    holes = constructed_bench(xy, labels)
     strip = [c for c in extract_bench(holes, 0, ["g1"]) if len(c.holes) > 2]
     assert len(strip) == 1
     c = strip[0]
@@ -210,7 +177,7 @@ def test_a_strip_three_holes_wide_gets_one_thin_contour_of_its_width():
     u = np.array([np.cos(angle), np.sin(angle)])
     along = holes.xy[c.holes] @ u
     assert abs(c.polygon.area / np.ptp(along) - width) < 6.0
-    truth = _local(
+    truth = constructed_local(
         holes,
         shapely.Polygon(
             [(90, 75) + s * 400 * u + t * width / 2 * normal for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
@@ -247,7 +214,7 @@ def test_a_small_pod_is_outlined_at_its_size_not_inside_it():
         rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
         xy = (hex_grid(30, 34) - [90.0, 88.0] + rng.uniform(0, 6.0, 2)) @ rotation.T
         xy += rng.normal(0, 0.08 * 6.0, xy.shape)
-        holes = _bench(xy, np.where(np.hypot(*xy.T) < radius, "pod", "host"))
+        holes = constructed_bench(xy, np.where(np.hypot(*xy.T) < radius, "pod", "host"))
         (pod,) = extract_bench(holes, 0, ["pod"])
         assert pod.method == "snake"
         ratios.append(pod.polygon.area / (len(pod.holes) * 6.0**2 * np.sqrt(3) / 2))
@@ -258,7 +225,7 @@ def test_two_bodies_two_rows_apart_get_two_contours():
     xy = hex_grid(30, 24)
     rows = np.round(xy[:, 1] / (6.0 * np.sqrt(3) / 2)).astype(int)
     labels = np.where((rows >= 4) & (rows <= 8) | (rows >= 11) & (rows <= 15), "g1", "g0")  # rows 9-10 between
-    holes = _bench(xy, labels)
+    holes = constructed_bench(xy, labels)
     bodies = extract_bench(holes, 0, ["g1"])
     assert len(bodies) == 2
     assert not bodies[0].polygon.intersects(bodies[1].polygon)

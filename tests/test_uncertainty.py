@@ -12,11 +12,11 @@ import pandas as pd
 import pytest
 import shapely
 from clirun import bgm
+from conftest import constructed_bench, constructed_offset, hex_grid
 from shapely.geometry import box
 
 from core.extraction.contours import extract_bench
 from core.geometry.grid import Grid
-from core.io.blastholes import blastholes_from_table
 from core.model.extrapolation import bench_fields
 from core.model.sampling import estimate_pattern, lay_out, revealed_field, suggest_holes
 from core.model.uncertainty import (
@@ -300,21 +300,16 @@ def test_the_placement_taken_out_is_where_extraction_puts_a_straight_boundary():
     # spacings, is the placement the band takes out. Uniform between two holes would be 0.29.
     rng = np.random.default_rng(5)
     spacing = 6.0
-    rows, cols = np.meshgrid(np.arange(34), np.arange(30), indexing="ij")
-    pattern = np.column_stack(
-        [(cols * spacing + (rows % 2) * spacing / 2).ravel(), (rows * spacing * np.sqrt(3) / 2).ravel()]
-    )
+    pattern = hex_grid(30, 34, spacing)
     offsets = []
     for _ in range(8):
         xy = pattern - [90.0, 88.0] + rng.normal(0, 0.08 * spacing, pattern.shape)
         heading = rng.uniform(0, np.pi)
         normal, at = np.array([np.cos(heading), np.sin(heading)]), rng.uniform(-spacing, spacing)
         labels = np.where(xy @ normal > at, "a", "b")
-        table = pd.DataFrame({"x": xy[:, 0] + 650_000.0, "y": xy[:, 1] + 7_400_000.0, "z": 500.0, "geozone": labels})
-        holes = blastholes_from_table(pd.concat([table, table.assign(z=490.0)]), source="straight")
+        holes = constructed_bench(xy, labels)
         contour = max(extract_bench(holes, 0, ["a"]), key=lambda c: c.polygon.area)
-        ring = np.asarray(contour.polygon.exterior.coords) + holes.frame.to_input(np.zeros((1, 2)))[0]
-        ring -= [650_000.0, 7_400_000.0]
+        ring = np.asarray(contour.polygon.exterior.coords) + constructed_offset(holes)
         inner = np.abs(ring).max(axis=1) < 50.0  # away from the drilling's edge
         offsets.append((ring[inner] @ normal - at) / spacing)
     measured = float(np.sqrt(np.mean(np.square(np.concatenate(offsets)))))

@@ -251,7 +251,8 @@ def _claim_own_cells(transition: TransitionField, xy: np.ndarray, labels: np.nda
     holds its own holes, and a connected component (section 2.1) stays one
     region where smoothing thinned it.
     """
-    pairs = cKDTree(xy).query_pairs(FIRST_RING_SPACINGS * spacing_m, output_type="ndarray")
+    holes = cKDTree(xy)
+    pairs = holes.query_pairs(FIRST_RING_SPACINGS * spacing_m, output_type="ndarray")
     pairs = pairs[labels[pairs[:, 0]] == labels[pairs[:, 1]]]
     t = np.linspace(0.0, 1.0, 5)[1:-1]
     along = xy[pairs[:, 0], None, :] + t[None, :, None] * (xy[pairs[:, 1]] - xy[pairs[:, 0]])[:, None, :]
@@ -263,7 +264,7 @@ def _claim_own_cells(transition: TransitionField, xy: np.ndarray, labels: np.nda
     dist, nearest = cKDTree(points).query(cells, distance_upper_bound=radius)
     near = np.flatnonzero(np.isfinite(dist))
     # The chord between two host holes around a pod would otherwise cut into the pod's half of the way.
-    nearest_hole = cKDTree(xy).query(cells[near])[1]
+    nearest_hole = holes.query(cells[near])[1]
     near = near[labels[nearest_hole] == owner[nearest[near]]]
     code = {g: i for i, g in enumerate(transition.geozones)}
     flat = transition.label.ravel()
@@ -347,7 +348,8 @@ def _part_contour(
     )
     polygon = Polygon()
     xy = ev.xy[members]
-    others = window.polygons_from_field(_others_field(ev, i, rs, cs), 0.0)
+    others_field, claimed = _others_and_claimed(ev, i, rs, cs)
+    others = window.polygons_from_field(others_field, 0.0)
     if len(members) >= 3:
         snake, contour.fields = snake_contour(ev, i, mask, ev.xy[members[boundary]], params, keep_fields)
         # The cells around its own holes are the geozone's (see _claim_own_cells):
@@ -355,8 +357,8 @@ def _part_contour(
         if not snake.is_empty:
             missed = xy[~shapely.contains_xy(snake, xy[:, 0], xy[:, 1])]
             own = shapely.buffer(shapely.MultiPoint(missed), OWN_HOLE_SPACINGS * ev.spacing_m, quad_segs=4)
-            claimed = window.polygons_from_mask(_claimed_against_field(ev, i, rs, cs))
-            polygon = _largest_holding(snake.union(own).union(claimed).difference(others), xy)
+            given_back = window.polygons_from_mask(claimed)
+            polygon = _largest_holding(snake.union(own).union(given_back).difference(others), xy)
     if polygon.is_empty or shapely.contains_xy(polygon, xy[:, 0], xy[:, 1]).mean() < MIN_HOLES_INSIDE:
         # Too small for a snake, or the snake pinched off part of the region (a
         # parametric snake cannot split where the region narrows to one row):
@@ -366,29 +368,24 @@ def _part_contour(
     return contour
 
 
-def _others_field(ev: BenchEvidence, i: int, rs: slice, cs: slice) -> np.ndarray:
-    """Field whose zero set bounds the other geozones' cells in a window (positive inside them).
+def _others_and_claimed(ev: BenchEvidence, i: int, rs: slice, cs: slice) -> tuple[np.ndarray, np.ndarray]:
+    """The other geozones' region as a field, and the cells claimed for ``i`` against the field, in a window.
 
-    Their field's zero set, not the cells' staircase, which would take slivers
-    off a snake that sits on that same line (4% of the area of a pod three
-    spacings across); cells that :func:`_claim_own_cells` gave to a hole's
-    geozone against the field are turned by half a cell.
+    The field (positive inside the others' region) is cut at its zero set, not
+    along the cells' staircase, which would take slivers off a snake that sits
+    on that same line (4% of the area of a pod three spacings across). Cells
+    :func:`_claim_own_cells` gave to a hole's geozone against the field are
+    turned by half a cell in it where another geozone claimed them, and
+    returned as a mask where ``i`` did: the snake follows the field, and those
+    are added to it as the others' are taken off it, so neither side gains
+    from the claims.
     """
-    field = ev.transition.others_sdf(i, (rs, cs))
+    region, others = ev.transition.sides(i, (rs, cs))
     label = ev.transition.label[rs, cs]
     other = (label >= 0) & (label != i)
     half = 0.5 * ev.transition.grid.cell_size_m
-    return np.where(other & (field <= 0), half, np.where(~other & (field > 0), -half, field))
-
-
-def _claimed_against_field(ev: BenchEvidence, i: int, rs: slice, cs: slice) -> np.ndarray:
-    """Cells of a window that :func:`_claim_own_cells` gave to geozone ``i`` where its field said another.
-
-    The snake follows the field; these cells around its holes near the
-    boundary are added to it, as the other geozones' are taken off it
-    (:func:`_others_field`), so neither side gains from the claims.
-    """
-    return (ev.transition.label[rs, cs] == i) & (ev.transition.region_sdf(i, (rs, cs)) <= 0)
+    field = np.where(other & (others <= 0), half, np.where(~other & (others > 0), -half, others))
+    return field, (label == i) & (region <= 0)
 
 
 def _nearest_part(parts: np.ndarray, rc: np.ndarray) -> np.ndarray:

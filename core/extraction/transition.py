@@ -64,6 +64,17 @@ class TransitionField:
     drilled_sdf: np.ndarray
     label: np.ndarray
 
+    def sides(self, i: int, window: tuple[slice, slice] = (slice(None), slice(None))) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`region_sdf` and :meth:`others_sdf` of geozone ``i`` together (one margin for both)."""
+        phi = self.phi[(slice(None), *window)]
+        drilled = self.drilled_sdf[window]
+        if len(self.geozones) == 1:  # nothing else: "far outside" everywhere, finite for marching squares
+            far = float(np.hypot(*self.grid.shape)) * self.grid.cell_size_m
+            return drilled.copy(), np.full(phi.shape[1:], -far)
+        # Half the margin of i's field over the strongest other's: both fields move with the boundary.
+        margin = 0.5 * (phi[i] - np.max(np.delete(phi, i, axis=0), axis=0))
+        return np.minimum(margin, drilled), np.minimum(-margin, drilled)
+
     def region_sdf(self, i: int, window: tuple[slice, slice] = (slice(None), slice(None))) -> np.ndarray:
         """Signed distance to the boundary of geozone ``i``'s region (positive inside), metres.
 
@@ -71,12 +82,7 @@ class TransitionField:
         move with the boundary), capped by the drilled-area distance; on the
         cells of ``window`` (row and column slices) only, if given.
         """
-        phi = self.phi[(slice(None), *window)]
-        if len(self.geozones) > 1:
-            margin = 0.5 * (phi[i] - np.max(np.delete(phi, i, axis=0), axis=0))
-        else:
-            margin = np.full(phi.shape[1:], np.inf)
-        return np.minimum(margin, self.drilled_sdf[window])
+        return self.sides(i, window)[0]
 
     def others_sdf(self, i: int, window: tuple[slice, slice] = (slice(None), slice(None))) -> np.ndarray:
         """Signed distance to the region of every geozone but ``i`` (positive inside it, drilled area only), metres.
@@ -84,11 +90,7 @@ class TransitionField:
         Its zero set is the one :meth:`region_sdf` has between geozones, to a
         fraction of a cell, where the cells of :attr:`label` make a staircase.
         """
-        phi = self.phi[(slice(None), *window)]
-        if len(self.geozones) == 1:  # nothing else: "far outside" everywhere, finite for marching squares
-            return np.full(phi.shape[1:], -float(np.hypot(*self.grid.shape)) * self.grid.cell_size_m)
-        margin = 0.5 * (np.max(np.delete(phi, i, axis=0), axis=0) - phi[i])
-        return np.minimum(margin, self.drilled_sdf[window])
+        return self.sides(i, window)[1]
 
 
 def bench_grid(xy: np.ndarray, hole_spacing_m: float, margin_spacings: float = 3.0) -> Grid:
