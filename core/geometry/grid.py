@@ -161,9 +161,82 @@ class Grid:
             region = region.symmetric_difference(poly)
         return as_multipolygon(region)
 
+    def polygons_from_distance(
+        self, distance: np.ndarray, small_radius_cells: float = 4.0, points_per_cell: int = 3
+    ) -> MultiPolygon:
+        """Region ``distance > 0`` of a signed distance field, small bodies followed between the cells.
+
+        Marching squares (:meth:`polygons_from_field`) places each vertex
+        where the field crosses zero along a cell edge and joins vertices by
+        chords, which cut off the segments of a curved boundary: a disc loses
+        about ``1 / (4 r^2)`` of its area, ``r`` its radius in cells (5.5% at
+        two cells, 0.6% at six). A lens a few holes across, held on a bench,
+        lost its holding reference's F1 that way. Rings enclosing less than a
+        disc of ``small_radius_cells`` get ``points_per_cell - 1`` more points
+        on every chord, and every point is moved onto the zero set of the
+        field's cubic spline by one Newton step along its gradient (at most
+        half a cell): the sub-cell boundary the distances describe (the
+        paper's SDF, section 3.2.1). Larger rings keep their chords: their
+        loss is a fraction of a percent, and following the spline of a
+        transported field there cost 0.1-0.2 F1 points on strips, folds and
+        splits (development seeds).
+        """
+        field = np.asarray(distance, dtype=float)
+        if not (field > 0).any():
+            return MultiPolygon()
+        coeffs = ndimage.spline_filter(field, order=3, mode="nearest")
+        low = min(float(np.nanmin(field)), 0.0) - 1.0
+        padded = np.pad(field, 1, constant_values=low)
+        region = Polygon()
+        for ring in measure.find_contours(padded, 0.0):
+            if len(ring) < 4:
+                continue
+            rc = ring - 1.0
+            if _ring_area(rc) < np.pi * small_radius_cells**2:
+                rc = _onto_zero_set(coeffs, _densified(rc, points_per_cell))
+            region = region.symmetric_difference(shapely.make_valid(Polygon(self.rc_to_xy(rc))))
+        return as_multipolygon(region)
+
     def polygons_from_mask(self, mask: np.ndarray) -> MultiPolygon:
         """Region of a boolean mask as world polygons (boundary at half a cell)."""
         return self.polygons_from_field(np.asarray(mask, dtype=float), 0.5)
+
+
+def _densified(ring: np.ndarray, points_per_chord: int) -> np.ndarray:
+    """A closed ring of (row, col) points with ``points_per_chord - 1`` evenly spaced points added on each chord."""
+    start, step = ring[:-1], np.diff(ring, axis=0)
+    t = np.arange(points_per_chord) / points_per_chord
+    dense = (start[:, None, :] + t[None, :, None] * step[:, None, :]).reshape(-1, 2)
+    return np.vstack([dense, dense[:1]])
+
+
+def _ring_area(rc: np.ndarray) -> float:
+    """Area enclosed by a closed ring of (row, col) points, in cells (shoelace)."""
+    return 0.5 * abs(float(np.dot(rc[:-1, 0], rc[1:, 1]) - np.dot(rc[1:, 0], rc[:-1, 1])))
+
+
+def _onto_zero_set(coeffs: np.ndarray, rc: np.ndarray, delta: float = 0.25) -> np.ndarray:
+    """Points (row, col) moved by one Newton step onto the zero set of a cubic spline (``coeffs``).
+
+    The gradient is a central difference over ``delta`` cells; the step is
+    bounded by half a cell, and points on the grid's border (where the ring
+    was closed by padding) stay.
+    """
+
+    def at(points: np.ndarray) -> np.ndarray:
+        return ndimage.map_coordinates(coeffs, points.T, order=3, mode="nearest", prefilter=False)
+
+    f = at(rc)
+    grad = np.column_stack(
+        [(at(rc + [delta, 0.0]) - at(rc - [delta, 0.0])), (at(rc + [0.0, delta]) - at(rc - [0.0, delta]))]
+    ) / (2 * delta)
+    norm2 = np.maximum(np.sum(grad**2, axis=1), 1e-12)
+    step = -(f / norm2)[:, None] * grad
+    length = np.hypot(step[:, 0], step[:, 1])
+    step *= np.minimum(1.0, 0.5 / np.maximum(length, 1e-12))[:, None]
+    rows, cols = coeffs.shape
+    inner = (rc[:, 0] > 0) & (rc[:, 0] < rows - 1) & (rc[:, 1] > 0) & (rc[:, 1] < cols - 1)
+    return np.where(inner[:, None], rc + step, rc)
 
 
 def _polygons(geometry) -> list[Polygon]:

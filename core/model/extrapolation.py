@@ -696,10 +696,7 @@ class DepthTrend:
         return direction_classes(np.arctan2(g_r, g_c), directed, self._sigma_cells)
 
     def region(self, z_m: float) -> MultiPolygon:
-        field = self.field(z_m)
-        if not (field > 0).any():
-            return MultiPolygon()
-        return self.grid.polygons_from_field(field, 0.0)
+        return self.grid.polygons_from_distance(self.field(z_m))
 
 
 def direction_classes(theta: np.ndarray, valid: np.ndarray, sigma_cells: float) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -498,7 +498,7 @@ class SectionUncertainty:
         return np.abs(f) <= z_score(self.probability) * s
 
     def _region(self, field: np.ndarray) -> MultiPolygon:
-        return self.grid.polygons_from_field(field, 0.0) if (field > 0).any() else MultiPolygon()
+        return self.grid.polygons_from_distance(field)
 
 
 def _bench_height(fields: BenchFields) -> float:
