@@ -202,12 +202,14 @@ def test_a_snake_stopped_inside_its_crest_is_put_on_it():
     assert np.array_equal(onto_crest(point, sdf, edge, 4.0), point)
 
 
-def test_a_small_pod_is_outlined_at_its_size_not_inside_it():
-    # A round pod of two spacings' radius, at random offsets and turns of the pattern: the holes'
-    # half-way boundary holds their share of the bench (a hole's cell each), and so must the contour
-    # (the snake stopped inside that line, 8% of the area short, before it was put on its crest).
+@pytest.mark.parametrize("radius_spacings", [1.0, 1.25, 2.0])
+def test_a_small_pod_is_outlined_at_its_size_not_inside_it(radius_spacings):
+    # A round pod of 4-13 holes, at random offsets and turns of the pattern: the holes' half-way
+    # boundary holds their share of the bench (a hole's cell each), and so must the contour (the snake
+    # stopped inside that line, 8% of the area short at two spacings, before it was put on its crest;
+    # smoothing the transition field over a spacing shrank a pod of 4-6 holes to 0.78-0.89 of it).
     rng = np.random.default_rng(3)
-    radius = 2 * 6.0
+    radius = radius_spacings * 6.0
     ratios = []
     for _ in range(6):
         turn = rng.uniform(0, np.pi)

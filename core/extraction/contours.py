@@ -36,6 +36,11 @@ sections (``tests/benchmarks/bench_extraction.py``):
   their area to it (median IoU of pods 0.714 -> 0.743 on tuning seeds 0-11,
   every other family within 0.003). The other geozones' regions are cut off
   it along their field's zero set, not their cells' staircase.
+* A contour encloses at least its holes' share of the bench (the cells
+  nearer them than any other hole, :func:`at_least_its_share`): smoothing the
+  transition field over a spacing shrank lenses of 3-5 holes to 0.73 of their
+  true area (median IoU of pods 0.732 -> 0.746 on tuning seeds 0-11, strips,
+  splits and mix 0.000-0.001 higher on seeds 0-5).
 """
 
 from __future__ import annotations
@@ -220,6 +225,7 @@ class BenchEvidence:
     spacing_m: float
     transition: TransitionField
     parts: dict[str, np.ndarray]  #: geozone -> raster of its connected parts (0 = not it)
+    nearest_hole: np.ndarray  #: (rows, cols) int: the bench hole nearest each cell (its share of the bench)
 
 
 def bench_evidence(holes: Blastholes, bench: int, params: ExtractionParameters) -> BenchEvidence | None:
@@ -239,7 +245,31 @@ def bench_evidence(holes: Blastholes, bench: int, params: ExtractionParameters) 
     transition = transition_field(xy, labels, spacing, grid, params.smoothing_spacings * spacing)
     _claim_own_cells(transition, xy, labels, spacing)
     parts = {g: ndimage.label(transition.label == i)[0] for i, g in enumerate(transition.geozones)}
-    return BenchEvidence(idx, xy, labels, isolated, on_entropy, spacing, transition, parts)
+    nearest = nearest_hole(xy, grid)
+    return BenchEvidence(idx, xy, labels, isolated, on_entropy, spacing, transition, parts, nearest)
+
+
+def nearest_hole(xy: np.ndarray, grid: Grid) -> np.ndarray:
+    """Index of the hole nearest each cell (to a fraction of a cell: one distance transform), ``(rows, cols)``."""
+    rows, cols = grid.shape
+    rc = np.clip(np.rint(grid.xy_to_rc(xy)).astype(int), 0, [rows - 1, cols - 1])
+    holder = np.full(grid.shape, -1)
+    holder[rc[:, 0], rc[:, 1]] = np.arange(len(xy))
+    _, (ri, ci) = ndimage.distance_transform_edt(holder < 0, return_indices=True)
+    return holder[ri, ci]
+
+
+def at_least_its_share(polygon, share_m2: float, passes: int = 2):
+    """``polygon`` offset outwards until it encloses ``share_m2`` (unchanged if it already does).
+
+    Each pass offsets by the missing area over the perimeter (exact for a
+    straight boundary, a little short on a convex one).
+    """
+    for _ in range(passes):
+        if polygon.is_empty or polygon.area >= share_m2:
+            break
+        polygon = _largest_polygon(polygon.buffer((share_m2 - polygon.area) / polygon.length, quad_segs=8))
+    return polygon
 
 
 def _claim_own_cells(transition: TransitionField, xy: np.ndarray, labels: np.ndarray, spacing_m: float) -> None:
@@ -364,7 +394,10 @@ def _part_contour(
         # parametric snake cannot split where the region narrows to one row):
         # the part's outline is the honest answer.
         polygon, contour.method = _largest_holding(outline.difference(others), xy), "outline"
-    contour.polygon = polygon
+    # Each hole stands for the cells nearest it: the share the holes give a body is what its area is
+    # on their evidence, and no smaller (smoothing over a spacing shrank a lens of 3-5 holes to 0.7 of it).
+    share = np.isin(ev.nearest_hole[rs, cs], members) & (ev.transition.label[rs, cs] >= 0)
+    contour.polygon = at_least_its_share(polygon, float(share.sum()) * window.cell_size_m**2)
     return contour
 
 
