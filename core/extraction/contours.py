@@ -19,7 +19,9 @@ Per bench:
    (section 2.5), which closes in on the boundary from the part's outline
    offset outward by a hole spacing;
 5. the contour is the snake, less the regions of other geozones, so regions
-   on a bench never overlap and enclosed bodies are holes in their host.
+   on a bench do not overlap and enclosed bodies are holes in their host; a
+   contour holding less than its holes' share of the bench is then offset out
+   to it (a lens of a few holes, by a fraction of a spacing into its host).
 
 Departures from the paper, each measured on synthetic mines with known
 sections (``tests/benchmarks/bench_extraction.py``):
@@ -259,7 +261,7 @@ def nearest_hole(xy: np.ndarray, grid: Grid) -> np.ndarray:
     return holder[ri, ci]
 
 
-def at_least_its_share(polygon, share_m2: float, passes: int = 2):
+def at_least_its_share(polygon: Polygon, share_m2: float, passes: int = 2) -> Polygon:
     """``polygon`` offset outwards until it encloses ``share_m2`` (unchanged if it already does).
 
     Each pass offsets by the missing area over the perimeter (exact for a

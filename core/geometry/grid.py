@@ -150,16 +150,7 @@ class Grid:
         field so every ring closes; rings are combined by symmetric difference,
         which handles any nesting of islands and holes.
         """
-        low = min(float(np.nanmin(field)), level) - 1.0
-        padded = np.pad(np.asarray(field, dtype=float), 1, constant_values=low)
-        region = Polygon()
-        for ring in measure.find_contours(padded, level):
-            if len(ring) < 4:
-                continue
-            xy = self.rc_to_xy(ring - 1.0)
-            poly = shapely.make_valid(Polygon(xy))
-            region = region.symmetric_difference(poly)
-        return as_multipolygon(region)
+        return self._enclosed_by(_level_rings(np.asarray(field, dtype=float), level))
 
     def polygons_from_distance(
         self, distance: np.ndarray, small_radius_cells: float = 4.0, points_per_cell: int = 3
@@ -191,23 +182,32 @@ class Grid:
         if not (field > 0).any():
             return MultiPolygon()
         coeffs = ndimage.spline_filter(field, order=3, mode="nearest")
-        low = min(float(np.nanmin(field)), 0.0) - 1.0
-        padded = np.pad(field, 1, constant_values=low)
-        region = Polygon()
-        for ring in measure.find_contours(padded, 0.0):
-            if len(ring) < 4:
-                continue
-            rc = ring - 1.0
+        rings = _level_rings(field, 0.0)
+        for k, rc in enumerate(rings):
             if _ring_area(rc) < np.pi * small_radius_cells**2:
                 rc = _densified(rc, points_per_cell)
                 added = np.arange(len(rc)) % points_per_cell != 0  # the chords' ends are on the zero set already
                 rc[added] = _onto_zero_set(coeffs, rc[added])
+                rings[k] = rc
+        return self._enclosed_by(rings)
+
+    def _enclosed_by(self, rings: list[np.ndarray]) -> MultiPolygon:
+        """The region closed rings of (row, col) points enclose, combined by symmetric difference (any nesting)."""
+        region = Polygon()
+        for rc in rings:
             region = region.symmetric_difference(shapely.make_valid(Polygon(self.rc_to_xy(rc))))
         return as_multipolygon(region)
 
     def polygons_from_mask(self, mask: np.ndarray) -> MultiPolygon:
         """Region of a boolean mask as world polygons (boundary at half a cell)."""
         return self.polygons_from_field(np.asarray(mask, dtype=float), 0.5)
+
+
+def _level_rings(field: np.ndarray, level: float) -> list[np.ndarray]:
+    """Closed rings (row, col) of ``field`` at ``level`` by marching squares, padded so every ring closes."""
+    low = min(float(np.nanmin(field)), level) - 1.0
+    padded = np.pad(field, 1, constant_values=low)
+    return [ring - 1.0 for ring in measure.find_contours(padded, level) if len(ring) >= 4]
 
 
 def _densified(ring: np.ndarray, points_per_chord: int) -> np.ndarray:
