@@ -524,6 +524,10 @@ def test_a_small_body_is_drawn_from_its_distances_at_its_size(radius_cells):
     drawn = grid.polygons_from_distance(radius - np.hypot(x - 100.3, y - 98.7))
     assert drawn.area == pytest.approx(disc.area, rel=0.02)
     assert drawn.symmetric_difference(disc).area / disc.length < 0.05 * 5.0  # a twentieth of a cell on average
+    # a cell without a distance (nan, inf) far from the body does not spread through the spline
+    distance = radius - np.hypot(x - 100.3, y - 98.7)
+    distance[0, 0], distance[1, 1] = np.nan, np.inf
+    assert grid.polygons_from_distance(distance).equals_exact(drawn, 1e-6)
 
 
 @pytest.mark.parametrize("radius_m", [12.0, 16.0, 20.0])

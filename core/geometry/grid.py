@@ -181,7 +181,10 @@ class Grid:
         field = np.asarray(distance, dtype=float)
         if not (field > 0).any():
             return MultiPolygon()
-        coeffs = ndimage.spline_filter(field, order=3, mode="nearest")
+        finite = np.isfinite(field)
+        # One nan or inf would spread through every coefficient of the spline.
+        spline_field = np.where(finite, field, np.min(field[finite], initial=0.0) - 1.0)
+        coeffs = ndimage.spline_filter(spline_field, order=3, mode="nearest")
         rings = _level_rings(field, 0.0)
         for k, rc in enumerate(rings):
             if _ring_area(rc) < np.pi * small_radius_cells**2:
@@ -228,7 +231,7 @@ def _onto_zero_set(coeffs: np.ndarray, rc: np.ndarray, delta: float = 0.25) -> n
 
     The gradient is a central difference over ``delta`` cells; the step is
     bounded by half a cell, and points on the grid's border (where the ring
-    was closed by padding) stay.
+    was closed by padding) or without a finite step stay.
     """
 
     def at(points: np.ndarray) -> np.ndarray:
@@ -244,6 +247,7 @@ def _onto_zero_set(coeffs: np.ndarray, rc: np.ndarray, delta: float = 0.25) -> n
     step *= np.minimum(1.0, 0.5 / np.maximum(length, 1e-12))[:, None]
     rows, cols = coeffs.shape
     inner = (rc[:, 0] > 0) & (rc[:, 0] < rows - 1) & (rc[:, 1] > 0) & (rc[:, 1] < cols - 1)
+    inner &= np.all(np.isfinite(step), axis=1)
     return np.where(inner[:, None], rc + step, rc)
 
 
