@@ -61,7 +61,7 @@ from core.extraction.boundary import entropy_boundary, gap_boundary, local_entro
 from core.extraction.gvf import gvf_steady_state
 from core.extraction.noise import FIRST_RING_SPACINGS, absorbed_labels, isolated_holes
 from core.extraction.snake import evolve_snake, resample_closed
-from core.extraction.transition import TransitionField, bench_grid, edge_map, transition_field
+from core.extraction.transition import TransitionField, bench_grid, edge_map, nearest_hole, transition_field
 from core.geometry.grid import Grid, as_multipolygon, cells_covering
 from core.geometry.sdf import signed_distance
 from core.io.blastholes import Blastholes, median_hole_spacing
@@ -249,16 +249,6 @@ def bench_evidence(holes: Blastholes, bench: int, params: ExtractionParameters) 
     parts = {g: ndimage.label(transition.label == i)[0] for i, g in enumerate(transition.geozones)}
     nearest = nearest_hole(xy, grid)
     return BenchEvidence(idx, xy, labels, isolated, on_entropy, spacing, transition, parts, nearest)
-
-
-def nearest_hole(xy: np.ndarray, grid: Grid) -> np.ndarray:
-    """Index of the hole nearest each cell (to a fraction of a cell: one distance transform), ``(rows, cols)``."""
-    rows, cols = grid.shape
-    rc = np.clip(np.rint(grid.xy_to_rc(xy)).astype(int), 0, [rows - 1, cols - 1])
-    holder = np.full(grid.shape, -1)
-    holder[rc[:, 0], rc[:, 1]] = np.arange(len(xy))
-    _, (ri, ci) = ndimage.distance_transform_edt(holder < 0, return_indices=True)
-    return holder[ri, ci]
 
 
 def at_least_its_share(polygon: Polygon, share_m2: float, passes: int = 2) -> Polygon:

@@ -65,7 +65,12 @@ class TransitionField:
     label: np.ndarray
 
     def sides(self, i: int, window: tuple[slice, slice] = (slice(None), slice(None))) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`region_sdf` and :meth:`others_sdf` of geozone ``i`` together (one margin for both)."""
+        """:meth:`region_sdf` of geozone ``i`` and the signed distance to every other geozone's region, together.
+
+        The second (positive inside the others' region, drilled area only) has
+        the zero set the first has between geozones, to a fraction of a cell,
+        where the cells of :attr:`label` make a staircase; one margin for both.
+        """
         phi = self.phi[(slice(None), *window)]
         drilled = self.drilled_sdf[window]
         if len(self.geozones) == 1:  # nothing else: "far outside" everywhere, finite for marching squares
@@ -84,14 +89,6 @@ class TransitionField:
         """
         return self.sides(i, window)[0]
 
-    def others_sdf(self, i: int, window: tuple[slice, slice] = (slice(None), slice(None))) -> np.ndarray:
-        """Signed distance to the region of every geozone but ``i`` (positive inside it, drilled area only), metres.
-
-        Its zero set is the one :meth:`region_sdf` has between geozones, to a
-        fraction of a cell, where the cells of :attr:`label` make a staircase.
-        """
-        return self.sides(i, window)[1]
-
 
 def bench_grid(xy: np.ndarray, hole_spacing_m: float, margin_spacings: float = 3.0) -> Grid:
     """Grid over a bench's holes with cells of :data:`CELL_SPACINGS` spacings (at most :data:`MAX_CELLS` across)."""
@@ -102,24 +99,32 @@ def bench_grid(xy: np.ndarray, hole_spacing_m: float, margin_spacings: float = 3
     return Grid.covering((lo[0], lo[1], hi[0], hi[1]), cell, margin_cells=margin)
 
 
-def hole_distances(xy: np.ndarray, labels: np.ndarray, geozones: list[str], grid: Grid) -> np.ndarray:
-    """Distance from every cell to the nearest hole of each geozone, metres, shape ``(g, rows, cols)``.
+def nearest_hole(xy: np.ndarray, grid: Grid) -> np.ndarray:
+    """Index into ``xy`` (at least one hole) of the hole nearest each cell, ``(rows, cols)``.
 
-    One exact Euclidean distance transform per geozone finds each cell's
-    nearest cell holding a hole of it; the distance is then measured to that
-    hole itself, so it is exact up to which of two almost equidistant holes
-    is nearest (a fraction of a cell).
+    One exact Euclidean distance transform finds each cell's nearest cell
+    holding a hole: exact up to which of two almost equidistant holes is
+    nearest (a fraction of a cell).
     """
     rows, cols = grid.shape
     rc = np.clip(np.rint(grid.xy_to_rc(xy)).astype(int), 0, [rows - 1, cols - 1])
+    holder = np.full(grid.shape, -1)
+    holder[rc[:, 0], rc[:, 1]] = np.arange(len(xy))
+    _, (ri, ci) = ndimage.distance_transform_edt(holder < 0, return_indices=True)
+    return holder[ri, ci]
+
+
+def hole_distances(xy: np.ndarray, labels: np.ndarray, geozones: list[str], grid: Grid) -> np.ndarray:
+    """Distance from every cell to the nearest hole of each geozone, metres, shape ``(g, rows, cols)``.
+
+    Measured to the hole :func:`nearest_hole` finds among the geozone's, not
+    to the cell holding it.
+    """
     X, Y = grid.cell_centres()
-    out = np.empty((len(geozones), rows, cols))
+    out = np.empty((len(geozones), *grid.shape))
     for i, g in enumerate(geozones):
         sel = np.flatnonzero(labels == g)
-        holder = np.full(grid.shape, -1)
-        holder[rc[sel, 0], rc[sel, 1]] = sel
-        _, (ri, ci) = ndimage.distance_transform_edt(holder < 0, return_indices=True)
-        nearest = holder[ri, ci]
+        nearest = sel[nearest_hole(xy[sel], grid)]
         out[i] = np.hypot(X - xy[nearest, 0], Y - xy[nearest, 1])
     return out
 
