@@ -1,6 +1,7 @@
 """Benchmark of boundary extraction (prints figures; not a timed test).
 
     python tests/benchmarks/bench_extraction.py [--seeds held-out|tuning] [--limit N] [--workers 2]
+        [--drilling "label noise 6-10%"]
 
 * every synthetic family of :mod:`core.synthetic.scenarios` at the held-out
   seeds (the only ones reported; ``--seeds tuning`` runs the tuning seeds
@@ -15,6 +16,9 @@
     another geozone (<= 5%);
   - min and median target-boundary coverage over bench pairs (min >= 0.99);
 
+* ``--drilling``: the same families drilled one of the other ways of
+  ``bench_robustness.DRILLING`` (9-12 m or 3-4 m patterns, 6-10% label noise,
+  ...) instead of the default;
 * the same on the real Kennecott benches (``BGM_KENNECOTT`` or
   ../shared/data), where the file's labels stand in for the true labels and
   there is no IoU, and the containment summary of the bundled demo;
@@ -40,9 +44,12 @@ from scipy import ndimage
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 KENNECOTT = Path(
     os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
 )
+
+from bench_robustness import DRILLING  # noqa: E402
 
 from core.extraction.contours import extract_contours  # noqa: E402
 from core.extraction.gvf import gvf_explicit, gvf_residual, gvf_steady_state  # noqa: E402
@@ -110,9 +117,9 @@ def score_holes(holes, labels, geozones, truth=None, footprint=None) -> tuple[pd
     return scores, coverage_by_pair(models)
 
 
-def run_job(job: tuple[str, int]) -> tuple[str, int, pd.DataFrame, pd.DataFrame, float]:
-    """Score one scenario (or Kennecott, ``("kennecott", 0)``); returns its tables and CPU seconds."""
-    family, seed = job
+def run_job(job: tuple[str, int, str]) -> tuple[str, int, pd.DataFrame, pd.DataFrame, float]:
+    """Score one scenario drilled one way (or Kennecott, ``("kennecott", 0, "")``); returns its tables and CPU seconds."""
+    family, seed, drilling = job
     start = time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BGMWarning)
@@ -120,7 +127,8 @@ def run_job(job: tuple[str, int]) -> tuple[str, int, pd.DataFrame, pd.DataFrame,
             holes = read_blastholes(KENNECOTT)
             scores, coverage = score_holes(holes, holes.geozone, holes.geozones)
         else:
-            mine, table, true_labels = scenario(family, seed)
+            mine_args, drill_args = DRILLING.get(drilling, ({}, {}))
+            mine, table, true_labels = scenario(family, seed, drilling=drill_args, **mine_args)
             holes = blastholes_from_table(table, source=f"{family} {seed}")
             geozones = [g for g in mine.labels if g != HOST]
 
@@ -164,16 +172,18 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-kennecott", action="store_true")
     parser.add_argument("--save", type=Path, default=None, help="Also write every row scored to this CSV.")
+    parser.add_argument("--drilling", choices=list(DRILLING), default=None, help="Drill the families this way.")
     args = parser.parse_args()
 
     bench_gvf()
     bench_file(ROOT / "assets" / "demo_blastholes.csv")
 
     seeds = list(HELD_OUT_SEEDS if args.seeds == "held-out" else TUNING_SEEDS)[: args.limit or len(HELD_OUT_SEEDS)]
-    jobs = [(f, s) for f in args.families for s in seeds]
+    jobs = [(f, s, args.drilling or "") for f in args.families for s in seeds]
     if not args.no_kennecott and KENNECOTT.exists():
-        jobs.insert(0, ("kennecott", 0))  # the longest job first, so it is not the tail
-    print(f"\nExtraction on {args.seeds} seeds {seeds}: {len(jobs)} jobs on {args.workers} processes")
+        jobs.insert(0, ("kennecott", 0, ""))  # the longest job first, so it is not the tail
+    drilled = f", drilled: {args.drilling}" if args.drilling else ""
+    print(f"\nExtraction on {args.seeds} seeds {seeds}{drilled}: {len(jobs)} jobs on {args.workers} processes")
     start = time.perf_counter()
     results = []
     with multiprocessing.get_context("fork").Pool(args.workers) as pool:
