@@ -161,32 +161,32 @@ def test_label_noise_is_one_or_two_surrounded_holes_not_a_thin_body():
     assert (cleaned[triangle] == "c").all() and (cleaned[row] == "d").all()
 
 
-def test_three_holes_in_a_chain_are_noise_where_the_benches_noise_explains_them_and_a_lens_where_not():
-    """A chain of three (not a triangle) is a lens on a clean bench and two mislabelled holes beside a third on a noisy one."""
-    from core.extraction.noise import noise_explains_chains
+def test_a_few_holes_together_are_noise_where_the_benches_noise_explains_them_and_a_lens_where_not():
+    """Three to six holes are a lens on a clean bench and mislabelled holes that lie together on a noisy one."""
+    from core.extraction.noise import noise_groups
 
     xy = hex_grid(40, 40)
     d = lambda x, y: np.hypot(xy[:, 0] - x, xy[:, 1] - y)  # noqa: E731
     row = np.flatnonzero(np.abs(xy[:, 1] - xy[np.argmin(d(120, 104)), 1]) < 1.0)
-    chain = row[np.argsort(np.abs(xy[row, 0] - 120))[:3]]  # three holes in a row: the ends have one neighbour each
+    chain = row[np.argsort(np.abs(xy[row, 0] - 120))[:3]]  # three holes in a row
     triangle = np.argsort(d(60, 60))[:3]
-    far = (d(120, 104) > 30) & (d(60, 60) > 30)
+    body = np.flatnonzero(d(180, 180) < 13.0)  # a lens of 19 holes
+    far = (d(120, 104) > 30) & (d(60, 60) > 30) & (d(180, 180) > 30)
     clean = np.full(len(xy), "g0", dtype=object)
     clean[np.random.default_rng(0).choice(np.flatnonzero(far), 8, replace=False)] = "n"  # eight single odd holes
     noisy = clean.copy()
     flip = np.random.default_rng(1).random(len(xy)) < 0.16
     noisy[flip & far] = np.where(np.random.default_rng(2).random(len(xy)) < 0.5, "a", "b")[flip & far]
     for labels in (clean, noisy):
-        labels[chain], labels[triangle] = "c", "t"
+        labels[chain], labels[triangle], labels[body] = "c", "t", "l"
     kept, flagged = isolated_holes(xy, clean, 6.0), isolated_holes(xy, noisy, 6.0)
-    assert not kept[chain].any() and not kept[triangle].any()
-    assert flagged[chain].all() and not flagged[triangle].any()
-    # The rule: noise makes about N r single holes, 3 N r^2 pairs and 9 N r^3 chains of three.
-    assert (
-        noise_explains_chains(100, 15, 3)
-        and not noise_explains_chains(100, 3, 1)
-        and not noise_explains_chains(8, 0, 1)
-    )
+    assert not kept[chain].any() and not kept[triangle].any() and not kept[body].any()
+    assert flagged[chain].all() and flagged[triangle].all() and not flagged[body].any()
+    # Noise makes about N r single holes, 3 N r^2 pairs and 11 N r^3 groups of three: r = 0.05 here.
+    assert noise_groups(100, 15, 1000, 3) == pytest.approx(11 * 100 * 0.05**2)
+    assert noise_groups(100, 15, 1000, 6) == pytest.approx(814 * 100 * 0.05**5)
+    # One odd hole and one pair on 400 holes are no noise rate of a third; no odd hole, no noise.
+    assert noise_groups(1, 1, 400, 3) < 1e-3 and noise_groups(0, 0, 400, 3) == 0.0
 
 
 def test_a_strip_three_holes_wide_gets_one_thin_contour_of_its_width():

@@ -19,11 +19,11 @@ The component must also be surrounded: its first-ring neighbours are holes of
 other geozones, at least :data:`MIN_SURROUNDING` of them (a component at the
 edge of the drilled area with nothing around it is not called noise).
 
-Three holes in a chain (one of them with a single same-label neighbour, not a
-triangle) are a lens or two mislabelled holes beside a third, and which one
-depends on how noisy the bench is: :func:`noise_explains_chains` compares
-the chains with what the bench's own isolated holes and pairs predict, and
-where noise accounts for most of them they are taken as noise too.
+Past that, a component of three to six holes is a small body or mislabelled holes
+that happen to lie together, and which one depends on how noisy the bench is:
+:func:`noise_groups` compares the bench's components of each size with what
+its own single odd holes and pairs predict, and where noise accounts for most of
+them they are taken as noise too.
 """
 
 from __future__ import annotations
@@ -38,6 +38,9 @@ from core.extraction.boundary import connected_components
 FIRST_RING_SPACINGS = 1.35
 #: Fewest holes of other geozones around a component for it to count as surrounded.
 MIN_SURROUNDING = 3
+#: Connected groups of k holes on a staggered pattern, per hole (fixed site animals of the
+#: triangular lattice), for the component sizes :func:`noise_groups` weighs.
+GROUPS_PER_HOLE = {3: 11, 4: 44, 5: 186, 6: 814}
 
 
 def isolated_holes(
@@ -72,42 +75,46 @@ def isolated_holes(
     same_count = np.bincount(pairs[same].ravel(), minlength=n)
     other_count = np.bincount(pairs[~same].ravel(), minlength=n)
     owner = np.zeros(n, int)  # every hole's component, numbered across geozones
-    most: list[np.ndarray] = []  # per component, one array per geozone; so are least and around
-    least: list[np.ndarray] = []
+    most: list[np.ndarray] = []  # per component, one array per geozone; so is around
     around: list[np.ndarray] = []
     for g in np.unique(labels):
         sel = np.flatnonzero(labels == g)
         comp = connected_components(xy[sel], radius)
         owner[sel] = comp + sum(len(a) for a in most)
-        # Most and fewest same-label first-ring neighbours of a hole, and holes of others around it.
+        # Most same-label first-ring neighbours of a hole, and holes of others around it.
         most.append(np.zeros(comp.max() + 1, int))
-        least.append(np.full(comp.max() + 1, n))
         np.maximum.at(most[-1], comp, same_count[sel])
-        np.minimum.at(least[-1], comp, same_count[sel])
         around.append(np.bincount(comp, weights=other_count[sel], minlength=comp.max() + 1))
-    size, most_same, least_same = np.bincount(owner), np.concatenate(most), np.concatenate(least)
+    size, most_same = np.bincount(owner), np.concatenate(most)
     surrounded = np.concatenate(around) >= MIN_SURROUNDING
-    sparse = surrounded & (most_same <= 1)
-    chains = surrounded & (most_same == 2) & (least_same <= 1) & (size == 3)
-    if noise_explains_chains(int(np.sum(sparse & (size == 1))), int(np.sum(sparse & (size == 2))), int(chains.sum())):
-        sparse |= chains
-    return sparse[owner]
+    noisy = surrounded & (most_same <= 1)
+    singles, pairs = int(np.sum(noisy & (size == 1))), int(np.sum(noisy & (size == 2)))
+    for k in GROUPS_PER_HOLE:
+        groups = surrounded & (size == k) & ~noisy
+        if groups.any() and noise_groups(singles, pairs, n, k) >= 0.5 * groups.sum():
+            noisy |= groups  # noise accounts for at least half of them
+    return noisy[owner]
 
 
-def noise_explains_chains(singles: int, pairs: int, chains: int) -> bool:
-    """Whether label noise accounts for at least half of a bench's chains of three holes.
+def noise_groups(singles: int, pairs: int, holes: int, k: int) -> float:
+    """How many groups of ``k`` mislabelled holes a bench of ``holes`` holes has by chance.
 
     Mislabelled holes fall independently, each with a small chance ``r`` per
-    hole and geozone. On ``N`` holes of a staggered pattern (six neighbours a
-    hole: three pairs per hole, and nine chains centred on it, the fifteen
-    pairs of its neighbours less the six that close a triangle) they make
-    about ``N r`` single holes, ``3 N r^2`` pairs and ``9 N r^3`` chains:
-    ``pairs^2 / singles`` chains, without knowing ``r`` or ``N``. On
-    development seeds 0-3 that predicted 45.5 chains where 45 were seen (43
-    mislabelled) at 6-10% label noise, 28.4 for 27 (21) on pods with that
-    noise, and 0.06 a bench where pods with 1-3% showed one lens's chain.
+    hole and geozone. On ``N`` holes of a staggered pattern they make about
+    ``N r`` single holes, ``3 N r^2`` pairs (three per hole) and ``a_k N r^k``
+    groups of ``k`` holes (``a_k``: :data:`GROUPS_PER_HOLE`): ``a_k singles
+    r^(k - 1)`` with ``r = pairs / (3 singles)``, at most ``singles / N`` (a few
+    odd holes and one pair are a real pair, not a noise rate of a third). On
+    development seeds 0-3 at 6-10% label noise the chains of three (9 of the
+    11 groups of three a hole) came to 45.5 where 45 were seen (43 of them
+    mislabelled), and to 0.06 a bench on pods with 1-3% noise, where one lens
+    made a chain in four mines. On a square pattern (two pairs a hole) it
+    predicts fewer groups than noise makes: noise is taken for less than it is.
     """
-    return chains > 0 and singles > 0 and pairs**2 / singles >= 0.5 * chains
+    if singles == 0:
+        return 0.0
+    r = min(pairs / (3 * singles), singles / holes)
+    return GROUPS_PER_HOLE[k] * singles * r ** (k - 1)
 
 
 def absorbed_labels(xy: np.ndarray, labels: np.ndarray, isolated: np.ndarray, neighbours: int = 6) -> np.ndarray:
