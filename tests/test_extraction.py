@@ -170,7 +170,7 @@ def test_a_few_holes_together_are_noise_where_the_benches_noise_explains_them_an
     row = np.flatnonzero(np.abs(xy[:, 1] - xy[np.argmin(d(120, 104)), 1]) < 1.0)
     chain = row[np.argsort(np.abs(xy[row, 0] - 120))[:3]]  # three holes in a row
     triangle = np.argsort(d(60, 60))[:3]
-    body = np.flatnonzero(d(180, 180) < 13.0)  # a lens of 19 holes
+    body = np.flatnonzero(d(180, 180) < 13.0)  # a lens of 18 holes
     far = (d(120, 104) > 30) & (d(60, 60) > 30) & (d(180, 180) > 30)
     clean = np.full(len(xy), "g0", dtype=object)
     clean[np.random.default_rng(0).choice(np.flatnonzero(far), 8, replace=False)] = "n"  # eight single odd holes

@@ -22,8 +22,8 @@ edge of the drilled area with nothing around it is not called noise).
 Past that, a component of three to six holes is a small body or mislabelled holes
 that happen to lie together, and which one depends on how noisy the bench is:
 :func:`noise_groups` compares the bench's components of each size with what
-its own single odd holes and pairs predict, and where noise accounts for most of
-them they are taken as noise too.
+its own single odd holes and pairs predict, and where noise accounts for at
+least half of them they are taken as noise too.
 """
 
 from __future__ import annotations
@@ -77,10 +77,12 @@ def isolated_holes(
     owner = np.zeros(n, int)  # every hole's component, numbered across geozones
     most: list[np.ndarray] = []  # per component, one array per geozone; so is around
     around: list[np.ndarray] = []
+    first = 0
     for g in np.unique(labels):
         sel = np.flatnonzero(labels == g)
         comp = connected_components(xy[sel], radius)
-        owner[sel] = comp + sum(len(a) for a in most)
+        owner[sel] = comp + first
+        first += comp.max() + 1
         # Most same-label first-ring neighbours of a hole, and holes of others around it.
         most.append(np.zeros(comp.max() + 1, int))
         np.maximum.at(most[-1], comp, same_count[sel])
