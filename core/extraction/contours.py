@@ -286,8 +286,8 @@ def _claim_own_cells(transition: TransitionField, xy: np.ndarray, labels: np.nda
     dist, nearest = cKDTree(points).query(cells, distance_upper_bound=radius)
     near = np.flatnonzero(np.isfinite(dist))
     # The chord between two host holes around a pod would otherwise cut into the pod's half of the way.
-    nearest_hole = holes.query(cells[near])[1]
-    near = near[labels[nearest_hole] == owner[nearest[near]]]
+    closest = holes.query(cells[near])[1]
+    near = near[labels[closest] == owner[nearest[near]]]
     code = {g: i for i, g in enumerate(transition.geozones)}
     flat = transition.label.ravel()
     flat[near] = np.array([code[g] for g in owner])[nearest[near]]

@@ -181,17 +181,18 @@ class Grid:
         field = np.asarray(distance, dtype=float)
         if not (field > 0).any():
             return MultiPolygon()
-        finite = np.isfinite(field)
-        # One nan or inf would spread through every coefficient of the spline.
-        spline_field = np.where(finite, field, np.min(field[finite], initial=0.0) - 1.0)
-        coeffs = ndimage.spline_filter(spline_field, order=3, mode="nearest")
         rings = _level_rings(field, 0.0)
-        for k, rc in enumerate(rings):
-            if _ring_area(rc) < np.pi * small_radius_cells**2:
-                rc = _densified(rc, points_per_cell)
-                added = np.arange(len(rc)) % points_per_cell != 0  # the chords' ends are on the zero set already
-                rc[added] = _onto_zero_set(coeffs, rc[added])
-                rings[k] = rc
+        small = [k for k, rc in enumerate(rings) if _ring_area(rc) < np.pi * small_radius_cells**2]
+        if small:  # the spline is over half the work, and most fields have no small ring
+            finite = np.isfinite(field)
+            # One nan or inf would spread through every coefficient of the spline.
+            spline_field = np.where(finite, field, np.min(field[finite], initial=0.0) - 1.0)
+            coeffs = ndimage.spline_filter(spline_field, order=3, mode="nearest")
+        for k in small:
+            rc = _densified(rings[k], points_per_cell)
+            added = np.arange(len(rc)) % points_per_cell != 0  # the chords' ends are on the zero set already
+            rc[added] = _onto_zero_set(coeffs, rc[added])
+            rings[k] = rc
         return self._enclosed_by(rings)
 
     def _enclosed_by(self, rings: list[np.ndarray]) -> MultiPolygon:
