@@ -267,13 +267,13 @@ def test_a_split_continues_as_two_parts():
     sections = [shapely.union_all([P(100 - 8 * k, 80).buffer(22), P(100 + 8 * k, 80).buffer(22)]) for k in range(5)]
     holes = _bench_table(sections)
     predicted, nil, truth = _predict_next(holes, sections, 4)
-    parts = [g for g in predicted.geoms if g.area > 200]
-    assert len(parts) == 2
-    # the parts move apart: each follows its own half (holding the bench above reaches 0.63)
-    assert iou(predicted, truth) > 0.75
-    assert iou(predicted, truth) > iou(nil, truth) + 0.1
-    for part in parts:  # centres 24 m from the middle on the bench above, 32 m here
-        assert part.centroid.distance(truth.centroid) > 27.0
+    # Two parts and nothing in the gap between them (the gap is 4 m on the bench above, the parts move 8 m).
+    assert len(predicted.geoms) == 2, [round(g.area) for g in predicted.geoms]
+    # the parts move apart: each follows its own half (holding the bench above reaches 0.63; fitting the two parts'
+    # movements as one outline carried half of it, 0.81)
+    assert iou(predicted, truth) > 0.84
+    for part in predicted.geoms:  # centres 24 m from the middle on the bench above, 32 m here
+        assert part.centroid.distance(truth.centroid) > 29.0
 
 
 def test_a_geozone_that_pinched_out_is_predicted_absent_and_isolated_holes_grow_nothing():

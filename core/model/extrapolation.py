@@ -559,7 +559,9 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     """The part of a movement that moves each outline as a whole: translation, growth and elongation.
 
     Per connected stretch of the boundary of ``f_last`` (the outline of a
-    body, of a hole in one, or a contact crossing the grid), the least-squares
+    body, of a hole in one, or a contact crossing the grid; traced on its
+    inner side, so that two bodies a gap of a few cells apart keep two
+    outlines), the least-squares
     fit of its outward movement ``rate`` over its cells by harmonics 0-2 of
     the direction of the outward normal ``n = (cos t, sin t)``::
 
@@ -586,9 +588,14 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     g_r, g_c = np.gradient(f_last)
     norm = np.hypot(g_r, g_c)
     band = (np.abs(f_last) <= cell_size_m) & (norm > 0.2 * cell_size_m)
-    stretches, n = ndimage.label(band, structure=np.ones((3, 3)))
+    # Traced on both sides, the outlines of the two parts of a body that has just split joined across their gap:
+    # one fit of their opposite movements cancelled them (a constructed split carried half of its parting).
+    inner = band & (f_last > 0)
+    rings, n = ndimage.label(inner, structure=np.ones((3, 3)))
     if n == 0:
         return rate
+    _, (ring_r, ring_c) = ndimage.distance_transform_edt(~inner, return_indices=True)
+    stretches = np.where(band, rings[ring_r, ring_c], 0)
     owner, use = stretches[band], matched[band]
     values = rate[..., band].reshape(-1, owner.size).T  # (band cells, movements)
     n_r, n_c = -g_r[band] / norm[band], -g_c[band] / norm[band]
@@ -655,7 +662,10 @@ class DepthTrend:
         movement) thinned it at its ridge. The displacement is averaged over
         ``transport_smoothing_m`` among cells whose boundary faces the same
         way (:func:`smooth_by_direction`). Where ``F`` has no direction (its
-        cap, ridges) ``f_last + m`` is kept. Where only benches above the
+        cap, ridges) ``f_last + m`` is kept. Outside, where the boundary
+        recedes, ``F`` stays at most ``f_last``: the ground there stays
+        outside, where a displacement wider than the gap between two parts of
+        a split fetched the other part's inside into the gap. Where only benches above the
         deepest saw the geozone and its bodies have likely ended by ``z_m``
         (see the class), the deepest bench's evidence is taken instead.
         """
@@ -668,6 +678,8 @@ class DepthTrend:
             rows, cols = np.indices(self.f_last.shape, dtype=float)
             carried = ndimage.map_coordinates(self.f_last, [rows + d_r, cols + d_c], order=1, mode="nearest")
             field = np.where(directed, carried, field)
+            receding = directed & (self.f_last < 0) & (d_r * g_r + d_c * g_c < 0)
+            field = np.where(receding, np.minimum(field, self.f_last), field)
         return np.where(self._ended(z_m), np.minimum(field, self.f_deepest), field)
 
     def _ended(self, z_m: float) -> np.ndarray:
