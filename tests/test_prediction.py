@@ -570,3 +570,25 @@ def test_a_strip_crossing_the_edge_of_the_drilling_goes_on_past_it():
     past = (fields["a"].weight[0] < 0.5) & (grid.cell_centres()[1] + offset[1] > 160.0)
     claimed = (fields["a"].distance[0] > 0).astype(int) + (fields["host"].distance[0] > 0)
     assert np.mean(claimed[past] == 1) > 0.95, np.mean(claimed[past] == 1)
+
+
+def test_the_displacement_of_a_curved_boundary_is_its_whole_translation_and_of_a_straight_one_its_movement_across():
+    """The benches give only the movement across a boundary; where the boundary curves, its normals fix the rest."""
+    from core.model.extrapolation import direction_classes, displacement_by_direction
+
+    rows, cols = np.indices((120, 120), dtype=float)
+    shift = np.array([3.0, -2.0])  # cells
+    for f in (18.0 - np.hypot(rows - 60, cols - 60), 40.0 - rows):  # a disc 18 cells across; a straight contact
+        g_r, g_c = np.gradient(f)
+        norm = np.maximum(np.hypot(g_r, g_c), 1e-9)
+        n_r, n_c = g_r / norm, g_c / norm
+        # the section translated by -shift: its boundary moves across itself by shift . n (n points inside)
+        movement = shift[0] * n_r + shift[1] * n_c
+        classes = direction_classes(np.arctan2(g_r, g_c), norm > 0.2, 6.0)
+        d_r, d_c = displacement_by_direction(movement, n_r, n_c, classes, 6.0)
+        edge = np.abs(f) < 1.0
+        error = np.hypot(d_r - shift[0], d_c - shift[1])[edge]
+        if f[60, 60] > 18.0 - 1e-9:  # the disc: the whole translation all round (averaging m n: 0.6 of it off)
+            assert error.max() < 0.2 * np.hypot(*shift), error.max()
+        else:  # the straight contact: across it only (along it nothing tells)
+            assert np.allclose(d_r[edge], shift[0], atol=0.05) and np.allclose(d_c[edge], 0.0, atol=0.05)
