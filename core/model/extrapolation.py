@@ -669,10 +669,11 @@ class DepthTrend:
         than its half-width per bench is carried whole, where adding ``m`` to
         ``F`` (exact only where ``F`` is linear along the movement) thinned it
         at its ridge. Where ``F`` has no direction (its
-        cap, ridges) ``f_last + m`` is kept. Outside, where the boundary
-        recedes, ``F`` stays at most ``f_last``: the ground there stays
-        outside, where a displacement wider than the gap between two parts of
-        a split fetched the other part's inside into the gap. Where only benches above the
+        cap, ridges) ``f_last + m`` is kept. Where the boundary recedes
+        (``d . n < 0``), ``F`` is at most ``f_last + d . n``, exact for a
+        straight boundary and never reached on the trailing side of a convex
+        body: a displacement wider than the gap between the two parts of a
+        split fetched the other part's inside into the gap. Where only benches above the
         deepest saw the geozone and its bodies have likely ended by ``z_m``
         (see the class), the deepest bench's evidence is taken instead.
         """
@@ -717,14 +718,7 @@ class DepthTrend:
         return direction_classes(np.arctan2(g_r, g_c), directed, self._sigma_cells)
 
     def region(self, z_m: float) -> MultiPolygon:
-        """The predicted section at ``z_m``: ``field > 0``, without bodies smaller than a cell.
-
-        A cell's worth of ground is below what the field resolves: where a
-        part recedes across a gap narrower than its movement, the transport's
-        interpolation leaves specks of it behind.
-        """
-        region = self.grid.polygons_from_distance(self.field(z_m))
-        return MultiPolygon([p for p in region.geoms if p.area >= self.grid.cell_size_m**2])
+        return self.grid.polygons_from_distance(self.field(z_m))
 
 
 def direction_classes(theta: np.ndarray, valid: np.ndarray, sigma_cells: float) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -793,7 +787,7 @@ def displacement_by_direction(
 
 
 def _solve_symmetric_3x3(m: list[list[np.ndarray]], b: list[np.ndarray]) -> list[np.ndarray]:
-    """``x`` with ``m x = b`` per element, ``m`` symmetric and nonsingular (Cramer's rule: batched LAPACK is 4x slower)."""
+    """``x`` with ``m x = b`` per element, ``m`` symmetric and nonsingular (by its adjugate: faster than batched LAPACK)."""
     c00 = m[1][1] * m[2][2] - m[1][2] ** 2
     c01 = m[0][2] * m[1][2] - m[0][1] * m[2][2]
     c02 = m[0][1] * m[1][2] - m[0][2] * m[1][1]
