@@ -578,7 +578,7 @@ def test_the_displacement_of_a_curved_boundary_is_its_whole_translation_and_of_a
 
     rows, cols = np.indices((120, 120), dtype=float)
     shift = np.array([3.0, -2.0])  # cells
-    for f in (18.0 - np.hypot(rows - 60, cols - 60), 40.0 - rows):  # a disc 18 cells across; a straight contact
+    for f in (18.0 - np.hypot(rows - 60, cols - 60), 40.0 - rows):  # a disc 18 cells in radius; a straight contact
         g_r, g_c = np.gradient(f)
         norm = np.maximum(np.hypot(g_r, g_c), 1e-9)
         n_r, n_c = g_r / norm, g_c / norm
