@@ -680,10 +680,9 @@ class DepthTrend:
         movement = self.movement(z_m)
         field = self.f_last + movement
         if self.transport_smoothing_m > 0:
-            g_r, g_c, norm, directed = self._normals
-            move = np.where(directed, movement, 0.0) / self.grid.cell_size_m
-            n_r, n_c = g_r / np.maximum(norm, 1e-9), g_c / np.maximum(norm, 1e-9)
-            d_r, d_c = displacement_by_direction(move, n_r, n_c, self._direction_classes, self._sigma_cells)
+            n_r, n_c, directed = self._normals
+            move = movement / self.grid.cell_size_m  # the class weights are 0 where there is no direction
+            d_r, d_c = displacement_by_direction(move, n_r, n_c, self._flow_systems, self._sigma_cells)
             rows, cols = np.indices(self.f_last.shape, dtype=float)
             carried = ndimage.map_coordinates(self.f_last, [rows + d_r, cols + d_c], order=1, mode="nearest")
             field = np.where(directed, carried, field)
@@ -704,18 +703,19 @@ class DepthTrend:
         return self.transport_smoothing_m / self.grid.cell_size_m
 
     @cached_property
-    def _normals(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``grad f_last`` (per cell), its length and where it has a direction."""
-        h = self.grid.cell_size_m
+    def _normals(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The unit normal ``grad f_last / |grad f_last|`` (per cell) and where it has a direction."""
         g_r, g_c = np.gradient(self.f_last)
         norm = np.hypot(g_r, g_c)
-        directed = norm > 0.2 * h  # a distance changes by h per cell; caps and ridges do not
-        return g_r, g_c, norm, directed
+        directed = norm > 0.2 * self.grid.cell_size_m  # a distance changes by h per cell; caps and ridges do not
+        norm = np.maximum(norm, 1e-9)
+        return g_r / norm, g_c / norm, directed
 
     @cached_property
-    def _direction_classes(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        g_r, g_c, _, directed = self._normals
-        return direction_classes(np.arctan2(g_r, g_c), directed, self._sigma_cells)
+    def _flow_systems(self) -> list[tuple[np.ndarray, tuple]]:
+        n_r, n_c, directed = self._normals
+        classes = direction_classes(np.arctan2(n_r, n_c), directed, self._sigma_cells)
+        return flow_systems(n_r, n_c, classes, self._sigma_cells)
 
     def region(self, z_m: float) -> MultiPolygon:
         return self.grid.polygons_from_distance(self.field(z_m))
@@ -735,12 +735,27 @@ def direction_classes(theta: np.ndarray, valid: np.ndarray, sigma_cells: float) 
     return classes
 
 
+def flow_systems(
+    n_r: np.ndarray, n_c: np.ndarray, classes: list[tuple[np.ndarray, np.ndarray]], sigma_cells: float
+) -> list[tuple[np.ndarray, tuple]]:
+    """Per direction class, its weight and the inverse of the normal equations of :func:`displacement_by_direction`.
+
+    They rest on the boundary's normals alone: made once per section, not per
+    elevation. The inverse is a 3 x 3 nested tuple of per-cell arrays.
+    """
+    systems = []
+    for w, weight in classes:
+        rr, rc, r1, c1 = (ndimage.gaussian_filter(w * x, sigma_cells) for x in (n_r * n_r, n_r * n_c, n_r, n_c))
+        cc = weight - rr  # n_r^2 + n_c^2 = 1 where w > 0
+        ridge = RIDGE_SHARE * weight + 1e-9
+        systems.append(
+            (w, _inverse_symmetric_3x3([[rr + ridge, rc, r1], [rc, cc + ridge, c1], [r1, c1, weight + ridge]]))
+        )
+    return systems
+
+
 def displacement_by_direction(
-    movement: np.ndarray,
-    n_r: np.ndarray,
-    n_c: np.ndarray,
-    classes: list[tuple[np.ndarray, np.ndarray]],
-    sigma_cells: float,
+    movement: np.ndarray, n_r: np.ndarray, n_c: np.ndarray, systems: list[tuple[np.ndarray, tuple]], sigma_cells: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The displacement that moves each boundary cell's neighbourhood as its movements across itself say.
 
@@ -765,20 +780,13 @@ def displacement_by_direction(
     Across a narrow gap, the opposite movements of two parts moving apart (a
     split) would cancel too, so each cell fits only with cells whose boundary
     faces its way: within each of the :func:`direction_classes`, weighted by
-    its class weight. ``movement`` in cells; returns ``(d_r, d_c)`` in cells.
+    its class weight (``systems``: :func:`flow_systems`). ``movement`` in
+    cells; returns ``(d_r, d_c)`` in cells.
     """
     out_r, out_c, total = np.zeros_like(movement), np.zeros_like(movement), np.zeros_like(movement)
-    for w, weight in classes:
-
-        def local(x: np.ndarray, w: np.ndarray = w) -> np.ndarray:
-            return ndimage.gaussian_filter(w * x, sigma_cells)
-
-        rr, rc, r1 = local(n_r * n_r), local(n_r * n_c), local(n_r)
-        c1 = local(n_c)
-        cc = weight - rr  # n_r^2 + n_c^2 = 1 where w > 0
-        ridge = RIDGE_SHARE * weight + 1e-9
-        normal = [[rr + ridge, rc, r1], [rc, cc + ridge, c1], [r1, c1, weight + ridge]]
-        v_r, v_c, a = _solve_symmetric_3x3(normal, [local(movement * n_r), local(movement * n_c), local(movement)])
+    for w, inverse in systems:
+        b = [ndimage.gaussian_filter(w * movement * x, sigma_cells) for x in (n_r, n_c, 1.0)]
+        v_r, v_c, a = (row[0] * b[0] + row[1] * b[1] + row[2] * b[2] for row in inverse)
         out_r += w * (v_r + a * n_r)
         out_c += w * (v_c + a * n_c)
         total += w
@@ -786,8 +794,8 @@ def displacement_by_direction(
     return out_r / total, out_c / total
 
 
-def _solve_symmetric_3x3(m: list[list[np.ndarray]], b: list[np.ndarray]) -> list[np.ndarray]:
-    """``x`` with ``m x = b`` per element, ``m`` symmetric and nonsingular (by its adjugate: faster than batched LAPACK)."""
+def _inverse_symmetric_3x3(m: list[list[np.ndarray]]) -> tuple:
+    """The inverse of a symmetric, nonsingular 3 x 3 matrix per element, by its adjugate."""
     c00 = m[1][1] * m[2][2] - m[1][2] ** 2
     c01 = m[0][2] * m[1][2] - m[0][1] * m[2][2]
     c02 = m[0][1] * m[1][2] - m[0][2] * m[1][1]
@@ -795,8 +803,7 @@ def _solve_symmetric_3x3(m: list[list[np.ndarray]], b: list[np.ndarray]) -> list
     c12 = m[0][1] * m[0][2] - m[0][0] * m[1][2]
     c22 = m[0][0] * m[1][1] - m[0][1] ** 2
     det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02
-    inverse = ((c00, c01, c02), (c01, c11, c12), (c02, c12, c22))
-    return [(row[0] * b[0] + row[1] * b[1] + row[2] * b[2]) / det for row in inverse]
+    return ((c00 / det, c01 / det, c02 / det), (c01 / det, c11 / det, c12 / det), (c02 / det, c12 / det, c22 / det))
 
 
 def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
