@@ -149,9 +149,8 @@ def print_table(df: pd.DataFrame) -> None:
     for _, r in summary.iterrows():
         scores = {m: f1(r[f"precision_{m}"], r[f"recall_{m}"]) for m in (*METHODS, TRUE_LINEAR)}
         best = max(REFERENCES, key=lambda m: scores[m])
-        print(
-            f"\n{r['depth_m']:.0f} m below the deepest bench ({len(df[df['fraction'] == r['fraction']]) // 5} cases):"
-        )
+        cases = len(df[df["fraction"] == r["fraction"]]) // len(scores)
+        print(f"\n{r['depth_m']:.0f} m below the deepest bench ({cases} cases):")
         for m in (*METHODS, TRUE_LINEAR):
             p, rec = r[f"precision_{m}"], r[f"recall_{m}"]
             print(f"  {m:22s} precision {100 * p:5.1f}  recall {100 * rec:5.1f}  F1 {100 * scores[m]:5.1f}")

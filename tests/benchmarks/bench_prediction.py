@@ -163,10 +163,7 @@ def print_kennecott(df: pd.DataFrame) -> None:
     if "holes_in" not in df:
         return
     print("  scored on the withheld bench's holes:")
-    scores = {}
-    for m, part in df.groupby("method"):
-        hit, inside, labelled = part["holes_in_geozone"].sum(), part["holes_in"].sum(), part["holes_geozone"].sum()
-        scores[m] = (hit / inside if inside else np.nan, hit / labelled if labelled else np.nan)
+    scores = hole_scores(df)
     for m in METHODS:
         p, rec = scores[m]
         print(f"  {m:9s} precision {100 * p:5.1f}  recall {100 * rec:5.1f}  F1 {100 * f1(p, rec):5.1f}")
@@ -177,13 +174,13 @@ def print_kennecott(df: pd.DataFrame) -> None:
     print_kennecott_by_depth(df)
 
 
-def hole_f1(part: pd.DataFrame) -> dict[str, float]:
-    """Per method, the F1 of the withheld benches' holes (percent), counts pooled over ``part``'s rows."""
-    out = {}
+def hole_scores(part: pd.DataFrame) -> dict[str, tuple[float, float]]:
+    """Per method, precision and recall on the withheld benches' holes, counts pooled over ``part``'s rows."""
+    scores = {}
     for m, rows in part.groupby("method"):
         hit, inside, labelled = rows["holes_in_geozone"].sum(), rows["holes_in"].sum(), rows["holes_geozone"].sum()
-        out[m] = 100 * f1(hit / inside if inside else np.nan, hit / labelled if labelled else np.nan)
-    return out
+        scores[m] = (hit / inside if inside else np.nan, hit / labelled if labelled else np.nan)
+    return scores
 
 
 def print_kennecott_by_depth(df: pd.DataFrame) -> None:
@@ -195,7 +192,7 @@ def print_kennecott_by_depth(df: pd.DataFrame) -> None:
     print("  by the deepest known bench (F1 on the withheld bench's holes; cases):")
     for first in sorted(df["bench"].unique()):
         part = df[df["bench"] >= first]
-        scores = hole_f1(part)
+        scores = {m: 100 * f1(*pr) for m, pr in hole_scores(part).items()}
         best = max(REFERENCES, key=lambda m: scores[m] if np.isfinite(scores[m]) else -1)
         cases = len(part) // len(METHODS)
         line = "  ".join(f"{m} {scores[m]:5.1f}" for m in METHODS)
