@@ -574,21 +574,20 @@ def test_a_strip_crossing_the_edge_of_the_drilling_goes_on_past_it():
 
 def test_the_displacement_of_a_curved_boundary_is_its_whole_translation_and_of_a_straight_one_its_movement_across():
     """The benches give only the movement across a boundary; where the boundary curves, its normals fix the rest."""
-    from core.model.extrapolation import direction_classes, displacement_by_direction, flow_systems
+    from core.model.extrapolation import direction_classes, displacement_by_direction, flow_systems, unit_normals
 
     rows, cols = np.indices((120, 120), dtype=float)
     shift = np.array([3.0, -2.0])  # cells
-    for f in (18.0 - np.hypot(rows - 60, cols - 60), 40.0 - rows):  # a disc 18 cells in radius; a straight contact
-        g_r, g_c = np.gradient(f)
-        norm = np.maximum(np.hypot(g_r, g_c), 1e-9)
-        n_r, n_c = g_r / norm, g_c / norm
+    disc, contact = 18.0 - np.hypot(rows - 60, cols - 60), 40.0 - rows  # a disc 18 cells in radius
+    for f in (disc, contact):
+        n_r, n_c, directed = unit_normals(f, 1.0)
         # the section translated by -shift: its boundary moves across itself by shift . n (n points inside)
         movement = shift[0] * n_r + shift[1] * n_c
-        classes = direction_classes(np.arctan2(g_r, g_c), norm > 0.2, 6.0)
+        classes = direction_classes(np.arctan2(n_r, n_c), directed, 6.0)
         d_r, d_c = displacement_by_direction(movement, n_r, n_c, flow_systems(n_r, n_c, classes, 6.0), 6.0)
         edge = np.abs(f) < 1.0
         error = np.hypot(d_r - shift[0], d_c - shift[1])[edge]
-        if f[60, 60] > 18.0 - 1e-9:  # the disc: the whole translation all round (averaging m n: 0.6 of it off)
+        if f is disc:  # the whole translation all round (averaging m n: 0.6 of it off)
             assert error.max() < 0.2 * np.hypot(*shift), error.max()
         else:  # the straight contact: across it only (along it nothing tells)
             assert np.allclose(d_r[edge], shift[0], atol=0.05) and np.allclose(d_c[edge], 0.0, atol=0.05)

@@ -388,6 +388,21 @@ def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
     return last, before
 
 
+def unit_normals(distance: np.ndarray, cell_size_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unit normal ``grad F / |grad F|`` of a signed distance (pointing inside), per cell, and where it has one.
+
+    A signed distance changes by a cell size per cell; at its cap and on its
+    ridges it does not, and the normal there is no direction (``directed``
+    false where ``|grad F|`` is under a fifth of a cell size; the normal is
+    then not meaningful).
+    """
+    g_r, g_c = np.gradient(distance)
+    norm = np.hypot(g_r, g_c)
+    directed = norm > 0.2 * cell_size_m
+    norm = np.maximum(norm, 1e-9)
+    return g_r / norm, g_c / norm, directed
+
+
 def boundary_movement(
     older: np.ndarray, newer: np.ndarray, cell_size_m: float, reach_m: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -421,12 +436,11 @@ def boundary_movement(
         end of its trajectory on the bench above), (row, col) in cells; the
         boundary point itself where there is no counterpart.
     """
-    g_r, g_c = np.gradient(newer)
-    norm = np.hypot(g_r, g_c)
-    band = (np.abs(newer) <= cell_size_m) & (norm > 0.2 * cell_size_m)
+    n_r, n_c, directed = unit_normals(newer, cell_size_m)
+    band = (np.abs(newer) <= cell_size_m) & directed
     if not band.any():
         return np.full(newer.shape, np.nan), np.full((2, *newer.shape), np.nan)
-    n_r, n_c = g_r[band] / norm[band], g_c[band] / norm[band]
+    n_r, n_c = n_r[band], n_c[band]
     rows, cols = np.nonzero(band)
     to_boundary = newer[band] / cell_size_m  # from each band cell to the boundary point, along -normal
     steps = np.arange(-reach_m, reach_m + 1e-9, 0.5 * cell_size_m) / cell_size_m
@@ -590,9 +604,8 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     (BENCHMARKS.md). Without the elongation that noise was held entirely but
     a body splitting in two lost 4.5 points.
     """
-    g_r, g_c = np.gradient(f_last)
-    norm = np.hypot(g_r, g_c)
-    band = (np.abs(f_last) <= cell_size_m) & (norm > 0.2 * cell_size_m)
+    inward_r, inward_c, directed = unit_normals(f_last, cell_size_m)
+    band = (np.abs(f_last) <= cell_size_m) & directed
     # Traced on both sides, the outlines of the two parts of a body that has just split joined across their gap:
     # one fit of their opposite movements cancelled them (a constructed split carried half of its parting).
     inner = band & (f_last > 0)
@@ -603,7 +616,7 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     stretches = np.where(band, rings[ring_r, ring_c], 0)
     owner, use = stretches[band], matched[band]
     values = rate[..., band].reshape(-1, owner.size).T  # (band cells, movements)
-    n_r, n_c = -g_r[band] / norm[band], -g_c[band] / norm[band]
+    n_r, n_c = -inward_r[band], -inward_c[band]
     design = np.column_stack([np.ones(owner.size), n_r, n_c, n_r**2 - n_c**2, 2 * n_r * n_c])
     fitted = np.full(values.shape, np.nan)
     for stretch in np.unique(owner[use]):
@@ -704,12 +717,7 @@ class DepthTrend:
 
     @cached_property
     def _normals(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The unit normal ``grad f_last / |grad f_last|`` (per cell) and where it has a direction."""
-        g_r, g_c = np.gradient(self.f_last)
-        norm = np.hypot(g_r, g_c)
-        directed = norm > 0.2 * self.grid.cell_size_m  # a distance changes by h per cell; caps and ridges do not
-        norm = np.maximum(norm, 1e-9)
-        return g_r / norm, g_c / norm, directed
+        return unit_normals(self.f_last, self.grid.cell_size_m)
 
     @cached_property
     def _flow_systems(self) -> list[tuple[np.ndarray, tuple]]:
