@@ -158,6 +158,29 @@ def test_implicit_rbf_predicts_the_next_bench(small_mine):
     assert ev.iou(pred, pred2) > 0.9
 
 
+def test_implicit_rbf_where_benches_do_not_overlap_keeps_each_benchs_boundaries():
+    """Two benches drilled side by side: every neighbourhood lies on one bench and has no depth trend to fit.
+
+    Its degree-1 system is singular; the model still gives each bench's own stripes below it.
+    """
+    from core.geometry.grid import Grid
+    from core.model.implicit import fit_implicit_rbf
+
+    pattern = np.stack(np.meshgrid(np.arange(0, 200, 5.0), np.arange(0, 200, 5.0)), -1).reshape(-1, 2)
+    xy = np.concatenate([pattern, pattern + [1000.0, 0.0]])
+    z = np.repeat([100.0, 90.0], len(pattern))
+    inside = (xy[:, 0] % 40) < 20  # stripes 20 m wide, 5 m holes
+    model = fit_implicit_rbf(xy, z, inside, bench=(z < 95).astype(int), bench_height_m=10.0)
+    grid = Grid.covering((0.0, 0.0, 1200.0, 200.0), 2.5)
+    f = model.field(85.0, grid)
+    on = np.column_stack([v.ravel() for v in grid.cell_centres()])
+    sample = (np.abs(on[:, 0] - 100) < 80) | (np.abs(on[:, 0] - 1100) < 80)
+    truth = (on[sample, 0] % 40) < 20
+    away = np.abs((on[sample, 0] % 20) - 10) < 6  # not within a cell or two of a stripe's edge
+    assert np.isfinite(f).all()
+    assert np.mean((f.ravel()[sample] > 0)[away] == truth[away]) > 0.95
+
+
 def test_evaluate_geozone_with_truth(small_mine, tmp_path):
     _, holes, truth, contours = small_mine
     seen = []

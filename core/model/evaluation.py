@@ -26,22 +26,19 @@ the overall rates are their area-weighted averages, which are
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
 from functools import lru_cache, partial
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import shapely
-from scipy import ndimage
-from scipy.interpolate import RBFInterpolator
-from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon, Polygon
 
 from core.geometry.grid import Grid, as_multipolygon
 from core.geometry.sdf import signed_distance
 from core.io.atomic import atomic_path
 from core.io.blastholes import Blastholes
+from core.model.implicit import fit_implicit_rbf
 
 #: The paper's prediction depths, as fractions of the bench height (1.25 m steps of a 10 m bench).
 DEFAULT_FRACTIONS: tuple[float, ...] = tuple(i / 8 for i in range(1, 9))
@@ -206,169 +203,6 @@ def predict_linear_sdf(
     if grid is None:
         grid = default_grid(regions.values())
     return LinearSDF(regions, grid, max_shift_m).region(z_m)
-
-
-def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float | None) -> tuple[np.ndarray, float]:
-    """Bench index of each hole and the bench height: as given, or detected from the elevations."""
-    if bench is not None and bench_height_m is not None and np.isfinite(bench_height_m):
-        return np.asarray(bench), float(bench_height_m)
-    from core.io.blastholes import detect_benches
-
-    levels, found, height, _ = detect_benches(
-        z, bench_height_m if bench_height_m and np.isfinite(bench_height_m) else None
-    )
-    if not np.isfinite(height):
-        height = 10.0  # a single bench: z does not matter, any scale will do
-    if bench is None:
-        # Off-bench holes (-1) still get the nearest level.
-        found = np.argmin(np.abs(z[:, None] - np.asarray(levels)[None, :]), axis=1)
-    return np.asarray(bench if bench is not None else found), float(height)
-
-
-def _median_spacing(xy: np.ndarray, groups: np.ndarray) -> float:
-    """Median distance from a hole to its nearest neighbour on the same bench (5 m if no bench has two)."""
-    d = [
-        cKDTree(xy[groups == g]).query(xy[groups == g], k=2)[0][:, 1]
-        for g in np.unique(groups)
-        if (groups == g).sum() > 1
-    ]
-    return float(np.median(np.concatenate(d))) if d else 5.0
-
-
-def hole_signed_distance(xy: np.ndarray, inside: np.ndarray, groups: np.ndarray, cap_m: float) -> np.ndarray:
-    """Signed distance of each hole to its bench's boundary, estimated from the labels alone.
-
-    The boundary lies midway between holes of different labels, so a hole's
-    distance to it is half the distance to the nearest hole of the other label
-    on the same bench (positive inside). Values are capped at ``±cap_m``, which
-    is also the value of benches where the label is absent or everywhere.
-    """
-    d = np.empty(len(xy))
-    for g in np.unique(groups):
-        sel = np.flatnonzero(groups == g)
-        ins, out = sel[inside[sel]], sel[~inside[sel]]
-        if len(ins) == 0 or len(out) == 0:
-            d[sel] = cap_m if len(out) == 0 else -cap_m
-            continue
-        d[ins] = 0.5 * cKDTree(xy[out]).query(xy[ins])[0]
-        d[out] = -0.5 * cKDTree(xy[ins]).query(xy[out])[0]
-    return np.clip(d, -cap_m, cap_m)
-
-
-@dataclass
-class ImplicitRBF:
-    """A fitted Leapfrog-style implicit model of one geozone (see :func:`fit_implicit_rbf`)."""
-
-    interpolator: RBFInterpolator | None
-    z_scale: float  #: z is multiplied by this before interpolation
-    spacing_m: float
-    constant: float = 0.0  #: value everywhere when there is nothing to interpolate
-    n_points: int = 0
-    resolution_spacings: float = 1.0  #: evaluation cell size, in hole spacings
-
-    def field(self, z_m: float, grid: Grid) -> np.ndarray:
-        """The implicit function on ``grid`` at elevation ``z_m`` (positive inside).
-
-        Evaluated on cells of ``resolution_spacings`` hole spacings (the data
-        cannot resolve much finer, and the cost grows with the number of
-        cells) and interpolated bilinearly onto ``grid``.
-        """
-        if self.interpolator is None:
-            return np.full(grid.shape, self.constant)
-        step = max(1, int(round(self.resolution_spacings * self.spacing_m / grid.cell_size_m)))
-        rows, cols = grid.shape
-        coarse = Grid(grid.x0, grid.y0, grid.cell_size_m * step, ((rows - 1) // step + 2, (cols - 1) // step + 2))
-        X, Y = coarse.cell_centres()
-        pts = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z_m * self.z_scale)])
-        values = self.interpolator(pts).reshape(coarse.shape)
-        if step == 1:
-            return values[:rows, :cols]
-        rr, cc = np.mgrid[0:rows, 0:cols] / step
-        return ndimage.map_coordinates(values, [rr, cc], order=1, mode="nearest")
-
-    def region(self, z_m: float, grid: Grid) -> MultiPolygon:
-        f = self.field(z_m, grid)
-        if not (f > 0).any():
-            return MultiPolygon()
-        return grid.polygons_from_field(f, 0.0)
-
-
-def fit_implicit_rbf(
-    holes_xy: np.ndarray,
-    holes_z: np.ndarray,
-    inside: np.ndarray,
-    *,
-    bench: np.ndarray | None = None,
-    spacing_m: float | None = None,
-    bench_height_m: float | None = None,
-    z_spacings: float = 2.0,
-    kernel: str = "linear",
-    neighbors: int = 64,
-    smoothing: float = 1.0,
-    band_spacings: float = 2.0,
-    far_fraction: float = 0.05,
-    seed: int = 0,
-    resolution_spacings: float = 2.0,
-) -> ImplicitRBF:
-    """Fit a 3D RBF interpolant of signed distances at the holes (Leapfrog-style implicit model).
-
-    Parameters
-    ----------
-    holes_xy : (n, 2) local metres; holes_z : (n,) metres
-        Known holes (all geozones).
-    inside : (n,) bool
-        Whether each hole belongs to the geozone.
-    bench : (n,) int, optional
-        Bench of each hole; found from ``holes_z`` when omitted.
-    spacing_m, bench_height_m : float, optional
-        Hole spacing (median nearest-neighbour distance on a bench by default)
-        and bench height (median gap between benches by default).
-    z_spacings : float
-        Anisotropy: z is scaled so one bench height counts like this many hole
-        spacings horizontally. Labels are dense along a bench and sparse across
-        benches, so without it the interpolant would see neighbouring holes of
-        one bench as much closer than the bench above; 2-3 spacings keeps the
-        vertical trend without letting one bench dominate.
-    kernel, neighbors, smoothing
-        Passed to :class:`scipy.interpolate.RBFInterpolator` (degree 1
-        polynomial, so the field extrapolates its local linear trend in depth).
-        ``smoothing`` absorbs label noise.
-    band_spacings, far_fraction, seed
-        Speed: all holes within ``band_spacings`` spacings of the boundary are
-        used, and a random ``far_fraction`` of the others (they only fix the
-        sign far away).
-    resolution_spacings : float
-        Cell size at which the field is evaluated (then interpolated
-        bilinearly onto the caller's grid), in hole spacings.
-
-    Notes
-    -----
-    Distances are estimated from the labels (:func:`hole_signed_distance`),
-    capped at 6 spacings.
-    """
-    xy = np.asarray(holes_xy, float)
-    z = np.asarray(holes_z, float)
-    inside = np.asarray(inside, bool)
-    if len(xy) == 0:
-        raise ValueError("no holes to fit an implicit model to")
-    groups, bench_height_m = _bench_groups(z, bench, bench_height_m)
-    if spacing_m is None or not np.isfinite(spacing_m):
-        spacing_m = _median_spacing(xy, groups)
-    z_scale = z_spacings * spacing_m / bench_height_m
-    if inside.all() or not inside.any():
-        cap = 6 * spacing_m
-        return ImplicitRBF(
-            None, z_scale, spacing_m, constant=cap if inside.all() else -cap, resolution_spacings=resolution_spacings
-        )
-    sd = hole_signed_distance(xy, inside, groups, 6 * spacing_m)
-    rng = np.random.default_rng(seed)
-    keep = (np.abs(sd) <= band_spacings * spacing_m) | (rng.random(len(sd)) < far_fraction)
-    pts = np.column_stack([xy[keep], z[keep] * z_scale])
-    # Holes of one bench share z; the degree-1 polynomial needs the points to span 3D.
-    interp = RBFInterpolator(
-        pts, sd[keep], kernel=kernel, neighbors=min(neighbors, int(keep.sum())), smoothing=smoothing, degree=1
-    )
-    return ImplicitRBF(interp, z_scale, spacing_m, n_points=int(keep.sum()), resolution_spacings=resolution_spacings)
 
 
 def predict_implicit_rbf(
