@@ -114,6 +114,13 @@ STALE_EVIDENCE_PROBABILITY = 0.5
 #: among 0.25 and 0.5, and a share chosen per geozone by a backtest of its own benches among
 #: 0, 0.25, 0.5 and 0.75 (see BENCHMARKS.md).
 IMPLICIT_WEIGHT = 0.25
+#: The implicit model's signed distance is capped at this many hole spacings before it is
+#: blended in. The implicit model extrapolates a lens appearing between two benches as
+#: a boundary moving fast and grows it on; capped at the trend's cap (8 spacings), the blend
+#: grew the geozone's lenses by up to 2.7 spacings, and pods lost precision (development
+#: seeds 0-11, 10 m: 35.2 -> 34.9 at the default drilling, 35.6 -> 31.5 on 9-12 m
+#: patterns). Chosen among 2, 4 and 8 on those seeds (see BENCHMARKS.md).
+IMPLICIT_CAP_SPACINGS = 2.0
 
 
 @dataclass
@@ -730,14 +737,15 @@ class DepthTrend:
         (see the class), the deepest bench's evidence is taken instead.
 
         The result is blended with the :attr:`implicit` model's signed
-        distance (:data:`IMPLICIT_WEIGHT`, ``w``; capped as the trend is), so
-        it moves the trend's boundaries by at most ``w / (1 - w)`` of the cap
-        (a third): it does not raise a body far from them or take a large one away.
+        distance (:data:`IMPLICIT_WEIGHT` ``w``, capped at
+        :data:`IMPLICIT_CAP_SPACINGS`), so it moves the trend's boundaries by
+        at most ``w / (1 - w)`` of that cap, two thirds of a spacing: it
+        adjusts them, and raises or takes away no body of its own.
         """
         trend = self._trend_field(z_m)
         if self.implicit is None:
             return trend
-        cap = float(np.max(np.abs(self.f_last)))
+        cap = IMPLICIT_CAP_SPACINGS * self.implicit.spacing_m
         implicit = np.clip(self.implicit.field(z_m, self.grid), -cap, cap)
         return (1 - IMPLICIT_WEIGHT) * trend + IMPLICIT_WEIGHT * implicit
 
