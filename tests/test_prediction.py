@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 import shapely
@@ -315,13 +313,10 @@ def test_a_strip_moving_further_than_its_half_width_is_carried_whole(monkeypatch
     assert carried > added + 0.05 and carried_area < added_area, (carried, added, carried_area, added_area)
 
 
-def _lens_fields(lenses_per_bench, drilled_per_bench, with_holes=False):
-    """Bench fields of a geozone made of round lenses ``(x, y, r)`` per bench, 10 m benches, 6 m spacing.
-
-    ``with_holes``: with the labels of holes on a 6 m square pattern over each bench's drilled area.
-    """
+def _lens_fields(lenses_per_bench, drilled_per_bench):
+    """Bench fields of a geozone made of round lenses ``(x, y, r)`` per bench, 10 m benches, 6 m spacing."""
     from core.geometry.grid import Grid, as_multipolygon
-    from core.model.extrapolation import BenchHoles, bench_fields
+    from core.model.extrapolation import bench_fields
 
     grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
     regions = {
@@ -330,14 +325,7 @@ def _lens_fields(lenses_per_bench, drilled_per_bench, with_holes=False):
     }
     drilled = {k: grid.rasterize(box) for k, box in enumerate(drilled_per_bench)}
     z = {k: 500.0 - 10.0 * k for k in range(len(lenses_per_bench))}
-    holes = None
-    if with_holes:
-        xy = np.stack(np.meshgrid(np.arange(3.0, 200, 6), np.arange(3.0, 160, 6)), -1).reshape(-1, 2)
-        on = [shapely.contains_xy(box, *xy.T) for box in drilled_per_bench]
-        hz = np.concatenate([np.full(int(o.sum()), z[k]) for k, o in enumerate(on)])
-        inside = np.concatenate([shapely.contains_xy(regions[k], *xy[o].T) for k, o in enumerate(on)])
-        holes = BenchHoles(np.concatenate([xy[o] for o in on]), hz, hz, inside)
-    return bench_fields(regions, drilled, z, grid, 6.0, 18.0, holes=holes)
+    return bench_fields(regions, drilled, z, grid, 6.0, 18.0)
 
 
 def test_a_lens_that_grew_twice_by_chance_among_lenses_that_change_at_random_is_held():
@@ -603,45 +591,3 @@ def test_the_displacement_of_a_curved_boundary_is_its_whole_translation_and_of_a
             assert error.max() < 0.2 * np.hypot(*shift), error.max()
         else:  # the straight contact: across it only (along it nothing tells)
             assert np.allclose(d_r[edge], shift[0], atol=0.05) and np.allclose(d_c[edge], 0.0, atol=0.05)
-
-
-def test_a_prediction_from_the_upper_benches_never_sees_the_holes_of_the_deeper_ones():
-    """The implicit model blended into the trend is fitted to the known benches' holes only."""
-    from core.model.extrapolation import depth_trend
-
-    everywhere = shapely.box(0, 0, 200, 160)
-    fields = _lens_fields([[(100, 80, r)] for r in (20.0, 26.0, 32.0, 38.0)], [everywhere] * 4, with_holes=True)
-    known = fields.through(480.0)
-    assert set(np.unique(known.holes.bench_z_m)) == {500.0, 490.0, 480.0}
-    assert known.reversed().holes.inside.sum() == known.holes.inside.sum()
-    trend = depth_trend(known, 10.0, 6.0)
-    assert trend.implicit is not None and trend.implicit.n_points < len(fields.holes.xy)
-    # The disc grows 6 m a bench: one bench below the third, r 38, as the withheld fourth bench has it.
-    predicted = trend.region(470.0)
-    assert predicted.contains(Point(100 + 35.0, 80)) and not predicted.contains(Point(100 + 41.0, 80))
-
-
-def test_the_holes_implicit_model_moves_the_trends_boundaries_by_at_most_two_thirds_of_a_spacing():
-    """Blended in at a quarter and capped at two spacings, the implicit model adjusts boundaries, no more.
-
-    However hard its holes pull (an implicit model inside, or outside, everywhere), the blend's
-    boundary stays within a third of its cap (12 m at 6 m spacing: 4 m) of the trend's, so a lens
-    that ended above the deepest bench is not predicted again below it and no body grows by more.
-    """
-    from core.model.extrapolation import depth_trend
-    from core.model.implicit import ImplicitRBF
-
-    everywhere = shapely.box(0, 0, 200, 160)
-    benches = [[(50, 80, 30), (150, 80, 20)], [(50, 80, 30), (150, 80, 20)], [(50, 80, 30)]]
-    trend = depth_trend(_lens_fields(benches, [everywhere] * 3, with_holes=True), 10.0, 6.0)
-    assert trend.implicit is not None
-    held = replace(trend, implicit=None).region(475.0)
-    assert iou(held, Point(50, 80).buffer(30.0)) > 0.97
-    inside, outside = (replace(trend, implicit=ImplicitRBF(None, 1.0, 6.0, constant=c)) for c in (1e3, -1e3))
-    pulled_out, pulled_in = inside.region(475.0), outside.region(475.0)
-    # 4 m, to a cell (2 m): the trend's signed distance is exact next to its contour only.
-    assert pulled_out.difference(held.buffer(4.0 + 2.0)).is_empty and held.buffer(4.0 - 2.0).within(pulled_out)
-    assert pulled_in.within(held.buffer(-4.0 + 2.0)) and held.buffer(-4.0 - 2.0).within(pulled_in)
-    # The holes' own model: the lens that ended is not predicted again, the body that goes on stays.
-    blended = trend.region(475.0)
-    assert not blended.intersects(Point(150, 80).buffer(20.0)) and iou(blended, held) > 0.9

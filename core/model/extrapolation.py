@@ -50,7 +50,6 @@ from shapely.geometry import MultiPolygon
 
 from core.correspondence.alignment import fft_translation, shift_mask
 from core.geometry.grid import Grid
-from core.model.implicit import ImplicitRBF, fit_implicit_rbf
 
 #: Neighbourhood over which the boundary's movement is fitted by a displacement when the
 #: last section is carried along it (:meth:`DepthTrend.field`), in hole spacings, and the
@@ -107,39 +106,6 @@ GROWTH_CONTINUITY_POWER = 4.0
 #: 90% of the lenses it kept were wrong (pods +0.2 and +0.1 F1 points at 5 and 10 m, +0.8 and
 #: +0.5 with 3-4 m patterns, other families and Kennecott within 0.1).
 STALE_EVIDENCE_PROBABILITY = 0.5
-#: Share of the implicit model of the geozone's holes (:mod:`core.model.implicit`) in the
-#: signed distance extrapolated below the deepest bench (:meth:`DepthTrend.field`). The
-#: implicit model rests on the holes' labels rather than the contours and fits every bench
-#: at once, so its errors are not the trend's. Chosen on development seeds 0-11 and Kennecott
-#: among 0.25 and 0.5, and a share chosen per geozone by a backtest of its own benches among
-#: 0, 0.25, 0.5 and 0.75 (see BENCHMARKS.md).
-IMPLICIT_WEIGHT = 0.25
-#: The implicit model's signed distance is capped at this many hole spacings before it is
-#: blended in. The implicit model extrapolates a lens appearing between two benches as
-#: a boundary moving fast and grows it on; capped at the trend's cap (8 spacings), the blend
-#: grew the geozone's lenses by up to 2.7 spacings, and pods lost precision (development
-#: seeds 0-11, 10 m: 35.2 -> 34.9 at the default drilling, 35.6 -> 31.5 on 9-12 m
-#: patterns). Chosen among 2, 4 and 8 on those seeds (see BENCHMARKS.md).
-IMPLICIT_CAP_SPACINGS = 2.0
-
-
-@dataclass
-class BenchHoles:
-    """The holes of a geozone's benches and whether each is in the geozone: the implicit model's data.
-
-    ``xy`` (n, 2) and ``z_m`` (n,) local metres, ``bench_z_m`` (n,) the
-    elevation of each hole's bench, ``inside`` (n,) bool.
-    """
-
-    xy: np.ndarray
-    z_m: np.ndarray
-    bench_z_m: np.ndarray
-    inside: np.ndarray
-
-    def on_benches(self, z_m: np.ndarray) -> BenchHoles:
-        """The holes of the benches at elevations ``z_m``."""
-        keep = np.isclose(self.bench_z_m[:, None], np.asarray(z_m)[None, :], atol=1e-6).any(axis=1)
-        return BenchHoles(self.xy[keep], self.z_m[keep], self.bench_z_m[keep], self.inside[keep])
 
 
 @dataclass
@@ -157,8 +123,6 @@ class BenchFields:
         How directly the bench observed each cell: 1 where drilled, falling
         off with the distance to its drilled area.
     drilled : (b, rows, cols) bool
-    holes : BenchHoles, optional
-        The benches' holes (for the implicit model blended into the trend).
     memo : dict
         Results that rest only on the first benches, shared with the
         benches' :meth:`through` views (the same in every view): each bench
@@ -171,7 +135,6 @@ class BenchFields:
     distance: np.ndarray
     weight: np.ndarray
     drilled: np.ndarray
-    holes: BenchHoles | None = None
     memo: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __getstate__(self) -> dict:
@@ -195,16 +158,11 @@ class BenchFields:
         first (:meth:`reversed`, extrapolating up), those at or below it.
         """
         n = int(np.sum(self.z_m <= z_m + 1e-6)) if self.upwards else int(np.sum(self.z_m >= z_m - 1e-6))
-        holes = None if self.holes is None else self.holes.on_benches(self.z_m[:n])
-        return BenchFields(
-            self.grid, self.z_m[:n], self.distance[:n], self.weight[:n], self.drilled[:n], holes, self.memo
-        )
+        return BenchFields(self.grid, self.z_m[:n], self.distance[:n], self.weight[:n], self.drilled[:n], self.memo)
 
     def reversed(self) -> BenchFields:
         """Bottom bench first: extrapolating from it extrapolates upwards."""
-        return BenchFields(
-            self.grid, self.z_m[::-1], self.distance[::-1], self.weight[::-1], self.drilled[::-1], self.holes
-        )
+        return BenchFields(self.grid, self.z_m[::-1], self.distance[::-1], self.weight[::-1], self.drilled[::-1])
 
 
 def bench_distance(
@@ -309,12 +267,10 @@ def bench_fields(
     hole_spacing_m: float,
     reach_m: float,
     unclaimed: Mapping[int, np.ndarray] | None = None,
-    holes: BenchHoles | None = None,
 ) -> BenchFields:
     """:class:`BenchFields` of the given benches (bench index -> region, drilled mask on ``grid``, elevation).
 
-    ``unclaimed``: per bench, the drilled cells that are no evidence past the drilled area (:func:`bench_distance`);
-    ``holes``: the benches' holes and labels (:class:`BenchHoles`).
+    ``unclaimed``: per bench, the drilled cells that are no evidence past the drilled area (:func:`bench_distance`).
     """
     benches = sorted(regions, key=lambda k: -z_m[k])
     h = grid.cell_size_m
@@ -331,7 +287,6 @@ def bench_fields(
         np.array(dist),
         np.array(weight),
         np.array([drilled[k] for k in benches]),
-        holes,
     )
 
 
@@ -707,7 +662,6 @@ class DepthTrend:
     transport_smoothing_m: float
     carried_precision: float
     f_deepest: np.ndarray
-    implicit: ImplicitRBF | None = None  #: the implicit model of the benches' holes, blended in (:meth:`field`)
 
     def movement(self, z_m: float) -> np.ndarray:
         """Metres the boundary moves outwards from ``z_last`` to ``z_m``, per cell."""
@@ -735,22 +689,7 @@ class DepthTrend:
         split fetched the other part's inside into the gap. Where only benches above the
         deepest saw the geozone and its bodies have likely ended by ``z_m``
         (see the class), the deepest bench's evidence is taken instead.
-
-        The result is blended with the :attr:`implicit` model's signed
-        distance (:data:`IMPLICIT_WEIGHT` ``w``, capped at
-        :data:`IMPLICIT_CAP_SPACINGS`), so it moves the trend's boundaries by
-        at most ``w / (1 - w)`` of that cap, two thirds of a spacing: it
-        adjusts them, and raises or takes away no body of its own.
         """
-        trend = self._trend_field(z_m)
-        if self.implicit is None:
-            return trend
-        cap = IMPLICIT_CAP_SPACINGS * self.implicit.spacing_m
-        implicit = np.clip(self.implicit.field(z_m, self.grid), -cap, cap)
-        return (1 - IMPLICIT_WEIGHT) * trend + IMPLICIT_WEIGHT * implicit
-
-    def _trend_field(self, z_m: float) -> np.ndarray:
-        """:meth:`field` of the trend alone."""
         movement = self.movement(z_m)
         field = self.f_last + movement
         if self.transport_smoothing_m > 0:
@@ -915,21 +854,9 @@ def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
         trend = _trend(fields, bench_height_m, hole_spacing_m)
         confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
         fields.memo.pop(_MOVEMENTS, None)
-        implicit = implicit_model(fields.holes, bench_height_m)
-        return replace(trend, carried_precision=confirmed, implicit=implicit)  # shares the trend's arrays
+        return replace(trend, carried_precision=confirmed)  # shares the trend's arrays
 
     return _memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)
-
-
-def implicit_model(holes: BenchHoles | None, bench_height_m: float) -> ImplicitRBF | None:
-    """The implicit model (:func:`core.model.implicit.fit_implicit_rbf`) of the benches' holes.
-
-    None without holes, or with one bench: its depth trend needs two.
-    """
-    if holes is None or len(np.unique(holes.bench_z_m)) < 2:
-        return None
-    bench = np.unique(holes.bench_z_m, return_inverse=True)[1]
-    return fit_implicit_rbf(holes.xy, holes.z_m, holes.inside, bench=bench, bench_height_m=bench_height_m)
 
 
 def _memoised(fields: BenchFields, key: tuple, compute):

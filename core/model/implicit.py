@@ -4,10 +4,8 @@ Leapfrog-style: each hole's signed distance to its bench's boundary is
 estimated from the labels alone (half the distance to the nearest hole of the
 other label), and a degree-1 RBF interpolant through them, with depth scaled
 so a bench counts like a few hole spacings, is evaluated at any elevation. It
-is one of the references of :mod:`core.model.evaluation` and, blended in, part
-of the model's extrapolation below the deepest bench
-(:mod:`core.model.extrapolation`): it rests on the holes' labels rather than
-the contours, and on every bench at once.
+is one of the references of :mod:`core.model.evaluation`: it rests on the
+holes' labels rather than the contours, and on every bench at once.
 """
 
 from __future__ import annotations
@@ -200,7 +198,7 @@ def fit_implicit_rbf(
     rng = np.random.default_rng(seed)
     keep = (np.abs(sd) <= band_spacings * spacing_m) | (rng.random(len(sd)) < far_fraction)
     pts = np.column_stack([xy[keep], z[keep] * z_scale])
-    # Holes of one bench share z; the degree-1 polynomial needs the points to span 3D.
+    # Holes of one bench share z: a neighbourhood on one bench has no depth trend (_interpolate).
     interp = RBFInterpolator(
         pts, sd[keep], kernel=kernel, neighbors=min(neighbors, int(keep.sum())), smoothing=smoothing, degree=1
     )

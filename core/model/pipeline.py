@@ -18,7 +18,7 @@ from shapely import affinity
 from core.correspondence.pair import MorphInstance, PairCorrespondence, correspond_pair
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes
-from core.model.extrapolation import BenchFields, BenchHoles, bench_fields
+from core.model.extrapolation import BenchFields, bench_fields
 from core.model.parameters import ModelParameters
 from core.morph.levelset import MorphResult, morph_regions
 from core.morph.trajectories import trajectory_xyz
@@ -270,9 +270,7 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
         # Cells nearer one of the geozone's holes than any other's (those outside its contours are its fringe).
         own = hole_distances(holes.xy[on], np.where(mine, "own", ""), ["own"], grid)[0] if mine.any() else np.inf
         unclaimed[k] = drilled[k] & (own <= nearest + 1e-9)
-    on = holes.bench >= 0
-    labels = BenchHoles(holes.xy[on], holes.z[on], holes.bench_levels_m[holes.bench[on]], holes.geozone[on] == geozone)
-    return bench_fields(regions, drilled, z, grid, spacing, reach_spacings * spacing, unclaimed, labels)
+    return bench_fields(regions, drilled, z, grid, spacing, reach_spacings * spacing, unclaimed)
 
 
 #: Cell size of a geozone's field grid, in hole spacings (a quarter gained 0.3 F1 on the

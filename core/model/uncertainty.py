@@ -673,7 +673,7 @@ def session_backtest(session, geozone: str, down: bool = True, model: GeozoneMod
     """The geozone's backtest (:func:`backtest`) in one direction, memoised in the session's store.
 
     ``session`` is a :class:`core.model.session.ModelSession`; the key hashes
-    the geozone's bench fields and holes, so a changed bench or parameter is backtested again.
+    the geozone's bench fields, so a changed bench or parameter is backtested again.
     """
     from core.io.cache import content_key, engine_fingerprint
 
@@ -683,9 +683,7 @@ def session_backtest(session, geozone: str, down: bool = True, model: GeozoneMod
         own = [c for c in session.contours() if c.geozone == geozone]
         fields = session.bench_fields(geozone, own)
     spacing = float(session.holes.hole_spacing_m)
-    key = content_key(
-        "backtest", engine_fingerprint(), fields.z_m, fields.distance, fields.drilled, fields.holes, spacing, down
-    )
+    key = content_key("backtest", engine_fingerprint(), fields.z_m, fields.distance, fields.drilled, spacing, down)
     return session.store.get("backtest", key, lambda: direction_backtest(fields, down, spacing))
 
 
