@@ -107,11 +107,14 @@ class ImplicitRBF:
 
 
 def _interpolate(interpolator: RBFInterpolator, points: np.ndarray) -> np.ndarray:
-    """The interpolant at ``points``; without its depth trend where some neighbourhood lies on one bench.
+    """The interpolant at ``points``; without a depth trend anywhere if some neighbourhood lies on one bench.
 
     The degree-1 polynomial of a neighbourhood whose holes all share one
     elevation has no slope in depth to fit: its system is singular, and a
-    constant term is all those holes determine.
+    constant term is all those holes determine. SciPy solves every
+    neighbourhood in one call and says only that one failed, so the whole
+    evaluation is redone with degree 0 (``y`` and ``d`` are the interpolator's
+    data points and values).
     """
     try:
         return interpolator(points)
