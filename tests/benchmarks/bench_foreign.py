@@ -40,15 +40,13 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_prediction import evaluate, f1  # noqa: E402
+from bench_prediction import METHODS, REFERENCES, evaluate, f1  # noqa: E402
 
 import core.model.evaluation as evaluation  # noqa: E402
 from core.geometry.grid import Grid  # noqa: E402
 from core.io.blastholes import BGMWarning, blastholes_from_table  # noqa: E402
 from core.model.evaluation import LinearSDF, summary_table  # noqa: E402
 
-METHODS = ("model", "nil", "linear", "implicit")
-REFERENCES = ("nil", "linear", "implicit")
 TRUE_LINEAR = "true sections, linear"
 SIDE_M, BENCH_M, BENCHES, WAVES = 240.0, 10.0, 7, 6
 
