@@ -236,12 +236,31 @@ def test_with_two_benches_shape_noise_is_nearly_held_and_a_split_still_moves_apa
     assert split[0] > split[1] + 0.05, split
 
 
+def test_movements_that_agree_by_chance_are_not_carried_on_and_steady_ones_are():
+    """Two benches' movements agreeing as often as two draws at random do carry on nothing; a steady one all.
+
+    Without the discount by the agreement's standard error, half of these
+    independent pairs of five-figure movements (one outline's fit) agreed
+    enough to carry some of their movement on.
+    """
+    from core.model.extrapolation import _agreement
+
+    rng = np.random.default_rng(0)
+    chance = [_agreement(rng.normal(size=5), rng.normal(size=5), 5) for _ in range(400)]
+    assert np.mean(np.array(chance) > 0) < 0.25, np.mean(np.array(chance) > 0)
+    steady = rng.normal(size=5)
+    assert _agreement(steady, steady, 5) == 1.0
+    assert _agreement(steady, -steady, 500) == 0.0
+
+
 def test_a_noisy_body_keeps_its_steady_movement_and_drops_its_wobble():
     """The outlines' movement and the finer changes carry on as far as each repeats (issue 12: damp only what is not).
 
     A disc moving 6 m a bench whose outline wobbles at random (harmonics 2-5, up to 6% of
     its radius each, new every bench): one figure for the whole movement damped the steady
-    translation to about half in 2 of these 6 cases.
+    translation to about half in 2 of these 6 cases. Each figure is discounted by a standard
+    error of its agreement (one outline: five degrees of freedom), which here keeps at least
+    0.92 of the translation; two standard errors kept 0.42 in one case.
     """
     from core.geometry.grid import Grid, as_multipolygon
     from core.model.extrapolation import bench_fields, geozone_persistence
@@ -255,9 +274,9 @@ def test_a_noisy_body_keeps_its_steady_movement_and_drops_its_wobble():
         fields = bench_fields(
             sections, dict.fromkeys(range(3), everywhere), {k: 500.0 - 10 * k for k in range(3)}, grid, 6.0, 36.0
         )
-        figures.append(geozone_persistence(fields))
+        figures.append(geozone_persistence(fields, 6.0))
     outline, finer = np.array(figures).T
-    assert outline.min() > 0.95, figures
+    assert outline.min() > 0.9, figures
     assert finer.mean() < 0.3, figures
 
 
@@ -346,7 +365,7 @@ def test_a_lens_that_grew_twice_by_chance_among_lenses_that_change_at_random_is_
         for change, radius in zip((0.0, 3.0, 0.0), (10.0, 13.0, 16.0))
     ]
     fields = _lens_fields(benches, [everywhere] * 3)
-    assert geozone_persistence(fields)[0] < 0.1  # the outlines' movement (growth here)
+    assert geozone_persistence(fields, 6.0)[0] < 0.1  # the outlines' movement (growth here)
     below = depth_trend(fields, 10.0, 6.0).region(470.0)
     assert below.contains(Point(160 + 14.0, 120)) and not below.contains(Point(160 + 17.0, 120))
     assert below.contains(Point(40 + 10.0, 40)) and not below.contains(Point(40 + 13.0, 40))
@@ -460,7 +479,7 @@ def test_a_strip_moving_steadily_further_than_its_half_width_keeps_its_movement(
     fields = BenchFields(
         grid, np.array([500.0, 490.0, 480.0]), distance, np.ones_like(distance), np.stack([drilled] * 3)
     )
-    assert geozone_persistence(fields)[0] > 0.95  # the outlines' movement
+    assert geozone_persistence(fields, 6.0)[0] > 0.95  # the outlines' movement
 
 
 def test_a_lens_growing_in_a_geozone_whose_bodies_end_is_held_and_a_body_that_goes_on_keeps_growing():
