@@ -237,7 +237,7 @@ def test_with_two_benches_shape_noise_is_nearly_held_and_a_split_still_moves_apa
 
 
 def test_movements_that_agree_by_chance_are_not_carried_on_and_steady_ones_are():
-    """Two benches' movements agreeing as often as two draws at random do carry on nothing; a steady one all.
+    """Movements that agree only as two random draws do are mostly held; a steady one carries on whole.
 
     Without the discount by the agreement's standard error, half of these
     independent pairs of five-figure movements (one outline's fit) agreed

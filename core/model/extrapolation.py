@@ -354,6 +354,7 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float) -> tuple[flo
     h = fields.grid.cell_size_m
     # d2 is carried to the deepest boundary along the trajectories: both are fitted on its outlines, at once
     outline1, outline2 = outline_movement(np.where(w, [d1, d2], 0.0), w, fields.distance[-1], h)
+    # Outlines counted as the pieces of its inner side three benches saw (a stretch the drilling cut counts apart).
     outlines = ndimage.label(w & (fields.distance[-1] > 0), structure=np.ones((3, 3)))[1]
     # The band is 2 PERSISTENCE_BAND_CELLS cells wide: its cells over that are the boundary's length in cells.
     length_spacings = w.sum() / (2 * PERSISTENCE_BAND_CELLS) * h / hole_spacing_m
