@@ -19,14 +19,13 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiPolygon
 
 from core.geometry.grid import Grid
+from core.io.blastholes import detect_benches, median_hole_spacing
 
 
 def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float | None) -> tuple[np.ndarray, float]:
     """Bench index of each hole and the bench height: as given, or detected from the elevations."""
     if bench is not None and bench_height_m is not None and np.isfinite(bench_height_m):
         return np.asarray(bench), float(bench_height_m)
-    from core.io.blastholes import detect_benches
-
     levels, found, height, _ = detect_benches(
         z, bench_height_m if bench_height_m and np.isfinite(bench_height_m) else None
     )
@@ -36,16 +35,6 @@ def _bench_groups(z: np.ndarray, bench: np.ndarray | None, bench_height_m: float
         # Off-bench holes (-1) still get the nearest level.
         found = np.argmin(np.abs(z[:, None] - np.asarray(levels)[None, :]), axis=1)
     return np.asarray(bench if bench is not None else found), float(height)
-
-
-def _median_spacing(xy: np.ndarray, groups: np.ndarray) -> float:
-    """Median distance from a hole to its nearest neighbour on the same bench (5 m if no bench has two)."""
-    d = [
-        cKDTree(xy[groups == g]).query(xy[groups == g], k=2)[0][:, 1]
-        for g in np.unique(groups)
-        if (groups == g).sum() > 1
-    ]
-    return float(np.median(np.concatenate(d))) if d else 5.0
 
 
 def hole_signed_distance(xy: np.ndarray, inside: np.ndarray, groups: np.ndarray, cap_m: float) -> np.ndarray:
@@ -93,11 +82,28 @@ class ImplicitRBF:
         coarse = Grid(grid.x0, grid.y0, grid.cell_size_m * step, ((rows - 1) // step + 2, (cols - 1) // step + 2))
         X, Y = coarse.cell_centres()
         pts = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z_m * self.z_scale)])
-        values = _interpolate(self.interpolator, pts).reshape(coarse.shape)
+        values = self._at(pts).reshape(coarse.shape)
         if step == 1:
             return values[:rows, :cols]
         rr, cc = np.mgrid[0:rows, 0:cols] / step
         return ndimage.map_coordinates(values, [rr, cc], order=1, mode="nearest")
+
+    def _at(self, points: np.ndarray) -> np.ndarray:
+        """The interpolant at ``points``; without a depth trend anywhere if some neighbourhood lies on one bench.
+
+        The degree-1 polynomial of a neighbourhood whose holes all share one
+        elevation has no slope in depth to fit: its system is singular, and a
+        constant term is all those holes determine. SciPy solves every
+        neighbourhood in one call and says only that one failed, so the model
+        changes to degree 0 for good, once, rather than failing again at every
+        elevation.
+        """
+        assert self.interpolator is not None
+        try:
+            return self.interpolator(points)
+        except np.linalg.LinAlgError:
+            self.interpolator = _without_depth_trend(self.interpolator)
+            return self.interpolator(points)
 
     def region(self, z_m: float, grid: Grid) -> MultiPolygon:
         f = self.field(z_m, grid)
@@ -106,28 +112,16 @@ class ImplicitRBF:
         return grid.polygons_from_field(f, 0.0)
 
 
-def _interpolate(interpolator: RBFInterpolator, points: np.ndarray) -> np.ndarray:
-    """The interpolant at ``points``; without a depth trend anywhere if some neighbourhood lies on one bench.
-
-    The degree-1 polynomial of a neighbourhood whose holes all share one
-    elevation has no slope in depth to fit: its system is singular, and a
-    constant term is all those holes determine. SciPy solves every
-    neighbourhood in one call and says only that one failed, so the whole
-    evaluation is redone with degree 0 (``y`` and ``d`` are the interpolator's
-    data points and values).
-    """
-    try:
-        return interpolator(points)
-    except np.linalg.LinAlgError:
-        flat = RBFInterpolator(
-            interpolator.y,
-            interpolator.d,
-            kernel=interpolator.kernel,
-            neighbors=interpolator.neighbors,
-            smoothing=interpolator.smoothing,
-            degree=0,
-        )
-        return flat(points)
+def _without_depth_trend(interpolator: RBFInterpolator) -> RBFInterpolator:
+    """The same interpolant with a degree-0 polynomial (``y`` and ``d`` are its data points and values)."""
+    return RBFInterpolator(
+        interpolator.y,
+        interpolator.d,
+        kernel=interpolator.kernel,
+        neighbors=interpolator.neighbors,
+        smoothing=interpolator.smoothing,
+        degree=0,
+    )
 
 
 def fit_implicit_rbf(
@@ -190,7 +184,9 @@ def fit_implicit_rbf(
         raise ValueError("no holes to fit an implicit model to")
     groups, bench_height_m = _bench_groups(z, bench, bench_height_m)
     if spacing_m is None or not np.isfinite(spacing_m):
-        spacing_m = _median_spacing(xy, groups)
+        # The nearest neighbour's, which it was tuned with (5 m if no bench has two holes).
+        spacing_m = median_hole_spacing(xy, groups, neighbour=1)
+        spacing_m = spacing_m if np.isfinite(spacing_m) else 5.0
     z_scale = z_spacings * spacing_m / bench_height_m
     if inside.all() or not inside.any():
         cap = 6 * spacing_m
@@ -201,7 +197,7 @@ def fit_implicit_rbf(
     rng = np.random.default_rng(seed)
     keep = (np.abs(sd) <= band_spacings * spacing_m) | (rng.random(len(sd)) < far_fraction)
     pts = np.column_stack([xy[keep], z[keep] * z_scale])
-    # Holes of one bench share z: a neighbourhood on one bench has no depth trend (_interpolate).
+    # Holes of one bench share z: a neighbourhood on one bench has no depth trend (ImplicitRBF._at).
     interp = RBFInterpolator(
         pts, sd[keep], kernel=kernel, neighbors=min(neighbors, int(keep.sum())), smoothing=smoothing, degree=1
     )
