@@ -819,10 +819,10 @@ def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = 0.75
 SPACING_NEIGHBOUR = 3
 
 
-def median_hole_spacing(xy: np.ndarray, bench: np.ndarray | None = None, neighbour: int | None = None) -> float:
+def median_hole_spacing(xy: np.ndarray, bench: np.ndarray | None = None, neighbour: int = SPACING_NEIGHBOUR) -> float:
     """Median distance from a hole to its third-nearest neighbour on the same bench (metres; one bench by default).
 
-    ``neighbour``: which neighbour to measure instead of :data:`SPACING_NEIGHBOUR` (1: the nearest).
+    ``neighbour``: which neighbour to measure instead (1: the nearest).
 
     The nearest neighbour is the spacing of a regular pattern only: holes
     collared off a staggered 6 m pattern by 0.3 of a spacing (standard
@@ -838,8 +838,7 @@ def median_hole_spacing(xy: np.ndarray, bench: np.ndarray | None = None, neighbo
         pts = np.unique(xy[bench == k], axis=0)  # coincident holes are one collar
         if len(pts) < 2:
             continue
-        wanted = SPACING_NEIGHBOUR if neighbour is None else neighbour
-        nth = wanted if len(pts) > wanted else 1  # a few holes: their nearest
+        nth = neighbour if len(pts) > neighbour else 1  # a few holes: their nearest
         d, _ = cKDTree(pts).query(pts, k=nth + 1)
         distances.append(d[:, -1])
     if not distances:
