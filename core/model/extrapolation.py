@@ -23,7 +23,9 @@ the finer changes, and each part is carried on as far as successive bench
 pairs agree on it along the trajectories of the geozone's boundary
 (:func:`geozone_persistence`: a geozone whose bodies move steadily keeps its
 trend, one whose movement reverses or is shape noise is held; with two
-benches known, only the outlines' movement is carried). A geozone whose
+benches known, only the outlines' movement is carried), or, where carrying
+all of it or none predicted the geozone's own benches better, as far as that
+(:func:`chosen_persistence`). A geozone whose
 bodies end between benches (lenses) has its growth held as well
 (:data:`GROWTH_CONTINUITY_POWER`). The boundary moves by ``carried * f``
 across itself ``f`` bench heights below, and the last section is carried
@@ -674,7 +676,7 @@ class DepthTrend:
     observed the cell (elevation ``z_last``), the outward movement of its
     boundary per bench height downwards ``rate`` (in the direction of
     extrapolation) and the part of it that carries on, ``carried``
-    (:func:`geozone_persistence`, :data:`GROWTH_CONTINUITY_POWER`). The
+    (:func:`chosen_persistence`, :data:`GROWTH_CONTINUITY_POWER`). The
     boundary moves ``m = carried * (z_last - z) / bench_height_m`` metres
     outwards (along ``-grad F``), and ``F(z)`` is ``f_last`` carried by that
     movement (:meth:`field`).
@@ -762,6 +764,12 @@ class DepthTrend:
 
     def region(self, z_m: float) -> MultiPolygon:
         return self.grid.polygons_from_distance(self.field(z_m))
+
+    def carrying(self, carried: np.ndarray) -> DepthTrend:
+        """The same trend carrying ``carried`` on: it shares what the transport made of the last section."""
+        other = replace(self, carried=carried)
+        other.__dict__.update(_sigma_cells=self._sigma_cells, _normals=self._normals, _flow_systems=self._flow_systems)
+        return other
 
 
 def direction_classes(theta: np.ndarray, valid: np.ndarray, sigma_cells: float) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -922,14 +930,40 @@ def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m
 def _pair_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spacing_m: float) -> tuple[int, int]:
     """Cells of bench ``j + 1``'s drilled area predicted inside from the benches down to ``j``: (confirmed, predicted).
 
-    Kept in ``fields.memo``: it rests only on the benches down to ``j + 1``.
+    Predicted the way :func:`chosen_persistence` chose from those benches.
+    """
+    way = _chosen_way(fields.through(float(fields.z_m[j])), bench_height_m, hole_spacing_m)
+    _, confirmed, predicted = _ways_backtest(fields, j, bench_height_m, hole_spacing_m)[way]
+    return int(confirmed), int(predicted)
+
+
+def _ways_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spacing_m: float) -> np.ndarray:
+    """Bench ``j + 1`` predicted from the benches down to ``j`` each way to carry (:func:`_ways_to_carry`).
+
+    Per way, a row: the cells put on the wrong side where ``j`` and ``j + 1``
+    both drilled, and the cells of ``j + 1``'s drilled area predicted inside
+    that it confirmed, and all of them. With fewer than three benches down to
+    ``j`` the agreement's way alone (nothing chooses between them yet). Kept in
+    ``fields.memo``: it rests only on the benches down to ``j + 1``.
     """
 
-    def compute() -> tuple[int, int]:
+    def compute() -> np.ndarray:
         known = fields.through(float(fields.z_m[j]))
-        inside = _trend(known, bench_height_m, hole_spacing_m).field(float(fields.z_m[j + 1])) > 0
-        inside &= fields.drilled[j + 1]
-        return int(np.sum(inside & (fields.distance[j + 1] > 0))), int(np.sum(inside))
+        ways = _ways_to_carry(known, hole_spacing_m)
+        trends = _trends(known, bench_height_m, hole_spacing_m, list(ways if j >= 2 else ways[:1]))
+        drilled, inside = fields.drilled[j + 1], fields.distance[j + 1] > 0
+        both = drilled & fields.drilled[j]
+        rows = []
+        for trend in trends:
+            predicted = trend.field(float(fields.z_m[j + 1])) > 0
+            rows.append(
+                (
+                    np.sum((predicted != inside) & both),
+                    np.sum(predicted & drilled & inside),
+                    np.sum(predicted & drilled),
+                )
+            )
+        return np.array(rows, float)
 
     return _memoised(fields, ("backtest", j, bench_height_m, hole_spacing_m), compute)
 
@@ -941,14 +975,60 @@ def typical_body_cells(fields: BenchFields) -> float:
     return cells / sum(counts) if sum(counts) else 0.0
 
 
-def _trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
+def chosen_persistence(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> tuple[float, float]:
+    """The persistence of each part of the movement whose way of carrying it on best predicted the geozone's benches.
+
+    A backtest (issue 12): from the fourth bench on, each bench ``j + 1`` is
+    predicted from the benches down to ``j`` three ways (:func:`_ways_to_carry`:
+    as far as their last two movements agree, :func:`geozone_persistence`;
+    all of it; none of it), and the cells of its drilled area (drilled on ``j``
+    as well) each way put on the wrong side are summed over the pairs. The
+    way with the fewest is taken, the agreement on a tie and with fewer than
+    four benches. The agreement of two movements is one sample of how a
+    geozone moves: travelling waves, whose modes drift apart, change shape so
+    that two moves agree little while each bench goes on as the one above it
+    moved; and a contact drifting at random is held though its last two moves
+    agreed by chance.
+    """
+    return _ways_to_carry(fields, hole_spacing_m)[_chosen_way(fields, bench_height_m, hole_spacing_m)]
+
+
+def _chosen_way(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> int:
+    """Which of :func:`_ways_to_carry` :func:`chosen_persistence` takes (0, the agreement, with fewer than four benches)."""
+    n = len(fields.z_m)
+    if n < 4:
+        return 0
+    errors = sum(_ways_backtest(fields, j, bench_height_m, hole_spacing_m)[:, 0] for j in range(2, n - 1))
+    return int(np.argmin(errors))
+
+
+def _ways_to_carry(fields: BenchFields, hole_spacing_m: float) -> tuple[tuple[float, float], ...]:
+    """The persistences :func:`chosen_persistence` chooses between: the benches' agreement, all, none."""
+    return geozone_persistence(fields, hole_spacing_m), (1.0, 1.0), (0.0, 0.0)
+
+
+def _trend(
+    fields: BenchFields,
+    bench_height_m: float,
+    hole_spacing_m: float,
+    persistence: tuple[float, float] | None = None,
+) -> DepthTrend:
     """The depth trend with the share of bodies reaching the next bench as its :attr:`DepthTrend.carried_precision`.
 
     Not kept: the backtest of the next bench pair and :func:`depth_trend` of
     the same benches both start from it, and keeping it for every prefix of
     the benches took a Kennecott build from 1.41 to 2.11 GB (all processes)
-    for no measurable time (37.6-40.5 s against 38.7-39.1 s).
+    for no measurable time (37.6-40.5 s against 38.7-39.1 s). ``persistence``
+    (outlines, finer changes) is :func:`chosen_persistence`'s unless given.
     """
+    chosen = persistence or chosen_persistence(fields, bench_height_m, hole_spacing_m)
+    return _trends(fields, bench_height_m, hole_spacing_m, [chosen])[0]
+
+
+def _trends(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, persistences: list[tuple[float, float]]
+) -> list[DepthTrend]:
+    """The depth trend carrying each of ``persistences`` (outlines, finer changes), all from one fit."""
     f_last, z_last, rate, matched = fit_trend(fields, bench_height_m)
     # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
     # its signed distance (carried over many benches it would raise a body out of nothing there).
@@ -956,19 +1036,26 @@ def _trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) ->
     rate = np.where(at_cap, 0.0, rate)
     continuity = body_continuity(fields, bench_height_m)
     outline = outline_movement(rate, matched, f_last, fields.grid.cell_size_m)
-    kept_outline, kept_finer = geozone_persistence(fields, hole_spacing_m)
-    # The outlines' fit reaches every matched cell, those at the cap too: they are held all the same.
-    carried = np.where(at_cap, 0.0, kept_outline * outline + kept_finer * (rate - outline))
-    carried = np.where(carried > 0, carried * continuity**GROWTH_CONTINUITY_POWER, carried)
-    return DepthTrend(
-        fields.grid,
-        float(fields.z_m[-1]),
-        bench_height_m,
-        f_last,
-        z_last,
-        rate,
-        carried,
-        TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
-        continuity,
-        fields.distance[-1],
-    )
+    trends: list[DepthTrend] = []
+    for kept_outline, kept_finer in persistences:
+        # The outlines' fit reaches every matched cell, those at the cap too: they are held all the same.
+        carried = np.where(at_cap, 0.0, kept_outline * outline + kept_finer * (rate - outline))
+        carried = np.where(carried > 0, carried * continuity**GROWTH_CONTINUITY_POWER, carried)
+        if trends:
+            trends.append(trends[0].carrying(carried))
+            continue
+        trends.append(
+            DepthTrend(
+                fields.grid,
+                float(fields.z_m[-1]),
+                bench_height_m,
+                f_last,
+                z_last,
+                rate,
+                carried,
+                TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
+                continuity,
+                fields.distance[-1],
+            )
+        )
+    return trends
