@@ -913,7 +913,8 @@ def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m
     """The share of the geozone's carried section that the next bench confirmed, over its own benches.
 
     A backtest: each bench ``j + 1`` is predicted from the benches down to
-    ``j`` (their trend with the body continuity as its prior, :func:`_trend`)
+    ``j`` (their trend with the body continuity as its prior, carried on the
+    way :func:`chosen_persistence` chose from them, :func:`_pair_backtest`)
     and the predicted section, inside ``j + 1``'s drilled area, is scored by
     the cells of it that ``j + 1`` has in the geozone; the counts are pooled
     over the pairs. The ``prior`` share is worth one of the geozone's typical
