@@ -92,10 +92,13 @@ def _strip(offset, width=24.0, angle_deg=30.0):
     return shapely.Polygon([c + s * 400 * u + t * width / 2 * n for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
 
 
-def _predict_next(holes, sections, known_benches):
-    """Model of geozone ``a`` on the first ``known_benches`` benches, its prediction one bench below, and nil."""
-    known = holes.subset(holes.bench < known_benches)
-    model = model_geozone(known, "a")
+def _predict_next(holes, sections, known_benches, model=None):
+    """Model of geozone ``a`` on the first ``known_benches`` benches, its prediction one bench below, and nil.
+
+    ``model``: that model, if the caller built it already.
+    """
+    if model is None:
+        model = model_geozone(holes.subset(holes.bench < known_benches), "a")
     z = float(holes.bench_levels_m[known_benches - 1]) - 10.0
     local = shapely.affinity.translate(
         sections[known_benches], *(-np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) + [650_000, 7_400_000])
@@ -368,8 +371,9 @@ def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_m
 
     sections = _travelling_waves(seed)
     holes = _bench_table(sections)
-    predicted, nil, truth = _predict_next(holes, sections, 6)
-    fields = model_geozone(holes.subset(holes.bench < 6), "a").fields
+    model = model_geozone(holes.subset(holes.bench < 6), "a")
+    predicted, nil, truth = _predict_next(holes, sections, 6, model)
+    fields = model.fields
     agreement = geozone_persistence(fields, holes.hole_spacing_m)
     assert min(agreement) < 0.5, agreement
     assert chosen_persistence(fields, 10.0, holes.hole_spacing_m) == (1.0, 1.0)
