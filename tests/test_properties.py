@@ -9,6 +9,7 @@
 * exported meshes are watertight and re-read with the same faces;
 * a length in hole spacings over cells in hole spacings is the same whole number of
   cells whatever the spacing;
+* a polygon's cells are those scikit-image draws;
 * reading: geozone labels merge exactly when they spell one number, columns
   are found whatever their case, spaces and order, two candidates for one
   role are refused, decimal commas and thousands separators read as numbers.
@@ -134,6 +135,32 @@ def test_lengths_in_spacings_cover_the_same_cells_whatever_the_spacing(spacing_m
     whole = spacings / cell_spacings
     expected = math.ceil(round(whole, 6))
     assert cells_covering(spacings * spacing_m, cell_spacings * spacing_m) == expected
+
+
+@settings(max_examples=300, **SETTINGS)
+@given(
+    st.integers(3, 40),
+    st.tuples(st.integers(4, 60), st.integers(4, 60)),
+    st.sampled_from([1.0, 0.5, 0.0]),
+    st.integers(0, 2**31),
+)
+def test_a_ring_covers_the_cells_skimage_draws(n, shape, snap, seed):
+    """:func:`Grid.rasterize`'s row-by-row fill is the per-cell test of :func:`skimage.draw.polygon`, to the cell.
+
+    Vertices snapped to whole (or half) cells put centres on vertices and edges, where the two could differ.
+    """
+    from skimage import draw
+
+    from core.geometry.grid import ring_cells
+
+    rng = np.random.default_rng(seed)
+    rc = rng.uniform(-5, max(shape) + 5, (n, 2))
+    if snap:
+        rc = np.round(rc / snap) * snap
+    drawn = np.zeros(shape, bool)
+    rr, cc = draw.polygon(rc[:, 0], rc[:, 1], shape=shape)
+    drawn[rr, cc] = True
+    assert np.array_equal(ring_cells(rc, shape), drawn)
 
 
 @settings(max_examples=100, **SETTINGS)

@@ -18,7 +18,7 @@ import numpy as np
 import shapely
 from scipy import ndimage
 from shapely.geometry import MultiPolygon, Polygon
-from skimage import draw, measure
+from skimage import measure
 
 
 def cells_covering(length_m: float, cell_size_m: float) -> int:
@@ -127,14 +127,9 @@ class Grid:
         """Boolean mask of the cells whose centres lie inside ``geometry`` (holes honoured)."""
         mask = np.zeros(self.shape, dtype=bool)
         for poly in _polygons(geometry):
-            rc = self.xy_to_rc(np.asarray(poly.exterior.coords))
-            rr, cc = draw.polygon(rc[:, 0], rc[:, 1], shape=self.shape)
-            part = np.zeros(self.shape, dtype=bool)
-            part[rr, cc] = True
+            part = ring_cells(self.xy_to_rc(np.asarray(poly.exterior.coords)), self.shape)
             for ring in poly.interiors:
-                rc = self.xy_to_rc(np.asarray(ring.coords))
-                rr, cc = draw.polygon(rc[:, 0], rc[:, 1], shape=self.shape)
-                part[rr, cc] = False
+                part &= ~ring_cells(self.xy_to_rc(np.asarray(ring.coords)), self.shape)
             mask |= part
         return mask
 
@@ -250,6 +245,42 @@ def _onto_zero_set(coeffs: np.ndarray, rc: np.ndarray, delta: float = 0.25) -> n
     inner = (rc[:, 0] > 0) & (rc[:, 0] < rows - 1) & (rc[:, 1] > 0) & (rc[:, 1] < cols - 1)
     inner &= np.all(np.isfinite(step), axis=1)
     return np.where(inner[:, None], rc + step, rc)
+
+
+def ring_cells(rc: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Cells of ``shape`` whose centres lie inside or on the closed ring of ``(n, 2)`` (row, col) vertices.
+
+    The cells :func:`skimage.draw.polygon` draws, to the cell (the crossing
+    test of O'Rourke, Computational Geometry in C, 7.4: a centre on an edge or
+    a vertex is inside), found row by row from the edges that straddle each
+    row rather than by testing every edge at every cell of the ring's bounding
+    box: a contour of a few thousand vertices took 0.7 s that way, 11 ms a
+    ring in a Kennecott build.
+    """
+    r, c = np.ascontiguousarray(rc[:, 0], float), np.ascontiguousarray(rc[:, 1], float)
+    mask = np.zeros(shape, dtype=bool)
+    r0, r1 = int(max(0, r.min())), min(shape[0] - 1, int(np.ceil(r.max())))
+    c0, c1 = int(max(0, c.min())), min(shape[1] - 1, int(np.ceil(c.max())))
+    if r1 < r0 or c1 < c0:
+        return mask
+    rows, cols = np.arange(r0, r1 + 1, dtype=float), np.arange(c0, c1 + 1, dtype=float)
+    y0, y1 = r[None, :] - rows[:, None], np.roll(r, 1)[None, :] - rows[:, None]  # vertices i and i - 1
+    odd = []
+    for straddles, side in (((y0 > 0) != (y1 > 0), 1.0), ((y0 < 0) != (y1 < 0), -1.0)):
+        row, edge = np.nonzero(straddles)
+        x0, x1 = c[edge][:, None] - cols, np.roll(c, 1)[edge][:, None] - cols
+        a, b = y0[row, edge][:, None], y1[row, edge][:, None]
+        crosses = side * (x0 * b - x1 * a) / (b - a) > 0  # the edge crosses the ray to the right (left)
+        counts = np.zeros((len(rows), len(cols)), np.int64)
+        np.add.at(counts, row, crosses)
+        odd.append(counts % 2 == 1)
+    inside = odd[0] | (odd[0] != odd[1])  # inside, or on an edge (the two rays' parities differ)
+    on_vertex = (np.abs(r - np.round(r)) < 1e-12) & (np.abs(c - np.round(c)) < 1e-12)
+    vr, vc = np.round(r[on_vertex]).astype(int) - r0, np.round(c[on_vertex]).astype(int) - c0
+    keep = (vr >= 0) & (vr < len(rows)) & (vc >= 0) & (vc < len(cols))
+    inside[vr[keep], vc[keep]] = True
+    mask[r0 : r1 + 1, c0 : c1 + 1] = inside
+    return mask
 
 
 def _polygons(geometry) -> list[Polygon]:
