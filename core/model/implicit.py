@@ -2,10 +2,11 @@
 
 Leapfrog-style: each hole's signed distance to its bench's boundary is
 estimated from the labels alone (half the distance to the nearest hole of the
-other label, capped at 1.5 spacings), and a degree-1 RBF interpolant through them, with depth scaled
-so a bench counts like a few hole spacings, is evaluated at any elevation. It
-is one of the references of :mod:`core.model.evaluation`: it rests on the
-holes' labels rather than the contours, and on every bench at once.
+other label, capped at 1.5 spacings), and a degree-1 RBF interpolant through
+them, with depth scaled so a bench counts like a few hole spacings, is
+evaluated at any elevation. It is one of the references of
+:mod:`core.model.evaluation`: it rests on the holes' labels rather than the
+contours, and on every bench at once.
 """
 
 from __future__ import annotations
@@ -171,17 +172,15 @@ def fit_implicit_rbf(
         labels say only which side a hole is on. A larger cap (6 spacings
         until 2026-11-28) lets a lens appearing or a stray label on one bench
         change the far field by tens of metres from the bench above, and the
-        degree-1 drift carries that change on below the data as new bodies:
-        on development seeds 0-3 of the synthetic families its sections held
-        60% / 36% precision at 5 / 10 m below the deepest bench (F1 72.1 /
-        50.5); capped at 1.5 spacings 94% / 90% (F1 92.4 / 86.1, 1 spacing
-        92.3 / 86.5, 2: 89.9 / 79.2 on seeds 0-1), Kennecott from the deepest known bench 4
-        83.0 -> 84.5 on the withheld bench's holes, travelling waves
-        (`bench_foreign.py`'s generator, speed 2, seeds 0-11) 87.2 / 74.4 ->
-        87.4 / 75.9. A reference is only worth beating at its best. Every
-        hole is used (holes further than two spacings from a boundary, then a
-        random 5% of them, were thinned for speed; with the cap they all
-        hold the side).
+        degree-1 drift carries that change on below the data as new bodies
+        (F1 72.1 / 50.5 at 5 / 10 m below the deepest bench on development
+        seeds 0-1 of strips, splits and pods, 89.9 / 79.2 capped at 2
+        spacings, 90.7 / 83.0 at 1). Chosen among 0.5-2 on development seeds
+        0-3 of every family (1.5: 92.4 / 86.1, 1: 92.3 / 86.5), Kennecott and
+        the travelling waves of ``bench_foreign.py`` (BENCHMARKS.md): a
+        reference is only worth beating at its best. Every hole is fitted:
+        holes further than two spacings from a boundary were thinned to a
+        random 5% for speed, and with the cap they only hold the side.
     """
     xy = np.asarray(holes_xy, float)
     z = np.asarray(holes_z, float)
