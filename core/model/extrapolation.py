@@ -954,17 +954,11 @@ def _ways_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spac
         trends = _trends(known, bench_height_m, hole_spacing_m, list(ways if j >= 2 else ways[:1]))
         drilled, inside = fields.drilled[j + 1], fields.distance[j + 1] > 0
         both = drilled & fields.drilled[j]
-        rows = []
-        for trend in trends:
-            predicted = trend.field(float(fields.z_m[j + 1])) > 0
-            rows.append(
-                (
-                    np.sum((predicted != inside) & both),
-                    np.sum(predicted & drilled & inside),
-                    np.sum(predicted & drilled),
-                )
-            )
-        return np.array(rows, float)
+        predictions = [trend.field(float(fields.z_m[j + 1])) > 0 for trend in trends]
+        return np.array(
+            [[np.sum((p != inside) & both), np.sum(p & drilled & inside), np.sum(p & drilled)] for p in predictions],
+            float,
+        )
 
     return _memoised(fields, ("backtest", j, bench_height_m, hole_spacing_m), compute)
 
@@ -1022,8 +1016,9 @@ def _trend(
     for no measurable time (37.6-40.5 s against 38.7-39.1 s). ``persistence``
     (outlines, finer changes) is :func:`chosen_persistence`'s unless given.
     """
-    chosen = persistence or chosen_persistence(fields, bench_height_m, hole_spacing_m)
-    return _trends(fields, bench_height_m, hole_spacing_m, [chosen])[0]
+    if persistence is None:
+        persistence = chosen_persistence(fields, bench_height_m, hole_spacing_m)
+    return _trends(fields, bench_height_m, hole_spacing_m, [persistence])[0]
 
 
 def _trends(
@@ -1037,26 +1032,21 @@ def _trends(
     rate = np.where(at_cap, 0.0, rate)
     continuity = body_continuity(fields, bench_height_m)
     outline = outline_movement(rate, matched, f_last, fields.grid.cell_size_m)
-    trends: list[DepthTrend] = []
+    carried = []
     for kept_outline, kept_finer in persistences:
         # The outlines' fit reaches every matched cell, those at the cap too: they are held all the same.
-        carried = np.where(at_cap, 0.0, kept_outline * outline + kept_finer * (rate - outline))
-        carried = np.where(carried > 0, carried * continuity**GROWTH_CONTINUITY_POWER, carried)
-        if trends:
-            trends.append(trends[0].carrying(carried))
-            continue
-        trends.append(
-            DepthTrend(
-                fields.grid,
-                float(fields.z_m[-1]),
-                bench_height_m,
-                f_last,
-                z_last,
-                rate,
-                carried,
-                TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
-                continuity,
-                fields.distance[-1],
-            )
-        )
-    return trends
+        moved = np.where(at_cap, 0.0, kept_outline * outline + kept_finer * (rate - outline))
+        carried.append(np.where(moved > 0, moved * continuity**GROWTH_CONTINUITY_POWER, moved))
+    first = DepthTrend(
+        fields.grid,
+        float(fields.z_m[-1]),
+        bench_height_m,
+        f_last,
+        z_last,
+        rate,
+        carried[0],
+        TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
+        continuity,
+        fields.distance[-1],
+    )
+    return [first, *(first.carrying(c) for c in carried[1:])]
