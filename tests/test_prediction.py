@@ -125,6 +125,32 @@ def test_a_strip_moving_8_m_per_bench_is_predicted_within_a_hole_spacing():
     assert iou(predicted.intersection(drilled), truth.intersection(drilled)) > 0.75
 
 
+def test_the_benches_above_place_a_bench_boundary_nearer_the_truth_with_no_hole_changing_side():
+    """Each bench's signed distance is drawn towards its prediction from the benches above (``assimilated``).
+
+    A strip moving a steady 7 m a bench across a fixed 6 m pattern: its holes
+    place each bench's boundary only within the gap between an inside and an
+    outside hole, and the movement the benches above show places it better.
+    Drawn, the benches from the third down put fewer cells of their drilled
+    area on the wrong side of the true section, and no hole on the other side
+    of its own label.
+    """
+    sections = [_strip(7.0 * k) for k in range(6)]
+    holes = _bench_table(sections)
+    fields = model_geozone(holes, "a").fields
+    assert fields.observed is not None
+    origin = -np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) + [650_000, 7_400_000]
+    wrong = {"drawn": 0, "observed": 0}
+    for j in range(2, len(fields.z_m)):
+        truth = fields.grid.rasterize(shapely.affinity.translate(sections[j], *origin))
+        for name, f in (("drawn", fields.distance[j]), ("observed", fields.observed[j])):
+            wrong[name] += int(np.sum(((f > 0) != truth) & fields.drilled[j]))
+        on = holes.on_bench(j)
+        inside = holes.geozone[on] == "a"
+        assert np.array_equal(fields.grid.sample(fields.distance[j], holes.xy[on]) > 0, inside)
+    assert wrong["drawn"] < 0.9 * wrong["observed"], wrong
+
+
 @pytest.mark.parametrize("known_benches", [2, 4])
 def test_a_layer_dipping_shallower_than_30_degrees_is_carried_on(known_benches):
     """A layer dipping 24 degrees moves 22 m per 10 m bench: its sections barely overlap.

@@ -18,7 +18,7 @@ from shapely import affinity
 from core.correspondence.pair import MorphInstance, PairCorrespondence, correspond_pair
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes
-from core.model.extrapolation import BenchFields, bench_fields
+from core.model.extrapolation import BenchFields, assimilated, bench_fields
 from core.model.parameters import ModelParameters
 from core.morph.levelset import MorphResult, morph_regions
 from core.morph.trajectories import trajectory_xyz
@@ -249,6 +249,8 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
     form of :meth:`Blastholes.drilled_area`. Drilled cells nearer one of the
     geozone's own holes than any other hole are no evidence past the drilled
     area where its contours leave them out (``unclaimed``, :func:`bench_distance`).
+    Each bench's signed distance is then drawn towards its prediction from the
+    benches above (:func:`assimilated`).
     """
     from core.extraction.transition import drilled_mask, hole_distances
     from core.geometry.grid import Grid
@@ -270,7 +272,9 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
         # Cells nearer one of the geozone's holes than any other's (those outside its contours are its fringe).
         own = hole_distances(holes.xy[on], np.where(mine, "own", ""), ["own"], grid)[0] if mine.any() else np.inf
         unclaimed[k] = drilled[k] & (own <= nearest + 1e-9)
-    return bench_fields(regions, drilled, z, grid, spacing, reach_spacings * spacing, unclaimed)
+    fields = bench_fields(regions, drilled, z, grid, spacing, reach_spacings * spacing, unclaimed)
+    height = float(np.median(-np.diff(fields.z_m))) if len(fields.z_m) > 1 else 1.0  # as the prediction's
+    return assimilated(fields, height, spacing)
 
 
 #: Cell size of a geozone's field grid, in hole spacings (a quarter gained 0.3 F1 on the
