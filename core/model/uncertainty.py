@@ -286,7 +286,8 @@ def backtest(
 
     Bench ``j`` is predicted from ``fields.through(z_{j-m})`` for every ``m``
     in ``depths`` with ``j - m >= 0``: the trend's ``F`` at ``z_j`` is sampled
-    at the points of the ``F_j = 0`` set inside bench ``j``'s drilled area
+    at the points of the observed ``F_j = 0`` set (the contours' own,
+    :meth:`BenchFields.measured`) inside bench ``j``'s drilled area
     (:func:`boundary_points`) that the known benches observed (elsewhere the
     prediction rests on no evidence: a barely drilled top bench predicts
     nothing), with the scale's terms there. Nothing below the predicting
@@ -296,8 +297,11 @@ def backtest(
     parts = []
     grid = fields.grid
     ring = noise_ring_area_m2(hole_spacing_m)
+    # The boundary the holes showed: drawn towards the benches above (assimilated), each bench is nearer its
+    # prediction than its holes' boundary is, and bands calibrated on it held 90.6% of the true boundary, not 93.1%.
+    observed = fields.measured().distance
     for j in range(1, len(fields.z_m)):
-        pts = boundary_points(fields.distance[j], fields.drilled[j], grid, ring)
+        pts = boundary_points(observed[j], fields.drilled[j], grid, ring)
         if not len(pts):
             continue
         for m in depths:
