@@ -368,7 +368,7 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float) -> tuple[flo
     if len(fields.z_m) < 3:
         return 1.0, 0.0
     # The benches as their holes showed them: drawn towards the benches above (:func:`assimilated`), their
-    # movements agree by construction (a test's travelling waves, whose last two moves agree 0.4, 0.53).
+    # movements agree by construction (a test's travelling waves agree under 0.5 observed, 0.53 drawn).
     fields = fields.measured()
     n = len(fields.z_m)
     fastest = fastest_movement_m(float(abs(fields.z_m[-2] - fields.z_m[-1])))
@@ -541,6 +541,7 @@ def pair_movement(fields: BenchFields, older: int, newer: int, reach_m: float) -
 
 #: The memo's entry of bench pairs' movements: three grids a pair, kept only while a trend is made.
 _MOVEMENTS = ("movements",)
+#: The memo's entry holding the memo of :meth:`BenchFields.measured` (the observed benches' own results).
 _OBSERVED = ("observed",)
 
 
@@ -978,8 +979,8 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     gate = ASSIMILATION_GATE_SPACINGS * hole_spacing_m
     for j in range(2, len(out.z_m)):
         above = out.through(float(out.z_m[j - 1]))
-        # The trends the backtest of bench j makes (kept for it below): a trend kept for every bench took a
-        # Kennecott build from 2.0 to 2.8 GB, and making them twice from 51 to 63 s.
+        # The trends the backtest of bench j makes (its rows kept below, not the trends): a trend kept for
+        # every bench took a Kennecott build from 2.0 to 2.8 GB, and making them twice took it 58.6 -> 63 s.
         trends = _ways_trends(above, bench_height_m, hole_spacing_m)
         trend = trends[_chosen_way(above, bench_height_m, hole_spacing_m)]
         confirmed = carried_precision(above, bench_height_m, hole_spacing_m, trend.carried_precision)
