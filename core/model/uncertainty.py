@@ -232,6 +232,7 @@ def movement_inconsistency(fields: BenchFields, smoothing_m: float) -> np.ndarra
     """
     if len(fields.z_m) < 3:
         return np.zeros(fields.grid.shape)
+    fields = fields.measured()  # as the benches' holes showed them, as the persistence reads them
     d1 = fields.distance[-1] - fields.distance[-2]
     d2 = fields.distance[-2] - fields.distance[-3]
     seen = np.prod(fields.drilled[-3:], axis=0).astype(float)
