@@ -176,6 +176,11 @@ class BenchFields:
         return float(np.max(np.abs(self.distance))) if self.distance.size else 0.0
 
     @property
+    def bench_height_m(self) -> float:
+        """The median height between successive benches (metres, positive in either order; 1 with one bench)."""
+        return float(np.median(np.abs(np.diff(self.z_m)))) if len(self.z_m) > 1 else 1.0
+
+    @property
     def upwards(self) -> bool:
         """Whether the benches are bottom first (:meth:`reversed`: extrapolated upwards)."""
         return len(self.z_m) > 1 and self.z_m[0] < self.z_m[-1]
@@ -920,13 +925,21 @@ def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     """
 
     def compute() -> DepthTrend:
-        trend = _trend(fields, bench_height_m, hole_spacing_m)
-        confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
-        fields.memo.pop(_MOVEMENTS, None)
-        fields.memo.get(_OBSERVED, {}).pop(_MOVEMENTS, None)
-        return replace(trend, carried_precision=confirmed)  # shares the trend's arrays
+        return _confirmed(fields, _trend(fields, bench_height_m, hole_spacing_m), bench_height_m, hole_spacing_m)
 
     return _memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)
+
+
+def _confirmed(fields: BenchFields, trend: DepthTrend, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
+    """``trend`` with its :func:`carried_precision` backtested on ``fields``; the bench pairs' movements dropped.
+
+    The movements (three grids a pair, in the memo and in the observed benches' memo) are kept only while a
+    trend is made.
+    """
+    confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
+    fields.memo.pop(_MOVEMENTS, None)
+    fields.memo.get(_OBSERVED, {}).pop(_MOVEMENTS, None)
+    return replace(trend, carried_precision=confirmed)  # shares the trend's arrays
 
 
 #: How far a bench's signed distance is drawn towards its prediction from the benches above
@@ -982,15 +995,14 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
         # The trends the backtest of bench j makes (its rows kept below, not the trends): a trend kept for
         # every bench took a Kennecott build from 2.0 to 2.8 GB, and making them twice took it 58.6 -> 63 s.
         trends = _ways_trends(above, bench_height_m, hole_spacing_m)
-        trend = trends[_chosen_way(above, bench_height_m, hole_spacing_m)]
-        confirmed = carried_precision(above, bench_height_m, hole_spacing_m, trend.carried_precision)
-        predicted = replace(trend, carried_precision=confirmed).field(float(out.z_m[j]))
+        trend = _confirmed(
+            above, trends[_chosen_way(above, bench_height_m, hole_spacing_m)], bench_height_m, hole_spacing_m
+        )
+        predicted = trend.field(float(out.z_m[j]))
         disagreement = predicted - out.distance[j]
         drawn = out.drilled[j] & out.drilled[j - 1] & (np.abs(disagreement) <= gate)
         out.distance[j] += np.where(drawn, ASSIMILATION_WEIGHT * disagreement, 0.0)
         out.memo[("backtest", j - 1, bench_height_m, hole_spacing_m)] = _backtest_rows(out, j - 1, trends)
-        out.memo.pop(_MOVEMENTS, None)
-        out.memo.get(_OBSERVED, {}).pop(_MOVEMENTS, None)
     return out
 
 

@@ -273,8 +273,7 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
         own = hole_distances(holes.xy[on], np.where(mine, "own", ""), ["own"], grid)[0] if mine.any() else np.inf
         unclaimed[k] = drilled[k] & (own <= nearest + 1e-9)
     fields = bench_fields(regions, drilled, z, grid, spacing, reach_spacings * spacing, unclaimed)
-    height = float(np.median(-np.diff(fields.z_m))) if len(fields.z_m) > 1 else 1.0  # as the prediction's
-    return assimilated(fields, height, spacing)
+    return assimilated(fields, fields.bench_height_m, spacing)
 
 
 #: Cell size of a geozone's field grid, in hole spacings (a quarter gained 0.3 F1 on the

@@ -156,7 +156,7 @@ def predict_geozone(
     if fields is None or not len(fields.z_m):
         return {z: MultiPolygon() for z in z_m}
     levels = fields.z_m
-    height = float(np.median(-np.diff(levels))) if len(levels) > 1 else 1.0
+    height = fields.bench_height_m
     trends: dict[bool, DepthTrend] = {}
     for z in z_m:
         at = np.flatnonzero(np.isclose(levels, z, atol=1e-6))

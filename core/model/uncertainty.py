@@ -506,12 +506,6 @@ class SectionUncertainty:
         return self.grid.polygons_from_distance(field)
 
 
-def _bench_height(fields: BenchFields) -> float:
-    """The median height between successive benches (metres, positive in either order; 1 with one bench)."""
-    levels = fields.z_m
-    return float(np.median(np.abs(np.diff(levels)))) if len(levels) > 1 else 1.0
-
-
 def _direction(fields: BenchFields, down: bool) -> BenchFields:
     """The fields in the order they are extrapolated: top first downwards, bottom first upwards."""
     return fields if down else fields.reversed()
@@ -531,12 +525,12 @@ def direction_scale(
 def direction_backtest(fields: BenchFields, down: bool, hole_spacing_m: float) -> Backtest:
     """:func:`backtest` of extrapolating ``fields`` downwards (``down``) or upwards, at their bench height."""
     used = _direction(fields, down)
-    return backtest(used, _bench_height(used), hole_spacing_m)
+    return backtest(used, used.bench_height_m, hole_spacing_m)
 
 
 def _sigma(used: BenchFields, z_m: float, hole_spacing_m: float, scale: UncertaintyScale) -> np.ndarray:
     """The calibrated scale at ``z_m`` of extrapolating ``used`` (in the order extrapolated)."""
-    trend = depth_trend(used, _bench_height(used), hole_spacing_m)
+    trend = depth_trend(used, used.bench_height_m, hole_spacing_m)
     return scale.sigma(scale_terms(used, trend, z_m, hole_spacing_m))
 
 
