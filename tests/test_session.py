@@ -15,7 +15,7 @@ from conftest import synthetic
 from test_cli import bgm
 
 from core.errors import BGMInputError
-from core.io.cache import StageCache, content_key, source_fingerprint
+from core.io.cache import MISSING, StageCache, content_key, source_fingerprint
 from core.model.parameters import (
     PARAMETER,
     PARAMETERS,
@@ -242,3 +242,24 @@ def test_memory_keeps_the_newest_results_of_each_stage():
     for i in range(5):
         store.get("fields", str(i), lambda i=i: i)  # display fields: only the latest few
     assert store.get("fields", "0", lambda: "again") == "again"
+
+
+def test_a_build_worker_lets_go_of_a_geozones_results_once_it_has_sent_them(monkeypatch, tmp_path):
+    """Held, each worker grew by ~100 MB a geozone on the Kennecott build; the shared stages stay."""
+    from types import SimpleNamespace
+
+    import core.model.build as build
+
+    store = StageStore(StageCache(tmp_path))
+    ctx = SimpleNamespace(session=SimpleNamespace(store=store))  # a build's context, as a worker holds it
+    monkeypatch.setattr(build, "_WORKER_CONTEXT", ctx, raising=False)
+    store.get("contours", "bench 0", lambda: "contours")
+
+    def job(ctx, geozone):
+        ctx.session.store.get("morph", geozone, lambda: f"morph of {geozone}")
+        return geozone
+
+    assert build._call_in_worker(job, "g1") == "g1"
+    assert store.peek("morph", "g1", disk=False) is MISSING  # not held in memory
+    assert store.peek("morph", "g1") == "morph of g1"  # still on disk, with a cache
+    assert store.peek("contours", "bench 0", disk=False) == "contours"

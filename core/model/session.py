@@ -117,6 +117,11 @@ class StageStore:
             while len(entries) > MEMORY_ENTRIES.get(stage, self.max_entries):
                 entries.popitem(last=False)
 
+    def forget(self, keep: tuple[str, ...] = ()) -> None:
+        """Drop the results held in memory, but those of the stages in ``keep`` (the disk cache keeps them all)."""
+        with self._lock:
+            self._memory = {stage: entries for stage, entries in self._memory.items() if stage in keep}
+
     def __getstate__(self) -> dict:
         # Sent to other processes (dask workers): the disk cache travels, memory and lock do not.
         return {"cache": self.cache, "max_entries": self.max_entries}
