@@ -471,6 +471,10 @@ def _dask_map(func, ctx, items: list, scheduler: str):
         client.close()
 
 
+#: Stages whose results every job of a worker reads (made before the workers fork): kept between jobs.
+SHARED_STAGES = ("contours", "drilled")
+
+
 def _call_in_worker(func, item):
     try:
         return func(_WORKER_CONTEXT, item)
@@ -479,10 +483,6 @@ def _call_in_worker(func, item):
         # there (its results went back to the parent), and held it grew each worker by ~100 MB a geozone.
         session = getattr(_WORKER_CONTEXT, "session", _WORKER_CONTEXT)
         session.store.forget(keep=SHARED_STAGES)
-
-
-#: Stages whose results every geozone's job reads (made before the workers fork).
-SHARED_STAGES = ("contours", "drilled")
 
 
 def extract_all_benches(session: ModelSession, workers=None, scheduler=None, progress=None) -> list[Contour]:
