@@ -251,8 +251,9 @@ def test_a_build_worker_lets_go_of_a_geozones_results_once_it_has_sent_them(monk
     import core.model.build as build
 
     store = StageStore(StageCache(tmp_path))
-    ctx = SimpleNamespace(session=SimpleNamespace(store=store))  # a build's context, as a worker holds it
-    monkeypatch.setattr(build, "_WORKER_CONTEXT", ctx, raising=False)
+    session = SimpleNamespace(store=store)
+    ctx = build.BuildContext(session, [], None, tmp_path, (), False)  # a build's context, as a worker holds it
+    monkeypatch.setattr(build, "_WORKER_CONTEXT", ctx)
     store.get("contours", "bench 0", lambda: "contours")
 
     def job(ctx, geozone):

@@ -371,10 +371,11 @@ class BuildContext:
     folders: dict = field(default_factory=dict)  #: geozone label -> its folder (see :func:`geozone_folders`)
 
 
-_WORKER_CONTEXT: BuildContext | None = None  # set once per worker process by _init_worker
+#: Set once per worker process by _init_worker: a build's context, or the session whose benches are extracted.
+_WORKER_CONTEXT: BuildContext | ModelSession | None = None
 
 
-def _init_worker(ctx: BuildContext) -> None:
+def _init_worker(ctx: BuildContext | ModelSession) -> None:
     # Ctrl-C reaches every process of the terminal's group: the parent alone
     # handles it (one line, exit 130) and stops the workers.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -481,8 +482,9 @@ def _call_in_worker(func, item):
     finally:
         # A worker's next job is another geozone or bench: what this one computed is never asked for again
         # there (its results went back to the parent), and held it grew each worker by ~100 MB a geozone.
-        session = getattr(_WORKER_CONTEXT, "session", _WORKER_CONTEXT)
-        session.store.forget(keep=SHARED_STAGES)
+        session = _WORKER_CONTEXT.session if isinstance(_WORKER_CONTEXT, BuildContext) else _WORKER_CONTEXT
+        if session is not None:
+            session.store.forget(keep=SHARED_STAGES)
 
 
 def extract_all_benches(session: ModelSession, workers=None, scheduler=None, progress=None) -> list[Contour]:
