@@ -99,18 +99,18 @@ def margin_row(label: str, rows: pd.DataFrame) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--part", nargs="*", default=["shapes", "drilling"], choices=("shapes", "drilling"))
-    parser.add_argument("--limit", type=int, default=None, help="Held-out seeds per case (shapes: all 8, drilling: 2).")
+    parser.add_argument("--limit", type=int, default=None, help="Seeds per case (shapes: 8, drilling: 2).")
     parser.add_argument("--drilling", nargs="*", default=list(DRILLING), choices=list(DRILLING))
     parser.add_argument("--families", nargs="*", default=list(FAMILIES), choices=FAMILIES, help="Families drilled.")
     parser.add_argument("--seeds", choices=("held-out", "tuning"), default="held-out")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
-    pool_seeds = HELD_OUT_SEEDS if args.seeds == "held-out" else TUNING_SEEDS
+    seed_pool = HELD_OUT_SEEDS if args.seeds == "held-out" else TUNING_SEEDS
     jobs = []
     if "shapes" in args.part:
-        jobs += [("shapes", s, seed) for s in SHAPES for seed in pool_seeds[: args.limit or len(HELD_OUT_SEEDS)]]
+        jobs += [("shapes", s, seed) for s in SHAPES for seed in seed_pool[: args.limit or len(HELD_OUT_SEEDS)]]
     if "drilling" in args.part:
-        seeds = pool_seeds[: args.limit or 2]
+        seeds = seed_pool[: args.limit or 2]
         jobs += [("drilling", f"{d}|{f}", seed) for d in args.drilling for f in args.families for seed in seeds]
     print(f"{len(jobs)} cases on {args.workers} processes ({args.seeds} seeds)")
     start = time.perf_counter()
