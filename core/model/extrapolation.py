@@ -912,8 +912,10 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
     """
     reach_cells = fastest_movement_m(bench_height_m) / fields.grid.cell_size_m
     reached = counted = 0.0
+    counts = []  # bodies per bench, for the typical body: each bench is labelled once
     for j in range(len(fields.z_m) - 1):
         bodies, n = ndimage.label((fields.distance[j] > 0) & fields.drilled[j])
+        counts.append(n)
         below = fields.distance[j + 1] > 0
         if n == 0 or not fields.drilled[j + 1].any():
             continue
@@ -928,7 +930,8 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
     if not counted:
         return 1.0
     disc = np.pi * reach_cells**2
-    if typical_body_cells(fields) >= disc:
+    counts.append(ndimage.label((fields.distance[-1] > 0) & fields.drilled[-1])[1])
+    if typical_body_cells(fields, counts) >= disc:
         return reached / counted
     prior = LENS_PRIOR_DISCS * disc
     return (reached + 0.5 * prior) / (counted + prior)
@@ -1094,9 +1097,13 @@ def _backtest_rows(fields: BenchFields, j: int, trends: list[DepthTrend]) -> np.
     )
 
 
-def typical_body_cells(fields: BenchFields) -> float:
-    """The mean area in cells of the geozone's bodies (connected parts inside a bench's drilled area)."""
-    counts = [ndimage.label((d > 0) & drilled)[1] for d, drilled in zip(fields.distance, fields.drilled)]
+def typical_body_cells(fields: BenchFields, counts: list[int] | None = None) -> float:
+    """The mean area in cells of the geozone's bodies (connected parts inside a bench's drilled area).
+
+    ``counts``: the number of bodies on each bench, where the caller has labelled them already.
+    """
+    if counts is None:
+        counts = [ndimage.label((d > 0) & drilled)[1] for d, drilled in zip(fields.distance, fields.drilled)]
     cells = float(np.sum((fields.distance > 0) & fields.drilled))
     return cells / sum(counts) if sum(counts) else 0.0
 
