@@ -701,3 +701,19 @@ def test_the_displacement_of_a_curved_boundary_is_its_whole_translation_and_of_a
             assert error.max() < 0.2 * np.hypot(*shift), error.max()
         else:  # the straight contact: across it only (along it nothing tells)
             assert np.allclose(d_r[edge], shift[0], atol=0.05) and np.allclose(d_c[edge], 0.0, atol=0.05)
+
+
+def test_a_disc_moving_10_m_a_bench_is_carried_without_widening_across_its_path():
+    """Measured across a curved boundary, a slide along it looks like growth (``sliding_bias``); carried on, it widened
+    the disc by 6.4 m across its path from the deepest bench's contour to one bench down (now 3.1: the contours'
+    own error, a hole spacing is 6 m)."""
+    sections = [Point(60 + 10.0 * k, 80).buffer(25.0) for k in range(5)]
+    holes = _bench_table(sections)
+    predicted, deepest, truth = _predict_next(holes, sections, 4)
+
+    def width(region) -> float:  # across the path (the disc moves along x)
+        return region.bounds[3] - region.bounds[1]
+
+    assert width(predicted) - width(deepest) < 0.75 * holes.hole_spacing_m, (width(predicted), width(deepest))
+    assert 0.95 < predicted.area / truth.area < 1.12, predicted.area / truth.area
+    assert iou(predicted, truth) > 0.85
