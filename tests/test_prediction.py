@@ -717,3 +717,25 @@ def test_a_disc_moving_10_m_a_bench_is_carried_without_widening_across_its_path(
     assert width(predicted) - width(deepest) < 0.75 * holes.hole_spacing_m, (width(predicted), width(deepest))
     assert 0.95 < predicted.area / truth.area < 1.12, predicted.area / truth.area
     assert iou(predicted, truth) > 0.85
+
+
+def test_a_lens_cut_by_the_edge_of_the_drilling_goes_past_it_no_further_than_the_lenses_are_across():
+    """Past the drilled area a body's evidence reaches as far as the geozone's bodies are across (``body_size_m``).
+
+    Lenses 16 m across, one cut by the last row of holes: it goes on past the frontier by about its size,
+    not the 10 hole spacings (60 m) a large body's evidence reaches (before, 31 m past the last row it was
+    still inside).
+    """
+    from core.model.pipeline import geozone_fields
+
+    lenses = shapely.union_all([Point(x, y).buffer(8.0) for x, y in ((40, 40), (130, 60), (90, 110), (70, 155))])
+    holes = _bench_table([lenses, lenses])  # holes at y 0-156, the last lens across the last row
+    contours = [c for c in extract_contours(holes) if c.geozone == "a"]
+    fields = geozone_fields(holes, contours, 10.0)
+    offset = np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) - [650_000, 7_400_000]
+
+    def inside(y: float) -> bool:
+        return fields.grid.sample(fields.distance[-1], np.array([[70.0, y]]) - offset)[0] > 0
+
+    assert inside(158.0) and inside(163.0)  # the lens itself, past the last row at 156
+    assert not inside(187.0)  # 31 m past the last row

@@ -35,8 +35,10 @@ Where a bench was not drilled its boundary is unknown, not absent: the
 drilling frontier is not a boundary. ``F_j`` measures the distance to the
 nearest drilled cell of the other side only; past the frontier it is the
 nearest evidence of that bench, weighted down with the distance to its
-drilled area and bounded by a reach, so each cell's trend rests on the
-benches that were drilled there.
+drilled area and bounded by a reach (no further than the geozone's bodies
+are across), so each cell's trend rests on the benches that were drilled
+there. A curved boundary's slide along itself, which its movement across
+itself shows as growth, is taken off (:func:`sliding_bias`).
 """
 
 from __future__ import annotations
@@ -320,13 +322,17 @@ def bench_fields(
     """:class:`BenchFields` of the given benches (bench index -> region, drilled mask on ``grid``, elevation).
 
     ``unclaimed``: per bench, the drilled cells that are no evidence past the drilled area (:func:`bench_distance`).
+    Past the drilled area a bench's evidence reaches ``reach_m`` at most, and no further than the geozone's
+    bodies are across (:func:`body_size_m`).
     """
     benches = sorted(regions, key=lambda k: -z_m[k])
     h = grid.cell_size_m
     cap = CAP_SPACINGS * hole_spacing_m
+    rasters = {k: grid.rasterize(regions[k]) if not regions[k].is_empty else np.zeros(grid.shape, bool) for k in benches}
+    reach_m = min(reach_m, body_size_m([rasters[k] & drilled[k] for k in benches], h))
     dist, weight = [], []
     for k in benches:
-        region = grid.rasterize(regions[k]) if not regions[k].is_empty else np.zeros(grid.shape, bool)
+        region = rasters[k]
         d, off = bench_distance(region, drilled[k], h, cap, reach_m, None if unclaimed is None else unclaimed[k])
         dist.append(exact_near_boundary(d, regions[k], drilled[k], grid))
         weight.append(np.exp(-off / hole_spacing_m))
@@ -337,6 +343,25 @@ def bench_fields(
         np.array(weight),
         np.array([drilled[k] for k in benches]),
     )
+
+
+def body_size_m(bodies: list[np.ndarray], cell_size_m: float) -> float:
+    """How far across the geozone's bodies are: the diameter of the disc as large as the body a cell of it lies in, on average.
+
+    Area-weighted (a few specks of label noise beside a large body do not make
+    it small); ``inf`` where the benches hold none of the geozone. A body cut
+    by the edge of the drilling goes on past it about as far as the bodies
+    are across (:func:`bench_fields`): a lens 20 m across does not run 10 hole
+    spacings beyond the last hole.
+    """
+    areas = []
+    for inside in bodies:
+        labels, n = ndimage.label(inside)
+        areas.append(np.bincount(labels.ravel(), minlength=n + 1)[1:].astype(float))
+    a = np.concatenate(areas) if areas else np.zeros(0)
+    if not a.sum():
+        return float("inf")
+    return 2.0 * float(np.sqrt(np.sum(a**2) / np.sum(a) / np.pi)) * cell_size_m
 
 
 def geozone_persistence(fields: BenchFields, hole_spacing_m: float) -> tuple[float, float]:
