@@ -328,7 +328,9 @@ def bench_fields(
     benches = sorted(regions, key=lambda k: -z_m[k])
     h = grid.cell_size_m
     cap = CAP_SPACINGS * hole_spacing_m
-    rasters = {k: grid.rasterize(regions[k]) if not regions[k].is_empty else np.zeros(grid.shape, bool) for k in benches}
+    rasters = {
+        k: grid.rasterize(regions[k]) if not regions[k].is_empty else np.zeros(grid.shape, bool) for k in benches
+    }
     reach_m = min(reach_m, body_size_m([rasters[k] & drilled[k] for k in benches], h))
     dist, weight = [], []
     for k in benches:
@@ -1223,7 +1225,9 @@ def _trends(
 ) -> list[DepthTrend]:
     """The depth trend carrying each of ``persistences`` (outlines, finer changes), all from one fit."""
     f_last, z_last, rate, matched = fit_trend(fields, bench_height_m)
-    rate = rate - sliding_bias(rate, matched, f_last, fields.grid.cell_size_m, TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m)
+    rate = rate - sliding_bias(
+        rate, matched, f_last, fields.grid.cell_size_m, TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
+    )
     # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
     # its signed distance (carried over many benches it would raise a body out of nothing there).
     at_cap = np.abs(f_last) >= CAP_SPACINGS * hole_spacing_m - 1e-6
