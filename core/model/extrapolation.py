@@ -913,7 +913,12 @@ def displacement_by_direction(
 
 
 def sliding_bias(
-    rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, cell_size_m: float, smoothing_m: float
+    rate: np.ndarray,
+    matched: np.ndarray,
+    f_last: np.ndarray,
+    cell_size_m: float,
+    sigma_cells: float,
+    systems: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], list[tuple[np.ndarray, tuple]]],
 ) -> np.ndarray:
     """The part of a boundary's measured movement that is its slide along itself, seen across a curve.
 
@@ -921,20 +926,21 @@ def sliding_bias(
     curved boundary that translates by ``d`` lies ``d . n + k (d . t)^2 / 2``
     outside its older self there (``k`` its curvature, ``t`` its tangent):
     at the sides of a disc moving 10 m a bench, 2 m of seeming growth per
-    bench, which carried on widened it by 10 m across its path one bench
-    down. The slide ``d . t`` is the displacement that
-    :func:`displacement_by_direction` fits to the movements over
-    ``smoothing_m``; the curvature is the boundary's, averaged over the same
+    bench, which carried on widened it by 6 m across its path one bench down
+    (exact signed distances, no holes). The slide ``d . t`` is the
+    displacement that :func:`displacement_by_direction` fits to the
+    movements over ``sigma_cells`` (``systems``: the normals of ``f_last``
+    and their :func:`flow_systems`, which the trend's transport uses as
+    well); the curvature is the boundary's, averaged over the same
     neighbourhood. Returns the bias per cell (metres, as ``rate``: each cell
     takes its nearest boundary cell's), 0 where the movement was not matched.
     """
-    n_r, n_c, directed = unit_normals(f_last, cell_size_m)
+    (n_r, n_c, directed), flows = systems
     band = (np.abs(f_last) <= cell_size_m) & directed & matched
     if not band.any():
         return np.zeros_like(rate)
-    sigma = smoothing_m / cell_size_m
-    systems = flow_systems(n_r, n_c, direction_classes(np.arctan2(n_r, n_c), directed, sigma), sigma)
-    d_r, d_c = displacement_by_direction(np.where(matched, rate, 0.0) / cell_size_m, n_r, n_c, systems, sigma)
+    sigma = sigma_cells
+    d_r, d_c = displacement_by_direction(np.where(matched, rate, 0.0) / cell_size_m, n_r, n_c, flows, sigma)
     slide_m = (d_c * n_r - d_r * n_c) * cell_size_m
     # The level sets' curvature, -div n (positive where the geozone is convex), averaged along the boundary.
     s_r, s_c, _ = unit_normals(ndimage.gaussian_filter(f_last, 1.0), cell_size_m)
@@ -1225,9 +1231,13 @@ def _trends(
 ) -> list[DepthTrend]:
     """The depth trend carrying each of ``persistences`` (outlines, finer changes), all from one fit."""
     f_last, z_last, rate, matched = fit_trend(fields, bench_height_m)
-    rate = rate - sliding_bias(
-        rate, matched, f_last, fields.grid.cell_size_m, TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
+    h, smoothing_m = fields.grid.cell_size_m, TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
+    # The normals of the last section and their fits: the slide's bias and the transport both rest on them.
+    normals = unit_normals(f_last, h)
+    flows = flow_systems(
+        *normals[:2], direction_classes(np.arctan2(*normals[:2]), normals[2], smoothing_m / h), smoothing_m / h
     )
+    rate = rate - sliding_bias(rate, matched, f_last, h, smoothing_m / h, (normals, flows))
     # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
     # its signed distance (carried over many benches it would raise a body out of nothing there).
     at_cap = np.abs(f_last) >= CAP_SPACINGS * hole_spacing_m - 1e-6
@@ -1247,8 +1257,9 @@ def _trends(
         z_last,
         rate,
         carried[0],
-        TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
+        smoothing_m,
         continuity,
         fields.distance[-1],
     )
+    first.__dict__.update(_sigma_cells=smoothing_m / h, _normals=normals, _flow_systems=flows)
     return [first, *(first.carrying(c) for c in carried[1:])]
