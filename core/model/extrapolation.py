@@ -834,7 +834,11 @@ class DepthTrend:
 
     def carrying(self, carried: np.ndarray) -> DepthTrend:
         """The same trend carrying ``carried`` on: it shares what the transport made of the last section."""
-        other = replace(self, carried=carried)
+        return self.replaced(carried=carried)
+
+    def replaced(self, **changes) -> DepthTrend:
+        """A copy with ``changes`` (not of the last section) that shares what the transport made of the last section."""
+        other = replace(self, **changes)
         other.__dict__.update(_sigma_cells=self._sigma_cells, _normals=self._normals, _flow_systems=self._flow_systems)
         return other
 
@@ -1026,7 +1030,7 @@ def _confirmed(fields: BenchFields, trend: DepthTrend, bench_height_m: float, ho
     confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
     fields.memo.pop(_MOVEMENTS, None)
     fields.memo.get(_OBSERVED, {}).pop(_MOVEMENTS, None)
-    return replace(trend, carried_precision=confirmed)  # shares the trend's arrays
+    return trend.replaced(carried_precision=confirmed)  # shares the trend's arrays and its transport's fits
 
 
 #: How far a bench's signed distance is drawn towards its prediction from the benches above
