@@ -334,8 +334,7 @@ def bench_fields(
     reach_m = min(reach_m, body_size_m([rasters[k] & drilled[k] for k in benches], h))
     dist, weight = [], []
     for k in benches:
-        region = rasters[k]
-        d, off = bench_distance(region, drilled[k], h, cap, reach_m, None if unclaimed is None else unclaimed[k])
+        d, off = bench_distance(rasters[k], drilled[k], h, cap, reach_m, None if unclaimed is None else unclaimed[k])
         dist.append(exact_near_boundary(d, regions[k], drilled[k], grid))
         weight.append(np.exp(-off / hole_spacing_m))
     return BenchFields(
@@ -916,14 +915,7 @@ def displacement_by_direction(
     return out_r / total, out_c / total
 
 
-def sliding_bias(
-    rate: np.ndarray,
-    matched: np.ndarray,
-    f_last: np.ndarray,
-    cell_size_m: float,
-    sigma_cells: float,
-    systems: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], list[tuple[np.ndarray, tuple]]],
-) -> np.ndarray:
+def sliding_bias(rate: np.ndarray, matched: np.ndarray, section: DepthTrend) -> np.ndarray:
     """The part of a boundary's measured movement that is its slide along itself, seen across a curve.
 
     :func:`boundary_movement` measures along the newer boundary's normal. A
@@ -933,18 +925,19 @@ def sliding_bias(
     bench, which carried on widened it by 6 m across its path one bench down
     (exact signed distances, no holes). The slide ``d . t`` is the
     displacement that :func:`displacement_by_direction` fits to the
-    movements over ``sigma_cells`` (``systems``: the normals of ``f_last``
-    and their :func:`flow_systems`, which the trend's transport uses as
-    well); the curvature is the boundary's, averaged over the same
-    neighbourhood. Returns the bias per cell (metres, as ``rate``: each cell
-    takes its nearest boundary cell's), 0 where the movement was not matched.
+    movements with the fits ``section``'s transport makes of its last
+    section ``f_last`` (shared with it); the curvature is the boundary's,
+    averaged over the same neighbourhood. Returns the bias per cell (metres,
+    as ``rate``: each cell takes its nearest boundary cell's), 0 where the
+    movement was not matched.
     """
-    (n_r, n_c, directed), flows = systems
+    f_last, cell_size_m, sigma = section.f_last, section.grid.cell_size_m, section._sigma_cells
+    n_r, n_c, directed = section._normals
     band = (np.abs(f_last) <= cell_size_m) & directed & matched
     if not band.any():
         return np.zeros_like(rate)
-    sigma = sigma_cells
-    d_r, d_c = displacement_by_direction(np.where(matched, rate, 0.0) / cell_size_m, n_r, n_c, flows, sigma)
+    movement = np.where(matched, rate, 0.0) / cell_size_m
+    d_r, d_c = displacement_by_direction(movement, n_r, n_c, section._flow_systems, sigma)
     slide_m = (d_c * n_r - d_r * n_c) * cell_size_m
     # The level sets' curvature, -div n (positive where the geozone is convex), averaged along the boundary.
     s_r, s_c, _ = unit_normals(ndimage.gaussian_filter(f_last, 1.0), cell_size_m)
@@ -1235,13 +1228,21 @@ def _trends(
 ) -> list[DepthTrend]:
     """The depth trend carrying each of ``persistences`` (outlines, finer changes), all from one fit."""
     f_last, z_last, rate, matched = fit_trend(fields, bench_height_m)
-    h, smoothing_m = fields.grid.cell_size_m, TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
-    # The normals of the last section and their fits: the slide's bias and the transport both rest on them.
-    normals = unit_normals(f_last, h)
-    flows = flow_systems(
-        *normals[:2], direction_classes(np.arctan2(*normals[:2]), normals[2], smoothing_m / h), smoothing_m / h
+    smoothing_m = TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
+    # The last section and its transport's fits, which the slide's bias rests on as well; rate and carried set below.
+    section = DepthTrend(
+        fields.grid,
+        float(fields.z_m[-1]),
+        bench_height_m,
+        f_last,
+        z_last,
+        rate,
+        rate,
+        smoothing_m,
+        1.0,
+        fields.distance[-1],
     )
-    rate = rate - sliding_bias(rate, matched, f_last, h, smoothing_m / h, (normals, flows))
+    rate = rate - sliding_bias(rate, matched, section)
     # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
     # its signed distance (carried over many benches it would raise a body out of nothing there).
     at_cap = np.abs(f_last) >= CAP_SPACINGS * hole_spacing_m - 1e-6
@@ -1253,17 +1254,5 @@ def _trends(
         # The outlines' fit reaches every matched cell, those at the cap too: they are held all the same.
         moved = np.where(at_cap, 0.0, kept_outline * outline + kept_finer * (rate - outline))
         carried.append(np.where(moved > 0, moved * continuity**GROWTH_CONTINUITY_POWER, moved))
-    first = DepthTrend(
-        fields.grid,
-        float(fields.z_m[-1]),
-        bench_height_m,
-        f_last,
-        z_last,
-        rate,
-        carried[0],
-        smoothing_m,
-        continuity,
-        fields.distance[-1],
-    )
-    first.__dict__.update(_sigma_cells=smoothing_m / h, _normals=normals, _flow_systems=flows)
+    first = section.replaced(rate=rate, carried=carried[0], carried_precision=continuity)
     return [first, *(first.carrying(c) for c in carried[1:])]
