@@ -646,13 +646,17 @@ def test_a_lens_standing_still_is_predicted_at_its_size(radius_m):
 
     Drawn by chords between cell edges the held lenses lost 2-3% of their area
     to the field's grid (5 m cells), as much as the model gained over holding
-    pods drilled at 9-12 m.
+    pods drilled at 9-12 m. Held, their contours' waver between the holes is
+    smoothed (``smoothed_section``): the prediction is nearer the true lenses
+    than the contours are (IoU +0.013 to +0.038), 0.92-0.95 IoU with them,
+    and up to 3.1% larger.
     """
     sections = [shapely.union_all([Point(50, 50).buffer(radius_m), Point(140, 100).buffer(radius_m)])] * 5
     holes = _bench_table(sections, spacing=10.0)
-    predicted, held, _ = _predict_next(holes, sections, 4)
-    assert 0.99 < predicted.area / held.area < 1.03
-    assert iou(predicted, held) > 0.95
+    predicted, held, truth = _predict_next(holes, sections, 4)
+    assert 0.99 < predicted.area / held.area < 1.04
+    assert iou(predicted, held) > 0.9
+    assert iou(predicted, truth) > iou(held, truth)
 
 
 def test_a_strip_crossing_the_edge_of_the_drilling_goes_on_past_it():
@@ -739,3 +743,38 @@ def test_a_lens_cut_by_the_edge_of_the_drilling_goes_past_it_no_further_than_the
 
     assert inside(158.0) and inside(163.0)  # the lens itself, past the last row at 156
     assert not inside(187.0)  # 31 m past the last row
+
+
+def test_the_deepest_section_is_smoothed_of_its_waver_and_a_small_disc_keeps_its_size():
+    """``smoothed_section`` (a Gaussian of 3 m): a boundary wavering 1.5 m either way every 6 m along it comes out
+    within a fifth of that of the true circle; a disc 12 m in radius keeps its radius (the Gaussian alone took 0.4 m
+    off it, ``sigma ** 2 / 2R``), and a straight contact stays where it is."""
+    from skimage.measure import find_contours
+
+    from core.model.extrapolation import smoothed_section
+
+    rows, cols = np.indices((140, 140), dtype=float) + 0.5  # 1 m cells, centres
+    centres = shapely.points(cols.ravel(), rows.ravel())
+
+    def signed_distance(region) -> np.ndarray:
+        inside = shapely.contains_xy(region, cols.ravel(), rows.ravel())
+        return np.where(inside, 1.0, -1.0).reshape(rows.shape) * shapely.distance(region.boundary, centres).reshape(
+            rows.shape
+        )
+
+    def radii(f: np.ndarray) -> np.ndarray:
+        (line,) = find_contours(f, 0.0)
+        return np.hypot(line[:, 0] + 0.5 - 70, line[:, 1] + 0.5 - 70)
+
+    theta = np.linspace(0, 2 * np.pi, 720, endpoint=False)
+    radius = 30 + 1.5 * np.sin(31 * theta)  # 31 wavers round, 6.1 m apart
+    wavy = shapely.Polygon(np.column_stack([70 + radius * np.cos(theta), 70 + radius * np.sin(theta)]))
+    f = signed_distance(wavy)
+    assert np.max(np.abs(radii(f) - 30)) > 1.3
+    assert np.max(np.abs(radii(smoothed_section(f, 1.0, 3.0, 18.0)) - 30)) < 0.3
+
+    disc = signed_distance(Point(70, 70).buffer(12.0, quad_segs=64))
+    assert np.mean(radii(smoothed_section(disc, 1.0, 3.0, 18.0))) == pytest.approx(12.0, abs=0.1)
+
+    contact = 60.0 - rows
+    assert np.allclose(smoothed_section(contact, 1.0, 3.0, 18.0)[20:-20], contact[20:-20], atol=1e-6)
