@@ -928,19 +928,6 @@ def displacement_by_direction(
     return out_r / total, out_c / total
 
 
-def curvature_along(distance: np.ndarray, band: np.ndarray, cell_size_m: float, sigma_cells: float) -> np.ndarray:
-    """The curvature of a signed distance's level sets, ``-div n`` (1/metres, positive where the inside is convex).
-
-    Averaged along ``band`` (the boundary's cells) with a Gaussian of
-    ``sigma_cells``: a raster's curvature cell by cell is mostly its steps.
-    Meaningful on ``band`` only.
-    """
-    n_r, n_c, _ = unit_normals(distance, cell_size_m)
-    curvature = -(np.gradient(n_r, axis=0) + np.gradient(n_c, axis=1)) / cell_size_m
-    weight = ndimage.gaussian_filter(band.astype(float), sigma_cells)
-    return ndimage.gaussian_filter(np.where(band, curvature, 0.0), sigma_cells) / np.maximum(weight, 1e-9)
-
-
 def smoothed_section(distance: np.ndarray, cell_size_m: float, sigma_m: float, along_m: float) -> np.ndarray:
     """A section's signed distance smoothed by a Gaussian of ``sigma_m`` near its boundary, the boundary kept in place.
 
@@ -954,7 +941,7 @@ def smoothed_section(distance: np.ndarray, cell_size_m: float, sigma_m: float, a
     spacing a disc two spacings across lost 30% of its area). That shift is
     the change the Gaussian makes averaged along the boundary over ``along_m``
     (where a waver's change averages out) and is put back. The change is
-    bounded by ``sigma_m / 2``, so a gap or a neck narrower than the Gaussian
+    bounded by ``sigma_m / 2``, so a gap or a neck wider than ``sigma_m``
     (two bodies that have just split) is not closed or cut, and it fades out
     from one to two ``sigma_m`` off the boundary: what a boundary's movement
     carries is its zero level, and a narrow body's ridge (the value a strip
@@ -1006,7 +993,11 @@ def sliding_bias(rate: np.ndarray, matched: np.ndarray, section: DepthTrend) -> 
     movement = np.where(matched, rate, 0.0) / cell_size_m
     d_r, d_c = displacement_by_direction(movement, n_r, n_c, section._flow_systems, sigma)
     slide_m = (d_c * n_r - d_r * n_c) * cell_size_m
-    curvature = curvature_along(ndimage.gaussian_filter(f_last, 1.0), band, cell_size_m, sigma)
+    # The level sets' curvature, -div n (positive where the geozone is convex), averaged along the boundary.
+    s_r, s_c, _ = unit_normals(ndimage.gaussian_filter(f_last, 1.0), cell_size_m)
+    curvature = -(np.gradient(s_r, axis=0) + np.gradient(s_c, axis=1)) / cell_size_m
+    weight = ndimage.gaussian_filter(band.astype(float), sigma)
+    curvature = ndimage.gaussian_filter(np.where(band, curvature, 0.0), sigma) / np.maximum(weight, 1e-9)
     bias = np.where(band, 0.5 * curvature * slide_m**2, 0.0)
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
     return np.where(matched, bias[r, c], 0.0)
@@ -1294,10 +1285,8 @@ def _trends(
     smoothing_m = TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
     # The outlines are traced on the section as measured: smoothed, the gap between two parts that have just split
     # narrows, and traced as one outline their opposite movements cancelled (the constructed split lost 0.1 IoU).
-    outlines_of, f_last = (
-        f_last,
-        smoothed_section(f_last, fields.grid.cell_size_m, SECTION_SMOOTHING_SPACINGS * hole_spacing_m, smoothing_m),
-    )
+    outlines_of = f_last
+    f_last = smoothed_section(f_last, fields.grid.cell_size_m, SECTION_SMOOTHING_SPACINGS * hole_spacing_m, smoothing_m)
     # The last section and its transport's fits, which the slide's bias rests on as well; rate and carried set below.
     section = DepthTrend(
         fields.grid,
