@@ -751,16 +751,14 @@ def test_the_deepest_section_is_smoothed_of_its_waver_and_a_small_disc_keeps_its
     off it, ``sigma ** 2 / 2R``), and a straight contact stays where it is."""
     from skimage.measure import find_contours
 
+    from core.geometry.grid import Grid
+    from core.geometry.sdf import region_signed_distance
     from core.model.extrapolation import smoothed_section
 
-    rows, cols = np.indices((140, 140), dtype=float) + 0.5  # 1 m cells, centres
-    centres = shapely.points(cols.ravel(), rows.ravel())
+    grid = Grid(0.5, 0.5, 1.0, (140, 140))  # 1 m cells, centres at 0.5, 1.5, ...
 
-    def signed_distance(region) -> np.ndarray:
-        inside = shapely.contains_xy(region, cols.ravel(), rows.ravel())
-        return np.where(inside, 1.0, -1.0).reshape(rows.shape) * shapely.distance(region.boundary, centres).reshape(
-            rows.shape
-        )
+    def signed_distance(region) -> np.ndarray:  # exact everywhere
+        return region_signed_distance(grid, region, band_cells=np.inf)
 
     def radii(f: np.ndarray) -> np.ndarray:
         (line,) = find_contours(f, 0.0)
@@ -776,5 +774,5 @@ def test_the_deepest_section_is_smoothed_of_its_waver_and_a_small_disc_keeps_its
     disc = signed_distance(Point(70, 70).buffer(12.0, quad_segs=64))
     assert np.mean(radii(smoothed_section(disc, 1.0, 3.0, 18.0))) == pytest.approx(12.0, abs=0.1)
 
-    contact = 60.0 - rows
+    contact = 60.0 - grid.cell_centres()[1]
     assert np.allclose(smoothed_section(contact, 1.0, 3.0, 18.0)[20:-20], contact[20:-20], atol=1e-6)

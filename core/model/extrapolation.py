@@ -844,10 +844,6 @@ class DepthTrend:
     def region(self, z_m: float) -> MultiPolygon:
         return self.grid.polygons_from_distance(self.field(z_m))
 
-    def carrying(self, carried: np.ndarray) -> DepthTrend:
-        """The same trend carrying ``carried`` on: it shares what the transport made of the last section."""
-        return self.replaced(carried=carried)
-
     def replaced(self, **changes) -> DepthTrend:
         """A copy with ``changes`` (not of the last section) that shares what the transport made of the last section."""
         other = replace(self, **changes)
@@ -957,10 +953,10 @@ def smoothed_section(distance: np.ndarray, cell_size_m: float, sigma_m: float, a
     -------
     (rows, cols) float
     """
-    change = ndimage.gaussian_filter(distance, sigma_m / cell_size_m, mode="nearest") - distance
     band = np.abs(distance) <= cell_size_m
     if not band.any():
         return distance
+    change = ndimage.gaussian_filter(distance, sigma_m / cell_size_m, mode="nearest") - distance
     along = along_m / cell_size_m
     weight = ndimage.gaussian_filter(band.astype(float), along)
     shift = ndimage.gaussian_filter(np.where(band, change, 0.0), along) / np.maximum(weight, 1e-9)
@@ -1313,4 +1309,4 @@ def _trends(
         moved = np.where(at_cap, 0.0, kept_outline * outline + kept_finer * (rate - outline))
         carried.append(np.where(moved > 0, moved * continuity**GROWTH_CONTINUITY_POWER, moved))
     first = section.replaced(rate=rate, carried=carried[0], carried_precision=continuity)
-    return [first, *(first.carrying(c) for c in carried[1:])]
+    return [first, *(first.replaced(carried=c) for c in carried[1:])]

@@ -29,6 +29,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from core.geometry.grid import Grid  # noqa: E402
+from core.geometry.sdf import region_signed_distance  # noqa: E402
 from core.model.extrapolation import BenchFields, depth_trend  # noqa: E402
 
 CELL_M = 3.0
@@ -69,27 +70,24 @@ CASES: dict[str, Callable[[float], shapely.Geometry]] = {
 }
 
 
-def signed_distance(section, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Exact signed distance to ``section``'s boundary (positive inside), capped."""
-    points = shapely.points(x.ravel(), y.ravel())
-    d = shapely.distance(section.boundary, points).reshape(x.shape)
-    inside = shapely.contains_xy(section, x.ravel(), y.ravel()).reshape(x.shape)
-    return np.clip(np.where(inside, d, -d), -CAP_M, CAP_M)
+def signed_distance(section, grid: Grid) -> np.ndarray:
+    """Exact signed distance to ``section``'s boundary (positive inside) on ``grid``, capped."""
+    return np.clip(region_signed_distance(grid, section, band_cells=np.inf), -CAP_M, CAP_M)
 
 
 def score(section_at: Callable[[float], shapely.Geometry]) -> list[tuple[float, float, float]]:
     """``(depth_m, F1 %, predicted / true area)`` below the deepest of :data:`BENCHES` exact benches."""
     grid = Grid.covering((0, 0, CELLS * CELL_M, CELLS * CELL_M), CELL_M, margin_cells=0)
-    x, y = grid.cell_centres()
+    x = grid.cell_centres()[0]
     z = 500.0 - BENCH_HEIGHT_M * np.arange(BENCHES)
-    distance = np.array([signed_distance(section_at(k), x, y) for k in range(BENCHES)])
+    distance = np.array([signed_distance(section_at(k), grid) for k in range(BENCHES)])
     fields = BenchFields(grid, z, distance, np.ones_like(distance), np.ones(distance.shape, bool))
     trend = depth_trend(fields, BENCH_HEIGHT_M, HOLE_SPACING_M)
     scored = (x > 30) & (x < CELLS * CELL_M - 30)  # away from the grid's edge, where the folds are cut
     rows = []
     for depth in DEPTHS_M:
         predicted = (trend.field(z[-1] - depth) > 0) & scored
-        truth = (signed_distance(section_at(BENCHES - 1 + depth / BENCH_HEIGHT_M), x, y) > 0) & scored
+        truth = (signed_distance(section_at(BENCHES - 1 + depth / BENCH_HEIGHT_M), grid) > 0) & scored
         both = float(np.sum(predicted & truth))
         f1 = 200 * both / (predicted.sum() + truth.sum())
         rows.append((depth, f1, predicted.sum() / truth.sum()))
