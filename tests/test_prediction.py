@@ -408,7 +408,7 @@ def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_m
     assert _f1(predicted, truth, within) > _f1(damped, truth, within) > _f1(nil, truth, within)
 
 
-def _lens_fields(lenses_per_bench, drilled_per_bench):
+def _lens_fields(lenses_per_bench, drilled_per_bench, bench_height_m=10.0):
     """Bench fields of a geozone made of round lenses ``(x, y, r)`` per bench, 10 m benches, 6 m spacing."""
     from core.geometry.grid import Grid, as_multipolygon
     from core.model.extrapolation import bench_fields
@@ -419,8 +419,30 @@ def _lens_fields(lenses_per_bench, drilled_per_bench):
         for k, lenses in enumerate(lenses_per_bench)
     }
     drilled = {k: grid.rasterize(box) for k, box in enumerate(drilled_per_bench)}
-    z = {k: 500.0 - 10.0 * k for k in range(len(lenses_per_bench))}
+    z = {k: 500.0 - bench_height_m * k for k in range(len(lenses_per_bench))}
     return bench_fields(regions, drilled, z, grid, 6.0, 18.0)
+
+
+@pytest.mark.parametrize("gap_m", [4.0, 8.0])
+def test_a_lens_appearing_beside_another_on_tall_benches_is_not_carried_on_as_the_other_moving(gap_m):
+    """A boundary moves no further than the geozone's bodies are across (``fastest_movement_m``).
+
+    Lenses 16 m across on 15 m benches; on the deepest, a new one appears ``gap_m`` beside one
+    that stays. A 30 degree dip alone lets a boundary move 26 m a bench: the new lens's edges
+    were matched to the old one's, 20 m and more away, and it was carried on 8-10 m further
+    (its centre outside one bench down).
+    """
+    from core.model.extrapolation import depth_trend
+
+    everywhere = shapely.box(0, 0, 200, 160)
+    others = [(30, 30, 8), (170, 30, 8), (30, 130, 8), (170, 130, 8), (60, 80, 8)]
+    new = (76 + gap_m, 80, 8)  # the lens at x 60 ends at x 68
+    fields = _lens_fields([others, [*others, new]], [everywhere] * 2, bench_height_m=15.0)
+    for z in (477.5, 470.0):  # half a bench and a bench below
+        predicted = depth_trend(fields, 15.0, 6.0).region(z)
+        assert predicted.contains(Point(new[0], 80)), z
+        assert not predicted.contains(Point(new[0] + 8 + 3, 80)), z  # its far edge stays within 3 m
+        assert predicted.contains(Point(60, 80)), z
 
 
 def test_a_lens_that_grew_twice_by_chance_among_lenses_that_change_at_random_is_held():

@@ -113,7 +113,8 @@ CAP_SPACINGS = 8.0
 #: held the fastest strips (chosen on the tuning seeds only: +0.4 and +1.1 F1 at 5 and
 #: 10 m, strips +1.3 and +3.2, pods -0.3 and -0.4). It is a floor: where a bench pair's
 #: sections align at a larger translation (a shallower contact), that is the bound for the
-#: pair (:func:`movement_reach_m`).
+#: pair (:func:`movement_reach_m`). Where the geozone's bodies are smaller across than that, their
+#: size is the floor instead (:func:`fastest_movement_m`).
 MIN_DIP_DEG = 30.0
 #: A boundary's outward movement (a body growing) carries on by ``continuity ** 4`` of what
 #: its persistence carries, ``continuity`` the share of the geozone's bodies that reach the next bench
@@ -424,7 +425,7 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float) -> tuple[flo
     # movements agree by construction (a test's travelling waves agree under 0.5 observed, 0.53 drawn).
     fields = fields.measured()
     n = len(fields.z_m)
-    fastest = fastest_movement_m(float(abs(fields.z_m[-2] - fields.z_m[-1])))
+    fastest = fastest_movement_m(float(abs(fields.z_m[-2] - fields.z_m[-1])), geozone_body_size_m(fields))
     reach1, reach2 = movement_reach_m(fields, n - 2, n - 1, fastest), movement_reach_m(fields, n - 3, n - 2, fastest)
     d1, d2 = movements_along_trajectories(fields, reach1, reach2)
     seen = np.all(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0)
@@ -598,9 +599,33 @@ _MOVEMENTS = ("movements",)
 _OBSERVED = ("observed",)
 
 
-def fastest_movement_m(bench_height_m: float) -> float:
-    """How far a boundary moves across itself in ``bench_height_m`` at the shallowest usual dip (:data:`MIN_DIP_DEG`)."""
-    return bench_height_m / float(np.tan(np.radians(MIN_DIP_DEG)))
+def fastest_movement_m(bench_height_m: float, body_size_m: float = np.inf) -> float:
+    """How far a boundary moves across itself in ``bench_height_m``: at the shallowest usual dip (:data:`MIN_DIP_DEG`).
+
+    And no further than the geozone's bodies are across (``body_size_m``,
+    :func:`geozone_body_size_m`): a lens found a lens-width from where one
+    was the bench above is another lens, not the first one moved. The dip
+    alone lets a boundary move 1.7 bench heights a bench, and on 15 m
+    benches (26 m) pods 16-23 m across read lenses appearing beside others
+    as the others moving or growing and carried that on (development seeds
+    0-47 of the pods drilled on 15 m benches in feet, F1 at half / one bench
+    below 58.87 / 30.55 against holding's 58.44 / 30.74; bounded, 59.15 /
+    31.18; by half the size, 58.87 / 31.13 and the pods on 10 m benches
+    59.36 / 33.28 -> 59.25 / 33.05). On 10 m benches (17 m) the bound moves
+    the pods little (59.40 / 33.35) and layers, strips and folds, 40-130 m
+    across, not at all (development seeds 0-5 of every family and Kennecott
+    unchanged).
+    """
+    return min(bench_height_m / float(np.tan(np.radians(MIN_DIP_DEG))), body_size_m)
+
+
+def geozone_body_size_m(fields: BenchFields) -> float:
+    """:func:`body_size_m` of the geozone's bodies on its benches (inside their drilled areas), kept in ``fields.memo``."""
+
+    def compute() -> float:
+        return body_size_m([(d > 0) & dr for d, dr in zip(fields.distance, fields.drilled)], fields.grid.cell_size_m)
+
+    return _memoised(fields, ("body size", len(fields.z_m)), compute)
 
 
 def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: float) -> float:
@@ -668,7 +693,7 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
         return np.take_along_axis(fields.distance, np.maximum(idx, 0)[None], axis=0)[0]
 
     f_last = take(last)
-    fastest_m = fastest_movement_m(bench_height_m)
+    fastest_m = fastest_movement_m(bench_height_m, geozone_body_size_m(fields))
     two = (last >= 0) & (before >= 0)
     # signed: negative when extrapolating upwards (fields reversed), as the rate is per bench in that direction
     benches = np.where(two, z[np.maximum(before, 0)] - z[np.maximum(last, 0)], bench_height_m) / bench_height_m
@@ -1024,7 +1049,7 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
     (smaller than a disc of the furthest a boundary moves per bench), the
     share is drawn towards one half by :data:`LENS_PRIOR_DISCS` such discs.
     """
-    reach_cells = fastest_movement_m(bench_height_m) / fields.grid.cell_size_m
+    reach_cells = fastest_movement_m(bench_height_m, geozone_body_size_m(fields)) / fields.grid.cell_size_m
     reached = counted = 0.0
     counts = []  # bodies per bench, for the typical body: each bench is labelled once
     for j in range(len(fields.z_m) - 1):
