@@ -409,7 +409,7 @@ def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_m
 
 
 def _lens_fields(lenses_per_bench, drilled_per_bench, bench_height_m=10.0):
-    """Bench fields of a geozone made of round lenses ``(x, y, r)`` per bench, 10 m benches, 6 m spacing."""
+    """Bench fields of a geozone made of round lenses ``(x, y, r)`` per bench, ``bench_height_m`` apart, 6 m spacing."""
     from core.geometry.grid import Grid, as_multipolygon
     from core.model.extrapolation import bench_fields
 
@@ -437,9 +437,9 @@ def test_a_lens_appearing_beside_another_on_tall_benches_is_not_carried_on_as_th
     everywhere = shapely.box(0, 0, 200, 160)
     others = [(30, 30, 8), (170, 30, 8), (30, 130, 8), (170, 130, 8), (60, 80, 8)]
     new = (76 + gap_m, 80, 8)  # the lens at x 60 ends at x 68
-    fields = _lens_fields([others, [*others, new]], [everywhere] * 2, bench_height_m=15.0)
+    trend = depth_trend(_lens_fields([others, [*others, new]], [everywhere] * 2, bench_height_m=15.0), 15.0, 6.0)
     for z in (477.5, 470.0):  # half a bench and a bench below
-        predicted = depth_trend(fields, 15.0, 6.0).region(z)
+        predicted = trend.region(z)
         assert predicted.contains(Point(new[0], 80)), z
         assert not predicted.contains(Point(new[0] + 8 + 3, 80)), z  # its far edge stays within 3 m
         assert predicted.contains(Point(60, 80)), z
