@@ -110,8 +110,12 @@ def noise_groups(singles: int, pairs: int, holes: int, k: int) -> float:
     development seeds 0-3 at 6-10% label noise the chains of three (9 of the
     11 groups of three a hole) came to 45.5 where 45 were seen (43 of them
     mislabelled), and to 0.06 a bench on pods with 1-3% noise, where one lens
-    made a chain in four mines. On a square pattern (two pairs a hole) it
-    predicts fewer groups than noise makes: noise is taken for less than it is.
+    made a chain in four mines. On a square pattern the diagonals lie within
+    the components' radius (1.6 spacings): four pairs a hole, and 20, 110,
+    638 and 3832 groups of 3-6 holes; ``r`` read with three pairs is then 4/3
+    too high, and the two errors nearly cancel (the predicted groups 2-10% too
+    few). Constants of the square pattern left its extraction at 6-10% label
+    noise unchanged (median IoU 0.867 against 0.866, development seeds 0-3).
     """
     if singles == 0:
         return 0.0

@@ -285,17 +285,30 @@ def make_mine(
     )
 
 
+#: Drilling patterns :func:`drill_pattern` lays out.
+PATTERNS = ("staggered", "square")
+
+
 def drill_pattern(
-    footprint: Polygon, spacing_m: float, angle_rad: float, jitter_m: float, rng: np.random.Generator
+    footprint: Polygon,
+    spacing_m: float,
+    angle_rad: float,
+    jitter_m: float,
+    rng: np.random.Generator,
+    pattern: str = "staggered",
 ) -> np.ndarray:
-    """Staggered (hexagonal-ish) blasthole pattern covering ``footprint``."""
+    """Blasthole pattern covering ``footprint``: ``"staggered"`` (hexagonal-ish) or ``"square"``."""
+    if pattern not in PATTERNS:
+        raise ValueError(f"unknown drilling pattern {pattern!r}; expected one of {PATTERNS}")
     xmin, ymin, xmax, ymax = footprint.bounds
     span = np.hypot(xmax - xmin, ymax - ymin)
-    burden = spacing_m * np.sqrt(3) / 2
+    staggered = pattern == "staggered"
+    burden = spacing_m * np.sqrt(3) / 2 if staggered else spacing_m
     rows = np.arange(-span / 2, span / 2 + burden, burden)
     cols = np.arange(-span / 2, span / 2 + spacing_m, spacing_m)
     gx, gy = np.meshgrid(cols, rows)
-    gx = gx + (np.arange(len(rows))[:, None] % 2) * spacing_m / 2
+    if staggered:
+        gx = gx + (np.arange(len(rows))[:, None] % 2) * spacing_m / 2
     pts = np.column_stack([gx.ravel(), gy.ravel()])
     c, s = np.cos(angle_rad), np.sin(angle_rad)
     pts = pts @ np.array([[c, s], [-s, c]])

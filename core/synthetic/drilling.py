@@ -7,8 +7,9 @@
 * every bench has irregular polygonal bites out of its edge (:func:`edge_bite`:
   ground not drilled, ramps, old workings) and some benches are only partly
   drilled, up to a ragged front (:func:`undrilled_beyond_front`);
-* holes follow a staggered pattern of 5-7 m spacing at a random angle, both
-  drawn per bench, with jitter (:func:`core.synthetic.blobs.drill_pattern`);
+* holes follow a staggered pattern (a square one on request) of 5-7 m
+  spacing at a random angle, both drawn per bench, with jitter
+  (:func:`core.synthetic.blobs.drill_pattern`);
 * 1-3% of the labels (rate drawn per mine) are replaced by another geozone
   present on the bench, as mislabelled assays are.
 
@@ -123,6 +124,7 @@ def drill_mine(
     z_scatter_fraction: float = 0.05,
     pushback_range_m: tuple[float, float] = (0.0, 0.0),
     collar_scatter_spacings: float = 0.08,
+    pattern: str = "staggered",
 ) -> tuple[pd.DataFrame, pd.Series]:
     """Drill every bench of ``mine`` and label its holes, as a mine would.
 
@@ -152,6 +154,8 @@ def drill_mine(
     collar_scatter_spacings : float
         How far holes are collared off the pattern: the standard deviation of
         their offset (each way), in spacings.
+    pattern : {"staggered", "square"}
+        The drilling pattern (:func:`~core.synthetic.blobs.drill_pattern`).
 
     Returns
     -------
@@ -182,7 +186,7 @@ def drill_mine(
         footprint = bench_drilled_area(outline, rng, partial=k > 0 and rng.random() < partial_fraction)
         mine.footprints[float(z)] = footprint
         spacing = rng.uniform(*spacing_range_m)
-        xy = drill_pattern(footprint, spacing, rng.uniform(0, np.pi), collar_scatter_spacings * spacing, rng)
+        xy = drill_pattern(footprint, spacing, rng.uniform(0, np.pi), collar_scatter_spacings * spacing, rng, pattern)
         # Round as the table will be written, so the truth is that of the written holes.
         xy_table = np.round((xy + np.asarray(mine.origin)) / mpu, 2)
         xy = xy_table * mpu - np.asarray(mine.origin)

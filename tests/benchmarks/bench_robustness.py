@@ -17,7 +17,8 @@ on held-out seeds only:
 * ``drilling`` -- every family drilled otherwise (:data:`DRILLING`): patterns of
   9-12 m and 3-4 m, 6-10% label noise, 15 m benches in feet, 6 m benches, and each
   bench's pit 20-40 m sideways of the one above (a pushback: ground no bench above drilled),
-  and holes collared off the pattern by 0.3 of a spacing (standard deviation; 0.08 by default).
+  holes collared off the pattern by 0.3 of a spacing (standard deviation; 0.08 by default),
+  and a square pattern instead of a staggered one (the same spacing, so 13% fewer holes).
   Depths are half and one bench height, whatever the bench height.
 
 ``--seeds tuning`` runs the development seeds instead (``--limit`` of them,
@@ -61,6 +62,7 @@ DRILLING: dict[str, tuple[dict, dict]] = {
     "6 m benches": ({"bench_height_m": 6.0}, {}),
     "pushback 20-40 m a bench": ({}, {"pushback_range_m": (20.0, 40.0)}),
     "holes 0.3 spacing off the pattern": ({}, {"collar_scatter_spacings": 0.3}),
+    "square pattern": ({}, {"pattern": "square"}),
 }
 
 
