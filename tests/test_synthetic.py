@@ -93,15 +93,18 @@ def test_a_scenario_is_drilled_on_every_bench_at_mine_scale():
     assert len(mine.footprints) == len(mine.bench_levels_m)
 
 
-@pytest.mark.parametrize("pattern, ring, next_ring", [("staggered", 6, np.sqrt(3)), ("square", 4, np.sqrt(2))])
-def test_a_bench_is_drilled_on_the_pattern_asked_for(pattern, ring, next_ring):
+@pytest.mark.parametrize(
+    "pattern, first_ring_holes, next_ring_spacings", [("staggered", 6, np.sqrt(3)), ("square", 4, np.sqrt(2))]
+)
+def test_a_bench_is_drilled_on_the_pattern_asked_for(pattern, first_ring_holes, next_ring_spacings):
     """Staggered: six holes a spacing away and the next at sqrt(3); square: four, and the diagonals at sqrt(2)."""
     mine, table, _ = scenario("strips", SEEDS[0], drilling={"pattern": pattern, "collar_scatter_spacings": 0.0})
     xy = local_xy(mine, table)[bench_of(table) == 1]
-    distances = cKDTree(xy).query(xy, k=ring + 2)[0][:, 1:]  # the median hole has a full first ring
+    # Nearest holes first; the median hole is inside the pattern, with its whole first ring.
+    distances = cKDTree(xy).query(xy, k=first_ring_holes + 2)[0][:, 1:]
     spacing = np.median(distances[:, 0])
-    assert np.allclose(np.median(distances[:, :ring], axis=0), spacing, rtol=0.02)
-    assert np.median(distances[:, ring]) == pytest.approx(next_ring * spacing, rel=0.02)
+    assert np.allclose(np.median(distances[:, :first_ring_holes], axis=0), spacing, rtol=0.02)
+    assert np.median(distances[:, first_ring_holes]) == pytest.approx(next_ring_spacings * spacing, rel=0.02)
 
 
 def test_an_unknown_drilling_pattern_is_refused():
