@@ -425,7 +425,7 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float) -> tuple[flo
     # movements agree by construction (a test's travelling waves agree under 0.5 observed, 0.53 drawn).
     fields = fields.measured()
     n = len(fields.z_m)
-    fastest = fastest_movement_m(float(abs(fields.z_m[-2] - fields.z_m[-1])), geozone_body_size_m(fields))
+    fastest = geozone_fastest_movement_m(fields, float(abs(fields.z_m[-2] - fields.z_m[-1])))
     reach1, reach2 = movement_reach_m(fields, n - 2, n - 1, fastest), movement_reach_m(fields, n - 3, n - 2, fastest)
     d1, d2 = movements_along_trajectories(fields, reach1, reach2)
     seen = np.all(fields.weight[-3:] >= OBSERVED_WEIGHT, axis=0)
@@ -628,6 +628,11 @@ def geozone_body_size_m(fields: BenchFields) -> float:
     return _memoised(fields, ("body size", len(fields.z_m)), compute)
 
 
+def geozone_fastest_movement_m(fields: BenchFields, bench_height_m: float) -> float:
+    """:func:`fastest_movement_m` of the geozone's boundary over ``bench_height_m``, bounded by its bodies' size."""
+    return fastest_movement_m(bench_height_m, geozone_body_size_m(fields))
+
+
 def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: float) -> float:
     """How far a boundary of the geozone may have moved from bench ``older`` to ``newer``, metres.
 
@@ -693,7 +698,7 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
         return np.take_along_axis(fields.distance, np.maximum(idx, 0)[None], axis=0)[0]
 
     f_last = take(last)
-    fastest_m = fastest_movement_m(bench_height_m, geozone_body_size_m(fields))
+    fastest_m = geozone_fastest_movement_m(fields, bench_height_m)
     two = (last >= 0) & (before >= 0)
     # signed: negative when extrapolating upwards (fields reversed), as the rate is per bench in that direction
     benches = np.where(two, z[np.maximum(before, 0)] - z[np.maximum(last, 0)], bench_height_m) / bench_height_m
@@ -1049,7 +1054,7 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
     (smaller than a disc of the furthest a boundary moves per bench), the
     share is drawn towards one half by :data:`LENS_PRIOR_DISCS` such discs.
     """
-    reach_cells = fastest_movement_m(bench_height_m, geozone_body_size_m(fields)) / fields.grid.cell_size_m
+    reach_cells = geozone_fastest_movement_m(fields, bench_height_m) / fields.grid.cell_size_m
     reached = counted = 0.0
     counts = []  # bodies per bench, for the typical body: each bench is labelled once
     for j in range(len(fields.z_m) - 1):
