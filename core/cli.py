@@ -884,11 +884,19 @@ def main() -> None:
     if _INTERRUPTS and code == 130:
         # Every file is closed and every staging folder gone; the interpreter's own
         # shutdown, with worker-pool threads cut short, can crash ("Fatal Python
-        # error") and would add a second message: leave now.
+        # error") and would add a second message: leave now, without a worker process
+        # (they ignore Ctrl-C and share the terminal's pipes) left waiting for work.
+        _stop_worker_processes()
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(130)
     sys.exit(code)
+
+
+def _stop_worker_processes() -> None:
+    multiprocessing = sys.modules.get("multiprocessing")
+    for child in multiprocessing.active_children() if multiprocessing else []:
+        child.terminate()
 
 
 def _run() -> int:

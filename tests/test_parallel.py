@@ -53,3 +53,52 @@ def test_unreachable_scheduler_is_a_clear_error(holes, tmp_path):
 
     with pytest.raises(BGMInputError, match="cannot reach the dask scheduler"):
         build(holes, tmp_path / "x", scheduler="tcp://127.0.0.1:9", evaluate=False, formats=("ply",))
+
+
+def _interrupt_in(stage: str):
+    """A progress callback that interrupts the build as ``stage`` (contours, geozone) reports its first result."""
+
+    def progress(what, done, total):
+        if what.startswith(stage):
+            raise KeyboardInterrupt
+
+    return progress
+
+
+@pytest.mark.parametrize("stage", ["contours", "geozone"])
+def test_an_interrupt_between_results_stops_the_workers_at_once(holes, tmp_path, stage):
+    """A Ctrl-C while the build handles a finished job (not while it waits) leaves no worker running.
+
+    The workers ignore Ctrl-C and share the terminal's pipes: left running they keep a
+    ``bgm build`` that has already said "interrupted" from ever ending.
+    """
+    import multiprocessing
+
+    with pytest.raises(KeyboardInterrupt):
+        build(holes, tmp_path / "model", workers=2, evaluate=False, formats=("ply",), progress=_interrupt_in(stage))
+    assert multiprocessing.active_children() == []
+    assert not (tmp_path / "model").exists()
+
+
+def test_an_interrupt_while_the_pool_winds_down_stops_the_workers(holes, tmp_path, monkeypatch):
+    """A Ctrl-C just as every job is done, while the idle workers are being told to leave.
+
+    Python's own shutdown, cut short there, leaves idle workers waiting for work forever
+    (the case that hung a CI run after "bgm: interrupted").
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    shutdown = ProcessPoolExecutor.shutdown
+    calls = []
+
+    def interrupted_shutdown(self, wait=True, *, cancel_futures=False):
+        calls.append(wait)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return shutdown(self, wait, cancel_futures=cancel_futures)
+
+    monkeypatch.setattr(ProcessPoolExecutor, "shutdown", interrupted_shutdown)
+    with pytest.raises(KeyboardInterrupt):
+        build(holes, tmp_path / "model", workers=2, evaluate=False, formats=("ply",))
+    assert calls and multiprocessing.active_children() == []

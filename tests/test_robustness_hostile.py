@@ -419,6 +419,24 @@ def test_ctrl_c_on_a_parallel_build_is_one_line(csv, tmp_path):
     assert interrupted
 
 
+def _wait_ignoring_ctrl_c() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    time.sleep(60)
+
+
+def test_an_interrupted_command_leaves_no_worker_behind():
+    """What ``bgm`` does on its way out after a Ctrl-C: a worker that ignores Ctrl-C is ended, not orphaned."""
+    import multiprocessing
+
+    from core.cli import _stop_worker_processes
+
+    worker = multiprocessing.get_context("fork").Process(target=_wait_ignoring_ctrl_c)
+    worker.start()
+    _stop_worker_processes()
+    worker.join(timeout=10)
+    assert not worker.is_alive() and worker.exitcode == -signal.SIGTERM
+
+
 def _garbage(rng, n=8) -> str:
     return "".join(rng.choice(list("abcdefghij-_#@"), n))
 

@@ -422,11 +422,12 @@ def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | 
             futures = [pool.submit(_call_in_worker, func, item) for item in items]
         for fut in as_completed(futures):
             yield fut.result()
+        # Inside the try: a Ctrl-C cutting this short would leave idle workers waiting for work forever.
+        pool.shutdown(wait=True)
     except BaseException:
         _stop_workers(pool)
-        raise
-    finally:
         pool.shutdown(wait=True, cancel_futures=True)
+        raise
 
 
 @contextlib.contextmanager
