@@ -894,6 +894,7 @@ def main() -> None:
 
 
 def _stop_worker_processes() -> None:
+    """Terminate this process's live worker processes (local build pools), if any were started."""
     multiprocessing = sys.modules.get("multiprocessing")
     for child in multiprocessing.active_children() if multiprocessing else []:
         child.terminate()
