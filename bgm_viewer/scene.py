@@ -187,7 +187,14 @@ class SceneRenderer:
         self._update_legend()
         if bearings:
             with suppress(Exception):  # an orientation widget needs an interactor on some platforms
-                plotter.add_axes(xlabel="E", ylabel="N", zlabel="Up", color=to_float(BEARINGS), line_width=2)
+                plotter.add_axes(
+                    xlabel="E",
+                    ylabel="N",
+                    zlabel="Up",
+                    color=to_float(BEARINGS),
+                    line_width=2,
+                    viewport=(0.82, 0.0, 1.0, 0.18),  # lower right: the scale bar starts at the lower left
+                )
             self._update_bearings()
         scene.changed.connect(self._on_change)
 

@@ -154,6 +154,35 @@ def test_axes_labels_and_scale_bar_are_drawn(model):
     assert outside.sum() > 100, "nothing is written outside the data box (axis labels)"
 
 
+@pytest.mark.parametrize("camera", ["top", "iso", "front"])
+def test_scale_bar_and_orientation_widget_do_not_overlap(model, camera):
+    """The scale bar (with its title below it) and the orientation widget are both readable in every view."""
+    from bgm_viewer.scene import world_to_pixels
+
+    scene = build_scene(model.holes, model.result, model.selection, visible=["blastholes"])
+    plotter, renderer = plotter_for(scene, window_size=SIZE, camera=camera, legend=False)
+    try:
+        widget = plotter.renderer.axes_widget
+        assert widget is not None, "no orientation widget"
+        x0, y0, x1, y1 = widget.GetViewport()  # fractions of the window, y up
+        w, h = plotter.window_size
+        bar = renderer._ruler
+        ends = np.array([bar.GetPositionCoordinate().GetValue(), bar.GetPosition2Coordinate().GetValue()], float)
+        cols, rows = world_to_pixels(plotter, ends).T
+        title_px = 40  # the title is drawn below the bar
+        bar_box = (cols.min(), cols.max(), rows.min(), rows.max() + title_px)
+        widget_box = (x0 * w, x1 * w, (1 - y1) * h, (1 - y0) * h)
+        apart = (
+            bar_box[1] < widget_box[0]
+            or widget_box[1] < bar_box[0]
+            or bar_box[3] < widget_box[2]
+            or widget_box[3] < bar_box[2]
+        )
+        assert apart, f"scale bar {bar_box} under the orientation widget {widget_box} ({camera} view)"
+    finally:
+        plotter.close()
+
+
 def test_axes_are_labelled_in_the_inputs_coordinates_and_units():
     model = ViewerModel(small_holes(unit="ft"))
     scene = build_scene(model.holes, model.result, model.selection, visible=["blastholes"])
