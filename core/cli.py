@@ -190,7 +190,8 @@ def _say(message: str) -> None:
 def progress_bar(description: str):
     """A progress bar on stderr (on a terminal, or with BGM_PROGRESS=1).
 
-    Yields ``update(done, total, description=None)``.
+    Yields ``update(done, total, description=None)``, which also ends the command
+    at its next step after a Ctrl-C that a library caught and swallowed.
     """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -207,6 +208,8 @@ def progress_bar(description: str):
     task = bar.add_task(description, total=1)
 
     def update(done: int, total: int, description: str | None = None) -> None:
+        if _INTERRUPTS:
+            raise KeyboardInterrupt
         if description is None:
             bar.update(task, completed=done, total=max(total, 1))
         else:

@@ -419,6 +419,17 @@ def test_ctrl_c_on_a_parallel_build_is_one_line(csv, tmp_path):
     assert interrupted
 
 
+def test_a_swallowed_ctrl_c_ends_the_command_at_its_next_step(monkeypatch):
+    """A Ctrl-C a library caught (it is remembered, not raised) stops the work at the next progress step."""
+    from core import cli
+
+    with cli.progress_bar("building") as update:
+        update(1, 3)  # no Ctrl-C: the work goes on
+        monkeypatch.setattr(cli, "_INTERRUPTS", [signal.SIGINT])
+        with pytest.raises(KeyboardInterrupt):
+            update(2, 3)
+
+
 def _wait_ignoring_ctrl_c() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     time.sleep(60)
