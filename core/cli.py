@@ -898,8 +898,9 @@ def main() -> None:
 
 def _stop_worker_processes() -> None:
     """Terminate this process's live worker processes (local build pools), if any were started."""
-    multiprocessing = sys.modules.get("multiprocessing")
-    for child in multiprocessing.active_children() if multiprocessing else []:
+    import multiprocessing
+
+    for child in multiprocessing.active_children():
         child.terminate()
 
 
