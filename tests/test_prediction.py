@@ -668,17 +668,18 @@ def test_a_lens_standing_still_is_predicted_at_its_size(radius_m):
 
     Drawn by chords between cell edges the held lenses lost 2-3% of their area
     to the field's grid (5 m cells), as much as the model gained over holding
-    pods drilled at 9-12 m. Held, their contours' waver between the holes is
-    smoothed (``smoothed_section``): the prediction is nearer the true lenses
-    than the contours are (IoU +0.013 to +0.038), 0.92-0.95 IoU with them,
-    and up to 3.1% larger.
+    pods drilled at 9-12 m. Held, they are as near the true lenses as their
+    contours, which are smoothed of their waver between the holes already
+    (``smoothed_contour``; the prediction's own smoothing of the section,
+    ``smoothed_section``, made it 0.013-0.038 IoU nearer the truth than the
+    contours when they were not): 0.94-0.96 IoU with them, up to 2.8% larger.
     """
     sections = [shapely.union_all([Point(50, 50).buffer(radius_m), Point(140, 100).buffer(radius_m)])] * 5
     holes = _bench_table(sections, spacing=10.0)
     predicted, held, truth = _predict_next(holes, sections, 4)
     assert 0.99 < predicted.area / held.area < 1.04
     assert iou(predicted, held) > 0.9
-    assert iou(predicted, truth) > iou(held, truth)
+    assert iou(predicted, truth) > iou(held, truth) - 0.002
 
 
 def test_a_strip_crossing_the_edge_of_the_drilling_goes_on_past_it():

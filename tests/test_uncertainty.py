@@ -297,7 +297,8 @@ def test_the_band_is_about_the_true_boundary_not_the_holes_placement_of_it():
 def test_the_placement_taken_out_is_where_extraction_puts_a_straight_boundary():
     # Straight boundaries at random offsets and headings through a staggered 6 m pattern (holes 0.08
     # of a spacing off it): the contour's distance to the true line, as a standard deviation in
-    # spacings, is the placement the band takes out. Uniform between two holes would be 0.29.
+    # spacings. Uniform between two holes would be 0.29. A straight boundary is the easiest one: the
+    # placement the band takes out (the families' curved sections') is above it, but not twice it.
     rng = np.random.default_rng(5)
     spacing = 6.0
     pattern = hex_grid(30, 34, spacing)
@@ -313,7 +314,7 @@ def test_the_placement_taken_out_is_where_extraction_puts_a_straight_boundary():
         inner = np.abs(ring).max(axis=1) < 50.0  # away from the drilling's edge
         offsets.append((ring[inner] @ normal - at) / spacing)
     measured = float(np.sqrt(np.mean(np.square(np.concatenate(offsets)))))
-    assert 0.75 * PLACEMENT_SPACINGS < measured < 1.25 * PLACEMENT_SPACINGS, measured
+    assert 0.5 * PLACEMENT_SPACINGS < measured < PLACEMENT_SPACINGS, measured
 
 
 def test_an_upward_backtest_predicts_each_bench_from_the_benches_below_it_only():

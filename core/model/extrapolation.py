@@ -55,6 +55,7 @@ from shapely.geometry import MultiPolygon
 
 from core.correspondence.alignment import fft_translation, shift_mask
 from core.geometry.grid import Grid
+from core.geometry.sdf import smoothed_section
 
 #: Neighbourhood over which the boundary's movement is fitted by a displacement when the
 #: last section is carried along it (:meth:`DepthTrend.field`), in hole spacings, and the
@@ -952,47 +953,6 @@ def displacement_by_direction(
         total += w
     total = np.maximum(total, 1e-9)
     return out_r / total, out_c / total
-
-
-def smoothed_section(distance: np.ndarray, cell_size_m: float, sigma_m: float, along_m: float) -> np.ndarray:
-    """A section's signed distance smoothed by a Gaussian of ``sigma_m`` near its boundary, the boundary kept in place.
-
-    A bench's boundary runs between its holes and wavers by a fraction of a
-    spacing from where the geozone's boundary is; the waver does not repeat
-    from bench to bench, and carried on it is error
-    (:data:`SECTION_SMOOTHING_SPACINGS`). A Gaussian of a signed distance takes
-    out wavers shorter than a few ``sigma_m``, but moves a curved boundary
-    inwards (by ``sigma_m ** 2 k / 2``, ``k`` its curvature: ``F`` spreads as by
-    the heat equation and ``lap F = -k`` on a signed distance; at half a
-    spacing a disc two spacings across lost 30% of its area). That shift is
-    the change the Gaussian makes averaged along the boundary over ``along_m``
-    (where a waver's change averages out) and is put back. The change is
-    bounded by ``sigma_m / 2``, so a gap or a neck wider than ``sigma_m``
-    (two bodies that have just split) is not closed or cut, and it fades out
-    from one to two ``sigma_m`` off the boundary: what a boundary's movement
-    carries is its zero level, and a narrow body's ridge (the value a strip
-    moving further than its half-width is carried by) stays.
-
-    Parameters
-    ----------
-    distance : (rows, cols) float
-        Signed distance, metres, positive inside.
-    cell_size_m, sigma_m, along_m : float
-
-    Returns
-    -------
-    (rows, cols) float
-    """
-    band = np.abs(distance) <= cell_size_m
-    if not band.any():
-        return distance
-    change = ndimage.gaussian_filter(distance, sigma_m / cell_size_m, mode="nearest") - distance
-    along = along_m / cell_size_m
-    weight = ndimage.gaussian_filter(band.astype(float), along)
-    shift = ndimage.gaussian_filter(np.where(band, change, 0.0), along) / np.maximum(weight, 1e-9)
-    _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
-    fade = np.clip(2.0 - np.abs(distance) / sigma_m, 0.0, 1.0)
-    return distance + fade * np.clip(change - shift[r, c], -0.5 * sigma_m, 0.5 * sigma_m)
 
 
 def sliding_bias(rate: np.ndarray, matched: np.ndarray, section: DepthTrend) -> np.ndarray:
