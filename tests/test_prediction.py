@@ -388,8 +388,9 @@ def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_m
     """How far to carry the movement is chosen by predicting the geozone's own benches (issue 12: backtesting).
 
     Travelling waves change shape as their modes drift apart: the last two
-    movements agree little (their agreement carries on 0.4 of one geozone's
-    outlines' movement and none of the other's finer changes), yet each bench
+    movements agree little (their agreement carries on half of one geozone's
+    outlines' movement and almost none of the other's finer changes; 0.4 before
+    each contour was smoothed of its waver between holes), yet each bench
     went on as the bench above had moved. Predicting each of its benches from
     those above, carrying all of it did best, and so it does one bench below.
     """
@@ -401,7 +402,7 @@ def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_m
     predicted, nil, truth = _predict_next(holes, sections, 6, model)
     fields = model.fields
     agreement = geozone_persistence(fields, holes.hole_spacing_m)
-    assert min(agreement) < 0.5, agreement
+    assert min(agreement) < 0.55, agreement
     assert chosen_persistence(fields, 10.0, holes.hole_spacing_m) == (1.0, 1.0)
     damped = _trend(fields, 10.0, holes.hole_spacing_m, agreement).region(float(fields.z_m[-1]) - 10.0)
     within = holes.drilled_area(5)
