@@ -776,8 +776,7 @@ def test_the_deepest_section_is_smoothed_of_its_waver_and_a_small_disc_keeps_its
     from skimage.measure import find_contours
 
     from core.geometry.grid import Grid
-    from core.geometry.sdf import region_signed_distance
-    from core.model.extrapolation import smoothed_section
+    from core.geometry.sdf import region_signed_distance, smoothed_section
 
     grid = Grid(0.5, 0.5, 1.0, (140, 140))  # 1 m cells, centres at 0.5, 1.5, ...
 

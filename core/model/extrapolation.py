@@ -29,7 +29,7 @@ all of it or none predicted the geozone's own benches better, as far as that
 bodies end between benches (lenses) has its growth held as well
 (:data:`GROWTH_CONTINUITY_POWER`). The boundary moves by ``carried * f``
 across itself ``f`` bench heights below, and the last section, smoothed of
-the waver its contour has between holes (:func:`smoothed_section`), is
+the waver its contour has between holes (:func:`core.geometry.sdf.smoothed_section`), is
 carried along that movement (:meth:`DepthTrend.field`).
 
 Where a bench was not drilled its boundary is unknown, not absent: the
@@ -69,7 +69,7 @@ from core.geometry.sdf import smoothed_section
 TRANSPORT_SMOOTHING_SPACINGS = 3.0
 TRANSPORT_DIRECTIONS = 4
 #: The deepest section is smoothed over this many hole spacings before it is carried on
-#: (:func:`smoothed_section`): its boundary runs between holes and wavers by a fraction of a
+#: (:func:`core.geometry.sdf.smoothed_section`): its boundary runs between holes and wavers by a fraction of a
 #: spacing, as each bench's does, and that waver carried on is error. Chosen on development
 #: seeds 0-5 of every family (pooled F1 at 5 / 10 m 96.26 / 95.00 without). A plain Gaussian:
 #: 0.5 spacings 96.48 / 95.13 but pods -1.3 / -1.2 (lenses shrank), 1 spacing 95.58 / 94.26.
