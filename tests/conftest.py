@@ -103,6 +103,27 @@ def constructed_offset(holes) -> np.ndarray:
     return holes.frame.to_input(np.zeros((1, 2)))[0] - CONSTRUCTED_ORIGIN
 
 
+def straight_contacts(seed: int, n: int, spacing: float = 6.0) -> list[tuple]:
+    """``n`` straight contacts at random offsets and headings through a staggered pattern (holes 0.08 of a
+    spacing off it), each extracted: ``(holes, contour of "a", offsets)``, the contour's signed distances
+    to the true line in spacings, away from the drilling's edge."""
+    from core.extraction.contours import extract_bench
+
+    rng = np.random.default_rng(seed)
+    pattern = hex_grid(30, 34, spacing)
+    out = []
+    for _ in range(n):
+        xy = pattern - [90.0, 88.0] + rng.normal(0, 0.08 * spacing, pattern.shape)
+        heading = rng.uniform(0, np.pi)
+        normal, at = np.array([np.cos(heading), np.sin(heading)]), rng.uniform(-spacing, spacing)
+        holes = constructed_bench(xy, np.where(xy @ normal > at, "a", "b"))
+        contour = max(extract_bench(holes, 0, ["a"]), key=lambda c: c.polygon.area)
+        ring = np.asarray(contour.polygon.exterior.coords) + constructed_offset(holes)
+        inner = np.abs(ring).max(axis=1) < 50.0  # away from the drilling's edge
+        out.append((holes, contour, (ring[inner] @ normal - at) / spacing))
+    return out
+
+
 def constructed_local(holes, geometry):
     """A geometry given in a constructed bench's own (pre-offset) coordinates, in the engine's frame."""
     o = constructed_offset(holes)

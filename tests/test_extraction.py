@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
-from conftest import component_truth, constructed_bench, constructed_local, constructed_offset, hex_grid, iou, synthetic
+from conftest import component_truth, constructed_bench, constructed_local, hex_grid, iou, straight_contacts, synthetic
 from scipy import ndimage
 
 from core.extraction.boundary import (
@@ -219,23 +219,12 @@ def test_a_contour_is_smoothed_of_its_waver_between_holes_and_keeps_every_hole_o
     """Straight contacts at random offsets and headings through a staggered 6 m pattern (holes 0.08 of a
     spacing off it): the contour lies 0.12 spacings (standard deviation) from the true line, 0.17 when it was
     not smoothed, and every hole of the bench stays on its own side of it."""
-    rng = np.random.default_rng(11)
-    spacing = 6.0
-    pattern = hex_grid(30, 34, spacing)
     offsets = []
-    for _ in range(6):
-        xy = pattern - [90.0, 88.0] + rng.normal(0, 0.08 * spacing, pattern.shape)
-        heading = rng.uniform(0, np.pi)
-        normal, at = np.array([np.cos(heading), np.sin(heading)]), rng.uniform(-spacing, spacing)
-        labels = np.where(xy @ normal > at, "a", "b")
-        holes = constructed_bench(xy, labels)
-        contour = max(extract_bench(holes, 0, ["a"]), key=lambda c: c.polygon.area)
+    for holes, contour, offset in straight_contacts(11, 6):
         on = holes.on_bench(0)
         inside = shapely.contains_xy(contour.polygon, *holes.xy[on].T)
         assert np.array_equal(inside, holes.geozone[on] == "a")
-        ring = np.asarray(contour.polygon.exterior.coords) + constructed_offset(holes)
-        inner = np.abs(ring).max(axis=1) < 50.0  # away from the drilling's edge
-        offsets.append((ring[inner] @ normal - at) / spacing)
+        offsets.append(offset)
     assert float(np.sqrt(np.mean(np.square(np.concatenate(offsets))))) < 0.14
 
 

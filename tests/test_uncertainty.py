@@ -12,10 +12,9 @@ import pandas as pd
 import pytest
 import shapely
 from clirun import bgm
-from conftest import constructed_bench, constructed_offset, hex_grid
+from conftest import straight_contacts
 from shapely.geometry import box
 
-from core.extraction.contours import extract_bench
 from core.geometry.grid import Grid
 from core.model.extrapolation import bench_fields
 from core.model.sampling import estimate_pattern, lay_out, revealed_field, suggest_holes
@@ -299,20 +298,7 @@ def test_the_placement_taken_out_is_where_extraction_puts_a_straight_boundary():
     # of a spacing off it): the contour's distance to the true line, as a standard deviation in
     # spacings. Uniform between two holes would be 0.29. A straight boundary is the easiest one: the
     # placement the band takes out (the families' curved sections') is above it, but not twice it.
-    rng = np.random.default_rng(5)
-    spacing = 6.0
-    pattern = hex_grid(30, 34, spacing)
-    offsets = []
-    for _ in range(8):
-        xy = pattern - [90.0, 88.0] + rng.normal(0, 0.08 * spacing, pattern.shape)
-        heading = rng.uniform(0, np.pi)
-        normal, at = np.array([np.cos(heading), np.sin(heading)]), rng.uniform(-spacing, spacing)
-        labels = np.where(xy @ normal > at, "a", "b")
-        holes = constructed_bench(xy, labels)
-        contour = max(extract_bench(holes, 0, ["a"]), key=lambda c: c.polygon.area)
-        ring = np.asarray(contour.polygon.exterior.coords) + constructed_offset(holes)
-        inner = np.abs(ring).max(axis=1) < 50.0  # away from the drilling's edge
-        offsets.append((ring[inner] @ normal - at) / spacing)
+    offsets = [offset for _, _, offset in straight_contacts(5, 8)]
     measured = float(np.sqrt(np.mean(np.square(np.concatenate(offsets)))))
     assert 0.5 * PLACEMENT_SPACINGS < measured < PLACEMENT_SPACINGS, measured
 
