@@ -217,15 +217,16 @@ def test_a_strip_three_holes_wide_gets_one_thin_contour_of_its_width():
 
 def test_a_contour_is_smoothed_of_its_waver_between_holes_and_keeps_every_hole_on_its_side():
     """Straight contacts at random offsets and headings through a staggered 6 m pattern (holes 0.08 of a
-    spacing off it): the contour lies 0.12 spacings (standard deviation) from the true line, 0.17 when it was
-    not smoothed, and every hole of the bench stays on its own side of it."""
+    spacing off it): the contour lies 0.09 spacings (root mean square) from the true line, 0.13 when it was
+    smoothed over half a spacing only and cut by the other geozone's region unsmoothed, 0.17 when it was not
+    smoothed, and every hole of the bench stays on its own side of it."""
     offsets = []
     for holes, contour, offset in straight_contacts(11, 6):
         on = holes.on_bench(0)
         inside = shapely.contains_xy(contour.polygon, *holes.xy[on].T)
         assert np.array_equal(inside, holes.geozone[on] == "a")
         offsets.append(offset)
-    assert float(np.sqrt(np.mean(np.square(np.concatenate(offsets))))) < 0.14
+    assert float(np.sqrt(np.mean(np.square(np.concatenate(offsets))))) < 0.11
 
 
 def test_smoothing_a_contour_stops_short_of_moving_a_hole_across_it():
@@ -239,11 +240,12 @@ def test_smoothing_a_contour_stops_short_of_moving_a_hole_across_it():
     polygon = shapely.box(-60, -60, 0, 60).union(bump)
     own = np.array([[-3.0, y] for y in range(-54, 55, 6)])
     free = smoothed_contour(polygon, shapely.MultiPolygon(), own, own, spacing)
-    # Smoothed with no hole near, the bump is flattened to under 0.6 of its height, the edge kept in place.
+    # Smoothed with no hole near, the bump is flattened to under 0.6 of its height, the edge kept in place
+    # (its 3.6 m2 spread along a spacing or so of it raise the edge by 0.10 m there).
     edge = np.asarray(free.exterior.coords)
     edge = edge[(np.abs(edge[:, 1]) < 20) & (edge[:, 0] > -30)]
     assert edge[:, 0].max() < 0.6 * 1.2
-    assert abs(np.median(edge[:, 0])) < 0.1
+    assert abs(np.median(edge[:, 0])) < 0.15
     other = np.array([[0.3, 3.0]])
     bench = np.vstack([own, other])
     kept = smoothed_contour(polygon, shapely.MultiPolygon(), bench, own, spacing)
@@ -253,6 +255,18 @@ def test_smoothing_a_contour_stops_short_of_moving_a_hole_across_it():
     neighbour = shapely.MultiPolygon([shapely.box(0.5, -60, 60, 60)])
     cut = smoothed_contour(polygon.difference(neighbour), neighbour, own, own, spacing)
     assert cut.intersection(neighbour).area < 1e-6
+
+
+def test_a_contour_grown_to_its_share_takes_in_no_hole_outside_it():
+    """Offset out to its holes' share, a contour keeps the holes outside it out (a bite round each)."""
+    from core.extraction.contours import at_least_its_share
+
+    square = shapely.box(0, 0, 30, 30)
+    near = np.array([[30.4, 15.0], [15.0, -0.3]])  # other geozones' holes hugging the contour
+    grown = at_least_its_share(square, 1000.0, near)
+    assert grown.area > 990.0  # 900 m2 short of 1000: offset by 0.8 m, less two small bites
+    assert not shapely.contains_xy(grown, *near.T).any()
+    assert shapely.contains_xy(at_least_its_share(square, 1000.0), *near.T).all()  # what the bites prevent
 
 
 def test_a_snake_stopped_inside_its_crest_is_put_on_it():

@@ -41,11 +41,12 @@ sections (``tests/benchmarks/bench_extraction.py``):
   their area to it (median IoU of pods 0.714 -> 0.743 on tuning seeds 0-11,
   every other family within 0.003). The other geozones' regions are cut off
   it along their field's zero set, not their cells' staircase.
-* The contour is smoothed over half a hole spacing, its curvature kept
+* The contour is smoothed over up to a hole spacing, its curvature kept
   (:func:`smoothed_contour`, as the model smooths the section it carries on):
   it runs between holes and wavers about the boundary by a fraction of a
-  spacing (area-weighted bench IoU of every family 0.002-0.007 higher, pods
-  0.011, on development seeds 0-1; :data:`CONTOUR_SMOOTHING_SPACINGS`).
+  spacing. Near a hole the smoothing would put on the other side, it is
+  smoothed less (area-weighted bench IoU of every family 0.943 -> 0.952 on
+  development seeds 0-1; :data:`CONTOUR_SMOOTHING_SPACINGS`).
 * A contour encloses at least its holes' share of the bench (the cells
   nearer them than any other hole, :func:`at_least_its_share`): smoothing the
   transition field over a spacing shrank lenses of 3-5 holes to 0.73 of their
@@ -81,16 +82,22 @@ OWN_HOLE_SPACINGS = 0.4
 MIN_HOLES_INSIDE = 0.95
 #: The snake starts this many hole spacings outside its part's outline.
 SNAKE_START_SPACINGS = 1.0
-#: Each contour is smoothed of its waver between holes over this many hole spacings
-#: (:func:`smoothed_contour`), as the model smooths the deepest section it carries on. On
-#: development seeds 0-1 of every family, area-weighted bench IoU against the true sections
-#: (strips, folds, splits, widening, mix, pods): 0.958, 0.933, 0.911, 0.929, 0.963, 0.763
-#: without, 0.961, 0.937, 0.918, 0.932, 0.965, 0.774 with half a spacing. Not cutting the
-#: other geozones off again gained 0.002-0.007 more but let neighbouring contours overlap; one
-#: spacing measured within 0.003 of half (pods -0.005); taken whole or not at all instead of
-#: in steps, about half the gain. Prediction (``bench_prediction.py --seeds tuning --limit
-#: 4``) pooled F1 at 5 / 10 m 96.16 / 94.77 -> 96.23 / 94.85 (splits +0.3 / +0.5, pods -0.1).
-CONTOUR_SMOOTHING_SPACINGS = 0.5
+#: Each contour is smoothed of its waver between holes over these many hole spacings, the widest
+#: that keeps every hole of the bench on its side where it does (:func:`smoothed_contour`), as the
+#: model smooths the deepest section it carries on; the other geozones' regions it is cut by again
+#: are smoothed the same way. Straight contacts through a staggered pattern: 0.15 spacings from the
+#: true line (root mean square, 24 draws) -> 0.12; at half a spacing everywhere, the other geozones
+#: cut off unsmoothed (the round before), their waver came back (0.15). On development seeds 0-1 of
+#: every family, area-weighted bench IoU against the true sections 0.943 -> 0.952 (seeds 2-5:
+#: 0.951 -> 0.958; 6-10% label noise 0.927 -> 0.936, 9-12 m patterns 0.900 -> 0.904, holes off the
+#: pattern 0.935 -> 0.943, square patterns 0.941 -> 0.949). Widest 1.5 spacings: the same IoU within
+#: 0.002 and straight contacts 0.11, but a straight edge within 2-4 spacings of a corner moved out by
+#: 0.12 spacings (the curvature the corner loses, put back along the edge); widest 3 spacings less
+#: (pods -0.006); half a spacing alone, with the others smoothed: 0.948.
+CONTOUR_SMOOTHING_SPACINGS = (1.0, 0.75, 0.5)
+#: Within this many hole spacings of a hole the smoothing would move across the contour, it steps
+#: to the next narrower scale (then to 3/4, 1/2, 1/4 of the narrowest and none), elsewhere it stays.
+SMOOTHING_STEP_BACK_SPACINGS = 1.5
 
 
 @dataclass(frozen=True)
@@ -269,17 +276,31 @@ def bench_evidence(holes: Blastholes, bench: int, params: ExtractionParameters) 
     return BenchEvidence(idx, xy, labels, isolated, on_entropy, spacing, transition, parts, nearest)
 
 
-def at_least_its_share(polygon: Polygon, share_m2: float, passes: int = 2) -> Polygon:
+def at_least_its_share(
+    polygon: Polygon, share_m2: float, bench_xy: np.ndarray | None = None, passes: int = 2
+) -> Polygon:
     """``polygon`` offset outwards until it encloses ``share_m2`` (unchanged if it already does).
 
     Each pass offsets by the missing area over the perimeter (exact for a
-    straight boundary, a little short on a convex one).
+    straight boundary, a little short on a convex one). The offset takes in
+    none of the holes ``bench_xy`` outside ``polygon``: each keeps a bite
+    reaching back to the polygon (the missing area is mostly at the drilling's
+    edge, and a contour hugging its holes within the offset would otherwise be
+    pushed past holes of another geozone).
     """
+    grown = polygon
     for _ in range(passes):
-        if polygon.is_empty or polygon.area >= share_m2:
+        if grown.is_empty or grown.area >= share_m2:
             break
-        polygon = _largest_polygon(polygon.buffer((share_m2 - polygon.area) / polygon.length, quad_segs=8))
-    return polygon
+        grown = _largest_polygon(grown.buffer((share_m2 - grown.area) / grown.length, quad_segs=8))
+    if bench_xy is None or grown is polygon:
+        return grown
+    points = shapely.points(bench_xy)
+    taken = shapely.contains(grown, points) & ~shapely.contains(polygon, points)
+    if not taken.any():
+        return grown
+    reach = shapely.distance(polygon, points[taken])
+    return _largest_polygon(grown.difference(shapely.union_all(shapely.buffer(points[taken], reach, quad_segs=8))))
 
 
 def _claim_own_cells(transition: TransitionField, xy: np.ndarray, labels: np.ndarray, spacing_m: float) -> None:
@@ -411,7 +432,7 @@ def _part_contour(
         # An outline (a part too small for a snake) is a few cells' staircase around its holes: smoothed, a
         # part of one hole shrank to nothing, and its share then blew it up (a Kennecott speck to 6,500 m2).
         polygon = smoothed_contour(polygon, others, ev.xy, xy, ev.spacing_m)
-    contour.polygon = at_least_its_share(polygon, float(share.sum()) * window.cell_size_m**2)
+    contour.polygon = at_least_its_share(polygon, float(share.sum()) * window.cell_size_m**2, ev.xy)
     return contour
 
 
@@ -423,12 +444,15 @@ def smoothed_contour(
     A contour runs between holes of different geozones and wavers about the
     geozone's boundary by a fraction of a spacing (the own holes' surroundings
     and the cells given back add bumps of their own). Its signed distance is
-    smoothed over :data:`CONTOUR_SMOOTHING_SPACINGS` hole spacings, the
-    boundary kept in place where it curves (:func:`core.geometry.sdf.smoothed_section`),
-    and the other geozones' regions are cut off it again. Where that would move
-    a hole of the bench (``bench_xy``) to the other side, the smoothing is taken
-    three quarters, half or a quarter of the way, else not at all: the holes
-    are the evidence, and a contour keeps every one on its side.
+    smoothed over the widest of :data:`CONTOUR_SMOOTHING_SPACINGS` hole
+    spacings, the boundary kept in place where it curves
+    (:func:`core.geometry.sdf.smoothed_section`), and the other geozones'
+    regions, smoothed alike, are cut off it again (unsmoothed, they put their
+    waver back). Around a hole of the bench (``bench_xy``) the smoothing would
+    move to the other side, it steps down to narrower scales, then to shares of
+    the narrowest, else to none (:func:`_stepped_back`): the holes are the
+    evidence, and a contour keeps every one on its side, smoothed as far as
+    they allow where they allow it.
 
     Parameters
     ----------
@@ -449,14 +473,65 @@ def smoothed_contour(
     pad = 2.0 * spacing_m
     grid = Grid.covering((x0 - pad, y0 - pad, x1 + pad, y1 + pad), spacing_m / 6, margin_cells=0)
     distance = region_signed_distance(grid, polygon)
-    sigma = CONTOUR_SMOOTHING_SPACINGS * spacing_m
-    change = smoothed_section(distance, grid.cell_size_m, sigma, 3.0 * spacing_m) - distance
+    changes = _smoothing_ladder(distance, grid.cell_size_m, spacing_m)
+    outside = None
+    if not others.is_empty:
+        others_distance = region_signed_distance(grid, others)
+        outside = (others_distance, _smoothing_ladder(others_distance, grid.cell_size_m, spacing_m))
     before = shapely.contains_xy(polygon, bench_xy[:, 0], bench_xy[:, 1])
-    for share in (1.0, 0.75, 0.5, 0.25):
-        smooth = _largest_holding(grid.polygons_from_field(distance + share * change, 0.0).difference(others), own_xy)
-        if not smooth.is_empty and np.array_equal(before, shapely.contains_xy(smooth, bench_xy[:, 0], bench_xy[:, 1])):
+    level = np.zeros(grid.shape)
+    for _ in range(2 * len(changes)):
+        field = distance + _at_level(changes, level)
+        if outside is not None:
+            field = np.minimum(field, -(outside[0] + _at_level(outside[1], level)))
+        smooth = _largest_holding(grid.polygons_from_field(field, 0.0), own_xy)
+        if smooth.is_empty:
+            break
+        moved = shapely.contains_xy(smooth, bench_xy[:, 0], bench_xy[:, 1]) != before
+        if not moved.any():
             return smooth
+        stepped = _stepped_back(level, grid, bench_xy[moved], spacing_m, len(changes) - 1)
+        if np.array_equal(stepped, level):
+            break
+        level = stepped
     return polygon
+
+
+def _smoothing_ladder(distance: np.ndarray, cell_size_m: float, spacing_m: float) -> np.ndarray:
+    """The changes :func:`smoothed_contour` steps down: each smoothing scale, then shares of the narrowest, then none."""
+    changes = [
+        smoothed_section(distance, cell_size_m, f * spacing_m, 3.0 * spacing_m) - distance
+        for f in CONTOUR_SMOOTHING_SPACINGS
+    ]
+    changes += [share * changes[-1] for share in (0.75, 0.5, 0.25, 0.0)]
+    return np.stack(changes)
+
+
+def _at_level(changes: np.ndarray, level: np.ndarray) -> np.ndarray:
+    """Per cell, the change of ``changes`` at the fractional step ``level`` (linear between steps)."""
+    low = np.floor(level).astype(int)
+    high = np.minimum(low + 1, len(changes) - 1)
+    t = level - low
+    pick = np.take_along_axis
+    return (1 - t) * pick(changes, low[None], 0)[0] + t * pick(changes, high[None], 0)[0]
+
+
+def _stepped_back(level: np.ndarray, grid: Grid, moved_xy: np.ndarray, spacing_m: float, last: int) -> np.ndarray:
+    """``level`` one step further within :data:`SMOOTHING_STEP_BACK_SPACINGS` of the holes that moved, fading out.
+
+    The step fades over a spacing beyond, so the contour does not jump where
+    two scales meet.
+    """
+    rc = np.round(grid.xy_to_rc(moved_xy)).astype(int)
+    inside = np.all((rc >= 0) & (rc < np.array(grid.shape)), axis=1)
+    hit = np.zeros(grid.shape, bool)
+    hit[rc[inside, 0], rc[inside, 1]] = True
+    if not hit.any():
+        return level
+    near = ndimage.distance_transform_edt(~hit) * grid.cell_size_m <= SMOOTHING_STEP_BACK_SPACINGS * spacing_m
+    step = ndimage.gaussian_filter(near.astype(float), spacing_m / grid.cell_size_m)
+    step = np.maximum(step / step.max(), near)
+    return np.minimum(level + step, last)
 
 
 def _others_and_claimed(ev: BenchEvidence, i: int, rs: slice, cs: slice) -> tuple[np.ndarray, np.ndarray]:
