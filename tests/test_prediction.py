@@ -670,17 +670,20 @@ def test_a_lens_standing_still_is_predicted_at_its_size(radius_m):
     Drawn by chords between cell edges the held lenses lost 2-3% of their area
     to the field's grid (5 m cells), as much as the model gained over holding
     pods drilled at 9-12 m. Held, they are as near the true lenses as their
-    contours, which are smoothed of their waver between the holes already
-    (``smoothed_contour``; the prediction's own smoothing of the section,
-    ``smoothed_section``, made it 0.013-0.038 IoU nearer the truth than the
-    contours when they were not): 0.94-0.96 IoU with them, up to 2.8% larger.
+    contours: 0.96-0.98 IoU with them, up to 2.3% larger. The contours are
+    smoothed of their waver between the holes over up to a spacing
+    (``smoothed_contour``) and the prediction smooths the section again
+    (``smoothed_section``), which moves a still lens by up to 0.006 IoU either
+    way (0.826 / 0.879 / 0.937 against the contours' 0.824 / 0.885 / 0.939 with
+    radii 12 / 16 / 20 m; 0.814 / 0.864 / 0.920 when contours were smoothed
+    over half a spacing only, 0.80 / 0.85 / 0.90 held).
     """
     sections = [shapely.union_all([Point(50, 50).buffer(radius_m), Point(140, 100).buffer(radius_m)])] * 5
     holes = _bench_table(sections, spacing=10.0)
     predicted, held, truth = _predict_next(holes, sections, 4)
     assert 0.99 < predicted.area / held.area < 1.04
     assert iou(predicted, held) > 0.9
-    assert iou(predicted, truth) > iou(held, truth) - 0.002
+    assert iou(predicted, truth) > iou(held, truth) - 0.01
 
 
 def test_a_strip_crossing_the_edge_of_the_drilling_goes_on_past_it():

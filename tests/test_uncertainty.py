@@ -297,10 +297,12 @@ def test_the_placement_taken_out_is_where_extraction_puts_a_straight_boundary():
     # Straight boundaries at random offsets and headings through a staggered 6 m pattern (holes 0.08
     # of a spacing off it): the contour's distance to the true line, as a standard deviation in
     # spacings. Uniform between two holes would be 0.29. A straight boundary is the easiest one: the
-    # placement the band takes out (the families' curved sections') is above it, but not twice it.
+    # placement the band takes out (the families' curved sections', whose contour points lie 0.20
+    # spacings from the true boundary) is well above it: 0.08 here, 0.13 when contours were smoothed
+    # over half a spacing only.
     offsets = [offset for _, _, offset in straight_contacts(5, 8)]
     measured = float(np.sqrt(np.mean(np.square(np.concatenate(offsets)))))
-    assert 0.5 * PLACEMENT_SPACINGS < measured < PLACEMENT_SPACINGS, measured
+    assert 0.3 * PLACEMENT_SPACINGS < measured < 0.6 * PLACEMENT_SPACINGS, measured
 
 
 def test_an_upward_backtest_predicts_each_bench_from_the_benches_below_it_only():
