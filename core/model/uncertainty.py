@@ -97,8 +97,9 @@ FASTEST_MOVE_BENCHES = 1.5
 #: (the contours of :mod:`core.extraction.contours` against the true sections): 0.08 on straight
 #: boundaries through a staggered pattern (``tests/test_uncertainty.py``; 0.13 when each contour was
 #: smoothed over half a spacing only, 0.17 unsmoothed), about 0.17-0.20 on the synthetic families'
-#: curved sections (0.18-0.21 unsmoothed; their contour points 0.20 spacings from the true
-#: boundary, root mean square on development seeds 0-1, 0.23 when smoothed over half a spacing). The smoothed half-way line averages the neighbouring holes' evidence, and a boundary across
+#: curved sections (0.18-0.21 unsmoothed; their contour points lie 0.20 spacings from the true
+#: boundary, root mean square on development seeds 0-1, 0.23 when smoothed over half a spacing).
+#: The smoothed half-way line averages the neighbouring holes' evidence, and a boundary across
 #: a staggered pattern meets rows much closer together than a spacing. Kept at the families' figure:
 #: with the smoothed contours, on tuning seeds 0-3 (``bench_uncertainty.py --tuning --seeds 4``),
 #: 0.19 holds the true boundary at 94.0% pooled (every family but pods 94.2-95.7%) and 0.155 at 94.6%
