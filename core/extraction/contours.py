@@ -72,7 +72,7 @@ from core.extraction.noise import FIRST_RING_SPACINGS, absorbed_labels, isolated
 from core.extraction.snake import evolve_snake, resample_closed
 from core.extraction.transition import TransitionField, bench_grid, edge_map, nearest_hole, transition_field
 from core.geometry.grid import Grid, as_multipolygon, cells_covering
-from core.geometry.sdf import region_signed_distance, signed_distance, smoothed_section
+from core.geometry.sdf import region_signed_distance, signed_distance, smoothed_sections
 from core.io.blastholes import Blastholes, median_hole_spacing
 
 #: Cells within this many hole spacings of a hole belong to the hole's geozone,
@@ -360,7 +360,7 @@ def _geozone_contours(
     parts = ev.parts[geozone]
     grid = ev.transition.grid
     own = np.flatnonzero(ev.labels == geozone)
-    rc = np.clip(np.rint(grid.xy_to_rc(ev.xy[own])).astype(int), 0, np.array(grid.shape) - 1)
+    rc = grid.nearest_cells(ev.xy[own])
     part_of = _nearest_part(parts, rc)
     ids, counts = np.unique(part_of[part_of > 0], return_counts=True)
     order = ids[np.argsort(-counts, kind="stable")]
@@ -499,10 +499,8 @@ def smoothed_contour(
 
 def _smoothing_ladder(distance: np.ndarray, cell_size_m: float, spacing_m: float) -> np.ndarray:
     """The changes :func:`smoothed_contour` steps down: each scale, then shares of the narrowest, then none."""
-    changes = [
-        smoothed_section(distance, cell_size_m, f * spacing_m, 3.0 * spacing_m) - distance
-        for f in CONTOUR_SMOOTHING_SPACINGS
-    ]
+    sigmas_m = [f * spacing_m for f in CONTOUR_SMOOTHING_SPACINGS]
+    changes = [smooth - distance for smooth in smoothed_sections(distance, cell_size_m, sigmas_m, 3.0 * spacing_m)]
     changes += [share * changes[-1] for share in (0.75, 0.5, 0.25, 0.0)]
     return np.stack(changes)
 
@@ -522,12 +520,9 @@ def _stepped_back(level: np.ndarray, grid: Grid, moved_xy: np.ndarray, spacing_m
     The step fades over a spacing beyond, so the contour does not jump where
     two scales meet.
     """
-    rc = np.round(grid.xy_to_rc(moved_xy)).astype(int)
-    inside = np.all((rc >= 0) & (rc < np.array(grid.shape)), axis=1)
+    rc = grid.nearest_cells(moved_xy)  # a hole can only change side where the grid reaches
     hit = np.zeros(grid.shape, bool)
-    hit[rc[inside, 0], rc[inside, 1]] = True
-    if not hit.any():
-        return level
+    hit[rc[:, 0], rc[:, 1]] = True
     near = ndimage.distance_transform_edt(~hit) * grid.cell_size_m <= SMOOTHING_STEP_BACK_SPACINGS * spacing_m
     step = ndimage.gaussian_filter(near.astype(float), spacing_m / grid.cell_size_m)
     step = np.maximum(step / step.max(), near)

@@ -106,8 +106,7 @@ def nearest_hole(xy: np.ndarray, grid: Grid) -> np.ndarray:
     holding a hole: exact up to which of two almost equidistant holes is
     nearest (a fraction of a cell).
     """
-    rows, cols = grid.shape
-    rc = np.clip(np.rint(grid.xy_to_rc(xy)).astype(int), 0, [rows - 1, cols - 1])
+    rc = grid.nearest_cells(xy)
     holder = np.full(grid.shape, -1)
     holder[rc[:, 0], rc[:, 1]] = np.arange(len(xy))
     _, (ri, ci) = ndimage.distance_transform_edt(holder < 0, return_indices=True)

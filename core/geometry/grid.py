@@ -107,6 +107,10 @@ class Grid:
         xy = np.asarray(xy, dtype=float)
         return np.column_stack([(xy[..., 1] - self.y0) / self.cell_size_m, (xy[..., 0] - self.x0) / self.cell_size_m])
 
+    def nearest_cells(self, xy: np.ndarray) -> np.ndarray:
+        """World ``(n, 2)`` x, y to the ``(n, 2)`` int row, col of the nearest cell (points off the grid: its edge)."""
+        return np.clip(np.rint(self.xy_to_rc(xy)).astype(int), 0, np.array(self.shape) - 1)
+
     def rc_to_xy(self, rc: np.ndarray) -> np.ndarray:
         """Fractional ``(n, 2)`` row, col to world ``(n, 2)`` x, y."""
         rc = np.asarray(rc, dtype=float)

@@ -96,8 +96,7 @@ def region_signed_distance(
         return sdf
     band = np.abs(sdf) <= band_cells * h
     if not mask.any():
-        rc = np.rint(grid.xy_to_rc(np.array(region.representative_point().coords))).astype(int)[0]
-        r0, c0 = np.clip(rc, 0, np.array(grid.shape) - 1)
+        r0, c0 = grid.nearest_cells(np.array(region.representative_point().coords))[0]
         band = np.zeros(grid.shape, dtype=bool)
         band[max(r0 - 3, 0) : r0 + 4, max(c0 - 3, 0) : c0 + 4] = True
         sdf = np.full(grid.shape, -3.0 * h)
@@ -137,13 +136,23 @@ def smoothed_section(distance: np.ndarray, cell_size_m: float, sigma_m: float, a
     -------
     (rows, cols) float
     """
+    return smoothed_sections(distance, cell_size_m, [sigma_m], along_m)[0]
+
+
+def smoothed_sections(
+    distance: np.ndarray, cell_size_m: float, sigmas_m: list[float], along_m: float
+) -> list[np.ndarray]:
+    """:func:`smoothed_section` at each of ``sigmas_m``; the boundary's band and weights along it are found once."""
     band = np.abs(distance) <= cell_size_m
     if not band.any():
-        return distance
-    change = ndimage.gaussian_filter(distance, sigma_m / cell_size_m, mode="nearest") - distance
+        return [distance for _ in sigmas_m]
     along = along_m / cell_size_m
-    weight = ndimage.gaussian_filter(band.astype(float), along)
-    shift = ndimage.gaussian_filter(np.where(band, change, 0.0), along) / np.maximum(weight, 1e-9)
+    weight = np.maximum(ndimage.gaussian_filter(band.astype(float), along), 1e-9)
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
-    fade = np.clip(2.0 - np.abs(distance) / sigma_m, 0.0, 1.0)
-    return distance + fade * np.clip(change - shift[r, c], -0.5 * sigma_m, 0.5 * sigma_m)
+    out = []
+    for sigma_m in sigmas_m:
+        change = ndimage.gaussian_filter(distance, sigma_m / cell_size_m, mode="nearest") - distance
+        shift = ndimage.gaussian_filter(np.where(band, change, 0.0), along) / weight
+        fade = np.clip(2.0 - np.abs(distance) / sigma_m, 0.0, 1.0)
+        out.append(distance + fade * np.clip(change - shift[r, c], -0.5 * sigma_m, 0.5 * sigma_m))
+    return out

@@ -300,7 +300,7 @@ def revealed_field(
     weights = np.linalg.solve(cov, mean - f)
     # sum_i weights_i s_i rho(x, x_i) on the grid: impulses smoothed by a Gaussian of l (peak 1).
     grid = section.grid
-    rc = np.clip(np.round(grid.xy_to_rc(xy)).astype(int), 0, np.array(grid.shape) - 1)
+    rc = grid.nearest_cells(xy)
     impulses = np.zeros(grid.shape)
     np.add.at(impulses, (rc[:, 0], rc[:, 1]), weights * s)
     width = ell / grid.cell_size_m

@@ -331,7 +331,7 @@ def backtest(
 def _observed(fields: BenchFields, xy: np.ndarray) -> np.ndarray:
     """Whether any of the benches observed the cell of each point: where the prediction rests on evidence."""
     last = last_observations(fields)[0]
-    rc = np.clip(np.round(fields.grid.xy_to_rc(xy)).astype(int), 0, np.array(fields.grid.shape) - 1)
+    rc = fields.grid.nearest_cells(xy)
     return last[rc[:, 0], rc[:, 1]] >= 0
 
 
