@@ -530,7 +530,13 @@ def evaluate(
     """Precision and recall of predictions below withheld benches, against nil, linear and implicit references."""
     from core.io.atomic import atomic_write_text, check_output, make_folder
     from core.model.build import load_truth, predictor_from_model
-    from core.model.evaluation import evaluate_geozone, format_table, plot_precision_recall, summary_table
+    from core.model.evaluation import (
+        evaluate_geozone,
+        format_table,
+        margin_lines,
+        plot_precision_recall,
+        summary_table,
+    )
 
     names = ("evaluation_rows.csv", "evaluation.csv", "precision_recall.png")
     check_output(out, folder=True)
@@ -558,6 +564,8 @@ def evaluate(
         f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s"
     )
     typer.echo(format_table(summary))
+    for line in margin_lines(summary):
+        typer.echo(line)
 
 
 def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None, no_cache=False) -> dict:

@@ -230,6 +230,34 @@ def test_evaluate_geozone_with_truth(small_mine, tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary left
 
 
+def test_summary_gives_each_methods_f1_and_the_models_margin_over_the_best_reference():
+    """Issue 12's measure: pooled F1 per method, the model's F1 less the best reference's, on area and on holes."""
+    import pandas as pd
+
+    # Two benches, one depth; per method (intersection, predicted, true) areas and hole counts.
+    scores = {"model": (60, 80, 100, 6, 8, 10), "nil": (50, 60, 100, 5, 6, 10), "linear": (70, 140, 100, 7, 14, 10)}
+    rows = [
+        {"bench": k, "fraction": 1.0, "depth_m": 10.0, "method": m, "i_area": i / 2, "p_area": pa / 2}
+        | {"g_area": ga / 2, "holes_in_geozone": h, "holes_in": hi, "holes_geozone": hg}
+        for k in (1, 2)
+        for m, (i, pa, ga, h, hi, hg) in scores.items()
+    ]
+    summary = ev.summary_table(pd.DataFrame(rows)).iloc[0]
+    f1 = {m: 2 * i / (pa + ga) for m, (i, pa, ga, *_) in scores.items()}  # model 2/3, nil 10/16, linear 7/12
+    for m in scores:
+        assert summary[f"f1_{m}"] == pytest.approx(f1[m])
+        assert summary[f"f1_holes_{m}"] == pytest.approx(f1[m])  # the hole counts are the areas over ten
+    assert summary["best_reference"] == "nil"
+    assert summary["f1_margin"] == pytest.approx(f1["model"] - f1["nil"])
+    assert summary["f1_holes_margin"] == pytest.approx(f1["model"] - f1["nil"])
+    # A model worse than a reference has a negative margin, and the table and lines say so.
+    worse = pd.DataFrame([{**r, "i_area": r["i_area"] / 2} if r["method"] == "model" else r for r in rows])
+    assert ev.summary_table(worse)["f1_margin"].item() < 0
+    assert "f1_margin" in ev.format_table(ev.summary_table(worse))
+    (line,) = ev.margin_lines(ev.summary_table(worse))
+    assert "best reference nil" in line and "(-" in line
+
+
 def test_evaluate_geozone_real_data_mode(small_mine):
     """Without truth only the next bench is scored, against its extracted region."""
     _, holes, _, contours = small_mine

@@ -704,7 +704,8 @@ def report_markdown(summary: dict, table: pd.DataFrame | None) -> str:
             "",
             f"Protocol of the paper's Table: for each bench with two known benches above it, everything below is withheld "
             f"and the geozone is predicted at fractions of a bench below it. Truth: {summary['truth']}. Precision and "
-            "recall are area-weighted over all geozones and benches (%).",
+            "recall are area-weighted over all geozones and benches (%), F1 their harmonic mean; `f1_margin` is the "
+            "model's F1 less the best reference's (`f1_holes_`: scored on the withheld benches' holes, real data).",
             "",
             "![precision and recall](precision_recall.png)",
             "",
@@ -803,7 +804,7 @@ def _pct(v) -> str:
 
 
 def _markdown_table(table: pd.DataFrame) -> str:
-    cols = [c for c in table.columns if c.startswith(("depth", "precision", "recall"))]
+    cols = [c for c in table.columns if c.startswith(("depth", "precision", "recall", "f1_"))]
     head = "| " + " | ".join(cols) + " |"
     rule = "|" + "---|" * len(cols)
     rows = []

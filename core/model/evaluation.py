@@ -481,8 +481,13 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
         scored), then ``precision_<method>`` and ``recall_<method>`` for each
         method present (in :data:`METHODS` order), and, when both ``model`` and
         ``nil`` are present, ``precision_gain`` and ``recall_gain`` (model minus
-        nil). Rates are fractions in [0, 1] (nan when nothing was predicted or
-        there was no truth at that depth).
+        nil); ``f1_<method>`` for each method and, with the model and a
+        reference, ``f1_margin`` (the model's F1 less the best reference's,
+        issue 12's measure) and ``best_reference``. On real data (rows with
+        :data:`_HOLE_COLUMNS`) also ``f1_holes_<method>`` and
+        ``f1_holes_margin``: the same on the withheld benches' holes, free of
+        how those benches were contoured. Rates are fractions in [0, 1] (nan
+        when nothing was predicted or there was no truth at that depth).
     """
     if df.empty:
         return pd.DataFrame(columns=["fraction", "depth_m", "n"])
@@ -498,17 +503,56 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
         if "model" in present and "nil" in present:
             row["precision_gain"] = row["precision_model"] - row["precision_nil"]
             row["recall_gain"] = row["recall_model"] - row["recall_nil"]
+        row.update(_f1_columns({m: f1_score(row[f"precision_{m}"], row[f"recall_{m}"]) for m in present}, ""))
+        if all(c in part for c in _HOLE_COLUMNS):
+            row.update(_f1_columns({m: _holes_f1(part[part["method"] == m]) for m in present}, "holes_"))
         out.append(row)
     table = pd.DataFrame(out)
     order = ["fraction", "depth_m", "n"]
     order += [f"precision_{m}" for m in present] + (["precision_gain"] if "precision_gain" in table else [])
     order += [f"recall_{m}" for m in present] + (["recall_gain"] if "recall_gain" in table else [])
+    order += [c for c in table.columns if c.startswith("f1_") or c == "best_reference"]
     return table[order]
+
+
+def _f1_columns(f1: dict[str, float], kind: str) -> dict:
+    """``f1_<kind><method>`` of each method and, with the model and a reference, the model's margin over the best."""
+    row: dict = {f"f1_{kind}{m}": v for m, v in f1.items()}
+    scored = {m: v for m, v in f1.items() if m != "model" and np.isfinite(v)}
+    if "model" in f1 and scored:
+        best = max(scored, key=lambda m: scored[m])
+        row[f"f1_{kind}margin"] = f1["model"] - scored[best]
+        if not kind:
+            row["best_reference"] = best
+    return row
+
+
+def _holes_f1(rows: pd.DataFrame) -> float:
+    """F1 of one method's rows on the withheld benches' holes, pooled (``2 hits / (inside + labelled)``)."""
+    hits, inside, labelled = (float(rows[c].sum()) for c in ("holes_in_geozone", "holes_in", "holes_geozone"))
+    return 2 * hits / (inside + labelled) if inside + labelled > 0 else float("nan")
+
+
+def margin_lines(summary: pd.DataFrame) -> list[str]:
+    """One line per depth: the model's F1 against the best reference's (percent; issue 12's measure)."""
+    lines = []
+    for _, r in summary.iterrows():
+        if "f1_margin" not in r or not np.isfinite(r["f1_margin"]):
+            continue
+        best = r["best_reference"]
+        line = (
+            f"{r['depth_m']:.2f} m below: model F1 {100 * r['f1_model']:.1f}, best reference {best} "
+            f"{100 * r[f'f1_{best}']:.1f} ({100 * r['f1_margin']:+.1f})"
+        )
+        if "f1_holes_margin" in r and np.isfinite(r["f1_holes_margin"]):
+            line += f"; on the withheld holes {100 * r['f1_holes_model']:.1f} ({100 * r['f1_holes_margin']:+.1f})"
+        lines.append(line)
+    return lines
 
 
 def format_table(summary: pd.DataFrame) -> str:
     """The summary as text in percent, like the paper's Table."""
-    cols = [c for c in summary.columns if c.startswith(("precision_", "recall_"))]
+    cols = [c for c in summary.columns if c.startswith(("precision_", "recall_", "f1_"))]
     shown = summary[["depth_m", *cols]].copy()
     for c in cols:
         shown[c] = (100 * shown[c]).round(1)
@@ -525,7 +569,7 @@ _STYLE = {
 
 
 def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | None = None) -> Path:
-    """Precision and recall (percent) vs prediction depth, one line per method, saved as PNG.
+    """Precision, recall and F1 (percent) vs prediction depth, one line per method, saved as PNG.
 
     Like the paper's Figure (gray: model, black: nil), with the other
     references dashed. The file is written atomically.
@@ -533,15 +577,17 @@ def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | 
     # A bare Figure renders with the Agg canvas without touching pyplot's global backend.
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(10, 4), dpi=120)
-    axes = fig.subplots(1, 2, sharex=True)
     methods = [c[len("precision_") :] for c in summary.columns if c.startswith("precision_") and c != "precision_gain"]
-    for ax, what in zip(axes, ("precision", "recall")):
+    shown = ("precision", "recall", "f1") if all(f"f1_{m}" in summary for m in methods) else ("precision", "recall")
+    fig = Figure(figsize=(5 * len(shown), 4), dpi=120)
+    axes = fig.subplots(1, len(shown), sharex=True)
+    for ax, what in zip(axes, shown):
         for m in methods:
             ax.plot(summary["depth_m"], 100 * summary[f"{what}_{m}"], label=m, **_STYLE.get(m, {}))
         ax.set_xlabel("prediction depth (m)")
-        ax.set_ylabel(f"{what} (%)")
-        ax.set_title(what.capitalize())
+        name = "F1" if what == "f1" else what
+        ax.set_ylabel(f"{name} (%)")
+        ax.set_title(name[0].upper() + name[1:])
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="lower left")
     if title:
