@@ -585,9 +585,9 @@ def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | 
         for m in methods:
             ax.plot(summary["depth_m"], 100 * summary[f"{what}_{m}"], label=m, **_STYLE.get(m, {}))
         ax.set_xlabel("prediction depth (m)")
-        name = "F1" if what == "f1" else what
+        name = {"precision": "Precision", "recall": "Recall", "f1": "F1"}[what]
         ax.set_ylabel(f"{name} (%)")
-        ax.set_title(name[0].upper() + name[1:])
+        ax.set_title(name)
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="lower left")
     if title:
