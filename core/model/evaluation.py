@@ -484,8 +484,8 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
         nil); ``f1_<method>`` for each method and, with the model and a
         reference, ``f1_margin`` (the model's F1 less the best reference's,
         issue 12's measure) and ``best_reference``. On real data (rows with
-        :data:`_HOLE_COLUMNS`) also ``f1_holes_<method>`` and
-        ``f1_holes_margin``: the same on the withheld benches' holes, free of
+        :data:`_HOLE_COLUMNS`) also ``f1_holes_<method>``, ``f1_holes_margin``
+        and ``best_holes_reference``: the same on the withheld benches' holes, free of
         how those benches were contoured. Rates are fractions in [0, 1] (nan
         when nothing was predicted or there was no truth at that depth).
     """
@@ -511,7 +511,7 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
     order = ["fraction", "depth_m", "n"]
     order += [f"precision_{m}" for m in present] + (["precision_gain"] if "precision_gain" in table else [])
     order += [f"recall_{m}" for m in present] + (["recall_gain"] if "recall_gain" in table else [])
-    order += [c for c in table.columns if c.startswith("f1_") or c == "best_reference"]
+    order += [c for c in table.columns if c.startswith(("f1_", "best_"))]
     return table[order]
 
 
@@ -522,8 +522,7 @@ def _f1_columns(f1: dict[str, float], kind: str) -> dict:
     if "model" in f1 and scored:
         best = max(scored, key=lambda m: scored[m])
         row[f"f1_{kind}margin"] = f1["model"] - scored[best]
-        if not kind:
-            row["best_reference"] = best
+        row[f"best_{kind}reference"] = best
     return row
 
 

@@ -160,8 +160,7 @@ def print_kennecott(df: pd.DataFrame) -> None:
     for m in METHODS:
         p, rec = scores[m]
         print(f"  {m:9s} precision {100 * p:5.1f}  recall {100 * rec:5.1f}  F1 {100 * f1(p, rec):5.1f}")
-    best = max(REFERENCES, key=lambda m: r[f"f1_holes_{m}"])
-    print(f"  model F1 margin over the best reference ({best}): {100 * r['f1_holes_margin']:+.1f}")
+    print(f"  model F1 margin over the best reference ({r['best_holes_reference']}): {100 * r['f1_holes_margin']:+.1f}")
     print_kennecott_by_depth(df)
 
 
