@@ -63,7 +63,7 @@ DRILLING: dict[str, tuple[dict, dict]] = {
     "pushback 20-40 m a bench": ({}, {"pushback_range_m": (20.0, 40.0)}),
     "holes 0.3 spacing off the pattern": ({}, {"collar_scatter_spacings": 0.3}),
     "square pattern": ({}, {"pattern": "square"}),
-    # Two at once: the few holes of a wide pattern, a tenth of them mislabelled.
+    # Two at once: the few holes of a wide pattern, up to a tenth of them mislabelled.
     "pattern 9-12 m, label noise 6-10%": ({}, {"spacing_range_m": (9.0, 12.0), "label_noise_range": (0.06, 0.10)}),
 }
 
