@@ -179,6 +179,71 @@ def test_a_body_moves_as_far_as_its_sections_align_but_a_lens_does_not_jump():
     assert movement_reach_m(jumping, 0, 1, fastest) == fastest
 
 
+def _contact(offset_m, angle_deg=0.0):
+    """The half-plane past a straight contact whose normal is ``angle_deg`` from x, ``offset_m`` along it from x = 40 m."""
+    n = np.array([np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))])
+    t = np.array([-n[1], n[0]])
+    c = np.array([40.0, 80.0]) + offset_m * n
+    return shapely.Polygon([c + a * 400 * t + b * 400 * n for a, b in ((-1, 0), (1, 0), (1, 1), (-1, 1))])
+
+
+def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carried_on(monkeypatch):
+    """Most of a boundary moving one way further than a 30-degree dip allows is a movement (``coherent_reach_m``).
+
+    The contact moves 20 m a bench; a lens of the same geozone stands still, so the section
+    moved as a whole aligns nowhere better than where it was and the alignment finds no
+    translation. Bounded at 17 m a bench, the contact's points were matched to nothing and held
+    (half its predicted boundary 12 m from the true one).
+    """
+    import core.model.extrapolation as extrapolation
+
+    lens = Point(20.0, 130.0).buffer(18.0)
+    sections = [_contact(20.0 * k).union(lens) for k in range(5)]
+    holes = _bench_table(sections)
+    origin = np.asarray(holes.frame.to_input(np.zeros((1, 2)))[0]) - [650_000, 7_400_000]
+    near_lens = shapely.affinity.translate(lens, *-origin).buffer(12.0)
+    contact_area = holes.drilled_area(3).buffer(-12.0).difference(near_lens)
+
+    def distances():
+        predicted, _, truth = _predict_next(holes, sections, 4)
+        edge = shapely.points(shapely.get_coordinates(predicted.boundary.intersection(contact_area)))
+        lens_iou = iou(predicted.intersection(near_lens), truth.intersection(near_lens))
+        return np.percentile(shapely.distance(truth.boundary, edge), [50, 90]), lens_iou
+
+    (median, p90), lens_iou = distances()
+    assert median < 1.5 and p90 < holes.hole_spacing_m and lens_iou > 0.9, (median, p90, lens_iou)
+    monkeypatch.setattr(extrapolation, "COHERENT_SHARE", 2.0)  # never: the 30-degree bound alone
+    (median, _), _ = distances()
+    assert median > holes.hole_spacing_m, median
+
+
+def _section_fields(sections, drilled):
+    """Bench fields of a geozone whose section on bench ``k`` is ``sections[k]``, 10 m benches, 6 m spacing."""
+    from core.geometry.grid import Grid, as_multipolygon
+    from core.model.extrapolation import bench_fields
+
+    grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
+    regions = {k: as_multipolygon(section) for k, section in enumerate(sections)}
+    z = {k: 500.0 - 10.0 * k for k in range(len(sections))}
+    return bench_fields(regions, {k: grid.rasterize(drilled) for k in regions}, z, grid, 6.0, 18.0)
+
+
+def test_only_a_boundary_moving_one_way_past_the_dip_bound_extends_how_far_it_may_move():
+    from core.model.extrapolation import coherent_reach_m, fastest_movement_m
+
+    pit = shapely.box(0, 0, 200, 160)
+    fastest = fastest_movement_m(10.0)
+    lens = Point(20.0, 130.0).buffer(18.0)
+    moving = _section_fields([_contact(0.0).union(lens), _contact(22.0).union(lens)], pit)
+    assert coherent_reach_m(moving, 0, 1, fastest) >= 22.0
+    # A lens growing 25 m all round moves past the bound too, but every way: growth, not a translation.
+    growing = _section_fields([Point(100.0, 80.0).buffer(12.0), Point(100.0, 80.0).buffer(37.0)], pit)
+    assert coherent_reach_m(growing, 0, 1, fastest) == fastest
+    # A contact moving 10 m a bench: within the bound, nothing to extend.
+    slow = _section_fields([_contact(0.0).union(lens), _contact(10.0).union(lens)], pit)
+    assert coherent_reach_m(slow, 0, 1, fastest) == fastest
+
+
 def test_movement_that_reverses_every_bench_is_predicted_no_worse_than_holding():
     sections = [_strip(8.0 * (k % 2)) for k in range(5)]  # 0, 8, 0, 8, 0 m
     holes = _bench_table(sections)
