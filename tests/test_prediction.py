@@ -188,7 +188,7 @@ def _contact(offset_m, angle_deg=0.0):
 
 
 def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carried_on(monkeypatch):
-    """Most of a boundary moving one way further than a 30-degree dip allows is a movement (``coherent_reach_m``).
+    """Much of a boundary moving one way further than a 30-degree dip allows is a movement (``coherent_reach_m``).
 
     The contact moves 20 m a bench; a lens of the same geozone stands still, so the section
     moved as a whole aligns nowhere better than where it was and the alignment finds no
@@ -217,21 +217,22 @@ def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carrie
     assert median > holes.hole_spacing_m, median
 
 
-def _section_fields(sections, drilled):
-    """Bench fields of a geozone whose section on bench ``k`` is ``sections[k]``, 10 m benches, 6 m spacing."""
+def _section_fields(sections, drilled_per_bench, bench_height_m=10.0):
+    """Bench fields of a geozone whose section on bench ``k`` is ``sections[k]``, ``bench_height_m`` apart, 6 m spacing."""
     from core.geometry.grid import Grid, as_multipolygon
     from core.model.extrapolation import bench_fields
 
     grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
     regions = {k: as_multipolygon(section) for k, section in enumerate(sections)}
-    z = {k: 500.0 - 10.0 * k for k in range(len(sections))}
-    return bench_fields(regions, {k: grid.rasterize(drilled) for k in regions}, z, grid, 6.0, 18.0)
+    drilled = {k: grid.rasterize(box) for k, box in enumerate(drilled_per_bench)}
+    z = {k: 500.0 - bench_height_m * k for k in range(len(sections))}
+    return bench_fields(regions, drilled, z, grid, 6.0, 18.0)
 
 
 def test_only_a_boundary_moving_one_way_past_the_dip_bound_extends_how_far_it_may_move():
     from core.model.extrapolation import coherent_reach_m, fastest_movement_m
 
-    pit = shapely.box(0, 0, 200, 160)
+    pit = [shapely.box(0, 0, 200, 160)] * 2
     fastest = fastest_movement_m(10.0)
     lens = Point(20.0, 130.0).buffer(18.0)
     moving = _section_fields([_contact(0.0).union(lens), _contact(22.0).union(lens)], pit)
@@ -475,18 +476,9 @@ def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_m
 
 
 def _lens_fields(lenses_per_bench, drilled_per_bench, bench_height_m=10.0):
-    """Bench fields of a geozone made of round lenses ``(x, y, r)`` per bench, ``bench_height_m`` apart, 6 m spacing."""
-    from core.geometry.grid import Grid, as_multipolygon
-    from core.model.extrapolation import bench_fields
-
-    grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
-    regions = {
-        k: as_multipolygon(shapely.union_all([Point(x, y).buffer(r) for x, y, r in lenses]))
-        for k, lenses in enumerate(lenses_per_bench)
-    }
-    drilled = {k: grid.rasterize(box) for k, box in enumerate(drilled_per_bench)}
-    z = {k: 500.0 - bench_height_m * k for k in range(len(lenses_per_bench))}
-    return bench_fields(regions, drilled, z, grid, 6.0, 18.0)
+    """Bench fields of a geozone made of round lenses ``(x, y, r)`` per bench (:func:`_section_fields`)."""
+    sections = [shapely.union_all([Point(x, y).buffer(r) for x, y, r in lenses]) for lenses in lenses_per_bench]
+    return _section_fields(sections, drilled_per_bench, bench_height_m)
 
 
 @pytest.mark.parametrize("gap_m", [4.0, 8.0])
