@@ -212,7 +212,9 @@ def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carrie
 
     (median, p90), lens_iou = distances()
     assert median < 1.5 and p90 < holes.hole_spacing_m and lens_iou > 0.9, (median, p90, lens_iou)
-    monkeypatch.setattr(extrapolation, "COHERENT_SHARE", 2.0)  # never: the 30-degree bound alone
+    # The 30-degree bound alone: never extended (COHERENT_SHARE) and never chosen shallower by the benches.
+    monkeypatch.setattr(extrapolation, "COHERENT_SHARE", 2.0)
+    monkeypatch.setattr(extrapolation, "SHALLOW_DIP_GAIN", 1.0)
     (median, _), _ = distances()
     assert median > holes.hole_spacing_m, median
 
@@ -243,6 +245,41 @@ def test_only_a_boundary_moving_one_way_past_the_dip_bound_extends_how_far_it_ma
     # A contact moving 10 m a bench: within the bound, nothing to extend.
     slow = _section_fields([_contact(0.0).union(lens), _contact(10.0).union(lens)], pit)
     assert coherent_reach_m(slow, 0, 1, fastest) == fastest
+
+
+def _growing_disc_fields(radii_m):
+    """Bench fields of a disc at the middle of the pit whose radius on bench ``k`` is ``radii_m[k]``."""
+    sections = [Point(100.0, 80.0).buffer(r) for r in radii_m]
+    return _section_fields(sections, [shapely.box(0, 0, 200, 160)] * len(sections))
+
+
+def test_a_body_whose_benches_show_it_growing_past_the_dip_bound_keeps_growing():
+    """Growth of 20 m a bench all round is no translation (nothing aligns) and past the 30-degree bound.
+
+    Held under that bound, the disc stays at its last radius (68 m) a bench down; the benches' backtest
+    chooses the shallower bound and it grows on to about 88 m.
+    """
+    from core.model.extrapolation import SHALLOW_DIP_DEG, depth_trend, with_backtested_dip
+
+    fields = _growing_disc_fields([8.0, 28.0, 48.0, 68.0])
+    assert with_backtested_dip(fields, 10.0, 6.0).min_dip_deg == SHALLOW_DIP_DEG
+    field = depth_trend(fields, 10.0, 6.0).field(460.0)
+    cells = fields.grid.nearest_cells(np.array([[180.0, 80.0], [194.0, 80.0]]))  # 80 and 94 m out
+    out_80, out_94 = (float(field[r, c]) for r, c in cells)
+    assert out_80 > 0 > out_94, (out_80, out_94)  # the boundary between 80 and 94 m out: within a spacing of 88
+
+
+def test_the_dip_bound_is_chosen_from_the_benches_down_to_the_deepest_known_only():
+    """A view of the upper benches (what was known then) chooses from those alone: nothing below leaks in."""
+    from core.model.extrapolation import MIN_DIP_DEG, SHALLOW_DIP_DEG, with_backtested_dip
+
+    # Growing 6 m a bench, then 22 m a bench from the fourth bench on.
+    fields = _growing_disc_fields([10.0, 16.0, 22.0, 44.0, 66.0, 88.0])
+    chosen = with_backtested_dip(fields, 10.0, 6.0)
+    assert chosen.min_dip_deg == SHALLOW_DIP_DEG
+    upper = chosen.through(float(fields.z_m[2]))  # the first three benches: as the evaluation withholds the rest
+    assert upper.min_dip_deg is None
+    assert with_backtested_dip(upper, 10.0, 6.0).min_dip_deg == MIN_DIP_DEG
 
 
 def test_movement_that_reverses_every_bench_is_predicted_no_worse_than_holding():
