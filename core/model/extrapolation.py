@@ -115,7 +115,8 @@ CAP_SPACINGS = 8.0
 #: 10 m, strips +1.3 and +3.2, pods -0.3 and -0.4). It is a floor: where a bench pair's
 #: sections align at a larger translation (a shallower contact), that is the bound for the
 #: pair (:func:`movement_reach_m`). Where the geozone's bodies are smaller across than that, their
-#: size is the floor instead (:func:`fastest_movement_m`).
+#: size is the floor instead (:func:`fastest_movement_m`). A geozone's own benches may choose
+#: :data:`SHALLOW_DIP_DEG` instead (:func:`with_backtested_dip`).
 MIN_DIP_DEG = 30.0
 #: Shallowest dip looked for where much of a geozone's boundary moved further than :data:`MIN_DIP_DEG`
 #: allows, one way (:func:`coherent_reach_m`): 20 degrees, 2.7 bench heights a bench. Taken as the bound
@@ -1176,7 +1177,7 @@ def with_backtested_dip(fields: BenchFields, bench_height_m: float, hole_spacing
     far as their agreement says (:func:`geozone_persistence`), and the cells
     of ``j + 1``'s drilled area (drilled on ``j`` as well) put on the wrong
     side are summed over the pairs. The shallower bound is taken only where it
-    put :data:`SHALLOW_DIP_GAIN` fewer cells wrong: a boundary whose movement outruns the usual bound
+    put a share :data:`SHALLOW_DIP_GAIN` fewer cells wrong: a boundary whose movement outruns the usual bound
     (travelling waves' boundaries moving 20-40 m a bench) is followed, and
     lenses that appear beside others, which the shallower bound reads as
     moving, keep the usual one. With fewer than three benches the usual bound.
