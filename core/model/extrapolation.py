@@ -216,6 +216,11 @@ class BenchFields:
         return {**self.__dict__, "memo": {}}
 
     @property
+    def dip_deg(self) -> float:
+        """:attr:`min_dip_deg`, or the usual :data:`MIN_DIP_DEG` before the benches chose."""
+        return MIN_DIP_DEG if self.min_dip_deg is None else self.min_dip_deg
+
+    @property
     def cap_m(self) -> float:
         """The largest ``|F|`` the fields hold (their cap, where a boundary is far; 0 without benches)."""
         return float(np.max(np.abs(self.distance))) if self.distance.size else 0.0
@@ -668,8 +673,7 @@ def geozone_fastest_movement_m(fields: BenchFields, bench_height_m: float) -> fl
     At the fields' shallowest dip (:attr:`BenchFields.min_dip_deg`; the usual one, :data:`MIN_DIP_DEG`, before
     the benches chose).
     """
-    dip = MIN_DIP_DEG if fields.min_dip_deg is None else fields.min_dip_deg
-    return fastest_movement_m(bench_height_m, geozone_body_size_m(fields), dip)
+    return fastest_movement_m(bench_height_m, geozone_body_size_m(fields), fields.dip_deg)
 
 
 def movement_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: float) -> float:
@@ -742,8 +746,7 @@ def coherent_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: flo
     # Points matched within the bound cannot leave the share that moved further: spare the wider search.
     if np.sum(np.isfinite(near[band])) > (1.0 - COHERENT_SHARE) * np.sum(band):
         return fastest_m
-    dip = MIN_DIP_DEG if fields.min_dip_deg is None else fields.min_dip_deg
-    far_m = fastest_m * float(np.tan(np.radians(dip)) / np.tan(np.radians(COHERENT_DIP_DEG)))
+    far_m = fastest_m * float(np.tan(np.radians(fields.dip_deg)) / np.tan(np.radians(COHERENT_DIP_DEG)))
     if far_m <= fastest_m:  # the fields' own bound is already as shallow (:func:`with_backtested_dip`)
         return fastest_m
     moved, _ = pair_movement(fields, older, newer, far_m)
