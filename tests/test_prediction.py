@@ -896,3 +896,23 @@ def test_the_deepest_section_is_smoothed_of_its_waver_and_a_small_disc_keeps_its
 
     contact = 60.0 - grid.cell_centres()[1]
     assert np.allclose(smoothed_section(contact, 1.0, 3.0, 18.0)[20:-20], contact[20:-20], atol=1e-6)
+
+
+def test_no_part_of_a_prediction_below_the_deepest_bench_lies_where_no_bench_drilled():
+    # On the demo the nearest-evidence extension past the drilling drew a g1 body of 450 m2 35-50 m beyond the
+    # pit's edge at every level below the deepest bench, where no bench had g1 or drilled at all.
+    from conftest import DEMO_CSV
+
+    from core.io.blastholes import read_blastholes
+    from core.model.session import ModelSession
+
+    holes = read_blastholes(DEMO_CSV)
+    session = ModelSession.open(holes, cache=False)
+    drilled = shapely.union_all([holes.drilled_area(k) for k in range(holes.n_benches)])
+    deepest = float(holes.bench_levels_m.min())
+    for geozone in ("g1", "g2"):
+        model = session.geozone_model(geozone, stages=())
+        for z, region in session.predict(geozone, [deepest - 2.5, deepest - 10.0], model).items():
+            assert not region.is_empty, (geozone, z)
+            stray = [part.bounds for part in region.geoms if not part.intersects(drilled)]
+            assert not stray, (geozone, z, stray)
