@@ -898,7 +898,7 @@ def test_the_deepest_section_is_smoothed_of_its_waver_and_a_small_disc_keeps_its
     assert np.allclose(smoothed_section(contact, 1.0, 3.0, 18.0)[20:-20], contact[20:-20], atol=1e-6)
 
 
-def test_no_part_of_a_prediction_below_the_deepest_bench_lies_where_no_bench_drilled():
+def test_no_part_of_a_prediction_below_the_deepest_bench_lies_where_no_bench_drilled_or_is_a_sliver():
     # On the demo the nearest-evidence extension past the drilling drew a g1 body of 450 m2 35-50 m beyond the
     # pit's edge at every level below the deepest bench, where no bench had g1 or drilled at all.
     from conftest import DEMO_CSV
@@ -916,3 +916,6 @@ def test_no_part_of_a_prediction_below_the_deepest_bench_lies_where_no_bench_dri
             assert not region.is_empty, (geozone, z)
             stray = [part.bounds for part in region.geoms if not part.intersects(drilled)]
             assert not stray, (geozone, z, stray)
+            # Nor slivers below the field's resolution (g2 had four of 0-3 m2 at each level).
+            slivers = [part.area for part in region.geoms if part.area < model.fields.grid.cell_size_m**2]
+            assert not slivers, (geozone, z, slivers)
