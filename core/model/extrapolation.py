@@ -249,7 +249,6 @@ class BenchFields:
             distance=self.distance[:n],
             weight=self.weight[:n],
             drilled=self.drilled[:n],
-            memo=self.memo,
             observed=observed,
             min_dip_deg=self.min_dip_deg if n == len(self.z_m) else None,
         )
@@ -956,7 +955,8 @@ class DepthTrend:
             return field
         evidenced = np.zeros(n + 1, bool)
         evidenced[parts[self.drilled_any]] = True
-        return np.where(evidenced[parts] | (parts == 0), field, np.minimum(field, -self.grid.cell_size_m))
+        evidenced[0] = True  # outside the region: as it is
+        return np.where(evidenced[parts], field, np.minimum(field, -self.grid.cell_size_m))
 
     def _ended(self, z_m: float) -> np.ndarray:
         """Cells whose evidence is older than the deepest bench and likely no longer holds at ``z_m``."""
