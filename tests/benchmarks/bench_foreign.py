@@ -1,6 +1,6 @@
 """Prediction on geology the synthetic families do not make: thresholded fields whose parts move apart with depth.
 
-    python tests/benchmarks/bench_foreign.py [--seeds 24] [--speed 1.0] [--noise 0.03] [--workers 2]
+    python tests/benchmarks/bench_foreign.py [--seeds 24] [--speed 1.0] [--noise 0.03] [--drift LO HI] [--workers 2]
 
 Every default of the engine was chosen on :mod:`core.synthetic.families`, whose
 geozones are built from layers, folds, lobes and lenses that move as wholes.
@@ -10,7 +10,10 @@ exceeds its 70th percentile, and each wave travels across the pit with depth at
 its own rate (``--speed`` times 1-10 m per 10 m bench, either way). Bodies
 therefore change shape, split, merge, appear and vanish from bench to bench
 without any of them moving as a whole, as real alteration and lithology
-contacts do. Holes on a staggered pattern (7 m, jittered 0.4 m), benches of
+contacts do. With ``--drift LO HI`` the waves stand still and each geozone's
+whole pattern translates with depth instead, LO-HI metres per metre in a
+direction of its own: bodies of any shape dipping steadily, where linear
+extrapolation of the true sections is near exact. Holes on a staggered pattern (7 m, jittered 0.4 m), benches of
 10 m, the pit narrowing 4 m a side per bench, ``--noise`` of the labels drawn at
 random. The protocol is :mod:`bench_prediction`'s (each bench with one below it
 is the deepest known; 5 and 10 m below it scored by area against the true
@@ -60,29 +63,38 @@ class Waves:
     speed: np.ndarray
     phase: np.ndarray
     amplitude: np.ndarray
+    drift: np.ndarray  #: (2,) metres the whole pattern moves per metre of depth
 
     @classmethod
-    def draw(cls, rng: np.random.Generator, speed: float) -> Waves:
+    def draw(cls, rng: np.random.Generator, speed: float, drift: tuple[float, float] | None = None) -> Waves:
         angle = rng.uniform(0, 2 * np.pi, WAVES)
-        return cls(
+        waves = cls(
             np.column_stack([np.cos(angle), np.sin(angle)]),
             rng.uniform(70.0, 220.0, WAVES),
-            speed * rng.uniform(0.1, 1.0, WAVES) * rng.choice([-1.0, 1.0], WAVES),
+            (0.0 if drift else speed) * rng.uniform(0.1, 1.0, WAVES) * rng.choice([-1.0, 1.0], WAVES),
             rng.uniform(0, 2 * np.pi, WAVES),
             rng.uniform(0.5, 1.0, WAVES),
+            np.zeros(2),
         )
+        if drift:  # drawn after the waves, so a seed's waves are the same with or without it
+            heading, rate = rng.uniform(0, 2 * np.pi), rng.uniform(*drift)
+            waves.drift = rate * np.array([np.cos(heading), np.sin(heading)])
+        return waves
 
     def __call__(self, x, y, z):
+        x, y = x + self.drift[0] * z, y + self.drift[1] * z  # z falls with depth
         total = 0.0
         for u, lam, c, phi, a in zip(self.direction, self.wavelength_m, self.speed, self.phase, self.amplitude):
             total = total + a * np.cos(2 * np.pi * (u[0] * x + u[1] * y - c * z) / lam + phi)
         return total
 
 
-def foreign_mine(seed: int, speed: float, noise: float, spacing_m: float = 7.0):
+def foreign_mine(
+    seed: int, speed: float, noise: float, spacing_m: float = 7.0, drift: tuple[float, float] | None = None
+):
     """The holes table and ``{geozone: f(x, y, z)}``, positive inside (g2 is where g1 is not)."""
     rng = np.random.default_rng(seed)
-    waves1, waves2 = Waves.draw(rng, speed), Waves.draw(rng, speed)
+    waves1, waves2 = Waves.draw(rng, speed, drift), Waves.draw(rng, speed, drift)
     X, Y = np.meshgrid(np.linspace(0, SIDE_M, 121), np.linspace(0, SIDE_M, 121))
     t1, t2 = np.quantile(waves1(X, Y, 0.0), 0.70), np.quantile(waves2(X, Y, 0.0), 0.72)
 
@@ -109,9 +121,10 @@ def foreign_mine(seed: int, speed: float, noise: float, spacing_m: float = 7.0):
     return table, {"g1": g1, "g2": g2}
 
 
-def run_seed(job: tuple[int, float, float]) -> pd.DataFrame:
-    seed, speed, noise = job
-    table, fields = foreign_mine(seed, speed, noise)
+def run_seed(job: tuple) -> pd.DataFrame:
+    """Evaluate one seed: ``(seed, speed, noise)`` or ``(seed, speed, noise, drift)``."""
+    seed, speed, noise, *drift = job
+    table, fields = foreign_mine(seed, speed, noise, drift=drift[0] if drift else None)
     fine = Grid(0.0, 0.0, 1.0, (int(SIDE_M) + 1, int(SIDE_M) + 1))
     X, Y = fine.cell_centres()
     with warnings.catch_warnings():
@@ -160,13 +173,22 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=24)
     parser.add_argument("--speed", type=float, default=1.0, help="Scale of the waves' movement with depth.")
     parser.add_argument("--noise", type=float, default=0.03, help="Share of labels drawn at random.")
+    parser.add_argument(
+        "--drift",
+        type=float,
+        nargs=2,
+        metavar=("LO", "HI"),
+        help="Waves stand still; each geozone's pattern moves LO-HI m per m of depth (e.g. 0.3 1.2).",
+    )
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
     start = time.perf_counter()
-    jobs = [(s, args.speed, args.noise) for s in range(args.seeds)]
+    drift = tuple(args.drift) if args.drift else None
+    jobs = [(s, args.speed, args.noise, drift) for s in range(args.seeds)]
     with multiprocessing.get_context("fork").Pool(args.workers) as pool:
         df = pd.concat(pool.map(run_seed, jobs), ignore_index=True)
-    print(f"Foreign geology: {args.seeds} seeds, speed {args.speed}, label noise {args.noise:.0%}")
+    movement = f"drift {drift[0]:g}-{drift[1]:g} m per m of depth" if drift else f"speed {args.speed}"
+    print(f"Foreign geology: {args.seeds} seeds, {movement}, label noise {args.noise:.0%}")
     print_table(df)
     print(f"\nWall time {time.perf_counter() - start:.0f} s on {args.workers} processes")
 
