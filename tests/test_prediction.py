@@ -807,6 +807,41 @@ def test_a_strip_crossing_the_edge_of_the_drilling_goes_on_past_it():
     assert np.mean(claimed[past] == 1) > 0.95, np.mean(claimed[past] == 1)
 
 
+def test_below_the_deepest_bench_the_host_of_a_narrowing_pit_is_one_sheet_around_the_body_it_holds():
+    """The band between a contour run along a bench's frontier and the frontier is no boundary.
+
+    Past the deepest bench's drilling each cell's evidence is an older bench's, whose frontier
+    lies there: counted as the other side, the fringe of the host's holes outside its contour
+    frayed its predicted section into specks and rings (5-8 parts, 45-53 holes in the sheet).
+    The deepest bench's own band stays (see ``bench_distance``): a speck of a hole at most.
+    """
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+    from core.model.session import ModelSession
+
+    body, frames = Point(100, 80).buffer(30), []
+    for k in range(5):
+        inset = 6.0 * k  # the pit narrows 6 m a side a bench
+        ys = np.arange(inset, 160 - inset, 6.0 * np.sqrt(3) / 2)
+        xy = np.array([(x + (i % 2) * 3.0, y) for i, y in enumerate(ys) for x in np.arange(inset, 200 - inset, 6.0)])
+        label = np.where(shapely.contains_xy(body, xy[:, 0], xy[:, 1]), "a", "host")
+        frames.append(pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": 500.0 - 10 * k, "geozone": label}))
+    holes = blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
+    session = ModelSession.open(holes, cache=False)
+    model = session.geozone_model("host", stages=())
+    deepest = float(holes.bench_levels_m.min())
+    centre = Point(holes.frame.to_local(np.array([100.0]), np.array([80.0]))[0])
+    hole_share_m2 = 6.0**2 * np.sqrt(3) / 2
+    for z, region in session.predict("host", [deepest - 5.0, deepest - 10.0], model).items():
+        assert len(region.geoms) == 1, (z, sorted(part.area for part in region.geoms))
+        rings = [shapely.Polygon(ring) for ring in region.geoms[0].interiors]
+        body = [ring.area for ring in rings if ring.contains(centre)]
+        specks = [ring.area for ring in rings if not ring.contains(centre)]
+        assert len(body) == 1 and body[0] > 0.8 * np.pi * 30**2, (z, body)
+        assert len(specks) <= 2 and all(area < hole_share_m2 for area in specks), (z, specks)
+
+
 def test_the_displacement_of_a_curved_boundary_is_its_whole_translation_and_of_a_straight_one_its_movement_across():
     """The benches give only the movement across a boundary; where the boundary curves, its normals fix the rest."""
     from core.model.extrapolation import direction_classes, displacement_by_direction, flow_systems, unit_normals

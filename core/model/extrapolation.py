@@ -275,6 +275,7 @@ def bench_distance(
     cap_m: float,
     reach_m: float,
     unclaimed: np.ndarray | None = None,
+    next_undrilled: np.ndarray | None = None,
 ):
     """Signed distance to a region's boundary where only drilled cells count as evidence.
 
@@ -295,6 +296,13 @@ def bench_distance(
         there, they cut the geozone off at the frontier: on the Kennecott
         benches 20-40% of the ground the next bench drilled beyond the last
         one was left to no geozone at all.
+    next_undrilled : (rows, cols) bool, optional
+        Ground the next bench down did not drill: there the ``unclaimed``
+        cells that reach the frontier are no evidence inside the drilled area
+        either (:func:`_frontier_fringe`). None for the deepest bench, whose
+        frontier is where what is known ends: the band holds the extension past
+        it from being carried into the ground the bench drilled (a constructed
+        pit whose benches all drill the same ground lost 0.3 F1 without it).
 
     Returns
     -------
@@ -316,12 +324,36 @@ def bench_distance(
     d_in, d_out = to(inside), to(outside)
     off, (rows, cols) = ndimage.distance_transform_edt(~drilled, return_indices=True)
     if unclaimed is not None and (outside & unclaimed).any():
-        d_out = np.where(off > 0, to(outside & ~unclaimed), d_out)
+        past = to(outside & ~unclaimed)
+        if next_undrilled is not None:
+            fringe = _frontier_fringe(outside & unclaimed, drilled) & next_undrilled
+            d_out = to(outside & ~fringe) if fringe.any() else d_out
+        d_out = np.where(off > 0, past, d_out)
     patches, n = ndimage.label(drilled)
     radius = np.sqrt(np.bincount(patches.ravel(), minlength=n + 1) / np.pi) * cell_size_m
     reach = np.minimum(reach_m, radius[patches[rows, cols]])
     distance = np.minimum(d_out - d_in, reach - off * cell_size_m)
     return np.clip(distance, -cap_m, cap_m), off * cell_size_m
+
+
+def _frontier_fringe(unclaimed_outside: np.ndarray, drilled: np.ndarray) -> np.ndarray:
+    """The parts of ``unclaimed_outside`` that reach the edge of the drilled area.
+
+    Between a contour run along the drilling frontier and the frontier itself
+    lies a band of the geozone's own fringe: counted as the other side, it put
+    a false boundary at every bench's frontier, so past the deepest bench's
+    drilling, where each cell's evidence is the band of the older bench that
+    drilled it last, the predicted section frayed into specks and rings. Such
+    a band is no evidence of the other side; a sliver a contour leaves out
+    between the geozone's holes and another's is.
+    """
+    parts, n = ndimage.label(unclaimed_outside)
+    if n == 0:
+        return unclaimed_outside
+    at_frontier = np.zeros(n + 1, bool)
+    at_frontier[parts[ndimage.binary_dilation(~drilled) & unclaimed_outside]] = True
+    at_frontier[0] = False
+    return at_frontier[parts]
 
 
 def exact_near_boundary(distance: np.ndarray, region: MultiPolygon, drilled: np.ndarray, grid: Grid) -> np.ndarray:
@@ -385,8 +417,16 @@ def bench_fields(
     }
     reach_m = min(reach_m, body_size_m([rasters[k] & drilled[k] for k in benches], h))
     dist, weight = [], []
-    for k in benches:
-        d, off = bench_distance(rasters[k], drilled[k], h, cap, reach_m, None if unclaimed is None else unclaimed[k])
+    for k, deeper in zip(benches, [*benches[1:], None]):
+        d, off = bench_distance(
+            rasters[k],
+            drilled[k],
+            h,
+            cap,
+            reach_m,
+            None if unclaimed is None else unclaimed[k],
+            None if deeper is None else ~drilled[deeper],
+        )
         dist.append(exact_near_boundary(d, regions[k], drilled[k], grid))
         weight.append(np.exp(-off / hole_spacing_m))
     return BenchFields(
@@ -980,14 +1020,21 @@ class DepthTrend:
         return flow_systems(n_r, n_c, classes, self._sigma_cells)
 
     def region(self, z_m: float) -> MultiPolygon:
-        """The region ``F > 0`` at ``z_m`` less its parts smaller than a cell, which the field cannot resolve.
+        """The region ``F > 0`` at ``z_m`` less its parts and holes smaller than a cell, which the field cannot resolve.
 
         Those are slivers where ``F`` grazes zero (a saddle, the far field past
         the drilling): below the demo's deepest bench the host geozone had
-        dozens, most of no area at all.
+        dozens, most of no area at all, and g2 holes of a few hundredths of a m2.
         """
         region = self.grid.polygons_from_distance(self.field(z_m))
-        return MultiPolygon([part for part in region.geoms if part.area >= self.grid.cell_size_m**2])
+        cell = self.grid.cell_size_m**2
+        return MultiPolygon(
+            [
+                shapely.Polygon(part.exterior, [hole for hole in part.interiors if shapely.Polygon(hole).area >= cell])
+                for part in region.geoms
+                if part.area >= cell
+            ]
+        )
 
     def replaced(self, **changes) -> DepthTrend:
         """A copy with ``changes`` (not of the last section) that shares what the transport made of the last section."""
