@@ -836,9 +836,9 @@ def test_below_the_deepest_bench_the_host_of_a_narrowing_pit_is_one_sheet_around
     for z, region in session.predict("host", [deepest - 5.0, deepest - 10.0], model).items():
         assert len(region.geoms) == 1, (z, sorted(part.area for part in region.geoms))
         rings = [shapely.Polygon(ring) for ring in region.geoms[0].interiors]
-        body = [ring.area for ring in rings if ring.contains(centre)]
+        around_body = [ring.area for ring in rings if ring.contains(centre)]
         specks = [ring.area for ring in rings if not ring.contains(centre)]
-        assert len(body) == 1 and body[0] > 0.8 * np.pi * 30**2, (z, body)
+        assert len(around_body) == 1 and around_body[0] > 0.8 * np.pi * 30**2, (z, around_body)
         assert len(specks) <= 2 and all(area < hole_share_m2 for area in specks), (z, specks)
 
 

@@ -13,9 +13,9 @@ without any of them moving as a whole, as real alteration and lithology
 contacts do. With ``--drift LO HI`` the waves stand still and each geozone's
 whole pattern translates with depth instead, LO-HI metres per metre in a
 direction of its own: bodies of any shape dipping steadily, where linear
-extrapolation of the true sections is near exact. Holes on a staggered pattern (7 m, jittered 0.4 m), benches of
-10 m, the pit narrowing 4 m a side per bench, ``--noise`` of the labels drawn at
-random. The protocol is :mod:`bench_prediction`'s (each bench with one below it
+extrapolation of the true sections is near exact. Holes on a staggered
+pattern (7 m, jittered 0.4 m), benches of 10 m, the pit narrowing 4 m a side
+per bench, ``--noise`` of the labels drawn at random. The protocol is :mod:`bench_prediction`'s (each bench with one below it
 is the deepest known; 5 and 10 m below it scored by area against the true
 section inside the next bench's drilled area), and besides the three
 references it scores the linear extrapolation of the *true* sections of the
