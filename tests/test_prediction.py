@@ -63,16 +63,19 @@ def test_model_beats_nil_below_withheld_benches_on_a_fresh_mine(geozone):
         assert r.recall_model > r.recall_nil, r
 
 
-def _bench_table(sections, spacing=6.0, extent=(200.0, 160.0), isolated=None):
-    """Holes on a staggered pattern, one bench per section (10 m apart), labelled by ``sections[k]``."""
+def _bench_table(sections, spacing=6.0, extent=(200.0, 160.0), isolated=None, narrowing_m=0.0):
+    """Holes on a staggered pattern, one bench per section (10 m apart), labelled by ``sections[k]``.
+
+    ``narrowing_m``: how far each bench's drilling draws in from the one above on every side (a pit).
+    """
     import pandas as pd
 
-    rows = np.arange(0.0, extent[1], spacing * np.sqrt(3) / 2)
     frames = []
     for k, section in enumerate(sections):
-        xy = np.array(
-            [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(0.0, extent[0], spacing)]
-        )
+        inset = narrowing_m * k
+        rows = np.arange(inset, extent[1] - inset, spacing * np.sqrt(3) / 2)
+        xs = np.arange(inset, extent[0] - inset, spacing)
+        xy = np.array([(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in xs])
         label = np.where(shapely.contains_xy(section, xy[:, 0], xy[:, 1]), "a", "host")
         if isolated is not None and k == len(sections) - 1:
             xy = np.vstack([xy, isolated])
@@ -815,23 +818,13 @@ def test_below_the_deepest_bench_the_host_of_a_narrowing_pit_is_one_sheet_around
     frayed its predicted section into specks and rings (5-8 parts, 45-53 holes in the sheet).
     The deepest bench's own band stays (see ``bench_distance``): a speck of a hole at most.
     """
-    import pandas as pd
-
-    from core.io.blastholes import blastholes_from_table
     from core.model.session import ModelSession
 
-    body, frames = Point(100, 80).buffer(30), []
-    for k in range(5):
-        inset = 6.0 * k  # the pit narrows 6 m a side a bench
-        ys = np.arange(inset, 160 - inset, 6.0 * np.sqrt(3) / 2)
-        xy = np.array([(x + (i % 2) * 3.0, y) for i, y in enumerate(ys) for x in np.arange(inset, 200 - inset, 6.0)])
-        label = np.where(shapely.contains_xy(body, xy[:, 0], xy[:, 1]), "a", "host")
-        frames.append(pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": 500.0 - 10 * k, "geozone": label}))
-    holes = blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
+    holes = _bench_table([Point(100, 80).buffer(30)] * 5, narrowing_m=6.0)  # the pit narrows 6 m a side a bench
     session = ModelSession.open(holes, cache=False)
     model = session.geozone_model("host", stages=())
     deepest = float(holes.bench_levels_m.min())
-    centre = Point(holes.frame.to_local(np.array([100.0]), np.array([80.0]))[0])
+    centre = Point(holes.frame.to_local(np.array([650_100.0]), np.array([7_400_080.0]))[0])
     hole_share_m2 = 6.0**2 * np.sqrt(3) / 2
     for z, region in session.predict("host", [deepest - 5.0, deepest - 10.0], model).items():
         assert len(region.geoms) == 1, (z, sorted(part.area for part in region.geoms))

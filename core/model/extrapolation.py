@@ -321,14 +321,13 @@ def bench_distance(
     def to(cells: np.ndarray) -> np.ndarray:
         return ndimage.distance_transform_edt(~cells) * cell_size_m if cells.any() else np.full(region.shape, big)
 
-    d_in, d_out = to(inside), to(outside)
+    counted = outside  # inside the drilled area, the cells that are evidence of the other side
+    if unclaimed is not None and next_undrilled is not None:
+        counted = outside & ~(_frontier_fringe(outside & unclaimed, drilled) & next_undrilled)
+    d_in, d_out = to(inside), to(counted)
     off, (rows, cols) = ndimage.distance_transform_edt(~drilled, return_indices=True)
     if unclaimed is not None and (outside & unclaimed).any():
-        past = to(outside & ~unclaimed)
-        if next_undrilled is not None:
-            fringe = _frontier_fringe(outside & unclaimed, drilled) & next_undrilled
-            d_out = to(outside & ~fringe) if fringe.any() else d_out
-        d_out = np.where(off > 0, past, d_out)
+        d_out = np.where(off > 0, to(outside & ~unclaimed), d_out)
     patches, n = ndimage.label(drilled)
     radius = np.sqrt(np.bincount(patches.ravel(), minlength=n + 1) / np.pi) * cell_size_m
     reach = np.minimum(reach_m, radius[patches[rows, cols]])
@@ -347,12 +346,15 @@ def _frontier_fringe(unclaimed_outside: np.ndarray, drilled: np.ndarray) -> np.n
     a band is no evidence of the other side; a sliver a contour leaves out
     between the geozone's holes and another's is.
     """
-    parts, n = ndimage.label(unclaimed_outside)
-    if n == 0:
-        return unclaimed_outside
-    at_frontier = np.zeros(n + 1, bool)  # label 0, the rest of the grid, stays False
-    at_frontier[parts[ndimage.binary_dilation(~drilled) & unclaimed_outside]] = True
-    return at_frontier[parts]
+    return parts_touching(unclaimed_outside, ndimage.binary_dilation(~drilled))
+
+
+def parts_touching(mask: np.ndarray, seeds: np.ndarray, structure: np.ndarray | None = None) -> np.ndarray:
+    """The connected parts of ``mask`` (``structure`` as :func:`scipy.ndimage.label`) holding a cell of ``seeds``."""
+    parts, n = ndimage.label(mask, structure=structure)
+    touched = np.zeros(n + 1, bool)
+    touched[parts[seeds & mask]] = True  # label 0, the ground outside ``mask``, is never a seed's
+    return touched[parts]
 
 
 def exact_near_boundary(distance: np.ndarray, region: MultiPolygon, drilled: np.ndarray, grid: Grid) -> np.ndarray:
@@ -990,13 +992,9 @@ class DepthTrend:
         body 450 m2 in size 35-50 m past the pit's edge, where no bench had
         the geozone.
         """
-        parts, n = ndimage.label(field > 0, structure=np.ones((3, 3)))
-        if n == 0:
-            return field
-        evidenced = np.zeros(n + 1, bool)
-        evidenced[parts[self.drilled_any]] = True
-        evidenced[0] = True  # outside the region: as it is
-        return np.where(evidenced[parts], field, np.minimum(field, -self.grid.cell_size_m))
+        inside = field > 0
+        unevidenced = inside & ~parts_touching(inside, self.drilled_any, np.ones((3, 3)))
+        return np.where(unevidenced, np.minimum(field, -self.grid.cell_size_m), field)
 
     def _ended(self, z_m: float) -> np.ndarray:
         """Cells whose evidence is older than the deepest bench and likely no longer holds at ``z_m``."""

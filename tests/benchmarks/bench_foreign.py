@@ -121,10 +121,10 @@ def foreign_mine(
     return table, {"g1": g1, "g2": g2}
 
 
-def run_seed(job: tuple) -> pd.DataFrame:
-    """Evaluate one seed: ``(seed, speed, noise)`` or ``(seed, speed, noise, drift)``."""
-    seed, speed, noise, *drift = job
-    table, fields = foreign_mine(seed, speed, noise, drift=drift[0] if drift else None)
+def run_seed(job: tuple[int, float, float, tuple[float, float] | None]) -> pd.DataFrame:
+    """Evaluate one seed: ``(seed, speed, noise, drift)``."""
+    seed, speed, noise, drift = job
+    table, fields = foreign_mine(seed, speed, noise, drift=drift)
     fine = Grid(0.0, 0.0, 1.0, (int(SIDE_M) + 1, int(SIDE_M) + 1))
     X, Y = fine.cell_centres()
     with warnings.catch_warnings():
