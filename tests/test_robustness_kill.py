@@ -2,8 +2,9 @@
 
 A model is built once and rebuilt once (timed); then the same build is started
 again into that folder and stopped 22 times, at moments drawn at random over
-the rebuild's whole run: by Ctrl-C (SIGINT to the process group, as a terminal sends it: the workers
-get it too) or by SIGKILL (of the main process alone, or of the whole group).
+the rebuild's whole run (over less once a build ended before its stop): by
+Ctrl-C (SIGINT to the process group, as a terminal sends it: the workers get
+it too) or by SIGKILL (of the main process alone, or of the whole group).
 After every stop the folder must hold the previous model, complete and valid
 (or, for a stop after the new model was swapped in, the new one, which is
 the same model), a Ctrl-C must end in exit status 130 with one line and no
@@ -115,7 +116,7 @@ def test_build_killed_at_random_moments_leaves_the_previous_model(small_csv, tmp
         with contextlib.suppress(ProcessLookupError):  # orphaned workers of a killed main process hold the pipes
             os.killpg(proc.pid, signal.SIGKILL)
         _, err = proc.communicate(timeout=600)
-        context = f"stop {i} ({how} at {moment:.2f} s of {whole:.2f} s): exit {proc.returncode}\n{err}"
+        context = f"stop {i} ({how} at {moment:.2f} s of {window:.2f} s): exit {proc.returncode}\n{err}"
         if proc.returncode == 0:
             outcomes["finished"] += 1
             # A build that ended before its stop takes less than that moment on this machine now (a rebuild
