@@ -321,13 +321,14 @@ def bench_distance(
     def to(cells: np.ndarray) -> np.ndarray:
         return ndimage.distance_transform_edt(~cells) * cell_size_m if cells.any() else np.full(region.shape, big)
 
+    unclaimed_outside = outside & unclaimed if unclaimed is not None else np.zeros_like(outside)
     counted = outside  # inside the drilled area, the cells that are evidence of the other side
-    if unclaimed is not None and next_undrilled is not None:
-        counted = outside & ~(_frontier_fringe(outside & unclaimed, drilled) & next_undrilled)
+    if next_undrilled is not None and unclaimed_outside.any():
+        counted = outside & ~(_frontier_fringe(unclaimed_outside, drilled) & next_undrilled)
     d_in, d_out = to(inside), to(counted)
     off, (rows, cols) = ndimage.distance_transform_edt(~drilled, return_indices=True)
-    if unclaimed is not None and (outside & unclaimed).any():
-        d_out = np.where(off > 0, to(outside & ~unclaimed), d_out)
+    if unclaimed_outside.any():
+        d_out = np.where(off > 0, to(outside & ~unclaimed_outside), d_out)
     patches, n = ndimage.label(drilled)
     radius = np.sqrt(np.bincount(patches.ravel(), minlength=n + 1) / np.pi) * cell_size_m
     reach = np.minimum(reach_m, radius[patches[rows, cols]])
