@@ -215,9 +215,11 @@ def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carrie
 
     (median, p90), lens_iou = distances()
     assert median < 1.5 and p90 < holes.hole_spacing_m and lens_iou > 0.9, (median, p90, lens_iou)
-    # The 30-degree bound alone: never extended (COHERENT_SHARE) and never chosen shallower by the benches.
+    # The 30-degree bound alone: never extended (COHERENT_SHARE), never chosen shallower by the benches, and
+    # taken where two benches are known (the benches above place each bench with their two-bench predictions).
     monkeypatch.setattr(extrapolation, "COHERENT_SHARE", 2.0)
     monkeypatch.setattr(extrapolation, "SHALLOW_DIP_GAIN", 1.0)
+    monkeypatch.setattr(extrapolation, "TWO_BENCH_DIP_DEG", extrapolation.MIN_DIP_DEG)
     (median, _), _ = distances()
     assert median > holes.hole_spacing_m, median
 
@@ -270,6 +272,27 @@ def test_a_body_whose_benches_show_it_growing_past_the_dip_bound_keeps_growing()
     cells = fields.grid.nearest_cells(np.array([[180.0, 80.0], [194.0, 80.0]]))  # 80 and 94 m out
     out_80, out_94 = (float(field[r, c]) for r, c in cells)
     assert out_80 > 0 > out_94, (out_80, out_94)  # the boundary between 80 and 94 m out: within a spacing of 88
+
+
+def test_with_two_benches_a_body_growing_past_the_30_degree_bound_keeps_growing():
+    """Growth of 20 m a bench all round with two benches known, where no bench pair can backtest a bound.
+
+    Under the 30-degree bound (17 m a bench) the growth was read as a body appearing and held: the disc
+    stayed at its last radius (48 m) a bench down. Two benches take ``TWO_BENCH_DIP_DEG`` (27 m a bench)
+    and it grows on to about 68 m.
+    """
+    from core.model.extrapolation import MIN_DIP_DEG, TWO_BENCH_DIP_DEG, depth_trend, with_backtested_dip
+
+    fields = _growing_disc_fields([28.0, 48.0])
+    assert with_backtested_dip(fields, 10.0, 6.0).min_dip_deg == TWO_BENCH_DIP_DEG
+    field = depth_trend(fields, 10.0, 6.0).field(480.0)
+    cells = fields.grid.nearest_cells(np.array([[162.0, 80.0], [174.0, 80.0]]))  # 62 and 74 m out
+    out_62, out_74 = (float(field[r, c]) for r, c in cells)
+    assert out_62 > 0 > out_74, (out_62, out_74)  # the boundary within a spacing of 68 m
+    # Lenses 24 m across keep the usual bound: one found 17-27 m beside another is another lens.
+    lenses = [[(30, 30, 12), (170, 130, 12), (60, 80, 12)], [(30, 30, 12), (170, 130, 12), (84, 80, 12)]]
+    everywhere = [shapely.box(0, 0, 200, 160)] * 2
+    assert with_backtested_dip(_lens_fields(lenses, everywhere), 10.0, 6.0).min_dip_deg == MIN_DIP_DEG
 
 
 def test_the_dip_bound_is_chosen_from_the_benches_down_to_the_deepest_known_only():

@@ -116,7 +116,7 @@ CAP_SPACINGS = 8.0
 #: sections align at a larger translation (a shallower contact), that is the bound for the
 #: pair (:func:`movement_reach_m`). Where the geozone's bodies are smaller across than that, their
 #: size is the floor instead (:func:`fastest_movement_m`). A geozone's own benches may choose
-#: :data:`SHALLOW_DIP_DEG` instead (:func:`with_backtested_dip`).
+#: :data:`SHALLOW_DIP_DEG` instead, and two benches take :data:`TWO_BENCH_DIP_DEG` (:func:`with_backtested_dip`).
 MIN_DIP_DEG = 30.0
 #: Shallowest dip looked for where much of a geozone's boundary moved further than :data:`MIN_DIP_DEG`
 #: allows, one way (:func:`coherent_reach_m`): 20 degrees, 2.7 bench heights a bench. Taken as the bound
@@ -1177,7 +1177,7 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
     (smaller than a disc of the furthest a boundary moves per bench), the
     share is drawn towards one half by :data:`LENS_PRIOR_DISCS` such discs.
     """
-    reach_cells = fastest_movement_m(bench_height_m, geozone_body_size_m(fields)) / fields.grid.cell_size_m
+    reach_cells = _lens_reach_cells(fields, bench_height_m)
     reached = counted = 0.0
     counts = []  # bodies per bench, for the typical body: each bench is labelled once
     for j in range(len(fields.z_m) - 1):
@@ -1196,12 +1196,28 @@ def body_continuity(fields: BenchFields, bench_height_m: float) -> float:
         reached += float(np.sum(area[drilled_next & reaches]))
     if not counted:
         return 1.0
-    disc = np.pi * reach_cells**2
     counts.append(ndimage.label((fields.distance[-1] > 0) & fields.drilled[-1])[1])
-    if typical_body_cells(fields, counts) >= disc:
+    if not lens_sized(fields, bench_height_m, counts):
         return reached / counted
-    prior = LENS_PRIOR_DISCS * disc
+    prior = LENS_PRIOR_DISCS * np.pi * reach_cells**2
     return (reached + 0.5 * prior) / (counted + prior)
+
+
+def _lens_reach_cells(fields: BenchFields, bench_height_m: float) -> float:
+    """The furthest a boundary of the geozone moves a bench at :data:`MIN_DIP_DEG`, bounded by its bodies' size, in cells."""
+    return fastest_movement_m(bench_height_m, geozone_body_size_m(fields)) / fields.grid.cell_size_m
+
+
+def lens_sized(fields: BenchFields, bench_height_m: float, counts: list[int] | None = None) -> bool:
+    """Whether the geozone's bodies are lens-sized: its typical body smaller than a disc of the furthest a boundary moves.
+
+    That furthest is a bench's at :data:`MIN_DIP_DEG` whatever bound the
+    benches chose, bounded by the bodies' size (:func:`fastest_movement_m`);
+    the typical body is :func:`typical_body_cells` (``counts``: its bodies per
+    bench, where the caller has labelled them). A lens found that far from one
+    on the bench above cannot be told from another lens.
+    """
+    return typical_body_cells(fields, counts) < np.pi * _lens_reach_cells(fields, bench_height_m) ** 2
 
 
 def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
@@ -1241,6 +1257,17 @@ def _confirmed(fields: BenchFields, trend: DepthTrend, bench_height_m: float, ho
 #: the waves by 10-20%.
 SHALLOW_DIP_DEG = 15.0
 SHALLOW_DIP_GAIN = 0.1
+#: The bound with two benches known, where no bench pair can backtest one (:func:`with_backtested_dip`):
+#: 20 degrees, 2.7 bench heights a bench. Two benches cannot tell a boundary moving fast from a body
+#: appearing beside another, and on fast geology the first is the commoner. Chosen on development seeds
+#: (2026-12-03, F1 at 5 / 10 m below the deepest bench): travelling waves moving 3-30 m a bench
+#: (``bench_foreign.py``'s generator, seeds 100-123) 80.5 / 62.9 with 30 degrees, 81.0 / 63.6 with 20
+#: (15: 81.2 / 63.9; 25: 80.7 / 63.2), 2-20 m a bench 88.9 / 78.8 -> 89.2 / 79.2; the families (seeds
+#: 0-3) 96.42 / 95.06 -> 96.40 / 95.01 (15: 96.38 / 94.96; 25: 96.41 / 95.05), where a few mislabelled
+#: holes 17-27 m from the geozone's boundary now grow as a boundary would; Kennecott unchanged. Not where
+#: the geozone's bodies are lens-sized (:func:`lens_sized`): pods (seeds 4-19) 61.89 / 34.04 F1 against
+#: holding's 61.86 / 33.97 went to 61.99 / 33.87 with it, and are 61.89 / 34.04 as it is.
+TWO_BENCH_DIP_DEG = 20.0
 
 
 def with_backtested_dip(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> BenchFields:
@@ -1256,12 +1283,17 @@ def with_backtested_dip(fields: BenchFields, bench_height_m: float, hole_spacing
     put a share :data:`SHALLOW_DIP_GAIN` fewer cells wrong: a boundary whose movement outruns the usual bound
     (travelling waves' boundaries moving 20-40 m a bench) is followed, and
     lenses that appear beside others, which the shallower bound reads as
-    moving, keep the usual one. With fewer than three benches the usual bound.
-    Each pair's count rests on its benches alone: kept in ``fields.memo``.
+    moving, keep the usual one. With fewer than three benches nothing can be
+    backtested: :data:`TWO_BENCH_DIP_DEG`, but the usual bound where the
+    geozone's bodies are lens-sized (:func:`lens_sized`: a lens beside the
+    one above is another lens). Each pair's count rests on its benches
+    alone: kept in ``fields.memo``.
     """
     if fields.min_dip_deg is not None:
         return fields
     n = len(fields.z_m)
+    if n < 3:
+        return replace(fields, min_dip_deg=MIN_DIP_DEG if lens_sized(fields, bench_height_m) else TWO_BENCH_DIP_DEG)
 
     def wrong_cells(dip: float, j: int) -> float:
         def compute() -> float:
