@@ -1265,8 +1265,9 @@ SHALLOW_DIP_GAIN = 0.1
 #: (15: 81.2 / 63.9; 25: 80.7 / 63.2), 2-20 m a bench 88.9 / 78.8 -> 89.2 / 79.2; the families (seeds
 #: 0-3) 96.42 / 95.06 -> 96.40 / 95.01 (15: 96.38 / 94.96; 25: 96.41 / 95.05), where a few mislabelled
 #: holes 17-27 m from the geozone's boundary now grow as a boundary would; Kennecott unchanged. Not where
-#: the geozone's bodies are lens-sized (:func:`lens_sized`): pods (seeds 4-19) 61.89 / 34.04 F1 against
-#: holding's 61.86 / 33.97 went to 61.99 / 33.87 with it, and are 61.89 / 34.04 as it is.
+#: the geozone's bodies are lens-sized (:func:`lens_sized`): with 20 degrees there too, pods (seeds 4-19)
+#: went from 61.89 / 34.04 F1 (holding: 61.86 / 33.97) to 61.99 / 33.87. As it is: pods unchanged, the
+#: families 96.40 / 95.02, the waves as with 20 degrees everywhere.
 TWO_BENCH_DIP_DEG = 20.0
 
 
