@@ -494,9 +494,10 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float, chance: floa
     hole spacing of boundary for the finer changes. A geozone's movement is
     carried on as far as its benches show it beyond chance; a steady one
     (``rho`` near 1) keeps it whatever ``N``. ``chance`` is the agreement read
-    as none: 0 (section noise, at -1/2, is read as no movement at all), or
-    :data:`THREE_BENCH_CHANCE` where the agreement alone decides
-    (:func:`chosen_persistence`): ``clip(2 (rho_low - chance), 0, 1)``.
+    as none, ``clip(2 (rho_low - chance), 0, 1)``: 0, what two independent
+    draws agree, or :data:`THREE_BENCH_CHANCE`, what a still boundary's
+    section noise agrees, where the agreement alone decides
+    (:func:`chosen_persistence`).
     The two parts are judged apart because they repeat apart: a strip's
     outline moves steadily while its edges wobble from bench to bench, and a
     body splitting pinches at its neck bench after bench, which its outline's
