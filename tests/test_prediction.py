@@ -317,6 +317,19 @@ def test_movement_that_reverses_every_bench_is_predicted_no_worse_than_holding()
     assert model_f1 >= nil_f1 - 0.01, (model_f1, nil_f1)
 
 
+def _noisy_disc_scores(step_m, amplitude, known_benches):
+    """Mean F1 of the model and of holding one bench below a :func:`_wobbly_disc` moving ``step_m`` a bench (3 seeds)."""
+    scores = []
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        sections = [_wobbly_disc(rng, (90.0 + step_m * k, 80.0), amplitude=amplitude) for k in range(known_benches + 1)]
+        holes = _bench_table(sections)
+        predicted, nil, truth = _predict_next(holes, sections, known_benches)
+        within = holes.drilled_area(known_benches - 1)
+        scores.append([_f1(p, truth, within) for p in (predicted, nil)])
+    return np.mean(scores, axis=0)
+
+
 def _wobbly_disc(rng, centre, radius=40.0, amplitude=0.12):
     """The generator's :class:`Blob` section: a disc whose radius carries harmonics 2-5 of random amplitude and phase."""
     from core.synthetic.blobs import Blob
@@ -334,15 +347,7 @@ def test_shape_noise_is_held_and_a_noisy_body_that_moves_is_carried(step_m, ampl
     repeat and are held. A body moving a steady 6 m per bench with half that
     noise is carried on past holding.
     """
-    scores = []
-    for seed in range(3):
-        rng = np.random.default_rng(seed)
-        sections = [_wobbly_disc(rng, (90.0 + step_m * k, 80.0), amplitude=amplitude) for k in range(5)]
-        holes = _bench_table(sections)
-        predicted, nil, truth = _predict_next(holes, sections, 4)
-        within = holes.drilled_area(3)
-        scores.append([_f1(p, truth, within) for p in (predicted, nil)])
-    model_f1, nil_f1 = np.mean(scores, axis=0)
+    model_f1, nil_f1 = _noisy_disc_scores(step_m, amplitude, known_benches=4)
     if step_m:
         assert model_f1 > nil_f1 + 0.015, (model_f1, nil_f1)
     else:
@@ -560,15 +565,7 @@ def test_with_three_benches_moves_that_agree_better_than_section_noise_are_carri
 @pytest.mark.parametrize("amplitude", [0.06, 0.12])
 def test_with_three_benches_shape_noise_is_held_as_far_as_holding(amplitude):
     """Read against section noise's agreement, a still body's random changes still agree no better: held."""
-    scores = []
-    for seed in range(3):
-        rng = np.random.default_rng(seed)
-        sections = [_wobbly_disc(rng, (90.0, 80.0), amplitude=amplitude) for _ in range(4)]
-        holes = _bench_table(sections)
-        predicted, nil, truth = _predict_next(holes, sections, 3)
-        within = holes.drilled_area(2)
-        scores.append([_f1(p, truth, within) for p in (predicted, nil)])
-    model_f1, nil_f1 = np.mean(scores, axis=0)
+    model_f1, nil_f1 = _noisy_disc_scores(0.0, amplitude, known_benches=3)
     assert model_f1 >= nil_f1 - 0.01, (model_f1, nil_f1)
 
 

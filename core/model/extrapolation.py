@@ -1372,6 +1372,7 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
         above = out.through(float(out.z_m[j - 1]))
         # The trends the backtest of bench j makes (its rows kept below, not the trends): a trend kept for
         # every bench took a Kennecott build from 2.0 to 2.8 GB, and making them twice took it 58.6 -> 63 s.
+        # With three benches above, the backtest's agreement (read against 0), not chosen_persistence's.
         trends = _ways_trends(above, bench_height_m, hole_spacing_m)
         trend = _confirmed(
             above, trends[_chosen_way(above, bench_height_m, hole_spacing_m)], bench_height_m, hole_spacing_m
@@ -1396,7 +1397,7 @@ def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m
 
     A backtest: each bench ``j + 1`` is predicted from the benches down to
     ``j`` (their trend with the body continuity as its prior, carried on the
-    way :func:`chosen_persistence` chose from them, :func:`_pair_backtest`)
+    way their backtest chose, :func:`_pair_backtest`)
     and the predicted section, inside ``j + 1``'s drilled area, is scored by
     the cells of it that ``j + 1`` has in the geozone; the counts are pooled
     over the pairs. The ``prior`` share is worth one of the geozone's typical
@@ -1413,7 +1414,9 @@ def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m
 def _pair_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spacing_m: float) -> tuple[int, int]:
     """Cells of bench ``j + 1``'s drilled area predicted inside from the benches down to ``j``: (confirmed, predicted).
 
-    Predicted the way :func:`chosen_persistence` chose from those benches.
+    Predicted the way :func:`_chosen_way` chose from those benches: with
+    three, the agreement read against 0, as the ways' backtests read it, not
+    against :data:`THREE_BENCH_CHANCE` as :func:`chosen_persistence` does.
     """
     way = _chosen_way(fields.through(float(fields.z_m[j])), bench_height_m, hole_spacing_m)
     _, confirmed, predicted = _ways_backtest(fields, j, bench_height_m, hole_spacing_m)[way]
@@ -1493,7 +1496,10 @@ def chosen_persistence(fields: BenchFields, bench_height_m: float, hole_spacing_
 
 
 def _chosen_way(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> int:
-    """Which of :func:`_ways_to_carry` :func:`chosen_persistence` takes (0, the agreement, with fewer than four benches)."""
+    """Which of :func:`_ways_to_carry` the benches' backtest takes (0, the agreement, with fewer than four benches).
+
+    :func:`chosen_persistence` takes it from the fourth bench; with three it reads the agreement otherwise.
+    """
     n = len(fields.z_m)
     if n < 4:
         return 0
