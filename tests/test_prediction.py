@@ -252,6 +252,32 @@ def test_only_a_boundary_moving_one_way_past_the_dip_bound_extends_how_far_it_ma
     assert coherent_reach_m(slow, 0, 1, fastest) == fastest
 
 
+def test_a_prediction_from_the_first_benches_of_uneven_height_reuses_what_the_model_kept():
+    """A view of the first benches keeps the bench height of them all, by which the model's results are kept.
+
+    On benches of uneven height (Kennecott's differ by up to 5%) each view's own median height missed
+    every result kept in the memo: the evaluation and the uncertainty's backtest made each bench's trend
+    from the benches above again: nearly a third of a Kennecott build.
+    """
+    from core.geometry.grid import Grid, as_multipolygon
+    from core.model.extrapolation import bench_fields, depth_trend
+    from core.model.pipeline import GeozoneModel
+
+    grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
+    levels = [500.0, 490.0, 479.0, 470.0, 460.0]  # 10, 11, 9 and 10 m apart: the first three's median is 10.5
+    regions = {k: as_multipolygon(Point(70.0 + 8.0 * k, 80.0).buffer(30.0)) for k in range(len(levels))}
+    drilled = {k: np.ones(grid.shape, bool) for k in regions}
+    fields = bench_fields(regions, drilled, dict(enumerate(levels)), grid, 6.0, 18.0)
+    view = fields.through(479.0)
+    assert view.bench_height_m == fields.bench_height_m == 10.0
+    kept = depth_trend(view, fields.bench_height_m, 6.0)  # as the model's own backtests make it
+    memo = set(fields.memo)
+    predicted = predict_geozone(GeozoneModel("g", [], [], fields=view), [470.0], 6.0)[470.0]
+    assert set(fields.memo) == memo  # nothing made again
+    assert predicted.symmetric_difference(kept.region(470.0)).area < 1e-6
+    assert predicted.bounds[2] > 86.0 + 30.0 + 5.0  # the disc carried on 8 m over 11 m: 6.5 m in the 9 m below
+
+
 def _growing_disc_fields(radii_m):
     """Bench fields of a disc at the middle of the pit whose radius on bench ``k`` is ``radii_m[k]``."""
     sections = [Point(100.0, 80.0).buffer(r) for r in radii_m]

@@ -198,6 +198,9 @@ class BenchFields:
         :data:`SHALLOW_DIP_DEG`, as the benches chose it
         (:func:`with_backtested_dip`); None until then (a view of fewer
         benches, :meth:`through`, chooses again from its own).
+    height_m : float or None
+        The bench height of the benches this is a view of (:meth:`through`);
+        None: the median of its own (:attr:`bench_height_m`).
     """
 
     grid: Grid
@@ -208,6 +211,7 @@ class BenchFields:
     memo: dict = field(default_factory=dict, repr=False, compare=False)
     observed: np.ndarray | None = None
     min_dip_deg: float | None = None
+    height_m: float | None = None
 
     def measured(self) -> BenchFields:
         """The benches' signed distances as their holes showed them (``observed``), before :func:`assimilated`.
@@ -235,7 +239,14 @@ class BenchFields:
 
     @property
     def bench_height_m(self) -> float:
-        """The median height between successive benches (metres, positive in either order; 1 with one bench)."""
+        """The median height between successive benches (metres, positive in either order; 1 with one bench).
+
+        A view of the first benches (:meth:`through`) keeps the height of all of them: the results kept in
+        the memo are keyed by it, and on uneven benches (Kennecott's heights differ by up to 5%) each view's
+        own median missed them all, so a build made every bench's trend from the benches above twice.
+        """
+        if self.height_m is not None:
+            return self.height_m
         return float(np.median(np.abs(np.diff(self.z_m)))) if len(self.z_m) > 1 else 1.0
 
     @property
@@ -259,6 +270,7 @@ class BenchFields:
             drilled=self.drilled[:n],
             observed=observed,
             min_dip_deg=self.min_dip_deg if n == len(self.z_m) else None,
+            height_m=self.bench_height_m,
         )
 
     def reversed(self) -> BenchFields:
