@@ -10,6 +10,7 @@
 * a length in hole spacings over cells in hole spacings is the same whole number of
   cells whatever the spacing;
 * a polygon's cells are those scikit-image draws;
+* a point's distance to a region's boundary is GEOS's to the whole boundary, holes included;
 * reading: geozone labels merge exactly when they spell one number, columns
   are found whatever their case, spaces and order, two candidates for one
   role are refused, decimal commas and thousands separators read as numbers.
@@ -37,7 +38,7 @@ from core.correspondence.pair import correspond_pair, fft_translation
 from core.errors import BGMInputError
 from core.extraction.contours import extract_contours
 from core.geometry.grid import cells_covering
-from core.geometry.sdf import signed_distance
+from core.geometry.sdf import boundary_distance, signed_distance
 from core.io.blastholes import (
     COLUMN_ALIASES,
     BGMWarning,
@@ -135,6 +136,19 @@ def test_lengths_in_spacings_cover_the_same_cells_whatever_the_spacing(spacing_m
     whole = spacings / cell_spacings
     expected = math.ceil(round(whole, 6))
     assert cells_covering(spacings * spacing_m, cell_spacings * spacing_m) == expected
+
+
+@settings(max_examples=100, **SETTINGS)
+@given(
+    st.lists(blobs(), min_size=1, max_size=4), st.lists(blobs(r_min=2.0, r_max=8.0), max_size=2), st.integers(0, 999)
+)
+def test_a_points_distance_to_a_regions_boundary_is_the_distance_to_all_of_it(parts, holes, seed):
+    """:func:`boundary_distance` (nearest segments through a tree) equals ``shapely.distance`` to the whole boundary."""
+    region = shapely.union_all(parts).difference(shapely.union_all(holes))
+    assume(not region.is_empty)
+    xy = np.random.default_rng(seed).uniform(-60.0, 60.0, (500, 2))
+    expected = shapely.distance(region.boundary, shapely.points(xy))
+    assert np.array_equal(boundary_distance(region, xy[:, 0], xy[:, 1]), expected)
 
 
 @settings(max_examples=300, **SETTINGS)

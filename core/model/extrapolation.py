@@ -55,7 +55,7 @@ from shapely.geometry import MultiPolygon
 
 from core.correspondence.alignment import fft_translation, shift_mask
 from core.geometry.grid import Grid
-from core.geometry.sdf import smoothed_section
+from core.geometry.sdf import boundary_distance, smoothed_section
 
 #: Neighbourhood over which the boundary's movement is fitted by a displacement when the
 #: last section is carried along it (:meth:`DepthTrend.field`), in hole spacings, and the
@@ -409,7 +409,7 @@ def exact_near_boundary(distance: np.ndarray, region: MultiPolygon, drilled: np.
     if region.is_empty or not ring.any():
         return distance
     xy = grid.rc_to_xy(np.argwhere(ring))  # the ring's centres only: a full grid of centres per bench is waste
-    exact = shapely.distance(region.boundary, shapely.points(xy))
+    exact = boundary_distance(region, xy[:, 0], xy[:, 1])
     raster = distance[ring]
     out = distance.copy()
     out[ring] = np.where(exact <= np.abs(raster) + 0.5 * h, np.sign(raster) * np.maximum(exact, 1e-3 * h), raster)
