@@ -181,6 +181,25 @@ def test_implicit_rbf_where_benches_do_not_overlap_keeps_each_benchs_boundaries(
     assert np.mean((f.ravel()[sample] > 0)[away] == truth[away]) > 0.95
 
 
+def test_the_implicit_model_evaluated_only_where_it_is_scored_is_the_same_there(small_mine):
+    """The evaluation scores the implicit reference inside the next bench's drilled area and evaluates it only there."""
+    import shapely
+
+    from core.model.implicit import fit_implicit_rbf
+
+    _, holes, _, _ = small_mine
+    known = holes.bench <= 2
+    grid = ev.default_grid([holes.xy])
+    model = fit_implicit_rbf(holes.xy[known], holes.z[known], (holes.geozone == "g1")[known], bench=holes.bench[known])
+    z = float(holes.bench_levels_m[3])
+    scored = shapely.box(*holes.xy.min(axis=0), *holes.xy.mean(axis=0))  # a quarter of the pit
+    everywhere, there = model.region(z, grid), model.region(z, grid, where=scored)
+    assert everywhere.intersection(scored).area > 0.05 * scored.area  # the geozone is there to compare
+    assert everywhere.intersection(scored).symmetric_difference(there.intersection(scored)).area < 1e-6
+    cell_m = model.resolution_spacings * model.spacing_m  # it is evaluated on cells this size, two of them out
+    assert there.difference(scored.buffer(3.5 * cell_m)).is_empty
+
+
 def test_evaluate_geozone_with_truth(small_mine, tmp_path):
     _, holes, truth, contours = small_mine
     seen = []

@@ -14,10 +14,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 from scipy import ndimage
 from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
-from shapely.geometry import MultiPolygon
+from shapely.geometry import MultiPolygon, Polygon
 
 from core.geometry.grid import Grid
 from core.io.blastholes import detect_benches, median_hole_spacing
@@ -69,12 +70,15 @@ class ImplicitRBF:
     n_points: int = 0
     resolution_spacings: float = 1.0  #: evaluation cell size, in hole spacings
 
-    def field(self, z_m: float, grid: Grid) -> np.ndarray:
+    def field(self, z_m: float, grid: Grid, where: Polygon | MultiPolygon | None = None) -> np.ndarray:
         """The implicit function on ``grid`` at elevation ``z_m`` (positive inside).
 
         Evaluated on cells of ``resolution_spacings`` hole spacings (the data
         cannot resolve much finer, and the cost grows with the number of
-        cells) and interpolated bilinearly onto ``grid``.
+        cells) and interpolated bilinearly onto ``grid``. With ``where``, only
+        within two of those cells of it (the evaluation scores inside the next
+        bench's drilled area, a quarter of a Kennecott grid): the same values
+        there, ``-spacing_m`` (outside) further out.
         """
         if self.interpolator is None:
             return np.full(grid.shape, self.constant)
@@ -82,8 +86,13 @@ class ImplicitRBF:
         rows, cols = grid.shape
         coarse = Grid(grid.x0, grid.y0, grid.cell_size_m * step, ((rows - 1) // step + 2, (cols - 1) // step + 2))
         X, Y = coarse.cell_centres()
-        pts = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z_m * self.z_scale)])
-        values = self._at(pts).reshape(coarse.shape)
+        needed = np.ones(coarse.shape, bool)
+        if where is not None:
+            needed = shapely.contains_xy(shapely.buffer(where, 2 * coarse.cell_size_m), X, Y)
+        values = np.full(coarse.shape, -self.spacing_m)
+        if needed.any():
+            points = np.column_stack([X[needed], Y[needed], np.full(needed.sum(), z_m * self.z_scale)])
+            values[needed] = self._at(points).reshape(-1)
         if step == 1:
             return values[:rows, :cols]
         rr, cc = np.mgrid[0:rows, 0:cols] / step
@@ -106,8 +115,9 @@ class ImplicitRBF:
             self.interpolator = _without_depth_trend(self.interpolator)
             return self.interpolator(points)
 
-    def region(self, z_m: float, grid: Grid) -> MultiPolygon:
-        f = self.field(z_m, grid)
+    def region(self, z_m: float, grid: Grid, where: Polygon | MultiPolygon | None = None) -> MultiPolygon:
+        """The region ``field > 0`` (:meth:`field`; with ``where``, exact only within it)."""
+        f = self.field(z_m, grid, where)
         if not (f > 0).any():
             return MultiPolygon()
         return grid.polygons_from_field(f, 0.0)
