@@ -196,7 +196,8 @@ def test_the_implicit_model_evaluated_only_where_it_is_scored_is_the_same_there(
     everywhere, there = model.region(z, grid), model.region(z, grid, where=scored)
     assert everywhere.intersection(scored).area > 0.05 * scored.area  # the geozone is there to compare
     assert everywhere.intersection(scored).symmetric_difference(there.intersection(scored)).area < 1e-6
-    cell_m = model.resolution_spacings * model.spacing_m  # it is evaluated on cells this size, two of them out
+    # Evaluated on cells this size: two past `scored`, one more to interpolate, half a cell to trace the boundary.
+    cell_m = model.resolution_spacings * model.spacing_m
     assert there.difference(scored.buffer(3.5 * cell_m)).is_empty
 
 
