@@ -63,6 +63,8 @@ def boundary_distance(region: Polygon | MultiPolygon, xs: np.ndarray, ys: np.nda
     rings = shapely.get_parts(shapely.boundary(shapely.get_parts(region)))
     coords, ring = shapely.get_coordinates(rings, return_index=True)
     same = ring[:-1] == ring[1:]  # consecutive vertices of one ring
+    if not same.any():  # an empty region: no boundary, as far as GEOS is concerned (nan)
+        return np.full(len(xs), np.nan)
     segments = shapely.linestrings(np.stack([coords[:-1][same], coords[1:][same]], axis=1))
     (which, _), distance = shapely.STRtree(segments).query_nearest(
         shapely.points(xs, ys), return_distance=True, all_matches=False

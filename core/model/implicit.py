@@ -88,9 +88,11 @@ class ImplicitRBF:
         rows, cols = grid.shape
         coarse = Grid(grid.x0, grid.y0, grid.cell_size_m * step, ((rows - 1) // step + 2, (cols - 1) // step + 2))
         X, Y = coarse.cell_centres()
-        needed = np.ones(coarse.shape, bool)
-        if where is not None:
-            needed = shapely.contains_xy(shapely.buffer(where, 2 * coarse.cell_size_m), X, Y)
+        needed = (
+            np.ones(coarse.shape, bool)
+            if where is None
+            else shapely.contains_xy(where.buffer(2 * coarse.cell_size_m), X, Y)
+        )
         values = np.full(coarse.shape, -self.spacing_m)
         if needed.any():
             points = np.column_stack([X[needed], Y[needed], np.full(needed.sum(), z_m * self.z_scale)])

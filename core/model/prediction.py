@@ -22,6 +22,7 @@ import shapely
 from shapely.geometry import LinearRing, MultiPolygon, Polygon
 
 from core.geometry.grid import as_multipolygon
+from core.geometry.sdf import boundary_distance
 from core.model.extrapolation import DepthTrend, depth_trend
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.morph.trajectories import normalised_arc_length
@@ -54,7 +55,7 @@ def _translations_for(pair: BenchPair, step: MorphStep, points: np.ndarray) -> n
     if len(ids) == 1:
         return np.repeat(pair.correspondence.translations[ids[0]][None, :], len(points), axis=0)  # type: ignore[union-attr]  # set by correspond() before use
     aligned = [pair.aligned_source(i) for i in ids]
-    d = np.stack([shapely.distance(a.boundary, shapely.points(points)) for a in aligned])
+    d = np.stack([boundary_distance(a, points[:, 0], points[:, 1]) for a in aligned])
     return pair.correspondence.translations[np.array(ids)[np.argmin(d, axis=0)]]  # type: ignore[union-attr]  # set by correspond() before use
 
 
