@@ -11,6 +11,7 @@
   cells whatever the spacing;
 * a polygon's cells are those scikit-image draws;
 * a point's distance to a region's boundary is GEOS's to the whole boundary, holes included;
+* a Gaussian filtered over the box of an array's non-zero cells is the whole array's, to the bit;
 * reading: geozone labels merge exactly when they spell one number, columns
   are found whatever their case, spaces and order, two candidates for one
   role are refused, decimal commas and thousands separators read as numbers.
@@ -31,13 +32,14 @@ import shapely
 import trimesh
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
+from scipy import ndimage
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Polygon
 
 from core.correspondence.pair import correspond_pair, fft_translation
 from core.errors import BGMInputError
 from core.extraction.contours import extract_contours
-from core.geometry.grid import cells_covering
+from core.geometry.grid import cells_covering, local_gaussian_filter
 from core.geometry.sdf import boundary_distance, signed_distance
 from core.io.blastholes import (
     COLUMN_ALIASES,
@@ -149,6 +151,23 @@ def test_a_points_distance_to_a_regions_boundary_is_the_distance_to_all_of_it(pa
     xy = np.random.default_rng(seed).uniform(-60.0, 60.0, (500, 2))
     expected = shapely.distance(region.boundary, shapely.points(xy))
     assert np.array_equal(boundary_distance(region, xy[:, 0], xy[:, 1]), expected)
+
+
+@settings(max_examples=200, **SETTINGS)
+@given(
+    st.tuples(st.integers(1, 90), st.integers(1, 90)),
+    st.tuples(st.integers(0, 89), st.integers(0, 89), st.integers(1, 30), st.integers(1, 30)),
+    st.floats(0.3, 15.0),
+    st.integers(0, 999),
+)
+def test_a_gaussian_over_the_nonzero_box_is_the_whole_arrays(shape, box, sigma_cells, seed):
+    """:func:`local_gaussian_filter` filters only the non-zero box and the kernel's reach: the result must not change."""
+    values = np.zeros(shape)
+    r0, c0, h, w = box
+    block = values[r0 : r0 + h, c0 : c0 + w]  # clipped at the edges, where the reflection is the whole array's
+    rng = np.random.default_rng(seed)
+    block[...] = rng.normal(size=block.shape) * (rng.random(block.shape) < 0.7)
+    assert np.array_equal(local_gaussian_filter(values, sigma_cells), ndimage.gaussian_filter(values, sigma_cells))
 
 
 @settings(max_examples=300, **SETTINGS)

@@ -321,3 +321,25 @@ def as_multipolygon(geometry) -> MultiPolygon:
         elif hasattr(g, "geoms"):
             stack.extend(g.geoms)
     return MultiPolygon(parts)
+
+
+def local_gaussian_filter(values: np.ndarray, sigma_cells: float) -> np.ndarray:
+    """:func:`scipy.ndimage.gaussian_filter` (its default reflecting edges and reach) of a mostly-zero array.
+
+    Filtered only over the box of its non-zero cells and the kernel's reach
+    around it (``int(4 sigma + 0.5)`` cells): outside that box the filter is
+    zero, and inside it the box's margin of zeros reflects as the zeros beyond
+    it, so the result is the whole array's, to the bit. The extrapolation's
+    fits weigh only cells near a geozone's boundary, on a grid over every
+    hole of the table: on Kennecott the box is 0.4 of the grid on average.
+    """
+    values = np.asarray(values, float)
+    rows, cols = np.flatnonzero(values.any(axis=1)), np.flatnonzero(values.any(axis=0))
+    out = np.zeros_like(values)
+    if rows.size == 0:
+        return out
+    reach = int(4.0 * float(sigma_cells) + 0.5)
+    r0, r1 = max(rows[0] - reach, 0), min(rows[-1] + reach + 1, values.shape[0])
+    c0, c1 = max(cols[0] - reach, 0), min(cols[-1] + reach + 1, values.shape[1])
+    out[r0:r1, c0:c1] = ndimage.gaussian_filter(values[r0:r1, c0:c1], sigma_cells)
+    return out

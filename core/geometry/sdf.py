@@ -14,7 +14,7 @@ import shapely
 from scipy import ndimage
 from shapely.geometry import MultiPolygon, Polygon
 
-from core.geometry.grid import Grid
+from core.geometry.grid import Grid, local_gaussian_filter
 
 
 def signed_distance(mask: np.ndarray, cell_size_m: float = 1.0) -> np.ndarray:
@@ -170,12 +170,12 @@ def smoothed_sections(
     if not band.any():
         return [distance for _ in sigmas_m]
     along = along_m / cell_size_m
-    weight = np.maximum(ndimage.gaussian_filter(band.astype(float), along), 1e-9)
+    weight = np.maximum(local_gaussian_filter(band.astype(float), along), 1e-9)
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
     out = []
     for sigma_m in sigmas_m:
         change = ndimage.gaussian_filter(distance, sigma_m / cell_size_m, mode="nearest") - distance
-        shift = ndimage.gaussian_filter(np.where(band, change, 0.0), along) / weight
+        shift = local_gaussian_filter(np.where(band, change, 0.0), along) / weight
         fade = np.clip(2.0 - np.abs(distance) / sigma_m, 0.0, 1.0)
         out.append(distance + fade * np.clip(change - shift[r, c], -0.5 * sigma_m, 0.5 * sigma_m))
     return out

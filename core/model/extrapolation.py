@@ -54,7 +54,7 @@ from scipy import ndimage
 from shapely.geometry import MultiPolygon
 
 from core.correspondence.alignment import fft_translation, shift_mask
-from core.geometry.grid import Grid
+from core.geometry.grid import Grid, local_gaussian_filter
 from core.geometry.sdf import boundary_distance, smoothed_section
 
 #: Neighbourhood over which the boundary's movement is fitted by a displacement when the
@@ -1077,7 +1077,7 @@ def direction_classes(theta: np.ndarray, valid: np.ndarray, sigma_cells: float) 
     classes = []
     for k in range(TRANSPORT_DIRECTIONS):
         w = np.maximum(np.cos(theta - 2 * np.pi * k / TRANSPORT_DIRECTIONS), 0.0) ** 4 * valid
-        classes.append((w, np.maximum(ndimage.gaussian_filter(w, sigma_cells), 1e-3)))
+        classes.append((w, np.maximum(local_gaussian_filter(w, sigma_cells), 1e-3)))
     return classes
 
 
@@ -1091,7 +1091,7 @@ def flow_systems(
     """
     systems = []
     for w, weight in classes:
-        rr, rc, r1, c1 = (ndimage.gaussian_filter(w * x, sigma_cells) for x in (n_r * n_r, n_r * n_c, n_r, n_c))
+        rr, rc, r1, c1 = (local_gaussian_filter(w * x, sigma_cells) for x in (n_r * n_r, n_r * n_c, n_r, n_c))
         cc = weight - rr  # n_r^2 + n_c^2 = 1 where w > 0
         ridge = RIDGE_SHARE * weight + 1e-9
         systems.append(
@@ -1131,7 +1131,7 @@ def displacement_by_direction(
     """
     out_r, out_c, total = np.zeros_like(movement), np.zeros_like(movement), np.zeros_like(movement)
     for w, inverse in systems:
-        b = [ndimage.gaussian_filter(w * movement * x, sigma_cells) for x in (n_r, n_c, 1.0)]
+        b = [local_gaussian_filter(w * movement * x, sigma_cells) for x in (n_r, n_c, 1.0)]
         v_r, v_c, a = (row[0] * b[0] + row[1] * b[1] + row[2] * b[2] for row in inverse)
         out_r += w * (v_r + a * n_r)
         out_c += w * (v_c + a * n_c)
@@ -1167,8 +1167,8 @@ def sliding_bias(rate: np.ndarray, matched: np.ndarray, section: DepthTrend) -> 
     # The level sets' curvature, -div n (positive where the geozone is convex), averaged along the boundary.
     s_r, s_c, _ = unit_normals(ndimage.gaussian_filter(f_last, 1.0), cell_size_m)
     curvature = -(np.gradient(s_r, axis=0) + np.gradient(s_c, axis=1)) / cell_size_m
-    weight = ndimage.gaussian_filter(band.astype(float), sigma)
-    curvature = ndimage.gaussian_filter(np.where(band, curvature, 0.0), sigma) / np.maximum(weight, 1e-9)
+    weight = local_gaussian_filter(band.astype(float), sigma)
+    curvature = local_gaussian_filter(np.where(band, curvature, 0.0), sigma) / np.maximum(weight, 1e-9)
     bias = np.where(band, 0.5 * curvature * slide_m**2, 0.0)
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
     return np.where(matched, bias[r, c], 0.0)

@@ -58,7 +58,7 @@ from scipy import ndimage, special
 from shapely.geometry import MultiPolygon
 from skimage import measure
 
-from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.grid import Grid, as_multipolygon, local_gaussian_filter
 from core.geometry.sdf import region_signed_distance
 from core.model.extrapolation import BenchFields, DepthTrend, depth_trend, fastest_movement_m, last_observations
 from core.model.pipeline import GeozoneModel
@@ -246,8 +246,8 @@ def movement_inconsistency(fields: BenchFields, smoothing_m: float) -> np.ndarra
     fastest = FASTEST_MOVE_BENCHES * h
     w = seen * ((np.abs(d1) <= fastest) & (np.abs(d2) <= fastest))
     sigma = smoothing_m / fields.grid.cell_size_m
-    energy = ndimage.gaussian_filter(w * (d1 - d2) ** 2, sigma)
-    support = ndimage.gaussian_filter(w, sigma)
+    energy = local_gaussian_filter(w * (d1 - d2) ** 2, sigma)
+    support = local_gaussian_filter(w, sigma)
     return np.sqrt(np.where(support > 0.05, energy / np.maximum(support, 1e-9), 0.0))
 
 
