@@ -324,14 +324,15 @@ def as_multipolygon(geometry) -> MultiPolygon:
 
 
 def local_gaussian_filter(values: np.ndarray, sigma_cells: float) -> np.ndarray:
-    """:func:`scipy.ndimage.gaussian_filter` (its default reflecting edges and reach) of a mostly-zero array.
+    """:func:`scipy.ndimage.gaussian_filter` (its default reflecting edges and reach) of a mostly-zero 2-D array.
 
     Filtered only over the box of its non-zero cells and the kernel's reach
     around it (``int(4 sigma + 0.5)`` cells): outside that box the filter is
     zero, and inside it the box's margin of zeros reflects as the zeros beyond
-    it, so the result is the whole array's, to the bit. The extrapolation's
-    fits weigh only cells near a geozone's boundary, on a grid over every
-    hole of the table: on Kennecott the box is 0.4 of the grid on average.
+    it, so every value is the whole array's, to the bit (a zero may lose its
+    sign). The extrapolation's fits weigh only cells near a geozone's
+    boundary, on a grid over every hole of the table: on Kennecott the box is
+    0.4 of the grid on average.
     """
     values = np.asarray(values, float)
     rows, cols = np.flatnonzero(values.any(axis=1)), np.flatnonzero(values.any(axis=0))
