@@ -571,7 +571,7 @@ def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_m
 
 @pytest.mark.parametrize("seed", [6, 7])
 def test_with_three_benches_moves_that_agree_better_than_section_noise_are_carried(seed, monkeypatch):
-    """With three benches no backtest chooses: the agreement is read against section noise's (``SECTION_NOISE_AGREEMENT``).
+    """With three benches no backtest chooses: the agreement is read against section noise's (``THREE_BENCH_CHANCE``).
 
     Travelling waves whose two movements agree a little (read against 0, part
     of them was held): read against the -1/2 at which a still boundary's
@@ -583,29 +583,9 @@ def test_with_three_benches_moves_that_agree_better_than_section_noise_are_carri
     holes = _bench_table(sections)
     within = holes.drilled_area(2)
     predicted, nil, truth = _predict_next(holes, sections, 3)
-    monkeypatch.setattr(extrapolation, "SECTION_NOISE_AGREEMENT", 0.0)
+    monkeypatch.setattr(extrapolation, "THREE_BENCH_CHANCE", 0.0)
     against_zero, _, _ = _predict_next(holes, sections, 3)
     assert _f1(predicted, truth, within) > _f1(against_zero, truth, within) + 0.005 > _f1(nil, truth, within)
-
-
-@pytest.mark.parametrize("seed", [2, 13])
-def test_with_four_benches_one_bench_pairs_backtest_does_not_overrule_the_agreement(seed, monkeypatch):
-    """With four benches known one bench pair would backtest the ways: the agreement decides, as with three.
-
-    Travelling waves whose single backtest pair chose a way the next bench did
-    not bear out (seed 2: under holding the last bench): the agreement read
-    against section noise's (``BACKTEST_FROM_BENCHES``) predicts it better.
-    """
-    from core.model import extrapolation
-
-    sections = _travelling_waves(seed)
-    holes = _bench_table(sections)
-    within = holes.drilled_area(3)
-    predicted, nil, truth = _predict_next(holes, sections, 4)
-    monkeypatch.setattr(extrapolation, "BACKTEST_FROM_BENCHES", 4)
-    backtested, _, _ = _predict_next(holes, sections, 4)
-    model_f1 = _f1(predicted, truth, within)
-    assert model_f1 > max(_f1(backtested, truth, within) + 0.005, _f1(nil, truth, within)), model_f1
 
 
 @pytest.mark.parametrize("amplitude", [0.06, 0.12])

@@ -99,22 +99,14 @@ PERSISTENCE_BAND_CELLS = 2.0
 #: Kennecott 74.2 and 85.2 but a disc moving 6 m a bench through 6% shape noise carried as
 #: little as 0.42 of its translation (-0.6 to -0.8 F1 with 4-5 benches known).
 PERSISTENCE_STANDARD_ERRORS = 1.0
-#: With three or four benches known, where no backtest chooses how far to carry the movement
-#: (:func:`chosen_persistence`), the agreement of its last two moves read as none
+#: With three benches known, where no backtest chooses how far to carry the movement
+#: (:func:`chosen_persistence`), the agreement of its two moves read as none
 #: (:func:`geozone_persistence`): a still boundary's two moves share the middle bench's error with
 #: opposite signs, so section noise alone agrees at -1/2 (a reversing movement at -1). Read against 0
 #: (as the backtest's middle way is), the agreement held movements that went on: travelling waves,
 #: whose modes drift apart, agree near 0 and yet go on as they moved (development seeds 100-111 of
 #: ``bench_foreign.py``'s generator at 3-30 m a bench, three benches known: 5.5% less area wrong).
-SECTION_NOISE_AGREEMENT = -0.5
-#: Benches known from which their backtest chooses how far to carry the movement (:func:`chosen_persistence`):
-#: from the fifth, two bench pairs back the choice. With four, a single pair did, and took the agreement's
-#: place where it had measured worse (development seeds, F1 at half / one bench with four benches known:
-#: travelling waves at 3-30 m a bench, seeds 100-111, 81.65 / 62.99 -> 82.33 / 64.18 against the implicit
-#: model's 82.1 / 63.3; all their cases 82.4 / 66.0 -> 82.5 / 66.2, at 2-20 m 90.0 / 80.4 -> 90.0 / 80.5;
-#: the families, seeds 0-3, 96.42 / 95.06 -> 96.43 / 95.07; pods, seeds 4-19, 61.90 / 34.06 -> 62.02 /
-#: 34.14 against holding's 61.86 / 33.97; Kennecott 74.44 -> 74.38 on the withheld benches' holes).
-BACKTEST_FROM_BENCHES = 5
+THREE_BENCH_CHANCE = -0.5
 #: Degrees of freedom of an outline's movement (:func:`outline_movement`: growth, translation, elongation).
 OUTLINE_DEGREES = 5
 #: Signed distances are capped at this many hole spacings: a boundary far away
@@ -515,7 +507,7 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float, chance: floa
     carried on as far as its benches show it beyond chance; a steady one
     (``rho`` near 1) keeps it whatever ``N``. ``chance`` is the agreement read
     as none, ``clip(2 (rho_low - chance), 0, 1)``: 0, what two independent
-    draws agree, or :data:`SECTION_NOISE_AGREEMENT`, what a still boundary's
+    draws agree, or :data:`THREE_BENCH_CHANCE`, what a still boundary's
     section noise agrees, where the agreement alone decides
     (:func:`chosen_persistence`).
     The two parts are judged apart because they repeat apart: a strip's
@@ -1436,7 +1428,7 @@ def _pair_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spac
 
     Predicted the way :func:`_chosen_way` chose from those benches: with
     three, the agreement read against 0, as the ways' backtests read it, not
-    against :data:`SECTION_NOISE_AGREEMENT` as :func:`chosen_persistence` does.
+    against :data:`THREE_BENCH_CHANCE` as :func:`chosen_persistence` does.
     """
     way = _chosen_way(fields.through(float(fields.z_m[j])), bench_height_m, hole_spacing_m)
     _, confirmed, predicted = _ways_backtest(fields, j, bench_height_m, hole_spacing_m)[way]
@@ -1493,35 +1485,32 @@ def typical_body_cells(fields: BenchFields, counts: list[int] | None = None) -> 
 def chosen_persistence(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> tuple[float, float]:
     """The persistence of each part of the movement whose way of carrying it on best predicted the geozone's benches.
 
-    A backtest (issue 12): from the fifth bench on (:data:`BACKTEST_FROM_BENCHES`),
-    each bench ``j + 1`` from the fourth is predicted from the benches down to
-    ``j`` three ways (:func:`_ways_to_carry`: as far as their last two
-    movements agree, :func:`geozone_persistence`; all of it; none of it), and
-    the cells of its drilled area (drilled on ``j`` as well) each way put on
-    the wrong side are summed over the pairs. The way with the fewest is
-    taken, the agreement on a tie. The agreement of two movements is one
-    sample of how a geozone moves: travelling waves, whose modes drift apart,
-    change shape so that two moves agree little while each bench goes on as
-    the one above it moved; and a contact drifting at random is held though
-    its last two moves agreed by chance. With three or four benches the
-    agreement alone decides, read against section noise's
-    (:data:`SECTION_NOISE_AGREEMENT`): a single bench pair's backtest chose
-    by chance as often as not. The backtests still try the agreement read
-    against 0 as their middle way (read otherwise there, it tied with
-    carrying all of it and took the place of the agreement of more benches:
-    travelling waves with four benches known had 2.5% more area wrong).
+    A backtest (issue 12): from the fourth bench on, each bench ``j + 1`` is
+    predicted from the benches down to ``j`` three ways (:func:`_ways_to_carry`:
+    as far as their last two movements agree, :func:`geozone_persistence`;
+    all of it; none of it), and the cells of its drilled area (drilled on ``j``
+    as well) each way put on the wrong side are summed over the pairs. The
+    way with the fewest is taken, the agreement on a tie and with fewer than
+    four benches. The agreement of two movements is one sample of how a
+    geozone moves: travelling waves, whose modes drift apart, change shape so
+    that two moves agree little while each bench goes on as the one above it
+    moved; and a contact drifting at random is held though its last two moves
+    agreed by chance. With three benches the agreement alone decides, read
+    against section noise's (:data:`THREE_BENCH_CHANCE`); the backtests of
+    the benches below still try the agreement read against 0 as their middle
+    way (read otherwise there, it tied with carrying all of it and took the
+    place of the agreement of more benches: travelling waves with four benches
+    known had 2.5% more area wrong).
     """
-    if 3 <= len(fields.z_m) < BACKTEST_FROM_BENCHES:
-        return geozone_persistence(fields, hole_spacing_m, SECTION_NOISE_AGREEMENT)
+    if len(fields.z_m) == 3:
+        return geozone_persistence(fields, hole_spacing_m, THREE_BENCH_CHANCE)
     return _ways_to_carry(fields, hole_spacing_m)[_chosen_way(fields, bench_height_m, hole_spacing_m)]
 
 
 def _chosen_way(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> int:
     """Which of :func:`_ways_to_carry` the benches' backtest takes (0, the agreement, with fewer than four benches).
 
-    :func:`chosen_persistence` takes it from :data:`BACKTEST_FROM_BENCHES` benches; with three or four it
-    reads the agreement otherwise. The backtests of deeper views predict their benches this way
-    (:func:`_pair_backtest`, :func:`assimilated`).
+    :func:`chosen_persistence` takes it from the fourth bench; with three it reads the agreement otherwise.
     """
     n = len(fields.z_m)
     if n < 4:
