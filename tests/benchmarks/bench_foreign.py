@@ -1,6 +1,7 @@
 """Prediction on geology the synthetic families do not make: thresholded fields whose parts move apart with depth.
 
-    python tests/benchmarks/bench_foreign.py [--seeds 24] [--speed 1.0] [--noise 0.03] [--drift LO HI] [--workers 2]
+    python tests/benchmarks/bench_foreign.py [--seeds 24] [--speed 1.0] [--noise 0.03] [--drift LO HI | --faults]
+                                             [--workers 2]
 
 Every default of the engine was chosen on :mod:`core.synthetic.families`, whose
 geozones are built from layers, folds, lobes and lenses that move as wholes.
@@ -13,7 +14,10 @@ without any of them moving as a whole, as real alteration and lithology
 contacts do. With ``--drift LO HI`` the waves stand still and each geozone's
 whole pattern translates with depth instead, LO-HI metres per metre in a
 direction of its own: bodies of any shape dipping steadily, where linear
-extrapolation of the true sections is near exact. Holes on a staggered
+extrapolation of the true sections is near exact. With ``--faults`` the
+geology is two parallel layers dipping steadily and offset across a steep
+fault (:func:`faulted_layers`): sections that jog where the fault crosses a
+bench, the jog moving along the layers with depth. Holes on a staggered
 pattern (7 m, jittered 0.4 m), benches of 10 m, the pit narrowing 4 m a side
 per bench, ``--noise`` of the labels drawn at random. The protocol is :mod:`bench_prediction`'s (each bench with one below it
 is the deepest known; 5 and 10 m below it scored by area against the true
@@ -104,6 +108,43 @@ def foreign_mine(
     def g2(x, y, z):
         return np.minimum(waves2(x, y, z) - t2, -g1(x, y, z))
 
+    return drilled(rng, g1, g2, noise, spacing_m), {"g1": g1, "g2": g2}
+
+
+def faulted_layers(seed: int, speed: float, noise: float, spacing_m: float = 7.0):
+    """Two parallel layers dipping steadily, offset across a steep fault: the table and ``{geozone: f}``.
+
+    The layers are 15-35 m wide, 10-40 m apart, and move ``speed`` times 3-12 m
+    across their strike a 10 m bench; the fault strikes 45-135 degrees off
+    them, dips 60-85 degrees (its trace moves 1-6 m a bench) and throws them
+    15-40 m along their normal, so each bench's sections jog where it crosses.
+    """
+    rng = np.random.default_rng(seed)
+    strike = rng.uniform(0, np.pi)
+    normal = np.array([-np.sin(strike), np.cos(strike)])
+    rate = speed * rng.uniform(0.3, 1.2) * rng.choice([-1.0, 1.0])  # metres across the strike per metre of depth
+    fault_strike = strike + rng.uniform(np.pi / 4, 3 * np.pi / 4)
+    fault_normal = np.array([-np.sin(fault_strike), np.cos(fault_strike)])
+    fault_rate = rng.choice([-1.0, 1.0]) / np.tan(np.radians(rng.uniform(60.0, 85.0)))
+    throw = rng.uniform(15.0, 40.0) * rng.choice([-1.0, 1.0])
+    widths, gap, offset = rng.uniform(15.0, 35.0, 2), rng.uniform(10.0, 40.0), rng.uniform(-40.0, 40.0)
+    centre = SIDE_M / 2
+
+    def across(x, y, z):
+        side = np.sign((x - centre) * fault_normal[0] + (y - centre) * fault_normal[1] - fault_rate * z)
+        return (x - centre) * normal[0] + (y - centre) * normal[1] - rate * z - side * throw / 2 - offset
+
+    def g1(x, y, z):
+        return widths[0] / 2 - np.abs(across(x, y, z))
+
+    def g2(x, y, z):
+        return widths[1] / 2 - np.abs(across(x, y, z) - (widths[0] / 2 + gap + widths[1] / 2))
+
+    return drilled(rng, g1, g2, noise, spacing_m), {"g1": g1, "g2": g2}
+
+
+def drilled(rng: np.random.Generator, g1, g2, noise: float, spacing_m: float) -> pd.DataFrame:
+    """Holes of the narrowing pit labelled by ``g1`` and ``g2`` (positive inside), ``noise`` of them at random."""
     rows = []
     for b in range(BENCHES):
         inset = 4.0 * b
@@ -118,13 +159,13 @@ def foreign_mine(
     xyz[:, 2] += rng.uniform(-0.5, 0.5, len(xyz))
     table = pd.DataFrame({"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "geozone": label})
     table["hole_id"] = [f"H{i:06d}" for i in range(len(table))]
-    return table, {"g1": g1, "g2": g2}
+    return table
 
 
-def run_seed(job: tuple[int, float, float, tuple[float, float] | None]) -> pd.DataFrame:
-    """Evaluate one seed: ``(seed, speed, noise, drift)``."""
-    seed, speed, noise, drift = job
-    table, fields = foreign_mine(seed, speed, noise, drift=drift)
+def run_seed(job: tuple[int, float, float, tuple[float, float] | None, bool]) -> pd.DataFrame:
+    """Evaluate one seed: ``(seed, speed, noise, drift, faults)``."""
+    seed, speed, noise, drift, faults = job
+    table, fields = faulted_layers(seed, speed, noise) if faults else foreign_mine(seed, speed, noise, drift=drift)
     fine = Grid(0.0, 0.0, 1.0, (int(SIDE_M) + 1, int(SIDE_M) + 1))
     X, Y = fine.cell_centres()
     with warnings.catch_warnings():
@@ -180,15 +221,23 @@ def main() -> None:
         metavar=("LO", "HI"),
         help="Waves stand still; each geozone's pattern moves LO-HI m per m of depth (e.g. 0.3 1.2).",
     )
+    parser.add_argument(
+        "--faults",
+        action="store_true",
+        help="Two dipping layers offset across a steep fault instead of waves (--speed scales their movement).",
+    )
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
+    if args.faults and args.drift:
+        parser.error("--faults and --drift are two different geologies: choose one")
     start = time.perf_counter()
     drift = tuple(args.drift) if args.drift else None
-    jobs = [(s, args.speed, args.noise, drift) for s in range(args.seeds)]
+    jobs = [(s, args.speed, args.noise, drift, args.faults) for s in range(args.seeds)]
     with multiprocessing.get_context("fork").Pool(args.workers) as pool:
         df = pd.concat(pool.map(run_seed, jobs), ignore_index=True)
     movement = f"drift {drift[0]:g}-{drift[1]:g} m per m of depth" if drift else f"speed {args.speed}"
-    print(f"Foreign geology: {args.seeds} seeds, {movement}, label noise {args.noise:.0%}")
+    geology = "faulted layers" if args.faults else "waves"
+    print(f"Foreign geology ({geology}): {args.seeds} seeds, {movement}, label noise {args.noise:.0%}")
     print_table(df)
     print(f"\nWall time {time.perf_counter() - start:.0f} s on {args.workers} processes")
 
