@@ -521,6 +521,20 @@ def test_a_strip_moving_further_than_its_half_width_is_carried_whole(monkeypatch
     assert carried > added + 0.05 and carried_area < added_area, (carried, added, carried_area, added_area)
 
 
+@pytest.mark.parametrize("width_m, step_m", [(18.0, 12.0), (12.0, 9.0)])
+def test_a_strip_moving_further_than_its_half_width_leaves_nothing_on_its_old_spine(width_m, step_m):
+    # Both sides of the strip move past its spine: the ridge of its signed distance, which has no normal to
+    # be transported along, must go with them (it stayed as a chain of islands, 130 and 194 m2 here).
+    sections = [_strip(step_m * k, width=width_m) for k in range(5)]
+    holes = _bench_table(sections)
+    predicted, _, _ = _predict_next(holes, sections, 3)
+    local = -np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) + [650_000, 7_400_000]
+    spine = shapely.affinity.translate(_strip(step_m * 2, width=4.0), *local).intersection(
+        holes.drilled_area(2).buffer(-12.0)
+    )
+    assert predicted.intersection(spine).area < 0.01 * spine.area, predicted.intersection(spine).area
+
+
 def _travelling_waves(seed, benches=7):
     """Sections of three plane waves of 70-160 m moving 3-10 m a bench each (thresholded): shapes that keep changing."""
     from core.geometry.grid import Grid
