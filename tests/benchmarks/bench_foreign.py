@@ -1,4 +1,4 @@
-"""Prediction on geology the synthetic families do not make: thresholded fields whose parts move apart with depth.
+"""Prediction on geology the synthetic families do not make: travelling waves, drifting bodies, faulted layers.
 
     python tests/benchmarks/bench_foreign.py [--seeds 24] [--speed 1.0] [--noise 0.03] [--drift LO HI | --faults]
                                              [--workers 2]
