@@ -550,7 +550,7 @@ def evaluate(
     truth = load_truth(input, holes)
     session = _session(holes, None, [geozone], "evaluate", no_cache)
     start = time.perf_counter()
-    contours = session.contours()
+    contours = session.geozone_contours(geozone)
     model = session.geozone_model(geozone, contours=contours)
     predictor = predictor_from_model(model, holes, session.params)
     rows = evaluate_geozone(holes, geozone, predictor, truth=truth, contours=contours)

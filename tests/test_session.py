@@ -66,6 +66,30 @@ def test_a_second_run_on_the_same_input_is_read_from_disk(holes, tmp_path):
     assert _translations(fresh) == _translations(model)
 
 
+def test_one_geozones_model_traces_its_own_contours_alone_and_the_same_ones(holes, tmp_path, monkeypatch):
+    """``bgm predict`` of one geozone extracted every geozone's contours first (Kennecott: 11 s of 15)."""
+    import core.model.session as session_module
+
+    traced = []
+    extract = session_module.extract_bench
+
+    def spy(holes_, bench, geozones=None, *args, **kwargs):
+        traced.append(None if geozones is None else list(geozones))
+        return extract(holes_, bench, geozones, *args, **kwargs)
+
+    monkeypatch.setattr(session_module, "extract_bench", spy)
+    alone = _session(holes, tmp_path / "alone").geozone_model("g1")
+    assert traced == [["g1"]] * holes.n_benches
+    whole = _session(holes, tmp_path / "whole")
+    every = [c for c in whole.contours() if c.geozone == "g1"]
+    own = alone.contours + alone.minor
+    assert sorted(c.polygon.wkb for c in own) == sorted(c.polygon.wkb for c in every)
+    # Once a bench's contours are all stored, a geozone's are read from them, not traced again.
+    traced.clear()
+    assert [c.polygon.wkb for c in whole.geozone_contours("g1")] == [c.polygon.wkb for c in every]
+    assert traced == []
+
+
 def test_the_uncertainty_of_a_prediction_is_read_back_and_follows_the_parameters(holes, tmp_path):
     """A repeated ``bgm predict`` reads its bands back; its calibration may pool every geozone's contours."""
     from core.model.uncertainty import geozone_uncertainty

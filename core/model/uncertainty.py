@@ -685,7 +685,7 @@ def session_backtest(session, geozone: str, down: bool = True, model: GeozoneMod
     if model is not None and model.fields is not None:
         fields = model.fields
     else:
-        own = [c for c in session.contours() if c.geozone == geozone]
+        own = session.geozone_contours(geozone)
         fields = session.bench_fields(geozone, own)
     spacing = float(session.holes.hole_spacing_m)
     key = content_key("backtest", engine_fingerprint(), fields.z_m, fields.distance, fields.drilled, spacing, down)

@@ -1,8 +1,9 @@
-"""Benchmark of `bgm build`: time and peak memory on the demo and the Kennecott file.
+"""Benchmark of `bgm build` and of one geozone's `bgm predict`: time and peak memory on the demo and Kennecott.
 
     python tests/benchmarks/bench_build.py
 
-Target: the whole Kennecott build under 60 s and 2 GB on 2 cores.
+Target: the whole Kennecott build under 60 s and 2 GB on 2 cores. A single
+geozone's prediction, on a fresh cache, traces only that geozone's contours.
 """
 
 from __future__ import annotations
@@ -34,9 +35,23 @@ def bench(name: str, path: Path) -> None:
             )
 
 
+def bench_predict(name: str, path: Path, geozone: str, elevations: str) -> None:
+    """One geozone's ``bgm predict`` on a fresh stage cache (what a script calling it per geozone pays)."""
+    with tempfile.TemporaryDirectory() as out, tempfile.TemporaryDirectory() as cache:
+        os.environ["BGM_CACHE_DIR"] = cache
+        args = ["predict", str(path), "--geozone", geozone, "--elevations", elevations, "--out", f"{out}/p.geojson"]
+        r = run_measured([*BGM, *args])
+        status = "ok" if r["returncode"] == 0 else f"FAILED ({r['returncode']}): {r['stderr'][-300:]}"
+        print(
+            f"{name}: bgm predict --geozone {geozone} {r['seconds']:.1f} s, peak memory {r['peak_gb']:.2f} GB - {status}"
+        )
+
+
 if __name__ == "__main__":
     bench("demo", ROOT / "assets" / "demo_blastholes.csv")
+    bench_predict("demo", ROOT / "assets" / "demo_blastholes.csv", "g1", "620,615")
     if KENNECOTT.exists():
         bench("kennecott", KENNECOTT)
+        bench_predict("kennecott", KENNECOTT, "3310", "243,218")
     else:
         print(f"Kennecott data not found at {KENNECOTT}; skipped")
