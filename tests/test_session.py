@@ -84,6 +84,12 @@ def test_one_geozones_model_traces_its_own_contours_alone_and_the_same_ones(hole
     every = [c for c in whole.contours() if c.geozone == "g1"]
     own = alone.contours + alone.minor
     assert sorted(c.polygon.wkb for c in own) == sorted(c.polygon.wkb for c in every)
+    # Several geozones are traced together, each bench's evidence once; those already traced are not again.
+    traced.clear()
+    others = [g for g in holes.geozones if g != "g1"]
+    both = _session(holes, tmp_path / "alone").contours_of(["g1", *others])
+    assert traced == [others] * holes.n_benches
+    assert sorted(c.polygon.wkb for c in both["g1"]) == sorted(c.polygon.wkb for c in every)
     # Once a bench's contours are all stored, a geozone's are read from them, not traced again.
     traced.clear()
     assert [c.polygon.wkb for c in whole.geozone_contours("g1")] == [c.polygon.wkb for c in every]

@@ -355,6 +355,7 @@ def plan_sampling(
         candidates_m = next_bench_candidates(session.holes)
     if sections is None:
         sections = {}
+        session.contours_of(list(geozones))  # traced together: each bench's evidence once for all of them
         for g in geozones:
             section = geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
             if section is not None:

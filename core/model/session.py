@@ -25,7 +25,6 @@ import threading
 from collections import Counter, OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from functools import partial
 from typing import cast
 
 import numpy as np
@@ -229,22 +228,37 @@ class ModelSession:
         return self.store.get("contours", key, lambda: extract_bench(self.holes, bench, None, self.params.extraction))
 
     def geozone_contours(self, geozone: str) -> list[Contour]:
-        """Contours of one geozone on every bench, in bench order.
+        """Contours of one geozone on every bench, in bench order (see :meth:`contours_of`)."""
+        return self.contours_of([geozone])[geozone]
+
+    def contours_of(self, geozones: list[str]) -> dict[str, list[Contour]]:
+        """Contours of the given geozones on every bench, in bench order, by geozone.
 
         A geozone's contours depend on the others' only through the bench's
         evidence, so a bench whose contours are not stored yet is traced for
-        this geozone alone (a Kennecott ``bgm predict`` extracted all thirteen
-        geozones for one: 11 of its 15 s); stored whole, they are filtered.
+        these geozones alone, on one evidence (a Kennecott ``bgm predict``
+        extracted all thirteen geozones for one: 11 of its 15 s); stored whole,
+        they are filtered.
         """
-        out: list[Contour] = []
+        out: dict[str, list[Contour]] = {g: [] for g in geozones}
         for k in range(self.holes.n_benches):
             key = self._contours_key(k)
             every = self.store.peek("contours", key)
-            if every is MISSING:
-                extract = partial(extract_bench, self.holes, k, [geozone], self.params.extraction)
-                out.extend(self.store.get("contours", content_key(key, geozone), extract))
-            else:
-                out.extend(c for c in cast(list, every) if c.geozone == geozone)
+            if every is not MISSING:
+                for c in cast(list, every):
+                    if c.geozone in out:
+                        out[c.geozone].append(c)
+                continue
+            own = {g: self.store.peek("contours", content_key(key, g)) for g in geozones}
+            missing = [g for g, found in own.items() if found is MISSING]
+            if missing:
+                traced = extract_bench(self.holes, k, missing, self.params.extraction)
+                self.store.counts["contours", "computed"] += 1
+                for g in missing:
+                    own[g] = [c for c in traced if c.geozone == g]
+                    self.store.put("contours", content_key(key, g), own[g])
+            for g in geozones:
+                out[g].extend(cast(list, own[g]))
         return out
 
     def bench_contours_with_fields(self, bench: int, geozone: str) -> list[Contour]:

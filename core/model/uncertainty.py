@@ -693,6 +693,7 @@ def session_backtest(session, geozone: str, down: bool = True, model: GeozoneMod
 
 
 def _backtests(session, geozones: list[str], down: bool) -> list[Backtest]:
+    session.contours_of(geozones)  # traced together: each bench's evidence once for all of them
     return [session_backtest(session, g, down) for g in geozones]
 
 
