@@ -23,15 +23,19 @@ KENNECOTT = Path(
 BGM = [sys.executable, "-c", "from core.cli import main; main()"]
 
 
+def _status(r: dict) -> str:
+    return "ok" if r["returncode"] == 0 else f"FAILED ({r['returncode']}): {r['stderr'][-300:]}"
+
+
 def bench(name: str, path: Path) -> None:
     # A fresh stage cache (core.io.cache): the first build computes everything, the second reuses it.
     with tempfile.TemporaryDirectory() as out, tempfile.TemporaryDirectory() as cache:
         os.environ["BGM_CACHE_DIR"] = cache
         for run in ("", ", again on its cache"):
             r = run_measured([*BGM, "build", str(path), "--out", out])
-            status = "ok" if r["returncode"] == 0 else f"FAILED ({r['returncode']}): {r['stderr'][-300:]}"
             print(
-                f"{name}: bgm build{run} {r['seconds']:.1f} s, peak memory {r['peak_gb']:.2f} GB (all processes) - {status}"
+                f"{name}: bgm build{run} {r['seconds']:.1f} s, peak memory {r['peak_gb']:.2f} GB (all processes)"
+                f" - {_status(r)}"
             )
 
 
@@ -41,9 +45,8 @@ def bench_predict(name: str, path: Path, geozone: str, elevations: str) -> None:
         os.environ["BGM_CACHE_DIR"] = cache
         args = ["predict", str(path), "--geozone", geozone, "--elevations", elevations, "--out", f"{out}/p.geojson"]
         r = run_measured([*BGM, *args])
-        status = "ok" if r["returncode"] == 0 else f"FAILED ({r['returncode']}): {r['stderr'][-300:]}"
         print(
-            f"{name}: bgm predict --geozone {geozone} {r['seconds']:.1f} s, peak memory {r['peak_gb']:.2f} GB - {status}"
+            f"{name}: bgm predict --geozone {geozone} {r['seconds']:.1f} s, peak {r['peak_gb']:.2f} GB - {_status(r)}"
         )
 
 
