@@ -88,6 +88,11 @@ def _bench_table(sections, spacing=6.0, extent=(200.0, 160.0), isolated=None, na
     return blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
 
 
+def _design_to_local(holes) -> np.ndarray:
+    """The translation from :func:`_bench_table`'s design coordinates (its sections') to the holes' local frame."""
+    return np.array([650_000.0, 7_400_000.0]) - np.asarray(holes.frame.to_input(np.zeros((1, 2)))[0])
+
+
 def _strip(offset, width=24.0, angle_deg=30.0):
     u = np.array([np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))])
     n = np.array([-u[1], u[0]])
@@ -103,9 +108,7 @@ def _predict_next(holes, sections, known_benches, model=None):
     if model is None:
         model = model_geozone(holes.subset(holes.bench < known_benches), "a")
     z = float(holes.bench_levels_m[known_benches - 1]) - 10.0
-    local = shapely.affinity.translate(
-        sections[known_benches], *(-np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) + [650_000, 7_400_000])
-    )
+    local = shapely.affinity.translate(sections[known_benches], *_design_to_local(holes))
     return predict_geozone(model, [z], holes.hole_spacing_m)[z], model.region_at_bench(known_benches - 1), local
 
 
@@ -142,7 +145,7 @@ def test_the_benches_above_place_a_bench_boundary_nearer_the_truth_with_no_hole_
     holes = _bench_table(sections)
     fields = model_geozone(holes, "a").fields
     assert fields.observed is not None
-    origin = -np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) + [650_000, 7_400_000]
+    origin = _design_to_local(holes)
     wrong = {"drawn": 0, "observed": 0}
     for j in range(2, len(fields.z_m)):
         truth = fields.grid.rasterize(shapely.affinity.translate(sections[j], *origin))
@@ -203,8 +206,7 @@ def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carrie
     lens = Point(20.0, 130.0).buffer(18.0)
     sections = [_contact(20.0 * k).union(lens) for k in range(5)]
     holes = _bench_table(sections)
-    origin = np.asarray(holes.frame.to_input(np.zeros((1, 2)))[0]) - [650_000, 7_400_000]
-    near_lens = shapely.affinity.translate(lens, *-origin).buffer(12.0)
+    near_lens = shapely.affinity.translate(lens, *_design_to_local(holes)).buffer(12.0)
     contact_area = holes.drilled_area(3).buffer(-12.0).difference(near_lens)
 
     def distances():
@@ -496,8 +498,8 @@ def test_a_geozone_that_pinched_out_is_predicted_absent_and_isolated_holes_grow_
     z = float(holes.bench_levels_m[-1]) - 10.0
     predicted = predict_geozone(model, [z], holes.hole_spacing_m)[z]
     # Nothing where the body was, and out there no further from the holes' own patch than it is wide.
-    origin = np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) - [650_000, 7_400_000]
-    assert predicted.intersection(shapely.affinity.translate(P(100, 80).buffer(40), *-origin)).is_empty
+    away = shapely.affinity.translate(P(100, 80).buffer(40), *_design_to_local(holes))
+    assert predicted.intersection(away).is_empty
     patch = min(holes.drilled_area(4).geoms, key=lambda g: g.area)
     assert predicted.within(patch.buffer(np.sqrt(patch.area / np.pi) + 1.0)), predicted.bounds
 
@@ -528,8 +530,7 @@ def test_a_strip_moving_further_than_its_half_width_leaves_nothing_on_its_old_sp
     sections = [_strip(step_m * k, width=width_m) for k in range(5)]
     holes = _bench_table(sections)
     predicted, _, _ = _predict_next(holes, sections, 3)
-    local = -np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) + [650_000, 7_400_000]
-    spine = shapely.affinity.translate(_strip(step_m * 2, width=4.0), *local).intersection(
+    spine = shapely.affinity.translate(_strip(step_m * 2, width=4.0), *_design_to_local(holes)).intersection(
         holes.drilled_area(2).buffer(-12.0)
     )
     assert predicted.intersection(spine).area < 0.01 * spine.area, predicted.intersection(spine).area
@@ -891,15 +892,15 @@ def test_a_strip_crossing_the_edge_of_the_drilling_goes_on_past_it():
     contours = extract_contours(holes)
     fields = {g: geozone_fields(holes, [c for c in contours if c.geozone == g], 10.0) for g in ("a", "host")}
     grid = fields["a"].grid
-    offset = np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) - [650_000, 7_400_000]
+    offset = _design_to_local(holes)
 
     def inside(geozone, x, y):
-        return grid.sample(fields[geozone].distance[0], np.array([[x, y]]) - offset)[0] > 0
+        return grid.sample(fields[geozone].distance[0], np.array([[x, y]]) + offset)[0] > 0
 
     for y in (162.0, 170.0, 178.0):  # 6-22 m past the last row
         assert inside("a", 90.0, y) and not inside("host", 90.0, y), y
         assert inside("host", 40.0, y) and inside("host", 140.0, y) and not inside("a", 40.0, y), y
-    past = (fields["a"].weight[0] < 0.5) & (grid.cell_centres()[1] + offset[1] > 160.0)
+    past = (fields["a"].weight[0] < 0.5) & (grid.cell_centres()[1] - offset[1] > 160.0)
     claimed = (fields["a"].distance[0] > 0).astype(int) + (fields["host"].distance[0] > 0)
     assert np.mean(claimed[past] == 1) > 0.95, np.mean(claimed[past] == 1)
 
@@ -979,10 +980,10 @@ def test_a_lens_cut_by_the_edge_of_the_drilling_goes_past_it_no_further_than_the
     holes = _bench_table([lenses, lenses])  # holes at y 0-156, the last lens across the last row
     contours = [c for c in extract_contours(holes) if c.geozone == "a"]
     fields = geozone_fields(holes, contours, 10.0)
-    offset = np.array(holes.frame.to_input(np.zeros((1, 2)))[0]) - [650_000, 7_400_000]
+    offset = _design_to_local(holes)
 
     def inside(y: float) -> bool:
-        return fields.grid.sample(fields.distance[-1], np.array([[70.0, y]]) - offset)[0] > 0
+        return fields.grid.sample(fields.distance[-1], np.array([[70.0, y]]) + offset)[0] > 0
 
     assert inside(158.0) and inside(163.0)  # the lens itself, past the last row at 156
     assert not inside(187.0)  # 31 m past the last row

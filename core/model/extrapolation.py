@@ -1012,8 +1012,7 @@ class DepthTrend:
             receding = directed & (across < 0)
             field = np.where(receding, np.minimum(field, self.f_last + across), field)
             # A body's ridge moves as its sides' slower movement: a strip carried past its half-width leaves it.
-            sides = ndimage.minimum_filter(np.where(directed, across, np.inf), size=2 * int(RIDGE_REACH_CELLS) + 1)
-            field = np.where(self._ridge, self.f_last + sides, field)
+            field[self._ridge] = self.f_last[self._ridge] + ridge_sides(np.where(directed, across, np.inf), self._ridge)
         field = np.where(self._ended(z_m), np.minimum(field, self.f_deepest), field)
         return self._evidenced(field)
 
@@ -1094,6 +1093,20 @@ class DepthTrend:
             _sigma_cells=self._sigma_cells, _normals=self._normals, _flow_systems=self._flow_systems, _ridge=self._ridge
         )
         return other
+
+
+def ridge_sides(across: np.ndarray, ridge: np.ndarray) -> np.ndarray:
+    """At each ``ridge`` cell, the least of ``across`` within :data:`RIDGE_REACH_CELLS` (a square window).
+
+    :func:`scipy.ndimage.minimum_filter`'s value (its reflecting edges), taken only at the ridge's cells: a
+    ridge is a line a cell or two wide, and the filter over the whole grid ran at every elevation of every
+    prediction and backtest.
+    """
+    reach = int(RIDGE_REACH_CELLS)
+    padded = np.pad(across, reach, mode="symmetric")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, (2 * reach + 1, 2 * reach + 1))
+    rows, cols = np.nonzero(ridge)
+    return windows[rows, cols].min(axis=(1, 2))
 
 
 def direction_classes(theta: np.ndarray, valid: np.ndarray, sigma_cells: float) -> list[tuple[np.ndarray, np.ndarray]]:
