@@ -280,6 +280,34 @@ def test_a_prediction_from_the_first_benches_of_uneven_height_reuses_what_the_mo
     assert predicted.bounds[2] > 86.0 + 30.0 + 5.0  # the disc carried on 8 m over 11 m: 6.5 m in the 9 m below
 
 
+def test_the_trends_of_one_section_share_its_transport_and_move_it_as_their_own(monkeypatch):
+    """The dips and ways a geozone's benches are backtested with start from the same last section, one after another.
+
+    What the transport makes of a section (its normals and the fits of each direction class) is made once for
+    them all, and a trend sharing it predicts what one making its own does.
+    """
+    import core.model.extrapolation as extrapolation
+
+    made = []
+    flow_systems = extrapolation.flow_systems
+
+    def counted(n_r, n_c, classes, sigma_cells):
+        made.append(n_r.tobytes() + n_c.tobytes())
+        return flow_systems(n_r, n_c, classes, sigma_cells)
+
+    monkeypatch.setattr(extrapolation, "flow_systems", counted)
+    sections = [Point(60.0 + 8.0 * k, 80.0).buffer(30.0 + 2.0 * k) for k in range(4)]
+    fields = _section_fields(sections, [shapely.box(0, 0, 200, 160)] * 4)
+    shared = extrapolation.depth_trend(fields, 10.0, 6.0).field(465.0)
+    sections_made = len(made)
+    assert sections_made >= 3 and len(set(made)) == sections_made  # every prefix's section, each made once
+    monkeypatch.setattr(extrapolation, "TRANSPORTS_KEPT", 0)
+    own = extrapolation.depth_trend(_section_fields(sections, [shapely.box(0, 0, 200, 160)] * 4), 10.0, 6.0)
+    np.testing.assert_array_equal(own.field(465.0), shared)
+    assert len(set(made)) == sections_made  # the same sections
+    assert len(made) - sections_made > sections_made  # unshared, made again for the dips and ways
+
+
 def _growing_disc_fields(radii_m):
     """Bench fields of a disc at the middle of the pit whose radius on bench ``k`` is ``radii_m[k]``."""
     sections = [Point(100.0, 80.0).buffer(r) for r in radii_m]
