@@ -1462,7 +1462,7 @@ def _with_shared_transport(fields: BenchFields, section: DepthTrend) -> DepthTre
     dozen grids), keyed by the section itself.
     """
     kept = fields.memo.setdefault(_TRANSPORTS, OrderedDict())
-    f_last = np.ascontiguousarray(section.f_last)
+    f_last = section.f_last  # its bytes in C order, whatever its layout
     key = (
         f_last.shape,
         section.grid.cell_size_m,
