@@ -225,9 +225,11 @@ def compute(
     yield from _selected_fields(run)
     t0 = time.perf_counter()
     others = [b for b in range(n) if b not in pair_benches]
-    for i, b in enumerate(others, start=1):
-        run.res.contours[b] = run.step(f"contours of bench {b}", functools.partial(run.session.bench_contours, b))
+    # Several benches are traced at once; each is shown as it comes, and a cancelled run stops between them.
+    for i, (b, contours) in enumerate(run.session.traced_contours(others), start=1):
+        run.res.contours[b] = contours
         yield f"contours of bench {b}", 0.5 + 0.3 * i / len(others), run.snapshot()
+        run.check()
     run.res.timings["extraction (all)"] = time.perf_counter() - t0 + run.res.timings["extraction (pair)"]
     if last >= STEPS.index("prediction"):
         yield from _geozone_steps(run, last)

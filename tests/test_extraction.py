@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 import shapely
@@ -347,3 +350,40 @@ def test_keep_fields_returns_what_the_viewer_draws():
     # The first snake is the bounding box of the edge structure, the last the contour.
     first = shapely.Polygon(f.snake_history_m[0])
     assert first.contains(c.polygon.buffer(-1.0))
+
+
+def test_benches_traced_on_threads_are_the_benches_traced_one_by_one():
+    """Benches are traced several at once (the heavy steps release the GIL): each once, nothing changed."""
+    from core.extraction.contours import traced_benches
+
+    _, _, holes = synthetic(3)
+    benches = list(range(holes.n_benches))
+    one_by_one = {k: extract_bench(holes, k) for k in benches}
+    traced = list(traced_benches(holes, benches, threads=3))
+    assert sorted(k for k, _ in traced) == benches
+    for k, contours in traced:
+        assert [(c.geozone, c.component, c.polygon.wkb) for c in contours] == [
+            (c.geozone, c.component, c.polygon.wkb) for c in one_by_one[k]
+        ]
+    # extract_contours traces on threads too, and gives the contours in bench order whatever order they finish in
+    assert [(c.bench, c.polygon.wkb) for c in extract_contours(holes, ["g1"])] == [
+        (c.bench, c.polygon.wkb) for k in benches for c in one_by_one[k] if c.geozone == "g1"
+    ]
+
+
+def test_a_fresh_process_traces_benches_on_threads():
+    """Modules loaded on first use (scikit-image's) were imported by two threads at once and failed half-made."""
+    import subprocess
+    import sys
+
+    code = (
+        "from conftest import synthetic\n"
+        "from core.extraction.contours import traced_benches\n"
+        "_, _, holes = synthetic(5)\n"
+        "print(len(list(traced_benches(holes, range(holes.n_benches), threads=4))))\n"
+    )
+    tests = Path(__file__).resolve().parent
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tests), str(tests.parent)])}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert int(done.stdout.split()[-1]) > 1

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
+from skimage.morphology import disk
 
 from core.geometry.grid import Grid, cells_covering
 
@@ -135,12 +136,10 @@ def drilled_mask(distance_to_hole_m: np.ndarray, hole_spacing_m: float, cell_siz
     spacings around the holes, gaps of a spacing closed): sampling stopped
     half a spacing or so past the outermost holes.
     """
-    from skimage import morphology
-
     near = distance_to_hole_m <= 0.75 * hole_spacing_m
     radius = max(int(round(hole_spacing_m / cell_size_m)), 1)
     padded = np.pad(near, radius)
-    closed = ndimage.binary_closing(padded, morphology.disk(radius))
+    closed = ndimage.binary_closing(padded, disk(radius))
     return closed[radius:-radius, radius:-radius] | near
 
 

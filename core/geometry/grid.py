@@ -18,7 +18,7 @@ import numpy as np
 import shapely
 from scipy import ndimage
 from shapely.geometry import MultiPolygon, Polygon
-from skimage import measure
+from skimage.measure import find_contours
 
 
 def cells_covering(length_m: float, cell_size_m: float) -> int:
@@ -210,7 +210,7 @@ def _level_rings(field: np.ndarray, level: float) -> list[np.ndarray]:
     """Closed rings (row, col) of ``field`` at ``level`` by marching squares, padded so every ring closes."""
     low = min(float(np.nanmin(field)), level) - 1.0
     padded = np.pad(field, 1, constant_values=low)
-    return [ring - 1.0 for ring in measure.find_contours(padded, level) if len(ring) >= 4]
+    return [ring - 1.0 for ring in find_contours(padded, level) if len(ring) >= 4]
 
 
 def _densified(ring: np.ndarray, points_per_chord: int) -> np.ndarray:

@@ -23,14 +23,14 @@ from __future__ import annotations
 
 import threading
 from collections import Counter, OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import cast
 
 import numpy as np
 import shapely
 
-from core.extraction.contours import Contour, extract_bench
+from core.extraction.contours import Contour, extract_bench, traced_benches
 from core.geometry.grid import as_multipolygon
 from core.io.blastholes import Blastholes
 from core.io.cache import MISSING, StageCache, content_key, engine_fingerprint
@@ -237,29 +237,46 @@ class ModelSession:
         A geozone's contours depend on the others' only through the bench's
         evidence, so a bench whose contours are not stored yet is traced for
         these geozones alone, on one evidence (a Kennecott ``bgm predict``
-        extracted all thirteen geozones for one: 11 of its 15 s); stored whole,
-        they are filtered.
+        extracted all thirteen geozones for one: 11 of its 15 s), benches on
+        threads (:func:`traced_benches`); stored whole, they are filtered.
         """
-        out: dict[str, list[Contour]] = {g: [] for g in geozones}
+        found: dict[int, dict[str, list[Contour]]] = {}
+        missing: dict[tuple[str, ...], list[int]] = {}  # the geozones a bench lacks -> those benches
         for k in range(self.holes.n_benches):
             key = self._contours_key(k)
             every = self.store.peek("contours", key)
             if every is not MISSING:
-                for c in cast(list, every):
-                    if c.geozone in out:
-                        out[c.geozone].append(c)
+                found[k] = {g: [c for c in cast(list, every) if c.geozone == g] for g in geozones}
                 continue
-            own = {g: self.store.peek("contours", content_key(key, g)) for g in geozones}
-            missing = [g for g, found in own.items() if found is MISSING]
-            if missing:
-                traced = extract_bench(self.holes, k, missing, self.params.extraction)
+            found[k] = {g: self.store.peek("contours", content_key(key, g)) for g in geozones}
+            lacking = tuple(g for g, own in found[k].items() if own is MISSING)
+            if lacking:
+                missing.setdefault(lacking, []).append(k)
+        for lacking, benches in missing.items():
+            for k, traced in traced_benches(self.holes, benches, lacking, self.params.extraction):
                 self.store.counts["contours", "computed"] += 1
-                for g in missing:
-                    own[g] = [c for c in traced if c.geozone == g]
-                    self.store.put("contours", content_key(key, g), own[g])
-            for g in geozones:
-                out[g].extend(cast(list, own[g]))
-        return out
+                for g in lacking:
+                    found[k][g] = [c for c in traced if c.geozone == g]
+                    self.store.put("contours", content_key(self._contours_key(k), g), found[k][g])
+        return {g: [c for k in sorted(found) for c in found[k][g]] for g in geozones}
+
+    def traced_contours(self, benches: Iterable[int]) -> Iterator[tuple[int, list[Contour]]]:
+        """``(bench, contours of every geozone)``: the stored benches first, then the others as they are traced.
+
+        The others are traced several at once (:func:`traced_benches`) and
+        stored as each comes; the order is the order they finish in.
+        """
+        todo = []
+        for k in benches:
+            stored = self.store.peek("contours", self._contours_key(k))
+            if stored is MISSING:
+                todo.append(k)
+            else:
+                yield k, cast(list, stored)
+        for k, traced in traced_benches(self.holes, todo, None, self.params.extraction):
+            self.store.counts["contours", "computed"] += 1
+            self.store.put("contours", self._contours_key(k), traced)
+            yield k, traced
 
     def bench_contours_with_fields(self, bench: int, geozone: str) -> list[Contour]:
         """:meth:`bench_contours`, with the edge map, GVF and snake history of ``geozone``'s contours.
@@ -287,12 +304,12 @@ class ModelSession:
     def contours(self, benches=None, progress: Callable[[int, int], None] | None = None) -> list[Contour]:
         """Contours of every geozone on the given benches (all by default), in bench order."""
         benches = list(range(self.holes.n_benches)) if benches is None else list(benches)
-        out: list[Contour] = []
-        for done, k in enumerate(benches, start=1):
-            out.extend(self.bench_contours(k))
+        by_bench: dict[int, list[Contour]] = {}
+        for done, (k, contours) in enumerate(self.traced_contours(benches), start=1):
+            by_bench[k] = contours
             if progress:
                 progress(done, len(benches))
-        return out
+        return [c for k in benches for c in by_bench[k]]
 
     def snake_preview(self, contour: Contour) -> Contour:
         """The contour extracted again, with its fields, with this session's parameters.
