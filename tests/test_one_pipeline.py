@@ -23,6 +23,8 @@ from bgm_viewer.model import ViewerModel
 from core.io.blastholes import read_blastholes
 from core.io.reporting import to_input_geometry
 from core.model.build import build
+from core.model.parameters import ModelParameters
+from core.model.session import ModelSession, StageStore
 from core.model.surfaces import to_input_frame
 
 GEOZONE = "g2"
@@ -118,3 +120,32 @@ def test_the_translation_shown_and_locked_is_bgm_corresponds(demo_holes, tmp_pat
     np.testing.assert_allclose(
         np.array(viewer.current_translation_m()) / holes.frame.metres_per_unit, locked, atol=1e-9
     )
+
+
+def test_the_other_geozones_surfaces_come_several_at_once_and_each_is_its_own(demo_holes, monkeypatch):
+    """The viewer makes the other geozones' surfaces on threads: each is the one made alone; a failing one is named."""
+    viewer = _viewer(demo_holes, GEOZONE, 0)
+    others = [g for g in viewer.inputs().surface_geozones if g != GEOZONE]
+    assert len(others) >= 2 and set(others) <= set(viewer.result.surfaces)
+    alone = ModelSession(demo_holes, ModelParameters(), None, StageStore(None))
+    for g in others:
+        mesh = alone.surface(g, alone.geozone_model(g))  # the body filter is off by default
+        np.testing.assert_array_equal(viewer.result.surfaces[g].vertices, mesh.vertices)
+        np.testing.assert_array_equal(viewer.result.surfaces[g].faces, mesh.faces)
+
+    failing = others[0]
+    model_of = ModelSession.geozone_model
+
+    def broken(self, g, *args, **kwargs):
+        if g == failing:
+            raise RuntimeError(f"no model of {g}")
+        return model_of(self, g, *args, **kwargs)
+
+    monkeypatch.setattr(ModelSession, "geozone_model", broken)
+    again = ViewerModel(demo_holes, cache=False)
+    again.select(GEOZONE, 0, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        again.run()
+    assert again.result.errors == {f"model {failing}": f"no model of {failing}"}
+    assert failing not in again.result.surfaces and set(others[1:]) <= set(again.result.surfaces)
