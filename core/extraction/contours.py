@@ -196,7 +196,9 @@ def extract_contours(
     keep_fields: bool = False,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[Contour]:
-    """Closed contours of every component of the given geozones on the given benches.
+    """Closed contours of every component of the given geozones on the given benches, in bench order.
+
+    The benches are traced several at once (:func:`traced_benches`).
 
     Parameters
     ----------
