@@ -252,7 +252,7 @@ def traced_benches(
         try:
             for job in as_completed(jobs):
                 yield jobs[job], job.result()
-        finally:  # a caller that stops early (an error, a cancelled viewer run) does not wait for the rest
+        finally:  # a caller that stops early (an error, a cancelled viewer run): benches not begun are dropped
             for job in jobs:
                 job.cancel()
 
