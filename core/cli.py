@@ -597,7 +597,7 @@ def build(
     out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-out"),
     geozone: Annotated[list[str] | None, typer.Option("--geozone", help="Geozones to model (default all).")] = None,
     project: ProjectOpt = None,
-    workers: Annotated[int | None, typer.Option(help="Local processes (default: all cores).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Local processes (default: one per usable core).")] = None,
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Address of a dask.distributed scheduler to run on instead.")
     ] = None,

@@ -387,3 +387,17 @@ def test_a_fresh_process_traces_benches_on_threads():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert int(done.stdout.split()[-1]) > 1
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this platform")
+def test_threads_and_workers_count_the_cores_the_process_may_use():
+    """`taskset -c 0 bgm ...` keeps BGM to one core: the count is the affinity's, not the machine's."""
+    from core.extraction.contours import available_cores
+
+    before = os.sched_getaffinity(0)
+    try:
+        os.sched_setaffinity(0, {min(before)})
+        assert available_cores() == 1
+    finally:
+        os.sched_setaffinity(0, before)
+    assert available_cores() == len(before)

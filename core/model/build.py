@@ -26,7 +26,7 @@ import shapely
 from shapely.geometry import shape
 
 from core.errors import BGMInputError, listing, quoted
-from core.extraction.contours import Contour
+from core.extraction.contours import Contour, available_cores
 from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
 from core.io.reporting import containment_summary, contour_feature, to_input_geometry
@@ -398,13 +398,12 @@ def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | 
     interrupt) they are terminated rather than left to finish their jobs.
     """
     import multiprocessing
-    import os
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     if scheduler:
         yield from _dask_map(func, ctx, items, scheduler)
         return
-    workers = (os.cpu_count() or 1) if workers is None else workers
+    workers = available_cores() if workers is None else workers
     if workers <= 1 or len(items) <= 1 or "fork" not in multiprocessing.get_all_start_methods():
         for item in items:
             yield func(ctx, item)
