@@ -354,3 +354,31 @@ def test_the_map_shades_a_band_inside_the_hole_of_another():
 
     assert colour(7, 0) == colour(45, 0) == (255, 0, 0)  # both bands shaded
     assert colour(0, 0) == colour(25, 0) == (255, 255, 255)  # the core and the ring itself open
+
+
+def test_the_geozones_of_one_suggestion_are_modelled_several_at_once_as_one_by_one():
+    """`bgm suggest` models its geozones on threads: the same bands and holes as each modelled alone."""
+    from conftest import synthetic
+
+    from core.model.parameters import ModelParameters
+    from core.model.sampling import plan_sampling
+    from core.model.session import ModelSession, StageStore
+    from core.model.uncertainty import geozone_uncertainty
+
+    _, _, holes = synthetic(4)
+    geozones = list(holes.geozones)
+    z = float(holes.bench_levels_m[-1]) - float(holes.bench_height_m)
+
+    def fresh() -> ModelSession:
+        return ModelSession(holes, ModelParameters(), None, StageStore(None))
+
+    alone = fresh()
+    sections = {g: geozone_uncertainty(alone, g, [z])[z] for g in geozones}
+    sections = {g: s for g, s in sections.items() if s is not None}
+    together = plan_sampling(fresh(), geozones, 12, z)
+    assert len(sections) >= 2 and together.sections.keys() == sections.keys()
+    for g, section in sections.items():
+        np.testing.assert_array_equal(together.sections[g].sigma, section.sigma)
+        np.testing.assert_array_equal(together.sections[g].field, section.field)
+    one_by_one = plan_sampling(fresh(), geozones, 12, z, sections=sections)
+    assert together.suggestions and together.suggestions == one_by_one.suggestions

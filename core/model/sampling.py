@@ -30,6 +30,7 @@ predicted section updated with the labels of the holes revealed.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +38,7 @@ import shapely
 from scipy import ndimage, sparse, special
 from scipy.spatial import cKDTree
 
+from core.extraction.contours import available_cores
 from core.io.blastholes import median_hole_spacing
 from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty, z_score
 
@@ -354,11 +356,17 @@ def plan_sampling(
     if candidates_m is None:
         candidates_m = next_bench_candidates(session.holes)
     if sections is None:
-        sections = {}
-        session.contours_of(list(geozones))  # traced together: each bench's evidence once for all of them
-        for g in geozones:
-            section = geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
-            if section is not None:
-                sections[g] = section
+        geozones = list(geozones)
+        session.contours_of(geozones)  # traced together: each bench's evidence once for all of them
+
+        def section_of(g: str):
+            return geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
+
+        # Each geozone's model and backtests release the GIL in their heavy steps: several at once.
+        with ThreadPoolExecutor(
+            max(min(len(geozones), available_cores()), 1), thread_name_prefix="bgm-geozone"
+        ) as pool:
+            found = dict(zip(geozones, pool.map(section_of, geozones)))
+        sections = {g: section for g, section in found.items() if section is not None}
     chosen = suggest_holes(sections, candidates_m, budget, spacing)
     return SamplingPlan(float(z_m), float(probability), np.asarray(candidates_m, float), sections, chosen)
