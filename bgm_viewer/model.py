@@ -27,7 +27,6 @@ import copy
 import functools
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -35,7 +34,7 @@ import numpy as np
 import trimesh
 from psygnal import Signal
 
-from core.extraction.contours import Contour, available_cores
+from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 from core.io.cache import StageCache
 from core.model.parameters import (
@@ -49,6 +48,7 @@ from core.model.parameters import STAGES as CORE_STAGES
 from core.model.pipeline import BenchPair, GeozoneModel, modelled_contours
 from core.model.session import ModelSession, StageStore
 from core.morph.levelset import MorphResult
+from core.threads import on_threads
 
 STEPS = ("contours", "snake", *CORE_STAGES[1:])
 #: Depths below the deepest bench at which the selected geozone is predicted, in bench heights.
@@ -363,28 +363,20 @@ def _other_surfaces(run: _Run) -> Iterator[Progress]:
     they take one after another (22 s against 29), and come out the same.
     """
     others = [g for g in run.inputs.surface_geozones if g != run.sel.geozone]
-    if not others:
-        return
     t0 = time.perf_counter()
     run.check()
-    with ThreadPoolExecutor(min(len(others), available_cores()), thread_name_prefix="bgm-surface") as pool:
-        jobs = [pool.submit(_geozone_surface, run.session, g) for g in others]
-        try:
-            for i, job in enumerate(as_completed(jobs), start=1):
-                g, mesh, timings, errors = job.result()
-                run.res.timings.update(timings)
-                run.res.errors.update(errors)
-                _show_surface(run, g, mesh)
-                yield f"surface of geozone {g}", 0.9 + 0.1 * i / len(others), run.snapshot()
-                run.check()
-        finally:  # cancelled or failed: the geozones not begun are dropped
-            for job in jobs:
-                job.cancel()
+    surfaces = on_threads(functools.partial(_geozone_surface, run.session), others)
+    for i, (g, (mesh, timings, errors)) in enumerate(surfaces, start=1):
+        run.res.timings.update(timings)
+        run.res.errors.update(errors)
+        _show_surface(run, g, mesh)
+        yield f"surface of geozone {g}", 0.9 + 0.1 * i / len(others), run.snapshot()
+        run.check()  # cancelled: the geozones not begun are dropped
     run.res.timings["other surfaces"] = time.perf_counter() - t0
 
 
-def _geozone_surface(session: ModelSession, g: str) -> tuple[str, trimesh.Trimesh | None, dict, dict]:
-    """``g``'s model and surface, on a worker thread: ``(g, mesh, timings, errors)``, errors as messages."""
+def _geozone_surface(session: ModelSession, g: str) -> tuple[trimesh.Trimesh | None, dict, dict]:
+    """``g``'s model and surface, on a worker thread: ``(mesh, timings, errors)``, errors as messages."""
     timings: dict[str, float] = {}
     errors: dict[str, str] = {}
     model = mesh = None
@@ -401,7 +393,7 @@ def _geozone_surface(session: ModelSession, g: str) -> tuple[str, trimesh.Trimes
         except Exception as exc:
             errors[f"surface {g}"] = str(exc)
         timings[f"surface of {g}"] = time.perf_counter() - t
-    return g, mesh, timings, errors
+    return mesh, timings, errors
 
 
 # ---------------------------------------------------------------------------

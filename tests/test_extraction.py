@@ -392,7 +392,7 @@ def test_a_fresh_process_traces_benches_on_threads():
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this platform")
 def test_threads_and_workers_count_the_cores_the_process_may_use():
     """`taskset -c 0 bgm ...` keeps BGM to one core: the count is the affinity's, not the machine's."""
-    from core.extraction.contours import available_cores
+    from core.threads import available_cores
 
     before = os.sched_getaffinity(0)
     try:

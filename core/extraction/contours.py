@@ -56,9 +56,7 @@ sections (``tests/benchmarks/bench_extraction.py``):
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -77,6 +75,7 @@ from core.extraction.transition import TransitionField, bench_grid, edge_map, ne
 from core.geometry.grid import Grid, as_multipolygon, cells_covering
 from core.geometry.sdf import region_signed_distance, signed_distance, smoothed_sections
 from core.io.blastholes import Blastholes, median_hole_spacing
+from core.threads import on_threads
 
 #: Cells within this many hole spacings of a hole belong to the hole's geozone,
 #: whatever the smoothed field says: a contour holds its own holes.
@@ -240,27 +239,8 @@ def traced_benches(
     core) and come in the order they finish: the demo's seven benches in
     2.0 s instead of 3.7 s on two cores, Kennecott's in 6.7 s instead of 10.2.
     """
-    bench_list = list(benches)
     wanted = None if geozones is None else list(geozones)  # read by every thread: not a one-pass iterator
-    threads = min(len(bench_list), threads or available_cores())
-    if threads <= 1:
-        for k in bench_list:
-            yield k, extract_bench(holes, k, wanted, params, keep_fields)
-        return
-    with ThreadPoolExecutor(threads, thread_name_prefix="bgm-bench") as pool:
-        jobs = {pool.submit(extract_bench, holes, k, wanted, params, keep_fields): k for k in bench_list}
-        try:
-            for job in as_completed(jobs):
-                yield jobs[job], job.result()
-        finally:  # a caller that stops early (an error, a cancelled viewer run): benches not begun are dropped
-            for job in jobs:
-                job.cancel()
-
-
-def available_cores() -> int:
-    """Cores this process may run on (its affinity where the platform tells it, as in a container)."""
-    affinity = getattr(os, "sched_getaffinity", None)
-    return len(affinity(0)) if affinity else (os.cpu_count() or 1)
+    return on_threads(lambda k: extract_bench(holes, k, wanted, params, keep_fields), benches, threads)
 
 
 def bench_spacing(xy: np.ndarray, table_spacing_m: float) -> float:

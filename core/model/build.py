@@ -26,7 +26,7 @@ import shapely
 from shapely.geometry import shape
 
 from core.errors import BGMInputError, listing, quoted
-from core.extraction.contours import Contour, available_cores
+from core.extraction.contours import Contour
 from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
 from core.io.reporting import containment_summary, contour_feature, to_input_geometry
@@ -45,6 +45,7 @@ from core.model.session import (  # noqa: F401 - the surface build's steps, long
     surface_cell_size,
     surface_sections,
 )
+from core.threads import available_cores
 
 #: Depths below the deepest bench at which predictions are written, in bench heights.
 PREDICTION_FRACTIONS = tuple(k / 8 for k in range(1, 9))

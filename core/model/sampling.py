@@ -30,7 +30,6 @@ predicted section updated with the labels of the holes revealed.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,9 +37,9 @@ import shapely
 from scipy import ndimage, sparse, special
 from scipy.spatial import cKDTree
 
-from core.extraction.contours import available_cores
 from core.io.blastholes import median_hole_spacing
 from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty, z_score
+from core.threads import on_threads
 
 #: Reach of a revealed label's correction of the predicted section (:func:`revealed_field`), in hole
 #: spacings: a label corrects the boundary about two holes around it (chosen on tuning seeds,
@@ -363,10 +362,7 @@ def plan_sampling(
             return geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
 
         # Each geozone's model and backtests release the GIL in their heavy steps: several at once.
-        with ThreadPoolExecutor(
-            max(min(len(geozones), available_cores()), 1), thread_name_prefix="bgm-geozone"
-        ) as pool:
-            found = dict(zip(geozones, pool.map(section_of, geozones)))
-        sections = {g: section for g, section in found.items() if section is not None}
+        found = dict(on_threads(section_of, geozones))
+        sections = {g: found[g] for g in geozones if found[g] is not None}  # in the order asked
     chosen = suggest_holes(sections, candidates_m, budget, spacing)
     return SamplingPlan(float(z_m), float(probability), np.asarray(candidates_m, float), sections, chosen)

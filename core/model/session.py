@@ -242,8 +242,8 @@ class ModelSession:
         """
         found: dict[int, dict[str, list[Contour]]] = {}
         missing: dict[tuple[str, ...], list[int]] = {}  # the geozones a bench lacks -> those benches
-        for k in range(self.holes.n_benches):
-            key = self._contours_key(k)
+        keys = [self._contours_key(k) for k in range(self.holes.n_benches)]
+        for k, key in enumerate(keys):
             every = self.store.peek("contours", key)
             if every is not MISSING:
                 found[k] = {g: [c for c in cast(list, every) if c.geozone == g] for g in geozones}
@@ -257,7 +257,7 @@ class ModelSession:
                 self.store.counts["contours", "computed"] += 1
                 for g in lacking:
                     found[k][g] = [c for c in traced if c.geozone == g]
-                    self.store.put("contours", content_key(self._contours_key(k), g), found[k][g])
+                    self.store.put("contours", content_key(keys[k], g), found[k][g])
         return {g: [c for k in sorted(found) for c in found[k][g]] for g in geozones}
 
     def traced_contours(self, benches: Iterable[int]) -> Iterator[tuple[int, list[Contour]]]:

@@ -1,0 +1,51 @@
+"""Several pieces of work at once on threads.
+
+The heavy steps of the engine (scipy's sparse factorisations, distance
+transforms and filters, shapely's vectorised predicates, numpy's array
+arithmetic) release the GIL, so independent benches or geozones run side by
+side on threads with no copy of the data: a bench's contours depend on its
+own holes, a geozone's model on its own contours. ``bgm build`` uses worker
+processes instead (:func:`core.model.build.build`), which share nothing.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from typing import TypeVar
+
+Item = TypeVar("Item")
+Result = TypeVar("Result")
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its affinity where the platform tells it, as ``taskset`` or a container sets it)."""
+    affinity = getattr(os, "sched_getaffinity", None)
+    return len(affinity(0)) if affinity else (os.cpu_count() or 1)
+
+
+def on_threads(
+    func: Callable[[Item], Result], items: Iterable[Item], threads: int | None = None
+) -> Iterator[tuple[Item, Result]]:
+    """``(item, func(item))`` for every item, several at once, in the order they finish.
+
+    On ``threads`` threads (default: one per available core); one after
+    another, in order, with one item or one core. A caller that stops early
+    (an error, a cancelled viewer run) waits for the items begun and drops
+    the others.
+    """
+    todo = list(items)
+    threads = min(len(todo), threads or available_cores())
+    if threads <= 1:
+        for item in todo:
+            yield item, func(item)
+        return
+    with ThreadPoolExecutor(threads, thread_name_prefix="bgm") as pool:
+        jobs = {pool.submit(func, item): item for item in todo}
+        try:
+            for job in as_completed(jobs):
+                yield jobs[job], job.result()
+        finally:
+            for job in jobs:
+                job.cancel()
