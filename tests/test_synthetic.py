@@ -154,6 +154,39 @@ def test_strips_cross_the_pit_and_move_2_to_15_m_per_10_m_bench(seed):
         assert abs(moves[0]) == pytest.approx(speed * height, abs=0.2)
 
 
+def _sideways_rates(mine) -> list[float]:
+    """Metres per metre of depth each layer, contact and fold hinge of ``mine`` moves (not thickening layers)."""
+    return [
+        float(np.hypot(*s.velocity))
+        for solids in mine.geozones.values()
+        for s in solids
+        if isinstance(s, (DippingLayer, DippingContact)) and getattr(s, "growth_per_m", 0.0) == 0
+    ]
+
+
+def test_a_shift_scale_moves_layers_contacts_and_hinges_that_many_times_faster():
+    rates = {
+        scale: [
+            r
+            for f in ("strips", "folds", "mix")
+            for seed in TUNING_SEEDS[:6]
+            for r in _sideways_rates(make_family(f, seed, shift_scale=scale))
+        ]
+        for scale in (1.0, 2.0)
+    }
+    # A fold's hinge also drifts up to 0.2 m a metre across its axis, unscaled.
+    assert all(0.2 - 1e-9 <= r <= np.hypot(1.5, 0.2) for r in rates[1.0])
+    assert all(0.4 - 1e-9 <= r <= np.hypot(3.0, 0.2) for r in rates[2.0])
+    # Slowed where a layer would leave the pit, so not all twice as fast, but past any default.
+    assert max(rates[2.0]) > 1.6
+    assert np.median(rates[2.0]) > 1.3 * np.median(rates[1.0])
+
+
+def test_a_shift_scale_that_is_not_positive_is_refused():
+    with pytest.raises(ValueError, match="shift_scale"):
+        scenario("strips", 1, shift_scale=0.0)
+
+
 def as_parts(geometry):
     return [p for p in getattr(geometry, "geoms", [geometry]) if p.area > 1.0]
 

@@ -1,6 +1,6 @@
 """Families of synthetic mines a geologist would recognise, each a seeded generator.
 
-Every ``make_<family>(seed, n_benches=7, bench_height_m=10.0, units="m")``
+Every ``make_<family>(seed, n_benches=7, bench_height_m=10.0, units="m", shift_scale=1.0)``
 returns a :class:`~core.synthetic.blobs.SyntheticMine` whose geozones ``g1``,
 ``g2``, ... (2-4 of them, plus the host ``g0``) are built from
 :mod:`core.synthetic.solids`, so their true section is exact at any
@@ -26,6 +26,9 @@ share a contact.
 
 Rates are per metre of depth, so a caller's bench height changes how far a
 boundary moves per bench, as it would in a real pit.
+``shift_scale`` multiplies the rates of dipping layers, contacts and fold
+hinges (:data:`SHIFT_RANGE_PER_M`): geology moving faster than any the
+engine's defaults were chosen on (see ``tests/benchmarks/bench_robustness.py``).
 """
 
 from __future__ import annotations
@@ -87,6 +90,14 @@ class Layout:
     levels_m: np.ndarray
     bench_height_m: float
     pit_step_m: float = field(default=0.0)
+    #: How many times faster than :data:`SHIFT_RANGE_PER_M` layers, contacts and fold hinges move.
+    shift_scale: float = 1.0
+
+    @property
+    def shift_range_per_m(self) -> tuple[float, float]:
+        """Least and greatest sideways movement of layers, contacts and fold hinges, metres per metre of depth."""
+        lo, hi = SHIFT_RANGE_PER_M
+        return lo * self.shift_scale, hi * self.shift_scale
 
     @property
     def top_m(self) -> float:
@@ -121,14 +132,14 @@ def family_rng(family: str, seed: int) -> np.random.Generator:
     return np.random.default_rng([int(seed), zlib.crc32(family.encode())])
 
 
-def new_layout(rng: np.random.Generator, n_benches: int, bench_height_m: float) -> Layout:
+def new_layout(rng: np.random.Generator, n_benches: int, bench_height_m: float, shift_scale: float = 1.0) -> Layout:
     """A mine of 280-360 x 240-300 m with its top bench at 400-2200 m elevation."""
     if n_benches < 2:
         raise ValueError("a synthetic mine needs at least two benches")
     w, h = rng.uniform(280.0, 360.0), rng.uniform(240.0, 300.0)
     extent = (-w / 2, -h / 2, w / 2, h / 2)
     levels = float(np.round(rng.uniform(400.0, 2200.0))) - bench_height_m * np.arange(n_benches)
-    return Layout(extent, levels, bench_height_m, pit_step_m(extent, n_benches, bench_height_m))
+    return Layout(extent, levels, bench_height_m, pit_step_m(extent, n_benches, bench_height_m), shift_scale)
 
 
 def offset_interval(
@@ -214,10 +225,11 @@ def _fitting_offset(
         shift *= 0.85
 
 
-def _layer_shift(rng: np.random.Generator, style: StripStyle) -> float:
-    """The style's rate, varied by up to 20% for one layer (dips differ a little), kept in :data:`SHIFT_RANGE_PER_M`."""
-    lo, hi = SHIFT_RANGE_PER_M
-    return float(np.sign(style.shift_per_m) * np.clip(abs(style.shift_per_m) * rng.uniform(0.8, 1.2), lo, hi))
+def _layer_shift(rng: np.random.Generator, style: StripStyle, layout: Layout) -> float:
+    """The style's rate, varied by up to 20% for one layer (dips differ a little), kept in the layout's range."""
+    lo, hi = layout.shift_range_per_m
+    rate = abs(style.shift_per_m) * layout.shift_scale * rng.uniform(0.8, 1.2)
+    return float(np.sign(style.shift_per_m) * np.clip(rate, lo, hi))
 
 
 def strips_builder(style: StripStyle, widths_m: tuple[float, ...]) -> Builder:
@@ -230,7 +242,7 @@ def strips_builder(style: StripStyle, widths_m: tuple[float, ...]) -> Builder:
         total = float(sum(widths_m))
         margin = total / 2 + style.bend_m
         c, shift = _fitting_offset(
-            rng, layout, _layer_shift(rng, style), margin, margin, min_speed=SHIFT_RANGE_PER_M[0]
+            rng, layout, _layer_shift(rng, style, layout), margin, margin, min_speed=layout.shift_range_per_m[0]
         )
         if c is None:
             return []
@@ -256,7 +268,13 @@ def contact_builder(style: StripStyle) -> Builder:
     def build(rng: np.random.Generator, layout: Layout) -> list[Geozone]:
         # Both sides keep a good share of every bench.
         c, shift = _fitting_offset(
-            rng, layout, _layer_shift(rng, style), 0.0, 0.0, fraction=0.55, min_speed=SHIFT_RANGE_PER_M[0]
+            rng,
+            layout,
+            _layer_shift(rng, style, layout),
+            0.0,
+            0.0,
+            fraction=0.55,
+            min_speed=layout.shift_range_per_m[0],
         )
         if c is None:
             return []
@@ -269,7 +287,9 @@ def contact_builder(style: StripStyle) -> Builder:
     return Builder(build, ("contact",), crossing=True)
 
 
-def make_strips(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
+def make_strips(
+    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+) -> SyntheticMine:
     """Dipping layers crossing the whole pit, sometimes with a single contact.
 
     2-3 geozones of one strike (random): layers 12-32 m wide in plan, moving
@@ -291,7 +311,7 @@ def make_strips(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, uni
         builders += [strips_builder(style, (float(rng.uniform(12.0, 32.0)),)) for _ in range(max(n_layers, 0))]
         return builders
 
-    return compose("strips", seed, plan, n_benches, bench_height_m, units)
+    return compose("strips", seed, plan, n_benches, bench_height_m, units, shift_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -341,7 +361,8 @@ def wedge_builder(sign: float) -> Builder:
 
     def build(rng: np.random.Generator, layout: Layout) -> list[Geozone]:
         style = strip_style(rng)
-        style = StripStyle(style.strike_rad, style.shift_per_m * 0.4, style.bend_m, style.wavelength_m, style.phase_rad)
+        shift = style.shift_per_m * 0.4 * layout.shift_scale
+        style = StripStyle(style.strike_rad, shift, style.bend_m, style.wavelength_m, style.phase_rad)
         wide = float(rng.uniform(32.0, 50.0))
         rate = min(float(rng.uniform(0.3, 1.2)), (wide - 10.0) / layout.depth_m)
         top_width = wide - rate * layout.depth_m if sign > 0 else wide
@@ -357,7 +378,9 @@ def wedge_builder(sign: float) -> Builder:
     return Builder(build, ("thickening layer" if sign > 0 else "thinning layer",), crossing=True)
 
 
-def make_widening(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
+def make_widening(
+    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+) -> SyntheticMine:
     """2-4 bodies that widen or narrow with depth, both signs in every mine; a quarter are thickening or thinning layers."""
 
     def plan(rng: np.random.Generator) -> list[Builder]:
@@ -365,7 +388,7 @@ def make_widening(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, u
         signs = [first * (-1.0) ** i for i in range(int(rng.integers(2, 5)))]
         return [wedge_builder(s) if rng.random() < 0.25 else growing_body_builder(s) for s in signs]
 
-    return compose("widening", seed, plan, n_benches, bench_height_m, units)
+    return compose("widening", seed, plan, n_benches, bench_height_m, units, shift_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -387,11 +410,11 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
         widths = rng.uniform(12.0, 30.0, n_layers)
         gaps = np.where(rng.random(n_layers) < 0.3, 0.0, rng.uniform(12.0, 30.0, n_layers))
         inner = np.r_[0.0, np.cumsum(widths[:-1] + gaps[:-1])]  # inner contact of each layer, outward from layer 0's
-        migration = float(rng.uniform(*SHIFT_RANGE_PER_M) * rng.choice([-1.0, 1.0]))
+        migration = float(rng.uniform(*SHIFT_RANGE_PER_M) * rng.choice([-1.0, 1.0]) * layout.shift_scale)
         lateral = float(rng.uniform(-0.2, 0.2))
         # The outermost hinge sits inner[-1] + widths[-1] behind the inner one (against the axis).
         p, migration = _fitting_offset(
-            rng, layout, migration, inner[-1] + widths[-1], 0.0, fraction=0.6, min_speed=SHIFT_RANGE_PER_M[0]
+            rng, layout, migration, inner[-1] + widths[-1], 0.0, fraction=0.6, min_speed=layout.shift_range_per_m[0]
         )
         q, lateral = _fitting_offset(rng, layout, lateral, 0.0, 0.0, fraction=0.3)
         if p is None or q is None:
@@ -420,14 +443,16 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
     return Builder(build, ("fold layer",) * n_layers + (("fold core",) if with_core else ()), crossing=True)
 
 
-def make_folds(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
+def make_folds(
+    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+) -> SyntheticMine:
     """1-3 folded layers whose hinge migrates along the fold axis; half the mines also have the core as a geozone."""
 
     def plan(rng: np.random.Generator) -> list[Builder]:
         n_layers = int(rng.choice([1, 2, 3], p=[0.45, 0.4, 0.15]))
         return [fold_builder(n_layers, with_core=n_layers == 1 or rng.random() < 0.5)]
 
-    return compose("folds", seed, plan, n_benches, bench_height_m, units)
+    return compose("folds", seed, plan, n_benches, bench_height_m, units, shift_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -502,7 +527,9 @@ def dipping_body_builder() -> Builder:
     return Builder(build, ("dipping body",))
 
 
-def make_splits(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
+def make_splits(
+    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+) -> SyntheticMine:
     """A body that splits into two with depth, a pair that merges into one, and in half the mines a third body."""
 
     def plan(rng: np.random.Generator) -> list[Builder]:
@@ -512,7 +539,7 @@ def make_splits(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, uni
             builders.append(dipping_body_builder() if third == "dipping" else lobes_builder(third == "merge"))
         return builders
 
-    return compose("splits", seed, plan, n_benches, bench_height_m, units)
+    return compose("splits", seed, plan, n_benches, bench_height_m, units, shift_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -552,13 +579,15 @@ def pods_builder(n_pods: int) -> Builder:
     return Builder(build, ("pods",), pods=n_pods)
 
 
-def make_pods(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
+def make_pods(
+    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+) -> SyntheticMine:
     """2-4 geozones of 3-8 pods each."""
 
     def plan(rng: np.random.Generator) -> list[Builder]:
         return [pods_builder(int(rng.integers(3, 9))) for _ in range(int(rng.integers(2, 5)))]
 
-    return compose("pods", seed, plan, n_benches, bench_height_m, units)
+    return compose("pods", seed, plan, n_benches, bench_height_m, units, shift_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -583,14 +612,16 @@ def _mix_builder(part: str, rng: np.random.Generator) -> Builder:
     }[part]()
 
 
-def make_mix(seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m") -> SyntheticMine:
+def make_mix(
+    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+) -> SyntheticMine:
     """2-4 geozones, each a different kind drawn from :data:`MIX_PARTS` (at most one contact)."""
 
     def plan(rng: np.random.Generator) -> list[Builder]:
         parts = sorted(rng.choice(len(MIX_PARTS), size=int(rng.integers(2, 5)), replace=False))
         return [_mix_builder(MIX_PARTS[i], rng) for i in parts]
 
-    return compose("mix", seed, plan, n_benches, bench_height_m, units)
+    return compose("mix", seed, plan, n_benches, bench_height_m, units, shift_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -604,6 +635,7 @@ def compose(
     n_benches: int,
     bench_height_m: float,
     units: str,
+    shift_scale: float = 1.0,
 ) -> SyntheticMine:
     """The mine of ``family`` at ``seed``: a layout, then the builders ``plan`` draws, placed by :func:`assemble`.
 
@@ -611,7 +643,7 @@ def compose(
     moving so fast that only one fits in the pit) is drawn again.
     """
     rng = family_rng(family, seed)
-    layout = new_layout(rng, n_benches, bench_height_m)
+    layout = new_layout(rng, n_benches, bench_height_m, shift_scale)
     for _ in range(20):
         geozones = assemble(rng, layout, plan(rng))
         if len(geozones) >= 2:

@@ -44,14 +44,24 @@ _MAKERS = {
 
 
 def make_family(
-    family: str, seed: int, *, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m"
+    family: str,
+    seed: int,
+    *,
+    n_benches: int = 7,
+    bench_height_m: float = 10.0,
+    units: str = "m",
+    shift_scale: float = 1.0,
 ) -> SyntheticMine:
     """The mine of ``family`` at ``seed`` (not drilled yet); raises ValueError for an unknown family or seed."""
     if family not in _MAKERS:
         raise ValueError(f"unknown family {family!r}; families: {', '.join(FAMILIES)}")
     if int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be a whole number >= 0, got {seed!r}")
-    return _MAKERS[family](int(seed), n_benches=n_benches, bench_height_m=bench_height_m, units=units)
+    if not shift_scale > 0:
+        raise ValueError(f"shift_scale must be positive, got {shift_scale!r}")
+    return _MAKERS[family](
+        int(seed), n_benches=n_benches, bench_height_m=bench_height_m, units=units, shift_scale=shift_scale
+    )
 
 
 def scenario(
@@ -62,6 +72,7 @@ def scenario(
     bench_height_m: float = 10.0,
     units: str = "m",
     drilling: Mapping[str, Any] | None = None,
+    shift_scale: float = 1.0,
 ) -> tuple[SyntheticMine, pd.DataFrame, pd.Series]:
     """The mine of ``family`` at ``seed``, drilled.
 
@@ -80,6 +91,9 @@ def scenario(
         Keyword arguments of :func:`~core.synthetic.drilling.drill_mine`
         other than the seed (hole spacing, label noise, ...): the defaults
         otherwise.
+    shift_scale : float
+        Times the families' rates at which dipping layers, contacts and fold
+        hinges move sideways with depth (1: 2-15 m per 10 m of depth).
 
     Returns
     -------
@@ -90,6 +104,8 @@ def scenario(
     true_labels : Series
         True geozone of every hole, indexed by ``hole_id``; never give it to the engine.
     """
-    mine = make_family(family, seed, n_benches=n_benches, bench_height_m=bench_height_m, units=units)
+    mine = make_family(
+        family, seed, n_benches=n_benches, bench_height_m=bench_height_m, units=units, shift_scale=shift_scale
+    )
     table, true_labels = drill_mine(mine, seed=[int(seed), zlib.crc32(family.encode()), 1], **(drilling or {}))
     return mine, table, true_labels

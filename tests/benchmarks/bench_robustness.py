@@ -18,8 +18,9 @@ on held-out seeds only:
   9-12 m and 3-4 m, 6-10% label noise, 15 m benches in feet, 6 m benches, and each
   bench's pit 20-40 m sideways of the one above (a pushback: ground no bench above drilled),
   holes collared off the pattern by 0.3 of a spacing (standard deviation; 0.08 by default),
-  a square pattern instead of a staggered one (the same spacing, so 13% fewer holes), and
-  a pattern of 9-12 m with 6-10% label noise together.
+  a square pattern instead of a staggered one (the same spacing, so 13% fewer holes),
+  a pattern of 9-12 m with 6-10% label noise together, and, drilled the default way,
+  layers, contacts and fold hinges moving twice the families' rates (4-30 m a bench).
   Depths are half and one bench height, whatever the bench height.
 
 ``--seeds tuning`` runs the development seeds instead (``--limit`` of them,
@@ -65,6 +66,9 @@ DRILLING: dict[str, tuple[dict, dict]] = {
     "square pattern": ({}, {"pattern": "square"}),
     # Two at once: the few holes of a wide pattern, up to a tenth of them mislabelled.
     "pattern 9-12 m, label noise 6-10%": ({}, {"spacing_range_m": (9.0, 12.0), "label_noise_range": (0.06, 0.10)}),
+    # Not drilling but the geology: layers, contacts and fold hinges twice the families' rates
+    # (4-30 m a bench, slowed where a layer would leave the pit); splits' and pods' unchanged.
+    "layers moving twice as fast": ({"shift_scale": 2.0}, {}),
 }
 
 
