@@ -1,6 +1,6 @@
 """Predictive value of the model against the references, on every synthetic family and on Kennecott.
 
-    python tests/benchmarks/bench_prediction.py [--seeds held-out|tuning] [--limit N] [--workers 2]
+    python tests/benchmarks/bench_prediction.py [--seeds held-out|tuning] [--limit N] [--workers 2] [--benches 7]
 
 Synthetic: every family of :mod:`core.synthetic.scenarios` at the held-out
 seeds (the only ones reported; ``--seeds tuning`` runs the tuning seeds
@@ -13,7 +13,10 @@ drilled area of the next bench. Model, nil (hold the last bench), linear
 (signed distance through the last two benches) and implicit (RBF) run in the
 same pass. Precision and recall are area-weighted (pooled over benches,
 geozones and seeds), F1 is their harmonic mean; tables per family and pooled,
-with the model's F1 margin over the best reference.
+with the model's F1 margin over the best reference, per kind of geozone and per
+deepest known bench. ``--benches`` drills each synthetic mine on that many benches
+(7 by default; rates are per metre of depth, and layers slow down to stay in the
+deeper pit, so more benches also means slower layers).
 
 Kennecott (``BGM_KENNECOTT`` or ../shared/data, when present): the next bench withheld, scored against the region
 extracted from its holes, F1 per method.
@@ -77,9 +80,9 @@ def evaluate(holes, truth=None, geozones=None, fractions=FRACTIONS) -> pd.DataFr
     return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
 
 
-def run_scenario(job: tuple[str, int]) -> tuple[str, int, pd.DataFrame, float]:
-    """Evaluate one scenario (or Kennecott, ``("kennecott", 0)``); returns its rows and CPU seconds."""
-    family, seed = job
+def run_scenario(job: tuple[str, int, int]) -> tuple[str, int, pd.DataFrame, float]:
+    """Evaluate one scenario ``(family, seed, benches)`` (or Kennecott, ``("kennecott", 0, 0)``); rows and CPU seconds."""
+    family, seed, n_benches = job
     start = time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BGMWarning)
@@ -87,7 +90,7 @@ def run_scenario(job: tuple[str, int]) -> tuple[str, int, pd.DataFrame, float]:
             holes = read_blastholes(KENNECOTT)
             df = evaluate(holes, fractions=(1.0,))
         else:
-            mine, table, _ = scenario(family, seed)
+            mine, table, _ = scenario(family, seed, n_benches=n_benches)
             holes = blastholes_from_table(table, source=f"{family} {seed}")
             geozones = [g for g in holes.geozones if g != HOST]
             df = evaluate(holes, truth_from_mine(mine, holes.frame), geozones)
@@ -132,16 +135,23 @@ def print_tables(df: pd.DataFrame, families: list[str]) -> None:
     print("\nAll families pooled (area-weighted):")
     print(depth_table(df).to_string(index=False))
     print("\nPer kind of geozone, all families (F1, percent):")
+    print(margin_rows(df, "kind").to_string(index=False))
+    print("\nPer deepest known bench (0 the top), all families (F1, percent):")
+    print(margin_rows(df, "bench").to_string(index=False))
+
+
+def margin_rows(df: pd.DataFrame, by: str) -> pd.DataFrame:
+    """Every method's F1 at each depth, and the model's margin over the best reference, per value of ``by``."""
     rows = []
-    for kind, part in df.groupby("kind"):
+    for value, part in df.groupby(by):
         summary = summary_table(part).set_index("fraction")
-        row = {"kind": kind, "cases": len(part) // (len(METHODS) * len(summary))}
+        row = {by: value, "cases": len(part) // (len(METHODS) * len(summary))}
         for _, r in summary.iterrows():
             d = f"{r['depth_m']:.0f} m"
             row.update({f"{m} {d}": round(100 * r[f"f1_{m}"], 1) for m in METHODS})
             row[f"margin {d}"] = round(100 * r["f1_margin"], 1)
         rows.append(row)
-    print(pd.DataFrame(rows).to_string(index=False))
+    return pd.DataFrame(rows)
 
 
 def print_kennecott(df: pd.DataFrame) -> None:
@@ -199,12 +209,15 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-kennecott", action="store_true")
     parser.add_argument("--save", type=Path, default=None, help="Also write every row scored to this CSV.")
+    parser.add_argument("--benches", type=int, default=7, help="Benches drilled in each synthetic mine.")
     args = parser.parse_args()
     seeds = list(HELD_OUT_SEEDS if args.seeds == "held-out" else TUNING_SEEDS)
     seeds = seeds[: args.limit or (len(HELD_OUT_SEEDS) if args.seeds == "tuning" else len(seeds))]
-    jobs = [(f, s) for f in args.families for s in seeds]
+    if args.benches < 3:
+        parser.error("--benches must be 3 or more (a deepest known bench with one above it and one below)")
+    jobs = [(f, s, args.benches) for f in args.families for s in seeds]
     if not args.no_kennecott and KENNECOTT.exists():
-        jobs.insert(0, ("kennecott", 0))  # the longest job first, so it is not the tail
+        jobs.insert(0, ("kennecott", 0, 0))  # the longest job first, so it is not the tail
     print(f"{args.seeds} seeds {seeds}; {len(jobs)} jobs on {args.workers} processes")
     start = time.perf_counter()
     results = []
