@@ -68,12 +68,12 @@ def local_entropy(labels: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
         From :func:`neighbour_table` (padding value ``n``).
     """
     n = len(labels)
-    _, codes = np.unique(labels, return_inverse=True)
+    kinds, codes = np.unique(labels, return_inverse=True)
     codes = codes.ravel()
     valid = neighbours < n
     rows = np.repeat(np.arange(n), neighbours.shape[1])[valid.ravel()]
     cols = codes[neighbours[valid]]
-    counts = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, codes.max() + 1)).toarray()
+    counts = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, len(kinds))).toarray()
     p = counts / counts.sum(axis=1, keepdims=True)
     return -np.sum(p * np.log2(p + ENTROPY_EPS), axis=1)
 

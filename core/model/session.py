@@ -479,7 +479,7 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
         last = model.pairs[-1]
         sections.append((last.target_z_m, as_multipolygon(model.region_at_bench(last.lower))))
         height = last.source_z_m - last.target_z_m
-        zs = [last.target_z_m - f * height for f in np.linspace(0.25, below_fraction, 4)]
+        zs = [float(last.target_z_m - f * height) for f in np.linspace(0.25, below_fraction, 4)]
         sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
     return sections
 

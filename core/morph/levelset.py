@@ -611,7 +611,7 @@ def _evolve_front(
 def _iou(region: np.ndarray, target: np.ndarray) -> float:
     """Intersection over union of two cell masks (1 when both are empty)."""
     union = np.count_nonzero(region | target)
-    return float(np.count_nonzero(region & target) / union) if union else 1.0
+    return float(np.count_nonzero(region & target)) / float(union) if union else 1.0
 
 
 def _trajectories(

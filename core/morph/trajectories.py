@@ -482,7 +482,7 @@ def remove_crossings(trajectories: list[Trajectory], checked_prefix: int = 0) ->
     live = pairs
     while len(live):
         counts = np.bincount(live.ravel(), minlength=len(trajectories))
-        cand = np.flatnonzero(counts == counts.max())
+        cand = np.flatnonzero(counts == np.max(counts))
         key = [(not trajectories[c].backtracked, len(trajectories[c].xy)) for c in cand]
         worst = int(cand[min(range(len(cand)), key=lambda k: key[k])])
         removed.add(worst)
