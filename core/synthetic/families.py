@@ -175,7 +175,7 @@ class StripStyle:
     """What the layers of one sequence share: strike, dip direction and rate, and bending of the trace."""
 
     strike_rad: float
-    shift_per_m: float  #: sideways movement along the left normal of the strike per metre of depth (signed)
+    shift_per_m: float  #: sideways movement along the left normal of the strike per metre of depth (signed), at a shift_scale of 1
     bend_m: float
     wavelength_m: float
     phase_rad: float
