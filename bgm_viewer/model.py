@@ -186,16 +186,21 @@ class _Run:
     def step(self, name: str, fn: Callable[[], object], error_key: str | None = None):
         """``fn()`` timed as ``name``; an exception is reported under ``error_key`` (re-raised without one)."""
         self.check()
-        t0 = time.perf_counter()
-        try:
-            return fn()
-        except Exception as exc:
-            if error_key is None:
-                raise
-            self.res.errors[error_key] = str(exc)
-            return None
-        finally:
-            self.res.timings[name] = time.perf_counter() - t0
+        return _timed(name, fn, error_key, self.res.timings, self.res.errors)
+
+
+def _timed(name: str, fn: Callable[[], object], error_key: str | None, timings: dict, errors: dict):
+    """``fn()``, its seconds in ``timings[name]``; an exception's message in ``errors[error_key]`` (re-raised without one)."""
+    t0 = time.perf_counter()
+    try:
+        return fn()
+    except Exception as exc:
+        if error_key is None:
+            raise
+        errors[error_key] = str(exc)
+        return None
+    finally:
+        timings[name] = time.perf_counter() - t0
 
 
 def compute(
@@ -376,23 +381,17 @@ def _other_surfaces(run: _Run) -> Iterator[Progress]:
 
 
 def _geozone_surface(session: ModelSession, g: str) -> tuple[trimesh.Trimesh | None, dict, dict]:
-    """``g``'s model and surface, on a worker thread: ``(mesh, timings, errors)``, errors as messages."""
+    """``g``'s model and surface, on a worker thread: ``(mesh, timings, errors)``, errors as messages.
+
+    Timed as :meth:`_Run.step` times them, into dicts of its own: the window's
+    snapshots copy the run's while this thread would write them.
+    """
     timings: dict[str, float] = {}
     errors: dict[str, str] = {}
-    model = mesh = None
-    t = time.perf_counter()
-    try:
-        model = session.geozone_model(g)
-    except Exception as exc:
-        errors[f"model {g}"] = str(exc)
-    timings[f"model of {g}"] = time.perf_counter() - t
+    model = _timed(f"model of {g}", functools.partial(session.geozone_model, g), f"model {g}", timings, errors)
+    mesh = None
     if model is not None and model.pairs:
-        t = time.perf_counter()
-        try:
-            mesh = session.surface(g, model)
-        except Exception as exc:
-            errors[f"surface {g}"] = str(exc)
-        timings[f"surface of {g}"] = time.perf_counter() - t
+        mesh = _timed(f"surface of {g}", functools.partial(session.surface, g, model), f"surface {g}", timings, errors)
     return mesh, timings, errors
 
 

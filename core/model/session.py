@@ -48,6 +48,7 @@ from core.model.pipeline import (
     morph_instance,
 )
 from core.model.prediction import predict_geozone, region_between
+from core.threads import on_threads
 
 #: Iso-contours per bench interval used to build surfaces.
 SURFACE_STEPS_PER_BENCH = 4
@@ -263,8 +264,9 @@ class ModelSession:
     def traced_contours(self, benches: Iterable[int]) -> Iterator[tuple[int, list[Contour]]]:
         """``(bench, contours of every geozone)``: the stored benches first, then the others as they are traced.
 
-        The others are traced several at once (:func:`traced_benches`) and
-        stored as each comes; the order is the order they finish in.
+        The others are traced several at once (:meth:`bench_contours` on
+        threads, :func:`core.threads.on_threads`), each stored as it comes;
+        the order is the order they finish in.
         """
         todo = []
         for k in benches:
@@ -273,10 +275,7 @@ class ModelSession:
                 todo.append(k)
             else:
                 yield k, cast(list, stored)
-        for k, traced in traced_benches(self.holes, todo, None, self.params.extraction):
-            self.store.counts["contours", "computed"] += 1
-            self.store.put("contours", self._contours_key(k), traced)
-            yield k, traced
+        yield from on_threads(self.bench_contours, todo)
 
     def bench_contours_with_fields(self, bench: int, geozone: str) -> list[Contour]:
         """:meth:`bench_contours`, with the edge map, GVF and snake history of ``geozone``'s contours.
