@@ -28,6 +28,7 @@ from qtpy import QtCore, QtGui, QtWidgets
 from superqt import QLabeledDoubleSlider, QLabeledSlider
 from superqt.utils import create_worker
 
+from core.io.blastholes import Blastholes
 from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
@@ -1072,6 +1073,8 @@ def run_viewer(input_path=None, project_path=None, *, cache: bool = True) -> int
     if input_path is None and project_path is not None:
         input_path = project_input(project_path)
     model = ViewerModel(input_path, cache=cache)
+    if isinstance(input_path, Blastholes) and Path(input_path.source).is_file():
+        model.input_path = input_path.source  # read with the command line's options: its file, for the extra columns
     if project_path is not None:
         model.load_project(project_path)
     window = MainWindow(model)

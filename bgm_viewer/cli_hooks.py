@@ -23,11 +23,14 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from core.errors import BGMInputError, quoted
+
+if TYPE_CHECKING:
+    from core.io.blastholes import Blastholes
 
 #: Largest vertical exaggeration a picture can use.
 MAX_EXAGGERATION = 100.0
@@ -37,8 +40,10 @@ QT_MISSING = "the viewer needs Qt and PyVista ({}); install them with: pip insta
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``bgm view`` to the engine's typer app."""
-    app.command("view")(view)
+    """Add ``bgm view`` to the engine's typer app, with the table options every reading command takes."""
+    from core.cli import reads_table
+
+    app.command("view")(reads_table(view))
 
 
 def view(
@@ -66,16 +71,25 @@ def view(
     no_cache: Annotated[
         bool, typer.Option("--no-cache", help="Compute every stage afresh instead of reusing earlier runs' results.")
     ] = False,
+    *,
+    table=None,
 ) -> None:
     """Open the 3D viewer (or render a screenshot with no display)."""
+    from dataclasses import astuple
+
     from core.cli import DEMO_CSV, _outputs  # the engine's checks of every output
 
     if input is not None and str(input) != "-" and not Path(input).exists():
         raise BGMInputError(f"input file {str(input)!r} does not exist")
     if screenshot is not None:
         _outputs(screenshot, input if input is not None else DEMO_CSV, project)
+    source = input
+    if table is not None and any(v is not None for v in astuple(table)):
+        if input is None:
+            raise BGMInputError("--x, --y, --z, --geozone-column, --bench-height and --units need an input table")
+        source = table.read(input)  # columns, bench height or units named on the command line
     code = view_command(
-        input,
+        source,
         project,
         screenshot,
         layers,
@@ -91,7 +105,7 @@ def view(
 
 
 def view_command(
-    input: str | Path | None = None,
+    input: str | Path | Blastholes | None = None,
     project: str | Path | None = None,
     screenshot: str | Path | None = None,
     layers: str | list[str] | None = None,

@@ -425,10 +425,9 @@ def project_input(project_path) -> str | None:
 
 
 def _hole_attributes(path: str | None, holes: Blastholes):
-    import pandas as pd
     from scipy.spatial import cKDTree
 
-    from core.io.blastholes import table_columns
+    from core.io.blastholes import coordinate_values, table_columns
     from core.io.tables import read_table
 
     if path is None or str(path) == "-":
@@ -441,8 +440,12 @@ def _hole_attributes(path: str | None, holes: Blastholes):
     extra = [c for c in table.columns if c not in cols.values()]
     if not extra:
         return None
-    x, y, z = (pd.to_numeric(table[cols[r]], errors="coerce").to_numpy(float) for r in ("x", "y", "z"))
+    # Read as the engine read them (decimal commas, thousands separators), or rows go missing
+    # and holes take a neighbour's attributes.
+    x, y, z = (coordinate_values(table[cols[r]], table.attrs.get("delimiter")) for r in ("x", "y", "z"))
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
+    if not ok.any():
+        return None
     xyz = np.column_stack([holes.frame.to_local(x[ok], y[ok]), holes.frame.z_to_local(z[ok])])
     _, row = cKDTree(xyz).query(np.column_stack([holes.xy, holes.z]))
     return table.loc[ok, extra].iloc[row].reset_index(drop=True)

@@ -46,11 +46,12 @@ def test_bgm_view_renders_a_screenshot(tmp_path):
     from core.synthetic.blobs import make_mine, sample_blastholes
 
     csv = tmp_path / "mine.csv"
-    sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4).to_csv(
-        csv, index=False
-    )
+    table = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
+    # Columns no reader would find by name: the viewer takes the options every reading command takes.
+    table.rename(columns={"x": "E (grid)", "y": "N (grid)", "z": "toe"}).to_csv(csv, index=False)
     png = tmp_path / "view.png"
     args = ["view", str(csv), "--screenshot", str(png), "--layers", "blastholes,contours", "--geozone", "g1"]
+    args += ["--x", "E (grid)", "--y", "N (grid)", "--z", "toe", "--bench-height", "10"]
     proc = subprocess.run([sys.executable, "-c", BGM_WITH_VIEWER, *args], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     assert png.stat().st_size > 10_000 and f"wrote {png}" in proc.stderr

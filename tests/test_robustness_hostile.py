@@ -38,6 +38,8 @@ Class -> tests:
   test_decimal_commas_read_as_numbers, test_comment_lines_before_the_header, test_compressed_and_misnamed_files,
   test_standard_input, test_huge_labels_are_shortened_in_messages
 * "on one bench only" said of geozones on several benches: test_hostile_labels_get_safe_unique_folders
+* rows longer than the header (an unquoted delimiter): test_rows_longer_than_the_header_are_refused
+* a bench height that puts several benches on one: test_a_bench_height_that_puts_several_benches_on_one_is_refused
 """
 
 from __future__ import annotations
@@ -809,3 +811,38 @@ def test_huge_labels_are_shortened_in_messages(csv, tmp_path):
     assert len(line) < 1200
     line = error_line(bgm("contours", csv, "--geozone", "W" * 5_000_000, "--out", tmp_path / "o.geojson"), "not in")
     assert len(line) < 1200
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_rows_longer_than_the_header_are_refused(table, tmp_path, seed):
+    """Labels holding an unquoted comma shift their rows: read by the columns needed, two geozones became one."""
+    rng = rng_for("long rows", seed)
+    t = table[["x", "y", "z", "geozone", "hole_id"]]
+    names = dict(zip(sorted(t.geozone.unique())[:2], ["ore, oxide", "ore, sulphide"]))
+    lines = ["x,y,z,geozone,hole_id"] + [
+        f"{r.x},{r.y},{r.z},{names.get(r.geozone, r.geozone)},{r.hole_id}" for r in t.itertuples()
+    ]
+    first = 2 + int(np.flatnonzero(t.geozone.isin(list(names)).to_numpy())[0])  # the file line of the first one
+    path = tmp_path / "unquoted.csv"
+    path.write_text("\n".join(lines) + "\n")
+    before = snapshot(tmp_path)
+    error_line(bgm("contours", path, "--out", tmp_path / "o.geojson"), f"line {first} has 6 fields", "quote")
+    unchanged(before, snapshot(tmp_path))
+    # Trailing delimiters (empty fields past the header's, as spreadsheets export them) are no shift.
+    trailing = [
+        line + "," * int(rng.integers(1, 3)) if i else line for i, line in enumerate(t.to_csv(index=False).splitlines())
+    ]
+    path.write_text("\n".join(trailing) + "\n")
+    assert len(quiet_read(path).xy) == len(quiet_read(t).xy)
+
+
+@pytest.mark.parametrize("factor", [4, 12])
+def test_a_bench_height_that_puts_several_benches_on_one_is_refused(tmp_path, factor):
+    """Benches 10 m apart read with ``--bench-height 40``: the holes of four benches were contoured as one."""
+    rng = rng_for("merged benches", factor)
+    path = tmp_path / "benches.csv"
+    bench_table(700.0 - 10.0 * np.arange(6), rng).to_csv(path, index=False)
+    out = tmp_path / "o.geojson"
+    error_line(bgm("contours", path, "--out", out, "--bench-height", 10 * factor), "bench height", "on one bench")
+    succeeds(bgm("contours", path, "--out", out, "--bench-height", 10))
+    assert len({f["properties"]["bench"] for f in json.loads(out.read_text())["features"]}) == 6

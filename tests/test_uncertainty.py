@@ -151,6 +151,15 @@ def test_the_pattern_of_holes_collared_off_it_is_still_its_own():
     assert min(pattern.spacing_m, pattern.burden_m) == pytest.approx(4.5, rel=0.15)
 
 
+def test_a_single_row_of_holes_gets_a_square_pattern_along_it():
+    """A bench drilled as one row (a trench, a ramp): its least squares fix no step across, which was singular."""
+    angle = np.radians(20.0)
+    xy = np.column_stack([np.cos(angle), np.sin(angle)]) * np.arange(40.0)[:, None] * 6.0
+    xy += np.random.default_rng(1).normal(0, 0.1, xy.shape)
+    pattern = estimate_pattern(xy)
+    assert pattern.spacing_m == pytest.approx(6.0, rel=0.05) and pattern.burden_m == pytest.approx(6.0, rel=0.05)
+
+
 def test_revealed_labels_pull_the_section_to_the_truth():
     section = next_section(REVERSING)  # holds the last bench: the west edge at 58 m; it goes back to 50 m
     xy = pattern_holes()

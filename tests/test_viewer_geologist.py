@@ -325,3 +325,28 @@ def test_the_body_filter_drops_label_noise_bodies():
     after = model.result.surfaces[g].split(only_watertight=False)
     big = [b for b in before if abs(b.volume) >= model.min_body_volume_m3]
     assert len(after) == len(big) < len(before)
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_a_clicked_hole_shows_its_own_grade_from_a_decimal_comma_table(tmp_path, sep):
+    """x, y and z written ``482499,97``: the grades were matched by a second reading that saw no numbers (a crash)."""
+    import pandas as pd
+
+    holes = small_holes()
+    table = pd.DataFrame(
+        {
+            "x": holes.xy[:, 0] + 482_000.0,
+            "y": holes.xy[:, 1] + 7_445_000.0,
+            "z": holes.z,
+            "geozone": holes.geozone,
+            "cu_pct": np.round(np.random.default_rng(0).uniform(0, 2, len(holes.xy)), 3),
+        }
+    )
+    path = tmp_path / "holes.csv"
+    table.to_csv(path, index=False, sep=sep, decimal=",", float_format="%.3f")
+    model = ViewerModel(str(path))
+    h = model.holes
+    for i in np.random.default_rng(1).choice(len(h.xy), 20, replace=False):
+        x, y = h.frame.to_input(h.xy[i : i + 1])[0]
+        want = table.iloc[int(np.argmin(np.hypot(table.x - x, table.y - y)))]
+        assert float(model.hole_info(int(i))["cu_pct"].replace(",", ".")) == want.cu_pct  # shown as written

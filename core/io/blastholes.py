@@ -471,19 +471,27 @@ def _geozone_labels(raw: pd.Series, column: str, first_line: int, notes: list[st
     return labels
 
 
+def _is_numeric(raw: pd.Series) -> bool:
+    return pd.api.types.is_numeric_dtype(raw) and not pd.api.types.is_bool_dtype(raw)
+
+
+def coordinate_values(raw: pd.Series, delimiter: str | None) -> np.ndarray:
+    """A coordinate column as the reader takes it (decimal commas, thousands separators); NaN where not a number."""
+    if _is_numeric(raw):
+        return raw.to_numpy(dtype=float)
+    text = _without_digit_grouping(raw.astype(str).str.strip(), delimiter)
+    return pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
+
+
 def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, first_line: int) -> np.ndarray:
     """A coordinate column as finite floats, or one sentence naming the rows that are not."""
-    if pd.api.types.is_numeric_dtype(raw) and not pd.api.types.is_bool_dtype(raw):
-        values = raw.to_numpy(dtype=float)
-        text = None
-    else:
-        text = _without_digit_grouping(raw.astype(str).str.strip(), delimiter)
-        values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
+    values = coordinate_values(raw, delimiter)
     bad = np.flatnonzero(~np.isfinite(values))
     if len(bad):
-        example = "" if text is None else f" (e.g. {quoted(raw.iloc[bad[0]], 30)})"
+        text = not _is_numeric(raw)
+        example = f" (e.g. {quoted(raw.iloc[bad[0]], 30)})" if text else ""
         hint = ""
-        if text is not None and raw.iloc[bad].astype(str).str.contains(",", regex=False).any():
+        if text and raw.iloc[bad].astype(str).str.contains(",", regex=False).any():
             hint = "; commas there are neither all decimal commas nor all thousands separators"
         raise BGMInputError(
             f"column {quoted(column)} ({role}) has {len(bad)} missing, non-numeric or infinite "
@@ -628,6 +636,8 @@ def detect_benches(
             )
         levels = _ladder(zs, _densest_elevation(z, float(bench_height)), float(bench_height))
     levels, bench, off = _assign_levels(z, levels)
+    if bench_height is not None and xy is not None:
+        _refuse_merged_benches(z, bench, levels, xy, float(bench_height))
     if off.mean() > MAX_OFF_BENCH_SHARE:
         raise BGMInputError(
             f"z does not form benches: {int(off.sum())} of {len(z)} holes lie between the bench levels found "
@@ -737,13 +747,36 @@ def _nearest(z: np.ndarray, levels: np.ndarray) -> np.ndarray:
     return np.where(np.abs(z - levels[i - 1]) <= np.abs(levels[i] - z), i - 1, i)
 
 
+def _collar_spacing(xy: np.ndarray) -> float:
+    """Median distance to the nearest other collar (coincident collars skipped; 0 where every collar repeats)."""
+    if len(xy) < 2:
+        return 0.0
+    d = cKDTree(xy).query(xy, k=2)[0][:, 1]
+    return float(np.median(d[d > 0])) if (d > 0).any() else 0.0
+
+
+def _refuse_merged_benches(z, bench, levels, xy, bench_height: float) -> None:
+    """Refuse a given bench height that puts holes of several benches on one (their elevations spread too far)."""
+    for k, level in enumerate(levels):
+        on = bench == k
+        if on.sum() < 3:
+            continue
+        thickness = float(np.percentile(z[on], 95) - np.percentile(z[on], 5))
+        spacing = _collar_spacing(xy[on])
+        if thickness > MAX_BENCH_THICKNESS_SPACINGS * spacing:
+            raise BGMInputError(
+                f"a bench height of {bench_height:g} puts holes from {np.min(z[on]):g} to {np.max(z[on]):g} on one bench "
+                f"(at {level:g}), {thickness:.4g} units thick (5th to 95th percentile) where the holes are "
+                f"{spacing:.3g} apart: give the bench height in the input's units, or leave it out to detect it"
+            )
+
+
 def _single_bench(z: np.ndarray, xy: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """One bench at the median elevation; refused when the elevations are spread far thicker than a bench."""
     level = float(np.median(z))
     thickness = float(np.percentile(z, 95) - np.percentile(z, 5))
     if xy is not None and len(xy) >= 2:
-        d, _ = cKDTree(xy).query(xy, k=2)
-        spacing = float(np.median(d[:, 1][d[:, 1] > 0])) if (d[:, 1] > 0).any() else 0.0
+        spacing = _collar_spacing(xy)
         if thickness > MAX_BENCH_THICKNESS_SPACINGS * spacing:
             raise BGMInputError(
                 f"z does not form benches: elevations spread continuously over {thickness:.4g} units "

@@ -233,10 +233,33 @@ def _read_csv(name: str, opener, choose: ColumnChooser | None) -> pd.DataFrame:
         raise BGMInputError(f"cannot read {name}: it is not UTF-8 text; BGM reads CSV and Parquet tables") from None
     except Exception as exc:  # pandas raises many types for unreadable files
         raise BGMInputError(f"cannot read {name} as CSV: {_parser_message(exc, skip)}") from None
+    if wanted is not None:  # usecols makes pandas drop a row's fields beyond the header without a word
+        _refuse_long_rows(name, opener, sep, skip, len(header))
     frame.columns = [header[i] for i in sorted(wanted)] if wanted is not None else header[: frame.shape[1]]
     frame.attrs["first_data_line"] = skip + 2
     frame.attrs["delimiter"] = sep
     return frame
+
+
+def _refuse_long_rows(name: str, opener, sep: str, skip: int, n_fields: int) -> None:
+    """Refuse rows with a non-empty field past the header's: an unquoted delimiter shifted them.
+
+    Python's C ``csv`` reader, one more pass (about a second per million rows):
+    pandas, given the columns to keep, drops the rest of a row without a word.
+    """
+    limit = csv.field_size_limit(sys.maxsize)  # pandas read these fields already, however long
+    try:
+        with opener() as fh:
+            text = io.TextIOWrapper(fh, encoding="utf-8-sig", newline="")
+            rows = csv.reader(text, delimiter=sep)
+            for row in rows:
+                if len(row) > n_fields and rows.line_num > skip + 1 and any(f.strip() for f in row[n_fields:]):
+                    raise BGMInputError(
+                        f"cannot read {name} as CSV: line {rows.line_num} has {len(row)} fields where the header has "
+                        f"{n_fields}; quote fields that hold the delimiter {sep!r}"
+                    )
+    finally:
+        csv.field_size_limit(limit)
 
 
 def _decompressed(name: str, read, n: int) -> bytes:

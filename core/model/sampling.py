@@ -120,16 +120,17 @@ def estimate_pattern(xy: np.ndarray, neighbours: int = 6) -> DrillPattern:
     across_steps = steps[np.abs(unit[0] * steps[:, 1] - unit[1] * steps[:, 0]) > 0.25 * np.hypot(*along)]
     if len(across_steps):
         across = _step_direction(across_steps)
-    else:  # a single row
+    else:  # a single row: its third-nearest hole is two steps away, so its step is the nearest's
+        along = _step_direction(steps[np.hypot(*steps.T) <= 1.5 * np.median(d[:, 1])])
         across = np.array([-along[1], along[0]])
     centre = xy[np.argmin(np.sum((xy - xy.mean(axis=0)) ** 2, axis=1))]
     basis = np.column_stack([along, across])
     for _ in range(2):  # least squares on the whole lattice coordinates of the holes that fit
         ij = np.round(np.linalg.solve(basis, (xy - centre).T).T)
         fit = np.hypot(*(xy - centre - ij @ basis.T).T) < 0.3 * min(np.hypot(*along), np.hypot(*across))
-        if fit.sum() < 3:
-            break
         design = np.column_stack([np.ones(fit.sum()), ij[fit]])
+        if fit.sum() < 3 or np.linalg.matrix_rank(design) < 3:  # a single row fixes no step across it
+            break
         solution = np.linalg.lstsq(design, xy[fit], rcond=None)[0]
         centre, basis = solution[0], solution[1:].T
     return DrillPattern(tuple(basis[:, 0]), tuple(basis[:, 1]), (float(centre[0]), float(centre[1])))
