@@ -32,21 +32,6 @@ def _point_at(xy: np.ndarray, s: np.ndarray, f: float) -> np.ndarray:
     return np.array([np.interp(f, s, xy[:, 0]), np.interp(f, s, xy[:, 1])])
 
 
-def _step_tracks(pair: BenchPair, step: MorphStep) -> tuple[np.ndarray, np.ndarray, list]:
-    """Physical start, physical end and the trajectories of one morph instance.
-
-    Each trajectory starts on one aligned source; its translation ``m`` is
-    that source's. Physical start = aligned start - m.
-    """
-    trajs = [t for t in step.result.trajectories if len(t.xy) >= 1]
-    if not trajs:
-        return np.zeros((0, 2)), np.zeros((0, 2)), []
-    starts = np.array([t.xy[0] for t in trajs])
-    ends = np.array([t.xy[-1] for t in trajs])
-    shift = _translations_for(pair, step, starts)
-    return starts - shift, ends, trajs
-
-
 def _translations_for(pair: BenchPair, step: MorphStep, points: np.ndarray) -> np.ndarray:
     """Translation of the nearest aligned source of each point (zero for a pod that appears)."""
     ids = list(step.instance.source_ids)
@@ -109,32 +94,50 @@ def region_between(pair: BenchPair, fraction: float) -> MultiPolygon:
     fraction : float
         0 at the upper bench, 1 at the lower bench.
     """
-    f = float(np.clip(fraction, 0.0, 1.0))
-    rings = []
+    return regions_between(pair, [fraction])[0]
+
+
+def regions_between(pair: BenchPair, fractions: list[float]) -> list[MultiPolygon]:
+    """:func:`region_between` at each of ``fractions``.
+
+    What does not depend on the fraction (each trajectory's source translation and arc length, their order
+    along the source rings they started from) is found once for all of them: the surface's sections between
+    two benches are several fractions of one pair.
+    """
+    tracks = []  # per morph step: its trajectories, their arc lengths, translations and rings' point order
     base = 0
     resolution = 0.0
     for step in pair.morphs:
-        starts_phys, _, trajs = _step_tracks(pair, step)
+        trajs = [t for t in step.result.trajectories if len(t.xy) >= 1]
         if not trajs:
             continue
-        shift = _translations_for(pair, step, np.array([t.xy[0] for t in trajs]))
-        points = np.array([_point_at(t.xy, normalised_arc_length(t), f) for t in trajs]) - (1 - f) * shift
         # Order points along the ring of the (aligned) source they started from.
         start_aligned = np.array([t.xy[0] for t in trajs])
+        shift = _translations_for(pair, step, start_aligned)
         source_rings = _rings(step.result.source)
         if not source_rings:
             continue
         dist = np.stack([shapely.distance(r, shapely.points(start_aligned)) for _, _, r in source_rings])
         which = np.argmin(dist, axis=0)
+        rings = []
         for ri, (k, is_hole, ring) in enumerate(source_rings):
             sel = np.flatnonzero(which == ri)
             if len(sel) < 3:
                 continue
             order = np.argsort(shapely.line_locate_point(ring, shapely.points(start_aligned[sel])))
-            rings.append((base + k, is_hole, points[sel[order]]))
+            rings.append((base + k, is_hole, sel[order]))
+        tracks.append((trajs, [normalised_arc_length(t) for t in trajs], shift, rings))
         base += len(as_multipolygon(step.result.source).geoms)
         resolution = max(resolution, 0.5 * step.result.grid.cell_size_m)
-    return _assemble(rings, resolution)
+    out = []
+    for fraction in fractions:
+        f = float(np.clip(fraction, 0.0, 1.0))
+        rings = []
+        for trajs, lengths, shift, order in tracks:
+            points = np.array([_point_at(t.xy, s, f) for t, s in zip(trajs, lengths)]) - (1 - f) * shift
+            rings.extend((k, is_hole, points[idx]) for k, is_hole, idx in order)
+        out.append(_assemble(rings, resolution))
+    return out
 
 
 def predict_geozone(

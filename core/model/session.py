@@ -47,7 +47,7 @@ from core.model.pipeline import (
     morph,
     morph_instance,
 )
-from core.model.prediction import predict_geozone, region_between
+from core.model.prediction import predict_geozone, regions_between
 from core.threads import on_threads
 
 #: Iso-contours per bench interval used to build surfaces.
@@ -469,10 +469,11 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
     for p in model.pairs:
         if p.correspondence is None:
             continue
-        for s in range(SURFACE_STEPS_PER_BENCH):
-            f = s / SURFACE_STEPS_PER_BENCH
+        fractions = [s / SURFACE_STEPS_PER_BENCH for s in range(SURFACE_STEPS_PER_BENCH)]
+        between = regions_between(p, fractions[1:])  # the fractions' trajectories ordered once
+        for s, f in enumerate(fractions):
             z = p.source_z_m + f * (p.target_z_m - p.source_z_m)
-            region = model.region_at_bench(p.upper) if s == 0 else region_between(p, f)
+            region = model.region_at_bench(p.upper) if s == 0 else between[s - 1]
             sections.append((z, as_multipolygon(region)))
     if model.pairs:
         last = model.pairs[-1]
