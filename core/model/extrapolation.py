@@ -874,7 +874,8 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     # is all the benches say, held where faster than a boundary moves.
     rate = np.where(two, (f_last - take(before)) / benches, 0.0)
     rate = np.where(np.abs(rate) > fastest_m, 0.0, rate)
-    pairs = {(int(a), int(b)) for a, b in zip(last[two], before[two])}
+    n = len(z)
+    pairs = [divmod(int(code), n) for code in np.unique(last[two] * n + before[two])]  # each cell's (j1, j2), once
     matched = np.zeros(rate.shape, bool)
     for j1, j2 in pairs:
         cells = (last == j1) & (before == j2)
@@ -886,6 +887,19 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     observed = last >= 0
     f_last = np.where(observed, f_last, fields.distance[-1])
     return f_last, np.where(observed, z[np.maximum(last, 0)], z[-1]), rate, matched
+
+
+def _kept_fit(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, ...]:
+    """:func:`fit_trend`, read-only: kept in ``fields.memo`` for the trends of the same benches and dip.
+
+    The dips' backtests (:func:`with_backtested_dip`), the ways' backtests and the assimilation, and the
+    trend of the same benches (:func:`depth_trend`) each fit them (a Kennecott build fitted 363 times,
+    162 distinct).
+    """
+    fit = fit_trend(fields, bench_height_m)
+    for a in fit:
+        a.setflags(write=False)
+    return fit
 
 
 def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, cell_size_m: float) -> np.ndarray:
@@ -1312,6 +1326,15 @@ def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     return _memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)
 
 
+def depth_trend_region(fields: BenchFields, bench_height_m: float, hole_spacing_m: float, z_m: float) -> MultiPolygon:
+    """:meth:`DepthTrend.region` at ``z_m`` of :func:`depth_trend`, kept in ``fields.memo`` with the trend.
+
+    A geozone's prediction, its uncertainty's backtest, the evaluation and its surface ask for the same sections.
+    """
+    key = ("trend region", len(fields.z_m), bench_height_m, hole_spacing_m, float(z_m))
+    return _memoised(fields, key, lambda: depth_trend(fields, bench_height_m, hole_spacing_m).region(z_m))
+
+
 def _confirmed(fields: BenchFields, trend: DepthTrend, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
     """``trend`` with its :func:`carried_precision` backtested on ``fields``; the bench pairs' movements dropped.
 
@@ -1630,7 +1653,9 @@ def _trends(
     fields: BenchFields, bench_height_m: float, hole_spacing_m: float, persistences: list[tuple[float, float]]
 ) -> list[DepthTrend]:
     """The depth trend carrying each of ``persistences`` (outlines, finer changes), all from one fit."""
-    f_last, z_last, rate, matched = fit_trend(fields, bench_height_m)
+    f_last, z_last, rate, matched = _memoised(
+        fields, ("fit", len(fields.z_m), fields.dip_deg, bench_height_m), lambda: _kept_fit(fields, bench_height_m)
+    )
     smoothing_m = TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
     # The outlines are traced on the section as measured: smoothed, the gap between two parts that have just split
     # narrows, and traced as one outline their opposite movements cancelled (the constructed split lost 0.1 IoU).

@@ -23,7 +23,7 @@ from shapely.geometry import LinearRing, MultiPolygon, Polygon
 
 from core.geometry.grid import as_multipolygon
 from core.geometry.sdf import boundary_distance
-from core.model.extrapolation import DepthTrend, depth_trend
+from core.model.extrapolation import BenchFields, depth_trend_region
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.morph.trajectories import normalised_arc_length
 
@@ -161,16 +161,16 @@ def predict_geozone(
         return {z: MultiPolygon() for z in z_m}
     levels = fields.z_m
     height = fields.bench_height_m
-    trends: dict[bool, DepthTrend] = {}
+    beyond: dict[bool, BenchFields] = {}  # the fields extrapolated down (True) or up, one view each
     for z in z_m:
         at = np.flatnonzero(np.isclose(levels, z, atol=1e-6))
         if len(at):
             out[z] = as_multipolygon(model.region_at_bench(int(at[0])))
         elif z < levels[-1] or z > levels[0]:
             down = bool(z < levels[-1])
-            if down not in trends:
-                trends[down] = depth_trend(fields if down else fields.reversed(), height, hole_spacing_m)
-            out[z] = trends[down].region(z)
+            if down not in beyond:
+                beyond[down] = fields if down else fields.reversed()
+            out[z] = depth_trend_region(beyond[down], height, hole_spacing_m, z)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             if pair is None:
