@@ -367,9 +367,7 @@ def _write_dxf(tmp: Path, vertices, faces, name, mesh) -> None:
     # Each vertex's coordinates formatted once per corner's group codes, not once per face it is a corner of: the
     # same text (Kennecott's eleven surfaces 3.0 -> 0.8 s).
     xyz = [[repr(v) for v in column] for column in np.asarray(vertices).T.tolist()]
-    corner = [
-        np.array([f"1{k}\n{x}\n2{k}\n{y}\n3{k}\n{z}\n" for x, y, z in zip(*xyz)], dtype=object) for k in range(4)
-    ]
+    corner = [np.array([f"1{k}\n{x}\n2{k}\n{y}\n3{k}\n{z}\n" for x, y, z in zip(*xyz)], dtype=object) for k in range(4)]
     faces = np.asarray(faces)
     with open(tmp, "w", encoding="ascii", newline="\n") as fh:
         fh.write("\n".join(head) + "\n")

@@ -889,19 +889,6 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     return f_last, np.where(observed, z[np.maximum(last, 0)], z[-1]), rate, matched
 
 
-def _kept_fit(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, ...]:
-    """:func:`fit_trend`, read-only: kept in ``fields.memo`` for the trends of the same benches and dip.
-
-    The dips' backtests (:func:`with_backtested_dip`), the ways' backtests and the assimilation, and the
-    trend of the same benches (:func:`depth_trend`) each fit them (a Kennecott build fitted 363 times,
-    162 distinct).
-    """
-    fit = fit_trend(fields, bench_height_m)
-    for a in fit:
-        a.setflags(write=False)
-    return fit
-
-
 def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, cell_size_m: float) -> np.ndarray:
     """The part of a movement that moves each outline as a whole: translation, growth and elongation.
 
@@ -1653,36 +1640,13 @@ def _trends(
     fields: BenchFields, bench_height_m: float, hole_spacing_m: float, persistences: list[tuple[float, float]]
 ) -> list[DepthTrend]:
     """The depth trend carrying each of ``persistences`` (outlines, finer changes), all from one fit."""
-    f_last, z_last, rate, matched = _memoised(
-        fields, ("fit", len(fields.z_m), fields.dip_deg, bench_height_m), lambda: _kept_fit(fields, bench_height_m)
+    key = ("section movement", len(fields.z_m), fields.dip_deg, bench_height_m, hole_spacing_m)
+    f_last, z_last, rate, at_cap, outline, continuity = _memoised(
+        fields, key, lambda: _section_movement(fields, bench_height_m, hole_spacing_m)
     )
-    smoothing_m = TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
-    # The outlines are traced on the section as measured: smoothed, the gap between two parts that have just split
-    # narrows, and traced as one outline their opposite movements cancelled (the constructed split lost 0.1 IoU).
-    outlines_of = f_last
-    f_last = smoothed_section(f_last, fields.grid.cell_size_m, SECTION_SMOOTHING_SPACINGS * hole_spacing_m, smoothing_m)
-    # The last section and its transport's fits, which the slide's bias rests on as well; rate and carried set below.
-    section = DepthTrend(
-        fields.grid,
-        float(fields.z_m[-1]),
-        bench_height_m,
-        f_last,
-        z_last,
-        rate,
-        rate,
-        smoothing_m,
-        1.0,
-        fields.distance[-1],
-        np.any(fields.drilled, axis=0),
+    section = _with_shared_transport(
+        fields, _last_section(fields, bench_height_m, hole_spacing_m, f_last, z_last, rate)
     )
-    section = _with_shared_transport(fields, section)
-    rate = rate - sliding_bias(rate, matched, section)
-    # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
-    # its signed distance (carried over many benches it would raise a body out of nothing there).
-    at_cap = np.abs(f_last) >= CAP_SPACINGS * hole_spacing_m - 1e-6
-    rate = np.where(at_cap, 0.0, rate)
-    continuity = body_continuity(fields, bench_height_m)
-    outline = outline_movement(rate, matched, outlines_of, fields.grid.cell_size_m)
     carried = []
     for kept_outline, kept_finer in persistences:
         # The outlines' fit reaches every matched cell, those at the cap too: they are held all the same.
@@ -1690,3 +1654,58 @@ def _trends(
         carried.append(np.where(moved > 0, moved * continuity**GROWTH_CONTINUITY_POWER, moved))
     first = section.replaced(rate=rate, carried=carried[0], carried_precision=continuity)
     return [first, *(first.replaced(carried=c) for c in carried[1:])]
+
+
+def _section_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> tuple:
+    """What :func:`_trends` carries, whatever the persistences: the smoothed last section, where and when it was
+    observed, its movement (less its slide's bias, none at the cap), where it is at the cap, the outlines' part of
+    the movement and the bodies' continuity.
+
+    Read-only: kept in ``fields.memo`` for the trends of the same benches and dip (the dips' backtests,
+    :func:`with_backtested_dip`, the ways' backtests and the assimilation, and :func:`depth_trend` make the same
+    ones: a Kennecott build fitted 363 trends, 162 distinct).
+    """
+    f_last, z_last, rate, matched = fit_trend(fields, bench_height_m)
+    smoothing_m = TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
+    # The outlines are traced on the section as measured: smoothed, the gap between two parts that have just split
+    # narrows, and traced as one outline their opposite movements cancelled (the constructed split lost 0.1 IoU).
+    outlines_of = f_last
+    f_last = smoothed_section(f_last, fields.grid.cell_size_m, SECTION_SMOOTHING_SPACINGS * hole_spacing_m, smoothing_m)
+    # The last section and its transport's fits, which the slide's bias rests on as well.
+    section = _with_shared_transport(
+        fields, _last_section(fields, bench_height_m, hole_spacing_m, f_last, z_last, rate)
+    )
+    rate = rate - sliding_bias(rate, matched, section)
+    # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
+    # its signed distance (carried over many benches it would raise a body out of nothing there).
+    at_cap = np.abs(f_last) >= CAP_SPACINGS * hole_spacing_m - 1e-6
+    rate = np.where(at_cap, 0.0, rate)
+    continuity = body_continuity(fields, bench_height_m)
+    outline = outline_movement(rate, matched, outlines_of, fields.grid.cell_size_m)
+    for a in (f_last, z_last, rate, at_cap, outline):
+        a.setflags(write=False)
+    return f_last, z_last, rate, at_cap, outline, continuity
+
+
+def _last_section(
+    fields: BenchFields,
+    bench_height_m: float,
+    hole_spacing_m: float,
+    f_last: np.ndarray,
+    z_last: np.ndarray,
+    rate: np.ndarray,
+) -> DepthTrend:
+    """The trend of the last section ``f_last`` moving by ``rate``: what its transport's fits are made on."""
+    return DepthTrend(
+        fields.grid,
+        float(fields.z_m[-1]),
+        bench_height_m,
+        f_last,
+        z_last,
+        rate,
+        rate,
+        TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
+        1.0,
+        fields.distance[-1],
+        np.any(fields.drilled, axis=0),
+    )
