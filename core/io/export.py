@@ -493,7 +493,7 @@ def _plain(obj):
     if isinstance(obj, dict):
         return {k: _plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
+        return [v if isinstance(v, float) else _plain(v) for v in obj]  # a coordinate's numbers as they are
     return obj
 
 
