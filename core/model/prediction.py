@@ -119,20 +119,20 @@ def regions_between(pair: BenchPair, fractions: list[float]) -> list[MultiPolygo
             continue
         dist = np.stack([shapely.distance(r, shapely.points(start_aligned)) for _, _, r in source_rings])
         which = np.argmin(dist, axis=0)
-        rings = []
+        ordered = []  # per source ring: its id, whether a hole, and its trajectories in order along it
         for ri, (k, is_hole, ring) in enumerate(source_rings):
             sel = np.flatnonzero(which == ri)
             if len(sel) < 3:
                 continue
             order = np.argsort(shapely.line_locate_point(ring, shapely.points(start_aligned[sel])))
-            rings.append((base + k, is_hole, sel[order]))
-        tracks.append((trajs, [normalised_arc_length(t) for t in trajs], shift, rings))
+            ordered.append((base + k, is_hole, sel[order]))
+        tracks.append((trajs, [normalised_arc_length(t) for t in trajs], shift, ordered))
         base += len(as_multipolygon(step.result.source).geoms)
         resolution = max(resolution, 0.5 * step.result.grid.cell_size_m)
     out = []
     for fraction in fractions:
         f = float(np.clip(fraction, 0.0, 1.0))
-        rings = []
+        rings: list[tuple[int, bool, np.ndarray]] = []
         for trajs, lengths, shift, order in tracks:
             points = np.array([_point_at(t.xy, s, f) for t, s in zip(trajs, lengths)]) - (1 - f) * shift
             rings.extend((k, is_hole, points[idx]) for k, is_hole, idx in order)
