@@ -535,6 +535,7 @@ def evaluate(
         format_table,
         margin_lines,
         plot_precision_recall,
+        rows_as_written,
         summary_table,
     )
 
@@ -557,7 +558,7 @@ def evaluate(
     if rows.empty:
         raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
     summary = summary_table(rows)
-    atomic_write_text(out / names[0], rows.to_csv(index=False))
+    atomic_write_text(out / names[0], rows_as_written(rows, holes).to_csv(index=False))
     atomic_write_text(out / names[1], summary.to_csv(index=False))
     plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references")
     _say(

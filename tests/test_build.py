@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import ezdxf
+import numpy as np
 import pandas as pd
 import pytest
 import trimesh
@@ -89,7 +90,7 @@ def test_surfaces_are_watertight_and_reopen_with_the_same_faces(built, geozone):
     assert pyvista.read(built / geozone / "surface.vtp").n_cells == n_faces
 
 
-def test_predict_on_real_style_columns_in_feet(small_mine_csv, tmp_path):
+def test_predict_and_evaluate_on_real_style_columns_in_feet(small_mine_csv, tmp_path):
     _, table = small_mine_csv
     feet = pd.DataFrame(
         {
@@ -116,6 +117,10 @@ def test_predict_on_real_style_columns_in_feet(small_mine_csv, tmp_path):
         assert f["geometry"]["type"] in ("Polygon", "MultiPolygon")
         # In the input's feet coordinates.
         assert feet.EAST.min() - 200 < geom.centroid.x < feet.EAST.max() + 200
+    # The evaluation names each bench by its elevation in feet too (it gave metres).
+    bgm("evaluate", path, "--geozone", "331", "--out", tmp_path / "e")
+    benches = pd.read_csv(tmp_path / "e" / "evaluation_rows.csv")["bench_z"].unique()
+    assert len(benches) and all(np.min(np.abs(feet.RL - b)) < 1.0 for b in benches), benches
 
 
 def test_evaluate_uses_the_generator_truth_when_the_sidecar_is_there(small_mine_csv, tmp_path):

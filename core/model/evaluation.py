@@ -417,6 +417,14 @@ def _predictors(
     return methods
 
 
+def rows_as_written(rows: pd.DataFrame, holes: Blastholes) -> pd.DataFrame:
+    """:func:`evaluate_geozone`'s rows as files give them: ``bench_z`` in the input's units and elevations.
+
+    The engine's columns named in metres (``z_m``, ``depth_m``; areas in m2) stay in metres.
+    """
+    return rows.assign(bench_z=[holes.bench_z_input(int(k)) for k in rows["bench"]])
+
+
 def _scores(
     methods: Mapping[str, Callable[[float], MultiPolygon]],
     targets: list[tuple[float, float, float]],
