@@ -729,7 +729,12 @@ def suggest(
     plan = plan_sampling(session, wanted, budget, level, candidates, band_probability)
     if not plan.sections:
         raise BGMInputError(f"no geozone of {', '.join(wanted)} has a predicted boundary to sample at that elevation")
-    if budget > len(candidates):
+    if not plan.suggestions:
+        _say(
+            f"bgm: note: no candidate hole lies in the {band_probability:.0%} band of {', '.join(wanted)}'s "
+            "predicted boundary (predicted absent there, or certain): nothing to pin down, none suggested"
+        )
+    elif budget > len(candidates):
         _say(f"bgm: note: only {len(candidates)} candidate holes; all of them are suggested")
     data = suggestions_table(plan.suggestions, holes, level, band_probability, labels)
     write_suggestions(out, data)

@@ -103,6 +103,20 @@ def test_suggestions_fall_in_the_band_not_deep_inside_or_far_outside(offsets):
     assert 0 < west.sum() < len(xy)
 
 
+def test_no_hole_is_suggested_where_no_candidate_lies_in_a_band():
+    """Holes far from any band (a geozone predicted absent where they can go) would tell what is known already."""
+    section = next_section(REVERSING)
+    candidates = pattern_holes()
+    band = section.as_observed().in_band(candidates)  # the band of the labels the holes would give
+    away = candidates[~band]
+    assert len(away) > 20
+    assert suggest_holes({"strip": section}, away, 5, SPACING_M) == []
+    # One candidate in the band among them: it is suggested, and the budget's others after it.
+    with_one = np.vstack([away, candidates[band][:1]])
+    chosen = suggest_holes({"strip": section}, with_one, 5, SPACING_M)
+    assert len(chosen) == 5 and chosen[0].candidate == len(away)
+
+
 def test_several_geozones_share_one_budget():
     # Two equally unsure geozones in different places: the budget is split between them.
     sections = {"west": next_section(REVERSING), "east": next_section([60.0 + dx for dx in REVERSING])}

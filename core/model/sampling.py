@@ -209,7 +209,7 @@ def suggest_holes(
     Returns
     -------
     list of Suggestion
-        In the order chosen (most informative first).
+        In the order chosen (most informative first); none where no candidate lies in a band.
     """
     xy = np.asarray(candidates_m, float).reshape(-1, 2)
     names = list(sections)
@@ -220,8 +220,11 @@ def suggest_holes(
     info = np.stack([misclassification(at[g][2]) for g in names])  # (geozones, candidates)
     weights = influence_matrix(xy, REDUNDANCY_SPACINGS * hole_spacing_m)
     score = weights @ info.sum(axis=0)
-    # A hole outside every band would tell what the prediction already knows there: holes in a band go first.
+    # A hole outside every band would tell what the prediction already knows there: holes in a band go first,
+    # and where no candidate lies in one (a geozone predicted absent, or sure) there is nothing to pin down.
     in_band = np.any([sections[g].in_band(xy) for g in names], axis=0)
+    if not in_band.any():
+        return []
     chosen: list[Suggestion] = []
     for _ in range(min(int(budget), len(xy))):
         first = np.where(in_band, score, -np.inf)
