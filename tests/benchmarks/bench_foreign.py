@@ -47,14 +47,12 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_prediction import METHODS, REFERENCES, evaluate, f1  # noqa: E402
+from bench_prediction import METHODS, REFERENCES, TRUE_LINEAR, evaluate, f1, with_true_linear  # noqa: E402
 
-import core.model.evaluation as evaluation  # noqa: E402
 from core.geometry.grid import Grid  # noqa: E402
 from core.io.blastholes import BGMWarning, blastholes_from_table  # noqa: E402
-from core.model.evaluation import LinearSDF, summary_table  # noqa: E402
+from core.model.evaluation import summary_table  # noqa: E402
 
-TRUE_LINEAR = "true sections, linear"
 SIDE_M, BENCH_M, BENCHES, WAVES = 240.0, 10.0, 7, 6
 
 
@@ -177,21 +175,9 @@ def run_seed(job: tuple[int, float, float, tuple[float, float] | None, bool]) ->
         section = fine.polygons_from_field(fields[geozone](X, Y, z_m), 0.0)
         return affinity.translate(section, -frame.origin_x, -frame.origin_y)
 
-    predictors = evaluation._predictors
-
-    def with_true_linear(holes_, geozone, k, regions, z_targets, model, references, grid, height_m):
-        methods = predictors(holes_, geozone, k, regions, z_targets, model, references, grid, height_m)
-        last_two = sorted(regions)[:2]  # elevations fall with depth: the two deepest known
-        methods[TRUE_LINEAR] = LinearSDF({z: truth(geozone, z) for z in last_two}, grid).region
-        return methods
-
-    evaluation._predictors = with_true_linear  # this process only (one seed a process)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", BGMWarning)
-            df = evaluate(holes, truth, ["g1", "g2"])
-    finally:
-        evaluation._predictors = predictors
+    with with_true_linear(truth), warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        df = evaluate(holes, truth, ["g1", "g2"])
     df.insert(0, "seed", seed)
     return df
 

@@ -14,7 +14,10 @@ drilled area of the next bench. Model, nil (hold the last bench), linear
 same pass. Precision and recall are area-weighted (pooled over benches,
 geozones and seeds), F1 is their harmonic mean; tables per family and pooled,
 with the model's F1 margin over the best reference, per kind of geozone and per
-deepest known bench. ``--benches`` drills each synthetic mine on that many benches
+deepest known bench. Beside them, as a yardstick no method has, the linear
+extrapolation of the *true* sections of the last two known benches
+(``true sections, linear``; issue 12 puts its target against it): it is in
+every table, and no margin counts it. ``--benches`` drills each synthetic mine on that many benches
 (7 by default; rates are per metre of depth, and layers slow down to stay in the
 deeper pit, so more benches also means slower layers).
 
@@ -27,6 +30,7 @@ Scenarios run in parallel on ``--workers`` processes; the wall time is printed.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import multiprocessing
 import os
 import sys
@@ -43,16 +47,19 @@ KENNECOTT = Path(
     os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
 )
 
+import core.model.evaluation as evaluation  # noqa: E402
 from core.extraction.contours import extract_contours  # noqa: E402
 from core.io.blastholes import BGMWarning, blastholes_from_table, read_blastholes  # noqa: E402
 from core.model.build import predictor_from_model  # noqa: E402
-from core.model.evaluation import evaluate_geozone, summary_table, truth_from_mine  # noqa: E402
+from core.model.evaluation import LinearSDF, evaluate_geozone, summary_table, truth_from_mine  # noqa: E402
 from core.model.pipeline import ModelParameters, model_geozone  # noqa: E402
 from core.synthetic.blobs import HOST  # noqa: E402
 from core.synthetic.scenarios import FAMILIES, HELD_OUT_SEEDS, TUNING_SEEDS, scenario  # noqa: E402
 
 METHODS = ("model", "nil", "linear", "implicit")
 REFERENCES = ("nil", "linear", "implicit")
+#: The linear extrapolation of the true sections of the last two known benches: a yardstick, not a reference.
+TRUE_LINEAR = "true sections, linear"
 #: Prediction depths below the deepest known bench, as fractions of the bench height (5 and 10 m at 10 m).
 FRACTIONS = (0.5, 1.0)
 
@@ -80,6 +87,30 @@ def evaluate(holes, truth=None, geozones=None, fractions=FRACTIONS) -> pd.DataFr
     return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
 
 
+@contextlib.contextmanager
+def with_true_linear(truth):
+    """Score :data:`TRUE_LINEAR` beside the methods, from ``truth(geozone, z_m)``, in this process meanwhile."""
+    predictors = evaluation._predictors
+
+    def also_true_linear(holes, geozone, k, regions, z_targets, model, references, grid, height_m):
+        methods = predictors(holes, geozone, k, regions, z_targets, model, references, grid, height_m)
+        last_two = sorted(regions)[:2]  # elevations fall with depth: the two deepest known
+        methods[TRUE_LINEAR] = LinearSDF({z: truth(geozone, z) for z in last_two}, grid).region
+        return methods
+
+    evaluation._predictors = also_true_linear
+    try:
+        yield
+    finally:
+        evaluation._predictors = predictors
+
+
+def without_true_linear(df: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``df``'s rows of the methods, and those of :data:`TRUE_LINEAR` (no margin may count it)."""
+    yardstick = df["method"] == TRUE_LINEAR
+    return df[~yardstick], df[yardstick]
+
+
 def run_scenario(job: tuple[str, int, int]) -> tuple[str, int, pd.DataFrame, float]:
     """Evaluate one scenario ``(family, seed, benches)`` (or Kennecott, ``("kennecott", 0, 0)``); rows and CPU seconds."""
     family, seed, n_benches = job
@@ -93,7 +124,9 @@ def run_scenario(job: tuple[str, int, int]) -> tuple[str, int, pd.DataFrame, flo
             mine, table, _ = scenario(family, seed, n_benches=n_benches)
             holes = blastholes_from_table(table, source=f"{family} {seed}")
             geozones = [g for g in holes.geozones if g != HOST]
-            df = evaluate(holes, truth_from_mine(mine, holes.frame), geozones)
+            truth = truth_from_mine(mine, holes.frame)
+            with with_true_linear(truth):
+                df = evaluate(holes, truth, geozones)
     if len(df):
         df.insert(0, "kind", "real" if family == "kennecott" else df["geozone"].map(mine.kinds))
         df.insert(0, "seed", seed)
@@ -105,9 +138,12 @@ def f1(p: float, r: float) -> float:
     return 2 * p * r / (p + r) if np.isfinite(p) and np.isfinite(r) and p + r > 0 else float("nan")
 
 
-def depth_table(rows: pd.DataFrame) -> pd.DataFrame:
-    """Precision, recall and F1 (percent) per depth and method, and the model's F1 margin over the best reference."""
+def depth_table(df: pd.DataFrame) -> pd.DataFrame:
+    """Precision, recall and F1 (percent) per depth and method, the model's F1 margin over the best reference,
+    and :data:`TRUE_LINEAR`'s F1 where it was scored."""
+    rows, yardstick = without_true_linear(df)
     summary = summary_table(rows)
+    lines = _yardstick_f1(yardstick)
     out = []
     for _, r in summary.iterrows():
         line = {
@@ -118,8 +154,17 @@ def depth_table(rows: pd.DataFrame) -> pd.DataFrame:
             p, rec = r.get(f"precision_{m}", np.nan), r.get(f"recall_{m}", np.nan)
             line[f"{m} P/R/F1"] = f"{100 * p:5.1f} / {100 * rec:5.1f} / {100 * r.get(f'f1_{m}', np.nan):5.1f}"
         line["margin"] = f"{100 * r['f1_margin']:+5.1f} vs {r['best_reference']}"
+        if lines:
+            line[f"{TRUE_LINEAR} F1"] = round(100 * lines[r["fraction"]], 1)
         out.append(line)
     return pd.DataFrame(out)
+
+
+def _yardstick_f1(yardstick: pd.DataFrame) -> dict[float, float]:
+    """:data:`TRUE_LINEAR`'s F1 per fraction of a bench (none where it was not scored)."""
+    if yardstick.empty:
+        return {}
+    return {float(r["fraction"]): float(r[f"f1_{TRUE_LINEAR}"]) for _, r in summary_table(yardstick).iterrows()}
 
 
 def print_tables(df: pd.DataFrame, families: list[str]) -> None:
@@ -143,13 +188,17 @@ def print_tables(df: pd.DataFrame, families: list[str]) -> None:
 def margin_rows(df: pd.DataFrame, by: str) -> pd.DataFrame:
     """Every method's F1 at each depth, and the model's margin over the best reference, per value of ``by``."""
     rows = []
-    for value, part in df.groupby(by):
-        summary = summary_table(part).set_index("fraction")
+    for value, whole in df.groupby(by):
+        part, yardstick = without_true_linear(whole)
+        summary = summary_table(part)
+        lines = _yardstick_f1(yardstick)
         row = {by: value, "cases": len(part) // (len(METHODS) * len(summary))}
         for _, r in summary.iterrows():
             d = f"{r['depth_m']:.0f} m"
             row.update({f"{m} {d}": round(100 * r[f"f1_{m}"], 1) for m in METHODS})
             row[f"margin {d}"] = round(100 * r["f1_margin"], 1)
+            if lines:
+                row[f"true linear {d}"] = round(100 * lines[r["fraction"]], 1)
         rows.append(row)
     return pd.DataFrame(rows)
 
