@@ -846,3 +846,11 @@ def test_a_bench_height_that_puts_several_benches_on_one_is_refused(tmp_path, fa
     error_line(bgm("contours", path, "--out", out, "--bench-height", 10 * factor), "bench height", "on one bench")
     succeeds(bgm("contours", path, "--out", out, "--bench-height", 10))
     assert len({f["properties"]["bench"] for f in json.loads(out.read_text())["features"]}) == 6
+
+
+def test_benches_of_two_holes_are_refused_as_such(tmp_path):
+    """Two holes a bench, the same two collars on every bench: said to be too few holes, not "spread continuously"."""
+    rows = [(100.0 + 6.0 * i, 100.0, 100.0 - 10.0 * k, "ab"[i]) for k in range(4) for i in range(2)]
+    path = tmp_path / "two.csv"
+    pd.DataFrame(rows, columns=["x", "y", "z", "geozone"]).to_csv(path, index=False)
+    error_line(bgm("contours", path, "--out", tmp_path / "o.geojson"), "4 levels", "at least 3 holes a bench")

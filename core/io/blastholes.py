@@ -625,6 +625,11 @@ def detect_benches(
         clusters = _elevation_clusters(zs)
         min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
         big = [c for c in clusters if len(c) >= min_count]
+        if len(clusters) >= 2 and max(len(c) for c in clusters) < 3:
+            raise BGMInputError(
+                f"z falls on {len(clusters)} levels ({zs[-1]:g} to {zs[0]:g}) of at most "
+                f"{max(len(c) for c in clusters)} hole(s) each; BGM needs at least 3 holes a bench"
+            )
         if len(big) < 2:
             return _single_bench(z, xy)
         levels = _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
@@ -778,9 +783,10 @@ def _single_bench(z: np.ndarray, xy: np.ndarray | None) -> tuple[np.ndarray, np.
     if xy is not None and len(xy) >= 2:
         spacing = _collar_spacing(xy)
         if thickness > MAX_BENCH_THICKNESS_SPACINGS * spacing:
+            spacings = f"{thickness / spacing:.0f} hole spacings" if spacing > 0 else "every collar repeated"
             raise BGMInputError(
                 f"z does not form benches: elevations spread continuously over {thickness:.4g} units "
-                f"(5th to 95th percentile), {thickness / max(spacing, 1e-12):.0f} hole spacings, with no gap "
+                f"(5th to 95th percentile), {spacings}, with no gap "
                 "between benches; BGM needs samples grouped by bench (give --bench-height if they are)"
             )
     spread = float(np.percentile(np.abs(z - level), 95))
