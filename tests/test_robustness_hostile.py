@@ -854,3 +854,19 @@ def test_benches_of_two_holes_are_refused_as_such(tmp_path):
     path = tmp_path / "two.csv"
     pd.DataFrame(rows, columns=["x", "y", "z", "geozone"]).to_csv(path, index=False)
     error_line(bgm("contours", path, "--out", tmp_path / "o.geojson"), "4 levels", "at least 3 holes a bench")
+
+
+def test_tall_benches_are_feet_only_where_their_holes_make_a_pattern_in_feet(tmp_path):
+    """30-unit benches drilled 5 units apart are metres (in feet: a 9 m bench drilled every 1.5 m); 50 ft ones are feet."""
+    rng = rng_for("tall benches")
+    metric = bench_table(700.0 - 30.0 * np.arange(3), rng)
+    with pytest.warns(BGMWarning, match="read as metres"):
+        holes = blastholes_from_table(metric)
+    assert holes.frame.length_unit == "m" and holes.bench_height_m == pytest.approx(30.0, abs=0.5)
+    imperial = bench_table(2300.0 - 50.0 * np.arange(3), rng)
+    for axis, origin in zip(("x", "y"), ORIGIN):  # 17.5 ft apart: 5.3 m
+        imperial[axis] = origin + (imperial[axis] - origin) * 3.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)
+        holes = blastholes_from_table(imperial)
+    assert holes.frame.length_unit == "ft" and holes.bench_height_m == pytest.approx(50.0 * 0.3048, abs=0.2)

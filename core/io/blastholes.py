@@ -48,6 +48,8 @@ COINCIDENT_M = 1e-3
 #: Smallest bench height (input units, metres or feet) recognised when benches
 #: are given at exact levels with no scatter (see :func:`detect_benches`).
 MIN_BENCH_GAP = 2.0
+#: Blastholes closer than this (metres, the median across benches) are no drilling pattern: the unit is not feet.
+MIN_HOLE_SPACING_M = 2.5
 #: Coordinates larger than this (input units) are rejected as not coordinates.
 MAX_COORDINATE = 1e12
 #: More holes than this share between bench levels: z does not form benches.
@@ -352,7 +354,8 @@ def read_blastholes(
     length_unit : {"m", "ft"}, optional
         Units of the input's coordinates; guessed from the bench height when
         omitted (benches of 25 units or more are taken to be feet: metric
-        benches are 5-20 m, imperial ones 30-60 ft).
+        benches are 5-20 m, imperial ones 30-60 ft), unless their holes would
+        then be under :data:`MIN_HOLE_SPACING_M` apart.
 
     Returns
     -------
@@ -419,7 +422,11 @@ def blastholes_from_table(
         notes.append(msg)
         warnings.warn(msg, BGMWarning, stacklevel=2)
 
-    unit = _guess_unit(height_in, length_unit)
+    unit = _guess_unit(
+        height_in,
+        length_unit,
+        lambda: median_hole_spacing(np.column_stack([coords["x"], coords["y"]])[~off], bench[~off]),
+    )
     mpu = FEET_TO_METRES if unit == "ft" else 1.0
     keep = ~off
     frame = LocalFrame(
@@ -551,7 +558,12 @@ def _refuse_degrees(x: np.ndarray, y: np.ndarray, source: str) -> None:
             )
 
 
-def _guess_unit(bench_height: float, length_unit: str | None) -> str:
+def _guess_unit(bench_height: float, length_unit: str | None, spacing=lambda: float("nan")) -> str:
+    """The input's length unit: ``length_unit``, else feet for benches of 25 units or more.
+
+    Unless their holes would then lie closer than :data:`MIN_HOLE_SPACING_M` (``spacing()``, input units):
+    30-unit benches with holes 5.5 units apart are metres (a 9 m bench drilled every 1.7 m is no pattern).
+    """
     if length_unit:
         unit = length_unit.strip().lower()
         aliases = {
@@ -568,6 +580,14 @@ def _guess_unit(bench_height: float, length_unit: str | None) -> str:
             raise BGMInputError(f"unknown length unit {length_unit!r}: use m or ft")
         return aliases[unit]
     if np.isfinite(bench_height) and bench_height >= 25.0:
+        if spacing() * FEET_TO_METRES < MIN_HOLE_SPACING_M:
+            warnings.warn(
+                f"benches {bench_height:g} units high would be feet, but their holes would then lie "
+                f"{spacing() * FEET_TO_METRES:.2g} m apart: read as metres (give --units ft if they are feet)",
+                BGMWarning,
+                stacklevel=3,
+            )
+            return "m"
         return "ft"
     return "m"
 
