@@ -580,10 +580,11 @@ def _guess_unit(bench_height: float, length_unit: str | None, spacing=lambda: fl
             raise BGMInputError(f"unknown length unit {length_unit!r}: use m or ft")
         return aliases[unit]
     if np.isfinite(bench_height) and bench_height >= 25.0:
-        if spacing() * FEET_TO_METRES < MIN_HOLE_SPACING_M:
+        apart_m = spacing() * FEET_TO_METRES
+        if apart_m < MIN_HOLE_SPACING_M:
             warnings.warn(
                 f"benches {bench_height:g} units high would be feet, but their holes would then lie "
-                f"{spacing() * FEET_TO_METRES:.2g} m apart: read as metres (give --units ft if they are feet)",
+                f"{apart_m:.2g} m apart: read as metres (give --units ft if they are feet)",
                 BGMWarning,
                 stacklevel=3,
             )
