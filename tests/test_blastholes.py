@@ -57,6 +57,16 @@ def test_holes_collared_off_their_pattern_read_at_its_spacing(pattern):
     assert median_hole_spacing(scattered, bench) == pytest.approx(6.0, rel=0.1)
 
 
+@pytest.mark.parametrize("rows", [1, 2])
+def test_a_bench_drilled_in_rows_reads_at_its_step(rows):
+    """One row (a trench, a ramp): its third-nearest hole is two steps away; two staggered rows are a pattern."""
+    rng = np.random.default_rng(1)
+    step = np.arange(30.0) * 6.0
+    xy = np.vstack([np.column_stack([step + 3.0 * r, np.full(30, 5.2 * r)]) for r in range(rows)])
+    xy = xy @ np.array([[0.8, 0.6], [-0.6, 0.8]]) + rng.normal(0.0, 0.1, xy.shape)
+    assert median_hole_spacing(xy, np.zeros(len(xy), int)) == pytest.approx(6.0, rel=0.05)
+
+
 def test_explicit_columns_and_other_delimiters(tmp_path):
     t = small_table().rename(columns={"EAST": "e1", "NORTH": "n1", "RL": "level", "lookup_domain": "code"})
     path = write(tmp_path, t, sep=";")

@@ -879,6 +879,16 @@ def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = 0.75
 SPACING_NEIGHBOUR = 3
 
 
+def _one_row(pts: np.ndarray) -> bool:
+    """Holes along one line (a trench, a ramp), whose third-nearest neighbour is two steps away, not one.
+
+    Their spread across the line is under a quarter of their nearest spacing (two staggered rows: about half).
+    """
+    across = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)[-1] / np.sqrt(len(pts))
+    nearest = cKDTree(pts).query(pts, k=2)[0][:, 1]
+    return bool(across < 0.25 * np.median(nearest))
+
+
 def median_hole_spacing(xy: np.ndarray, bench: np.ndarray | None = None, neighbour: int = SPACING_NEIGHBOUR) -> float:
     """Median distance from a hole to its third-nearest neighbour on the same bench (metres; one bench by default).
 
@@ -898,7 +908,7 @@ def median_hole_spacing(xy: np.ndarray, bench: np.ndarray | None = None, neighbo
         pts = np.unique(xy[bench == k], axis=0)  # coincident holes are one collar
         if len(pts) < 2:
             continue
-        nth = neighbour if len(pts) > neighbour else 1  # a few holes: their nearest
+        nth = neighbour if len(pts) > neighbour and not _one_row(pts) else 1  # a few holes, or a row: their nearest
         d, _ = cKDTree(pts).query(pts, k=nth + 1)
         distances.append(d[:, -1])
     if not distances:
