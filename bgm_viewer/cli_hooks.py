@@ -75,8 +75,6 @@ def view(
     table=None,
 ) -> None:
     """Open the 3D viewer (or render a screenshot with no display)."""
-    from dataclasses import astuple
-
     from core.cli import DEMO_CSV, _outputs  # the engine's checks of every output
 
     if input is not None and str(input) != "-" and not Path(input).exists():
@@ -84,7 +82,7 @@ def view(
     if screenshot is not None:
         _outputs(screenshot, input if input is not None else DEMO_CSV, project)
     source = input
-    if table is not None and any(v is not None for v in astuple(table)):
+    if table is not None and table.given():
         if input is None:
             raise BGMInputError("--x, --y, --z, --geozone-column, --bench-height and --units need an input table")
         source = table.read(input)  # columns, bench height or units named on the command line

@@ -123,8 +123,15 @@ class TableOptions:
     ] = None
     units: Annotated[
         str | None,
-        typer.Option("--units", help="Length unit of the input, m or ft (default: guessed from the bench height)."),
+        typer.Option(
+            "--units",
+            help="Length unit of the input, m or ft (default: guessed from the bench height and hole spacing).",
+        ),
     ] = None
+
+    def given(self) -> bool:
+        """Whether any option was given (else the table is read as found)."""
+        return any(getattr(self, f.name) is not None for f in fields(self))
 
     def read(self, input: Path):
         """Read ``input`` with these options and say in one line what was found."""

@@ -879,13 +879,12 @@ def drilled_area(xy: np.ndarray, spacing_m: float, radius_spacings: float = 0.75
 SPACING_NEIGHBOUR = 3
 
 
-def _one_row(pts: np.ndarray) -> bool:
+def _one_row(pts: np.ndarray, nearest: np.ndarray) -> bool:
     """Holes along one line (a trench, a ramp), whose third-nearest neighbour is two steps away, not one.
 
-    Their spread across the line is under a quarter of their nearest spacing (two staggered rows: about half).
+    Their spread across the line is under a quarter of their ``nearest`` spacing (two staggered rows: about half).
     """
     across = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)[-1] / np.sqrt(len(pts))
-    nearest = cKDTree(pts).query(pts, k=2)[0][:, 1]
     return bool(across < 0.25 * np.median(nearest))
 
 
@@ -908,9 +907,9 @@ def median_hole_spacing(xy: np.ndarray, bench: np.ndarray | None = None, neighbo
         pts = np.unique(xy[bench == k], axis=0)  # coincident holes are one collar
         if len(pts) < 2:
             continue
-        nth = neighbour if len(pts) > neighbour and not _one_row(pts) else 1  # a few holes, or a row: their nearest
-        d, _ = cKDTree(pts).query(pts, k=nth + 1)
-        distances.append(d[:, -1])
+        d, _ = cKDTree(pts).query(pts, k=min(neighbour, len(pts) - 1) + 1)
+        nth = neighbour if len(pts) > neighbour and not _one_row(pts, d[:, 1]) else 1  # a few holes, or a row: nearest
+        distances.append(d[:, nth])
     if not distances:
         return float("nan")
     return float(np.median(np.concatenate(distances)))

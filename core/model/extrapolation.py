@@ -1641,11 +1641,8 @@ def _trends(
 ) -> list[DepthTrend]:
     """The depth trend carrying each of ``persistences`` (outlines, finer changes), all from one fit."""
     key = ("section movement", len(fields.z_m), fields.dip_deg, bench_height_m, hole_spacing_m)
-    f_last, z_last, rate, at_cap, outline, continuity = _memoised(
+    section, rate, at_cap, outline, continuity = _memoised(
         fields, key, lambda: _section_movement(fields, bench_height_m, hole_spacing_m)
-    )
-    section = _with_shared_transport(
-        fields, _last_section(fields, bench_height_m, hole_spacing_m, f_last, z_last, rate)
     )
     carried = []
     for kept_outline, kept_finer in persistences:
@@ -1657,8 +1654,8 @@ def _trends(
 
 
 def _section_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> tuple:
-    """What :func:`_trends` carries, whatever the persistences: the smoothed last section, where and when it was
-    observed, its movement (less its slide's bias, none at the cap), where it is at the cap, the outlines' part of
+    """What :func:`_trends` carries, whatever the persistences: the last section (smoothed, with its transport's
+    fits), its movement (less its slide's bias, none at the cap), where it is at the cap, the outlines' part of
     the movement and the bodies' continuity.
 
     Read-only: kept in ``fields.memo`` for the trends of the same benches and dip (the dips' backtests,
@@ -1671,10 +1668,22 @@ def _section_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m
     # narrows, and traced as one outline their opposite movements cancelled (the constructed split lost 0.1 IoU).
     outlines_of = f_last
     f_last = smoothed_section(f_last, fields.grid.cell_size_m, SECTION_SMOOTHING_SPACINGS * hole_spacing_m, smoothing_m)
-    # The last section and its transport's fits, which the slide's bias rests on as well.
-    section = _with_shared_transport(
-        fields, _last_section(fields, bench_height_m, hole_spacing_m, f_last, z_last, rate)
+    # The last section and its transport's fits, which the slide's bias rests on as well; rate and carried set
+    # by each trend (:func:`_trends`).
+    section = DepthTrend(
+        fields.grid,
+        float(fields.z_m[-1]),
+        bench_height_m,
+        f_last,
+        z_last,
+        rate,
+        rate,
+        smoothing_m,
+        1.0,
+        fields.distance[-1],
+        np.any(fields.drilled, axis=0),
     )
+    section = _with_shared_transport(fields, section)
     rate = rate - sliding_bias(rate, matched, section)
     # A cell at the cap has no boundary within it: the movement of the nearest one, further away, does not move
     # its signed distance (carried over many benches it would raise a body out of nothing there).
@@ -1684,28 +1693,4 @@ def _section_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m
     outline = outline_movement(rate, matched, outlines_of, fields.grid.cell_size_m)
     for a in (f_last, z_last, rate, at_cap, outline):
         a.setflags(write=False)
-    return f_last, z_last, rate, at_cap, outline, continuity
-
-
-def _last_section(
-    fields: BenchFields,
-    bench_height_m: float,
-    hole_spacing_m: float,
-    f_last: np.ndarray,
-    z_last: np.ndarray,
-    rate: np.ndarray,
-) -> DepthTrend:
-    """The trend of the last section ``f_last`` moving by ``rate``: what its transport's fits are made on."""
-    return DepthTrend(
-        fields.grid,
-        float(fields.z_m[-1]),
-        bench_height_m,
-        f_last,
-        z_last,
-        rate,
-        rate,
-        TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m,
-        1.0,
-        fields.distance[-1],
-        np.any(fields.drilled, axis=0),
-    )
+    return section, rate, at_cap, outline, continuity

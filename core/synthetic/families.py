@@ -410,7 +410,7 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
         widths = rng.uniform(12.0, 30.0, n_layers)
         gaps = np.where(rng.random(n_layers) < 0.3, 0.0, rng.uniform(12.0, 30.0, n_layers))
         inner = np.r_[0.0, np.cumsum(widths[:-1] + gaps[:-1])]  # inner contact of each layer, outward from layer 0's
-        migration = float(rng.uniform(*SHIFT_RANGE_PER_M) * rng.choice([-1.0, 1.0]) * layout.shift_scale)
+        migration = float(rng.uniform(*layout.shift_range_per_m) * rng.choice([-1.0, 1.0]))
         lateral = float(rng.uniform(-0.2, 0.2))
         # The outermost hinge sits inner[-1] + widths[-1] behind the inner one (against the axis).
         p, migration = _fitting_offset(
