@@ -173,7 +173,7 @@ def test_a_layer_dipping_shallower_than_30_degrees_is_carried_on(known_benches):
 
 
 def test_a_body_moves_as_far_as_its_sections_align_but_a_lens_does_not_jump():
-    from core.model.extrapolation import fastest_movement_m, movement_reach_m
+    from core.model.movement import fastest_movement_m, movement_reach_m
 
     everywhere = [shapely.box(0, 0, 200, 160)] * 2
     fastest = fastest_movement_m(10.0)
@@ -202,6 +202,7 @@ def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carrie
     (half its predicted boundary 12 m from the true one).
     """
     import core.model.extrapolation as extrapolation
+    import core.model.movement as movement
 
     lens = Point(20.0, 130.0).buffer(18.0)
     sections = [_contact(20.0 * k).union(lens) for k in range(5)]
@@ -219,7 +220,7 @@ def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carrie
     assert median < 1.5 and p90 < holes.hole_spacing_m and lens_iou > 0.9, (median, p90, lens_iou)
     # The 30-degree bound alone: never extended (COHERENT_SHARE), never chosen shallower by the benches, and
     # taken where two benches are known (the benches above place each bench with their two-bench predictions).
-    monkeypatch.setattr(extrapolation, "COHERENT_SHARE", 2.0)
+    monkeypatch.setattr(movement, "COHERENT_SHARE", 2.0)
     monkeypatch.setattr(extrapolation, "SHALLOW_DIP_GAIN", 1.0)
     monkeypatch.setattr(extrapolation, "TWO_BENCH_DIP_DEG", extrapolation.MIN_DIP_DEG)
     (median, _), _ = distances()
@@ -229,7 +230,7 @@ def test_a_contact_moving_past_the_dip_bound_beside_a_lens_that_stands_is_carrie
 def _section_fields(sections, drilled_per_bench, bench_height_m=10.0):
     """Bench fields of a geozone whose section on bench ``k`` is ``sections[k]``, ``bench_height_m`` apart, 6 m spacing."""
     from core.geometry.grid import Grid, as_multipolygon
-    from core.model.extrapolation import bench_fields
+    from core.model.fields import bench_fields
 
     grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
     regions = {k: as_multipolygon(section) for k, section in enumerate(sections)}
@@ -239,7 +240,7 @@ def _section_fields(sections, drilled_per_bench, bench_height_m=10.0):
 
 
 def test_only_a_boundary_moving_one_way_past_the_dip_bound_extends_how_far_it_may_move():
-    from core.model.extrapolation import coherent_reach_m, fastest_movement_m
+    from core.model.movement import coherent_reach_m, fastest_movement_m
 
     pit = [shapely.box(0, 0, 200, 160)] * 2
     fastest = fastest_movement_m(10.0)
@@ -262,7 +263,8 @@ def test_a_prediction_from_the_first_benches_of_uneven_height_reuses_what_the_mo
     from the benches above again: nearly a third of a Kennecott build.
     """
     from core.geometry.grid import Grid, as_multipolygon
-    from core.model.extrapolation import bench_fields, depth_trend
+    from core.model.extrapolation import depth_trend
+    from core.model.fields import bench_fields
     from core.model.pipeline import GeozoneModel
 
     grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
@@ -288,21 +290,22 @@ def test_the_trends_of_one_section_share_its_transport_and_move_it_as_their_own(
     them all, and a trend sharing it predicts what one making its own does.
     """
     import core.model.extrapolation as extrapolation
+    import core.model.trend as trend
 
     made = []
-    flow_systems = extrapolation.flow_systems
+    flow_systems = trend.flow_systems
 
     def counted(n_r, n_c, classes, sigma_cells):
         made.append(n_r.tobytes() + n_c.tobytes())
         return flow_systems(n_r, n_c, classes, sigma_cells)
 
-    monkeypatch.setattr(extrapolation, "flow_systems", counted)
+    monkeypatch.setattr(trend, "flow_systems", counted)
     sections = [Point(60.0 + 8.0 * k, 80.0).buffer(30.0 + 2.0 * k) for k in range(4)]
     fields = _section_fields(sections, [shapely.box(0, 0, 200, 160)] * 4)
     shared = extrapolation.depth_trend(fields, 10.0, 6.0).field(465.0)
     sections_made = len(made)
     assert sections_made >= 3 and len(set(made)) == sections_made  # every prefix's section, each made once
-    monkeypatch.setattr(extrapolation, "TRANSPORTS_KEPT", 0)
+    monkeypatch.setattr(trend, "TRANSPORTS_KEPT", 0)
     own = extrapolation.depth_trend(_section_fields(sections, [shapely.box(0, 0, 200, 160)] * 4), 10.0, 6.0)
     np.testing.assert_array_equal(own.field(465.0), shared)
     assert len(set(made)) == sections_made  # the same sections
@@ -338,7 +341,8 @@ def test_with_two_benches_a_body_growing_past_the_30_degree_bound_keeps_growing(
     stayed at its last radius (48 m) a bench down. Two benches take ``TWO_BENCH_DIP_DEG`` (27 m a bench)
     and it grows on to about 68 m.
     """
-    from core.model.extrapolation import MIN_DIP_DEG, TWO_BENCH_DIP_DEG, depth_trend, with_backtested_dip
+    from core.model.extrapolation import TWO_BENCH_DIP_DEG, depth_trend, with_backtested_dip
+    from core.model.fields import MIN_DIP_DEG
 
     fields = _growing_disc_fields([28.0, 48.0])
     assert with_backtested_dip(fields, 10.0, 6.0).min_dip_deg == TWO_BENCH_DIP_DEG
@@ -354,7 +358,8 @@ def test_with_two_benches_a_body_growing_past_the_30_degree_bound_keeps_growing(
 
 def test_the_dip_bound_is_chosen_from_the_benches_down_to_the_deepest_known_only():
     """A view of the upper benches (what was known then) chooses from those alone: nothing below leaks in."""
-    from core.model.extrapolation import MIN_DIP_DEG, SHALLOW_DIP_DEG, with_backtested_dip
+    from core.model.extrapolation import SHALLOW_DIP_DEG, with_backtested_dip
+    from core.model.fields import MIN_DIP_DEG
 
     # Growing 6 m a bench, then 22 m a bench from the fourth bench on.
     fields = _growing_disc_fields([10.0, 16.0, 22.0, 44.0, 66.0, 88.0])
@@ -413,7 +418,7 @@ def test_shape_noise_is_held_and_a_noisy_body_that_moves_is_carried(step_m, ampl
 
 def test_with_two_benches_an_outline_keeps_its_translation_growth_and_elongation_and_drops_finer_changes():
     """Two benches cannot tell a change that repeats from shape noise: only the outline's movement as a whole is kept."""
-    from core.model.extrapolation import outline_movement
+    from core.model.movement import outline_movement
 
     h = 2.0
     rows, cols = np.indices((90, 100), dtype=float)
@@ -463,7 +468,7 @@ def test_movements_that_agree_by_chance_are_not_carried_on_and_steady_ones_are()
     independent pairs of five-figure movements (one outline's fit) agreed
     enough to carry some of their movement on.
     """
-    from core.model.extrapolation import _agreement
+    from core.model.movement import _agreement
 
     rng = np.random.default_rng(0)
     chance = [_agreement(rng.normal(size=5), rng.normal(size=5), 5) for _ in range(400)]
@@ -483,7 +488,8 @@ def test_a_noisy_body_keeps_its_steady_movement_and_drops_its_wobble():
     0.92 of the translation; two standard errors kept 0.42 in one case.
     """
     from core.geometry.grid import Grid, as_multipolygon
-    from core.model.extrapolation import bench_fields, geozone_persistence
+    from core.model.fields import bench_fields
+    from core.model.movement import geozone_persistence
 
     grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
     everywhere = grid.rasterize(shapely.box(0, 0, 200, 160))
@@ -598,7 +604,8 @@ def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_m
     went on as the bench above had moved. Predicting each of its benches from
     those above, carrying all of it did best, and so it does one bench below.
     """
-    from core.model.extrapolation import _trend, chosen_persistence, geozone_persistence
+    from core.model.extrapolation import _trend, chosen_persistence
+    from core.model.movement import geozone_persistence
 
     sections = _travelling_waves(seed)
     holes = _bench_table(sections)
@@ -676,7 +683,8 @@ def test_a_lens_that_grew_twice_by_chance_among_lenses_that_change_at_random_is_
     three spacings grew it to 19 m a bench below); judged with the geozone's,
     its growth is no more likely to go on than theirs, and it is held.
     """
-    from core.model.extrapolation import depth_trend, geozone_persistence
+    from core.model.extrapolation import depth_trend
+    from core.model.movement import geozone_persistence
 
     everywhere = shapely.box(0, 0, 200, 160)
     others = [(40, 40, 1), (100, 40, -1), (160, 40, 1), (40, 120, -1), (100, 120, 1)]
@@ -754,7 +762,8 @@ def test_a_backtest_of_a_few_cells_at_the_edge_of_the_drilling_does_not_drop_a_b
 
 def test_a_strip_moving_further_than_its_half_width_moves_both_of_its_edges():
     from core.geometry.grid import Grid
-    from core.model.extrapolation import bench_distance, boundary_movement
+    from core.model.fields import bench_distance
+    from core.model.movement import boundary_movement
 
     grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
     drilled = np.ones(grid.shape, bool)
@@ -786,7 +795,8 @@ def test_a_strip_moving_steadily_further_than_its_half_width_keeps_its_movement(
     (the cell crosses its ridge), which read as movement that reverses.
     """
     from core.geometry.grid import Grid
-    from core.model.extrapolation import BenchFields, bench_distance, geozone_persistence
+    from core.model.fields import BenchFields, bench_distance
+    from core.model.movement import geozone_persistence
 
     grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
     drilled = np.ones(grid.shape, bool)
@@ -855,7 +865,7 @@ def test_a_bench_held_as_it_is_keeps_its_contour_to_a_tenth_of_a_cell(offset_cel
     # Between cell centres the raster's boundary falls half-way (up to half a cell off the contour); near
     # the contour the bench's signed distance is the exact distance, so its zero level is the contour.
     from core.geometry.grid import Grid
-    from core.model.extrapolation import bench_fields
+    from core.model.fields import bench_fields
 
     grid = Grid.covering((0.0, 0.0, 200.0, 160.0), 2.0)
     x0 = float(grid.cell_centres()[0][0, 30]) + 2.0 * offset_cells
@@ -961,7 +971,8 @@ def test_below_the_deepest_bench_the_host_of_a_narrowing_pit_is_one_sheet_around
 
 def test_the_displacement_of_a_curved_boundary_is_its_whole_translation_and_of_a_straight_one_its_movement_across():
     """The benches give only the movement across a boundary; where the boundary curves, its normals fix the rest."""
-    from core.model.extrapolation import direction_classes, displacement_by_direction, flow_systems, unit_normals
+    from core.model.movement import unit_normals
+    from core.model.trend import direction_classes, displacement_by_direction, flow_systems
 
     rows, cols = np.indices((120, 120), dtype=float)
     shift = np.array([3.0, -2.0])  # cells

@@ -16,7 +16,7 @@ from conftest import straight_contacts
 from shapely.geometry import box
 
 from core.geometry.grid import Grid
-from core.model.extrapolation import bench_fields
+from core.model.fields import bench_fields
 from core.model.sampling import estimate_pattern, lay_out, revealed_field, suggest_holes
 from core.model.uncertainty import (
     PLACEMENT_SPACINGS,

@@ -18,7 +18,8 @@ from shapely import affinity
 from core.correspondence.pair import MorphInstance, PairCorrespondence, correspond_pair
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes
-from core.model.extrapolation import BenchFields, assimilated, bench_fields
+from core.model.extrapolation import assimilated
+from core.model.fields import BenchFields, bench_fields
 from core.model.parameters import ModelParameters
 from core.morph.levelset import MorphResult, morph_regions
 from core.morph.trajectories import trajectory_xyz

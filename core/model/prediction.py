@@ -23,7 +23,8 @@ from shapely.geometry import LinearRing, MultiPolygon, Polygon
 
 from core.geometry.grid import as_multipolygon
 from core.geometry.sdf import boundary_distance
-from core.model.extrapolation import BenchFields, depth_trend_region
+from core.model.extrapolation import depth_trend_region
+from core.model.fields import BenchFields
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.morph.trajectories import normalised_arc_length
 

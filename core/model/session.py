@@ -35,7 +35,7 @@ from core.geometry.grid import as_multipolygon
 from core.io.blastholes import Blastholes
 from core.io.cache import MISSING, StageCache, content_key, engine_fingerprint
 from core.io.project import Project, overrides_for
-from core.model.extrapolation import BenchFields
+from core.model.fields import BenchFields
 from core.model.parameters import ModelParameters, stage_values
 from core.model.pipeline import (
     BenchPair,

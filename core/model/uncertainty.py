@@ -60,9 +60,12 @@ from skimage import measure
 
 from core.geometry.grid import Grid, as_multipolygon, local_gaussian_filter
 from core.geometry.sdf import region_signed_distance
-from core.model.extrapolation import BenchFields, DepthTrend, depth_trend, fastest_movement_m, last_observations
+from core.model.extrapolation import depth_trend
+from core.model.fields import BenchFields
+from core.model.movement import fastest_movement_m, last_observations
 from core.model.pipeline import GeozoneModel
 from core.model.prediction import predict_geozone
+from core.model.trend import DepthTrend
 
 #: Default probability that the band holds the true boundary.
 DEFAULT_PROBABILITY = 0.9

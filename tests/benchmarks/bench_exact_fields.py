@@ -30,7 +30,8 @@ sys.path.insert(0, str(ROOT))
 
 from core.geometry.grid import Grid  # noqa: E402
 from core.geometry.sdf import region_signed_distance  # noqa: E402
-from core.model.extrapolation import BenchFields, depth_trend  # noqa: E402
+from core.model.extrapolation import depth_trend  # noqa: E402
+from core.model.fields import BenchFields  # noqa: E402
 
 CELL_M = 3.0
 CELLS = 140
