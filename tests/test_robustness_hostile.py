@@ -200,6 +200,19 @@ def test_outputs_never_replace_inputs_or_devices(csv, tmp_path, command, kind):
     unchanged(before, snapshot(tmp_path, Path(os.devnull)))
 
 
+@pytest.mark.parametrize("command", list(OUTPUT_COMMANDS))
+def test_an_output_no_file_can_be_made_in_is_refused_before_the_table_is_read(csv, command):
+    """/proc takes no new file, even from root, whom permissions do not stop: refused before any work."""
+    if not Path("/proc/self").exists():
+        pytest.skip("no /proc here")
+    if command == "screenshot":
+        pytest.importorskip("pyvista")
+    suffix = ".png" if command == "screenshot" else ".csv" if command == "demo data" else ".geojson"
+    run = bgm(*OUTPUT_COMMANDS[command](csv, Path("/proc") / f"bgm-{command.replace(' ', '-')}{suffix}"))
+    error_line(run, "cannot write", "/proc")
+    assert "holes" not in run.stdout + run.stderr.replace("/proc", "")  # no input summary: the table was not read
+
+
 @pytest.mark.parametrize("case", ["input inside", "a file", "foreign files", "model plus a file"])
 def test_build_never_replaces_a_folder_it_did_not_write(csv, tmp_path, case):
     if case == "input inside":

@@ -108,7 +108,7 @@ def check_output(
         if path.exists() and not path.is_dir():
             raise BGMInputError(f"{what} {str(path)!r} is a file; give a folder to write into")
     else:
-        _writable_file(path)
+        _creatable_in(_writable_file(path).parent, f"cannot write {str(path)!r}:")
     for source in inputs:
         if source is None or str(source) == "-" or not Path(source).exists():
             continue
@@ -184,6 +184,23 @@ def _writable_file(path: Path) -> Path:
     if not stat.S_ISREG(mode):
         raise BGMInputError(f"{lead} it is a device, pipe or socket, not a regular file")
     return path
+
+
+def _creatable_in(folder: Path, lead: str) -> None:
+    """Refuse, before any work, a folder no file can be created in (the nearest existing one, if it is to be made).
+
+    Permissions alone do not tell (root may write anywhere, yet not in /proc): a file is made and removed.
+    """
+    existing = folder.absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise BGMInputError(f"{lead} {str(existing)!r} is a file, not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as exc:
+        raise BGMInputError(f"{lead} {exc.strerror or exc}") from None
 
 
 def _same_file(a: Path, b: Path) -> bool:
