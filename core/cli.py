@@ -787,7 +787,14 @@ def _next_level(holes, elevation: float | None) -> float:
 
 @app.command("make-demo-data")
 def make_demo_data(
-    out: Annotated[Path, typer.Option("--out", help="CSV to write.")] = DEMO_CSV,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="CSV to write (default: demo_blastholes.csv, or FAMILY_SEED.csv / SHAPE_SEED.csv, in the current "
+            "folder; the bundled demo is never replaced unless named here).",
+        ),
+    ] = None,
     seed: Annotated[int, typer.Option(help="Random seed of the synthetic mine.")] = 2019,
     family: Annotated[
         str | None,
@@ -801,7 +808,7 @@ def make_demo_data(
         ),
     ] = None,
 ) -> None:
-    """Regenerate the bundled synthetic demo blastholes (assets/demo_blastholes.csv), or a synthetic family's or shape's."""
+    """Write the synthetic demo blastholes (as bundled in assets/demo_blastholes.csv), or a synthetic family's or shape's."""
     from core.io.atomic import atomic_write_text, check_output
     from core.model.build import truth_sidecar
     from core.synthetic.blobs import demo_dataset
@@ -812,6 +819,9 @@ def make_demo_data(
         raise BGMInputError(f"--seed must be 0 or more, got {seed}")
     if family is not None and shape is not None:
         raise BGMInputError("give --family or --shape, not both")
+    if out is None:  # in the working folder: the bundled demo, which `bgm demo` builds, stays as shipped
+        name = family or shape
+        out = Path(f"{name.replace(' ', '_')}_{seed}.csv" if name else DEMO_CSV.name)
     check_output(out)
     check_output(truth_sidecar(out))
     try:

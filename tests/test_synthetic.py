@@ -567,3 +567,20 @@ def test_make_demo_data_writes_a_shape_whose_truth_the_build_can_read(tmp_path):
     assert both.returncode == 2 and "not both" in both.stderr
     bad = bgm("make-demo-data", "--shape", "blob", "--out", tmp_path / "x.csv")
     assert bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "unknown shape" in bad.stderr
+
+
+def test_make_demo_data_without_out_writes_in_the_working_folder_and_never_over_the_bundled_demo(tmp_path, monkeypatch):
+    from clirun import bgm as bgm_here
+    from conftest import DEMO_CSV
+
+    shipped = DEMO_CSV.read_bytes(), truth_sidecar(DEMO_CSV).read_bytes()
+    monkeypatch.chdir(tmp_path)
+    assert bgm_here("make-demo-data", "--family", "pods", "--seed", "3").returncode == 0
+    assert bgm_here("make-demo-data", "--shape", "faulted strip", "--seed", "2").returncode == 0
+    assert bgm_here("make-demo-data").returncode == 0
+    assert (DEMO_CSV.read_bytes(), truth_sidecar(DEMO_CSV).read_bytes()) == shipped
+    written = sorted(p.name for p in tmp_path.glob("*.csv"))
+    assert written == ["demo_blastholes.csv", "faulted_strip_2.csv", "pods_3.csv"], written
+    assert (tmp_path / "demo_blastholes.csv").read_bytes() == shipped[0]
+    spec = json.loads(truth_sidecar(tmp_path / "pods_3.csv").read_text())
+    assert spec == {"generator": "core.synthetic.scenario", "family": "pods", "seed": 3}
