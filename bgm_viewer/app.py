@@ -970,7 +970,7 @@ class MainWindow(QtWidgets.QMainWindow):
             gdir = Path(folder) / names[g]
             gdir.mkdir(parents=True, exist_ok=True)
             moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
-            out[g] = export_all(moved, gdir, "surface")
+            out[g] = export_all(moved, gdir, "surface", name=g)
         return out
 
     def export_surfaces_dialog(self) -> None:

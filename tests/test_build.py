@@ -85,6 +85,7 @@ def test_surfaces_are_watertight_and_reopen_with_the_same_faces(built, geozone):
     assert meshes["ply"].vertices[:, 1].min() > 7_399_000
     doc = ezdxf.readfile(built / geozone / "surface.dxf")
     assert len(doc.modelspace().query("3DFACE")) == n_faces
+    assert {face.dxf.layer for face in doc.modelspace().query("3DFACE")} == {geozone}  # the geozone's layer
     import pyvista
 
     assert pyvista.read(built / geozone / "surface.vtp").n_cells == n_faces

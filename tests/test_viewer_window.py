@@ -248,8 +248,9 @@ def test_exports_the_view_at_a_chosen_size_and_the_shown_surfaces(window, tmp_pa
     assert img.shape[:2] == (360, 640) and img[..., :3].std() > 5
     written = window.export_surfaces(tmp_path / "surfaces")
     assert set(written) == set(window.model.result.surfaces)
-    for files in written.values():
+    for geozone, files in written.items():
         assert {"ply", "obj", "stl"} <= set(files) and all(p.stat().st_size > 0 for p in files.values())
+        assert f"\n8\n{geozone}\n" in files["dxf"].read_text()  # its faces on the geozone's DXF layer
     assert "Shift" in __import__("bgm_viewer.app").app.SHORTCUTS_HTML
 
 

@@ -170,17 +170,18 @@ def export_all(
     out_dir: str | Path,
     stem: str,
     formats: Iterable[str] = DEFAULT_FORMATS,
+    name: str | None = None,
 ) -> dict[str, Path]:
     """Write ``mesh`` as ``out_dir/stem.<fmt>`` for every format; returns ``{fmt: path}``.
 
-    ``stem`` is also the geozone name (DXF layer, OMF element). All formats
-    are validated before anything is written.
+    ``name`` is the geozone's name (DXF layer, OMF element; ``stem`` if not
+    given). All formats are validated before anything is written.
     """
     fmts = [_canonical(f) for f in formats]
     if "omf" in fmts:
         _require_omf()
     out_dir = Path(out_dir)
-    return {f: export_surface(mesh, out_dir / f"{stem}.{f}", f, name=stem) for f in fmts}
+    return {f: export_surface(mesh, out_dir / f"{stem}.{f}", f, name=name or stem) for f in fmts}
 
 
 def write_geojson(

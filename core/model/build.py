@@ -639,7 +639,7 @@ def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildConte
         mesh = ctx.session.surface(model.geozone, model)
         info = mesh_summary(mesh)
         surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
-        exported = export_all(surface, gdir, "surface", ctx.formats)
+        exported = export_all(surface, gdir, "surface", ctx.formats, name=model.geozone)
         summary.volume = info["volume_m3"] / mpu**3
         summary.area = info["area_m2"] / mpu**2
         summary.watertight = bool(info["watertight"])
