@@ -543,6 +543,7 @@ def evaluate(
         margin_lines,
         plot_precision_recall,
         rows_as_written,
+        summary_as_written,
         summary_table,
     )
 
@@ -564,15 +565,16 @@ def evaluate(
     rows = evaluate_geozone(holes, geozone, predictor, truth=truth, contours=contours)
     if rows.empty:
         raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
-    summary = summary_table(rows)
+    summary = summary_as_written(summary_table(rows), holes)
     atomic_write_text(out / names[0], rows_as_written(rows, holes).to_csv(index=False))
     atomic_write_text(out / names[1], summary.to_csv(index=False))
     plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references")
     _say(
         f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s"
     )
-    typer.echo(format_table(summary))
-    for line in margin_lines(summary):
+    unit = holes.frame.length_unit
+    typer.echo(format_table(summary, unit))
+    for line in margin_lines(summary, unit):
         typer.echo(line)
 
 

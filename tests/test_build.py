@@ -118,10 +118,14 @@ def test_predict_and_evaluate_on_real_style_columns_in_feet(small_mine_csv, tmp_
         assert f["geometry"]["type"] in ("Polygon", "MultiPolygon")
         # In the input's feet coordinates.
         assert feet.EAST.min() - 200 < geom.centroid.x < feet.EAST.max() + 200
-    # The evaluation names each bench by its elevation in feet too (it gave metres).
-    bgm("evaluate", path, "--geozone", "331", "--out", tmp_path / "e")
-    benches = pd.read_csv(tmp_path / "e" / "evaluation_rows.csv")["bench_z"].unique()
+    # The evaluation names each bench by its elevation in feet too (it gave metres), and its depths.
+    said = bgm("evaluate", path, "--geozone", "331", "--out", tmp_path / "e").stdout
+    rows = pd.read_csv(tmp_path / "e" / "evaluation_rows.csv")
+    benches = rows["bench_z"].unique()
     assert len(benches) and all(np.min(np.abs(feet.RL - b)) < 1.0 for b in benches), benches
+    assert np.allclose(rows["z_ft"], rows["z_m"] / 0.3048) and np.allclose(rows["depth_ft"], rows["depth_m"] / 0.3048)
+    depth_ft = pd.read_csv(tmp_path / "e" / "evaluation.csv")["depth_ft"].item()
+    assert depth_ft == pytest.approx(32.8, abs=0.5) and f"{depth_ft:.2f} ft below: model F1" in said, said
 
 
 def test_evaluate_uses_the_generator_truth_when_the_sidecar_is_there(small_mine_csv, tmp_path):

@@ -214,7 +214,7 @@ def write_section_dxf(features: list[dict], z_key: str, path: Path) -> None:
 def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, scheduler) -> dict:
     """Everything :func:`build` writes, into ``ctx.out_dir`` (its staging folder)."""
     from core.io.export import FORMAT_NOTES, json_default, write_geojson
-    from core.model.evaluation import plot_precision_recall, rows_as_written, summary_table
+    from core.model.evaluation import plot_precision_recall, rows_as_written, summary_as_written, summary_table
 
     holes, out_dir = ctx.session.holes, ctx.out_dir
     t0 = time.perf_counter()
@@ -243,7 +243,7 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
         results = pd.concat(evaluations, ignore_index=True)
         _write_csv(rows_as_written(results, holes), out_dir / "evaluation_rows.csv")
         table = summary_table(results)
-        _write_csv(table, out_dir / "evaluation.csv")
+        _write_csv(summary_as_written(table, holes), out_dir / "evaluation.csv")
         plot_precision_recall(table, out_dir / "precision_recall.png", title=f"{holes.source}: all geozones")
 
     summary = {

@@ -420,9 +420,22 @@ def _predictors(
 def rows_as_written(rows: pd.DataFrame, holes: Blastholes) -> pd.DataFrame:
     """:func:`evaluate_geozone`'s rows as files give them: ``bench_z`` in the input's units and elevations.
 
-    The engine's columns named in metres (``z_m``, ``depth_m``; areas in m2) stay in metres.
+    The engine's columns named in metres (``z_m``, ``depth_m``; areas in m2) stay in metres; an input in
+    other units gets them in its own as well (``z_ft``, ``depth_ft``).
     """
-    return rows.assign(bench_z=[holes.bench_z_input(int(k)) for k in rows["bench"]])
+    rows = rows.assign(bench_z=[holes.bench_z_input(int(k)) for k in rows["bench"]])
+    return summary_as_written(rows, holes).assign(**_in_input_units(rows, holes, "z", holes.frame.z_to_input))
+
+
+def summary_as_written(summary: pd.DataFrame, holes: Blastholes) -> pd.DataFrame:
+    """``summary`` (or rows) with the prediction depths in the input's units too (``depth_ft`` for feet)."""
+    return summary.assign(**_in_input_units(summary, holes, "depth", holes.frame.length_to_input))
+
+
+def _in_input_units(df: pd.DataFrame, holes: Blastholes, column: str, to_input) -> dict[str, np.ndarray]:
+    """``{column_<unit>: to_input(df[column_m])}``, for an input in other units than metres (else nothing)."""
+    unit = holes.frame.length_unit
+    return {} if unit == "m" else {f"{column}_{unit}": np.round(to_input(df[f"{column}_m"].to_numpy()), 6)}
 
 
 def _scores(
@@ -541,15 +554,18 @@ def _holes_f1(rows: pd.DataFrame) -> float:
     return 2 * hits / (inside + labelled) if inside + labelled > 0 else float("nan")
 
 
-def margin_lines(summary: pd.DataFrame) -> list[str]:
-    """One line per depth: the model's F1 against the best reference's (percent; issue 12's measure)."""
+def margin_lines(summary: pd.DataFrame, unit: str = "m") -> list[str]:
+    """One line per depth: the model's F1 against the best reference's (percent; issue 12's measure).
+
+    The depth is given in ``unit``, from the summary's ``depth_<unit>`` column (:func:`summary_as_written`).
+    """
     lines = []
     for _, r in summary.iterrows():
         if "f1_margin" not in r or not np.isfinite(r["f1_margin"]):
             continue
         best = r["best_reference"]
         line = (
-            f"{r['depth_m']:.2f} m below: model F1 {100 * r['f1_model']:.1f}, best reference {best} "
+            f"{r[f'depth_{unit}']:.2f} {unit} below: model F1 {100 * r['f1_model']:.1f}, best reference {best} "
             f"{100 * r[f'f1_{best}']:.1f} ({100 * r['f1_margin']:+.1f})"
         )
         if "f1_holes_margin" in r and np.isfinite(r["f1_holes_margin"]):
@@ -558,13 +574,14 @@ def margin_lines(summary: pd.DataFrame) -> list[str]:
     return lines
 
 
-def format_table(summary: pd.DataFrame) -> str:
-    """The summary as text in percent, like the paper's Table."""
+def format_table(summary: pd.DataFrame, unit: str = "m") -> str:
+    """The summary as text in percent, like the paper's Table, its depths in ``unit`` (``depth_<unit>``)."""
     cols = [c for c in summary.columns if c.startswith(("precision_", "recall_", "f1_"))]
-    shown = summary[["depth_m", *cols]].copy()
+    depth = f"depth_{unit}"
+    shown = summary[[depth, *cols]].copy()
     for c in cols:
         shown[c] = (100 * shown[c]).round(1)
-    shown["depth_m"] = shown["depth_m"].round(2)
+    shown[depth] = shown[depth].round(2)
     return shown.to_string(index=False)
 
 
