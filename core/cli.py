@@ -565,6 +565,7 @@ def evaluate(
     rows = evaluate_geozone(holes, geozone, predictor, truth=truth, contours=contours)
     if rows.empty:
         raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
+    _refuse_empty_scores(rows, holes, geozone)
     summary = summary_as_written(summary_table(rows), holes)
     atomic_write_text(out / names[0], rows_as_written(rows, holes).to_csv(index=False))
     atomic_write_text(out / names[1], summary.to_csv(index=False))
@@ -576,6 +577,25 @@ def evaluate(
     typer.echo(format_table(summary, unit))
     for line in margin_lines(summary, unit):
         typer.echo(line)
+
+
+def _refuse_empty_scores(rows, holes, geozone: str) -> None:
+    """Refuse an evaluation whose every score is 0 / 0: the geozone outlined on no bench scored, or predicted nowhere."""
+    if rows["g_area"].any() and rows["p_area"].any():
+        return
+    on = _elevations(holes, set(holes.bench[holes.geozone == geozone].tolist()))
+    scored = _elevations(holes, {int(k) + 1 for k in rows["bench"]})
+    if not rows["g_area"].any():
+        why = f"has no contour on any bench it could be scored on ({scored}): its holes are on {on}, and one or two holes alone are taken as label noise"
+    else:
+        why = f"is predicted by no method on the benches scored ({scored}): the benches above do not show it there (its holes are on {on})"
+    raise BGMInputError(f"geozone {geozone} {why}; nothing to evaluate")
+
+
+def _elevations(holes, benches: set[int]) -> str:
+    """The benches' elevations in the input's units, top first: "the benches at 675, 665 m"."""
+    levels = ", ".join(f"{holes.bench_z_input(k):g}" for k in sorted(benches))
+    return f"the bench{'es' if len(benches) > 1 else ''} at {levels} {holes.frame.length_unit}"
 
 
 def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None, no_cache=False) -> dict:
