@@ -898,3 +898,17 @@ def test_an_evaluation_with_nothing_to_score_says_why_instead_of_printing_nan(ta
     line = error_line(bgm("evaluate", path, "--geozone", "late", "--out", tmp_path / "e"), "nothing to evaluate")
     assert re.search(r"its holes are on the bench at [-0-9.]+ m\b", line), line  # the deepest alone
     assert ("no contour" in line) == (case == "outlined nowhere scored"), line
+
+
+@pytest.mark.parametrize("shift_m", [0.0, 60.0, 5000.0])
+def test_a_planned_pattern_in_other_coordinates_is_refused(csv, table, tmp_path, shift_m):
+    """A pattern kilometres from every blasthole (a local grid against the mine grid) is named, not sampled as absent."""
+    deepest = table[table["z"] <= table["z"].min() + 1.0]
+    pattern = tmp_path / "planned.csv"
+    deepest.assign(x=deepest["x"] + shift_m)[["x", "y"]].to_csv(pattern, index=False)
+    run = bgm("suggest", csv, "--geozone", "g1", "--budget", "3", "--pattern", pattern, "--out", tmp_path / "s.csv")
+    if shift_m < 100:  # beside the drilling (60 m: within ten hole spacings of it), sampled as planned
+        assert run.returncode == 0, run.stderr
+    else:
+        line = error_line(run, "from the nearest blasthole", "coordinates")
+        assert "4,9" in line or "5,0" in line, line  # how far, in the input's units

@@ -129,6 +129,30 @@ def write_suggestions(path: str | Path, table: pd.DataFrame) -> Path:
     return Path(path)
 
 
+#: How far from the blastholes a planned pattern may lie, in hole spacings, before it is taken to be in other
+#: coordinates: the predictions reach as far as a bench's evidence does past its drilling (10 spacings).
+PATTERN_REACH_SPACINGS = 10.0
+
+
+def _refuse_far_pattern(path, xy: np.ndarray, holes: Blastholes) -> None:
+    """Refuse a pattern whose nearest hole lies further than :data:`PATTERN_REACH_SPACINGS` from every blasthole."""
+    from scipy.spatial import cKDTree
+
+    from core.errors import BGMInputError
+
+    gap_m = float(cKDTree(holes.xy).query(xy)[0].min())
+    reach_m = PATTERN_REACH_SPACINGS * holes.hole_spacing_m
+    if gap_m > reach_m:
+        unit = holes.frame.length_unit
+        gap, centre = holes.frame.length_to_input(gap_m), holes.frame.to_input(xy.mean(axis=0, keepdims=True))[0]
+        drilled = holes.frame.to_input(holes.xy.mean(axis=0, keepdims=True))[0]
+        raise BGMInputError(
+            f"pattern {str(path)!r} lies {gap:,.0f} {unit} from the nearest blasthole (its centre "
+            f"{centre[0]:,.1f}, {centre[1]:,.1f}; the blastholes' {drilled[0]:,.1f}, {drilled[1]:,.1f}): "
+            "give it in the blastholes' coordinates"
+        )
+
+
 def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list, float | None]:
     """A planned blast pattern: hole positions (local metres), their identifiers, and their elevation if given.
 
@@ -140,7 +164,10 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     Raises
     ------
     BGMInputError
-        A missing column, a value that is not a finite number, or fewer than one hole.
+        A missing column, a value that is not a finite number, fewer than one
+        hole, or a pattern none of whose holes lies within
+        :data:`PATTERN_REACH_SPACINGS` hole spacings of a blasthole (other
+        coordinates: a local grid against the mine grid, or another site).
     """
     from core.errors import BGMInputError
     from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, find_column
@@ -170,6 +197,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
             )
         values[role] = number
     xy = holes.frame.to_local(values["x"], values["y"])
+    _refuse_far_pattern(path, xy, holes)
     ids = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES), None)
     first = int(table.attrs.get("first_data_line", 2))
     labels = table[ids].astype(str).tolist() if ids is not None else [str(first + i) for i in range(len(table))]
