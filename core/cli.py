@@ -583,8 +583,8 @@ def _refuse_empty_scores(rows, holes, geozone: str) -> None:
     """Refuse an evaluation whose every score is 0 / 0: the geozone outlined on no bench scored, or predicted nowhere."""
     if rows["g_area"].any() and rows["p_area"].any():
         return
-    on = _elevations(holes, set(holes.bench[holes.geozone == geozone].tolist()))
-    scored = _elevations(holes, {int(k) + 1 for k in rows["bench"]})
+    on = _benches_at(holes, set(holes.bench[holes.geozone == geozone].tolist()))
+    scored = _benches_at(holes, {int(k) + 1 for k in rows["bench"]})
     if not rows["g_area"].any():
         why = f"has no contour on any bench it could be scored on ({scored}): its holes are on {on}, and one or two holes alone are taken as label noise"
     else:
@@ -592,7 +592,7 @@ def _refuse_empty_scores(rows, holes, geozone: str) -> None:
     raise BGMInputError(f"geozone {geozone} {why}; nothing to evaluate")
 
 
-def _elevations(holes, benches: set[int]) -> str:
+def _benches_at(holes, benches: set[int]) -> str:
     """The benches' elevations in the input's units, top first: "the benches at 675, 665 m"."""
     levels = ", ".join(f"{holes.bench_z_input(k):g}" for k in sorted(benches))
     return f"the bench{'es' if len(benches) > 1 else ''} at {levels} {holes.frame.length_unit}"
