@@ -72,6 +72,8 @@ def test_contours_and_predictions_open_as_3d_polylines_in_mine_software(built):
 
 @pytest.mark.parametrize("geozone", ["g1", "g2"])
 def test_surfaces_are_watertight_and_reopen_with_the_same_faces(built, geozone):
+    from core.model.surfaces import volume_above
+
     summary = json.loads((built / "summary.json").read_text())
     info = next(g for g in summary["geozones"] if g["geozone"] == geozone)
     assert info["watertight"] and info["volume"] > 0
@@ -81,6 +83,10 @@ def test_surfaces_are_watertight_and_reopen_with_the_same_faces(built, geozone):
     n_faces = faces.pop()
     assert meshes["ply"].is_watertight and meshes["ply"].volume > 0
     assert meshes["ply"].volume == pytest.approx(info["volume"], rel=1e-6)
+    # Of it, the drilled part: down to the deepest bench, above the bench predicted below it.
+    deepest = min(f["properties"]["bench"] for f in json.loads((built / "contours.geojson").read_text())["features"])
+    assert 0.5 * info["volume"] < info["volume_drilled"] < info["volume"]
+    assert info["volume_drilled"] == pytest.approx(volume_above(meshes["ply"], deepest), rel=1e-6)  # as written
     # Mine-grid coordinates survive in full precision (PLY stores doubles).
     assert meshes["ply"].vertices[:, 1].min() > 7_399_000
     doc = ezdxf.readfile(built / geozone / "surface.dxf")

@@ -369,3 +369,16 @@ def test_write_geojson_is_atomic(tmp_path, monkeypatch):
     monkeypatch.undo()
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["zones.geojson"]
+
+
+@pytest.mark.parametrize("z_m", [-1.0, 0.0, 3.0, 9.5, 10.0, 12.0])
+def test_the_volume_above_a_plane_is_the_part_of_the_closed_mesh_above_it(z_m):
+    from core.model.surfaces import volume_above
+
+    box = trimesh.creation.box(
+        extents=(2.0, 3.0, 10.0), transform=trimesh.transformations.translation_matrix((0, 0, 5))
+    )
+    assert volume_above(box, z_m) == pytest.approx(6.0 * np.clip(10.0 - z_m, 0.0, 10.0), abs=1e-9)
+    ball = trimesh.creation.icosphere(subdivisions=4, radius=5.0)
+    h = float(np.clip(5.0 - z_m / 2, 0.0, 10.0))  # the cap above z_m / 2: pi h^2 (3 r - h) / 3
+    assert volume_above(ball, z_m / 2) == pytest.approx(np.pi * h**2 * (15.0 - h) / 3, abs=0.005 * ball.volume)

@@ -140,9 +140,11 @@ class GeozoneSummary:
     bench_pairs: int
     coverage_before: float
     coverage_after: float
-    volume: float | None
+    volume: float | None  #: the whole surface's, down to a bench below the deepest
     area: float | None
     watertight: bool | None
+    #: The part of ``volume`` between the top and the deepest bench: the rest is predicted below the deepest.
+    volume_drilled: float | None = None
     files: dict = field(default_factory=dict)
     seconds: float = 0.0
     note: str = ""
@@ -631,7 +633,7 @@ def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict
 def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildContext, gdir: Path) -> None:
     """The geozone's closed surface in every format; its figures (or why there is none) go into ``summary``."""
     from core.io.export import export_all
-    from core.model.surfaces import mesh_summary, to_input_frame
+    from core.model.surfaces import mesh_summary, to_input_frame, volume_above
 
     holes = ctx.session.holes
     mpu = holes.frame.metres_per_unit
@@ -641,6 +643,8 @@ def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildConte
         surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
         exported = export_all(surface, gdir, "surface", ctx.formats, name=model.geozone)
         summary.volume = info["volume_m3"] / mpu**3
+        if info["watertight"]:  # a volume only a closed surface has
+            summary.volume_drilled = volume_above(mesh, float(holes.bench_levels_m[-1])) / mpu**3
         summary.area = info["area_m2"] / mpu**2
         summary.watertight = bool(info["watertight"])
         summary.files = {k: str(Path(v).relative_to(ctx.out_dir)) for k, v in exported.items()}
@@ -721,12 +725,16 @@ def _geozone_table(summary: dict) -> list[str]:
     lines = [
         "## Geozones",
         "",
-        f"| geozone | components | bench pairs | coverage before / after backtracking | volume ({unit}³) | area ({unit}²) "
-        "| watertight | time (s) | note | folder |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "Each surface runs from the top bench to one bench below the deepest, that last bench predicted; its "
+        "volume down to the deepest bench is the drilled part's.",
+        "",
+        f"| geozone | components | bench pairs | coverage before / after backtracking | volume ({unit}³) "
+        f"| of it down to the deepest bench ({unit}³) | area ({unit}²) | watertight | time (s) | note | folder |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for g in summary["geozones"]:
         vol = "" if g["volume"] is None else f"{g['volume']:.4g}"
+        drilled = "" if g.get("volume_drilled") is None else f"{g['volume_drilled']:.4g}"
         area = "" if g["area"] is None else f"{g['area']:.4g}"
         cov = f"{_pct(g['coverage_before'])} / {_pct(g['coverage_after'])}"
         open_in = [f for f, w in g.get("formats", {}).items() if w["watertight"] != g["watertight"]]
@@ -734,7 +742,7 @@ def _geozone_table(summary: dict) -> list[str]:
         if open_in:
             closed += f" ({', '.join(open_in)}: {not g['watertight']})"
         lines.append(
-            f"| {_cell(g['geozone'])} | {g['components']} | {g['bench_pairs']} | {cov} | {vol} | {area} | "
+            f"| {_cell(g['geozone'])} | {g['components']} | {g['bench_pairs']} | {cov} | {vol} | {drilled} | {area} | "
             f"{closed} | {g['seconds']:.1f} | {_cell(g['note'], 200)} | `{g.get('folder', '')}` |"
         )
     return lines

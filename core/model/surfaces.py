@@ -284,6 +284,21 @@ def mesh_summary(mesh: trimesh.Trimesh) -> dict:
     }
 
 
+def volume_above(mesh: trimesh.Trimesh, z_m: float) -> float:
+    """The volume of a closed mesh above the plane ``z = z_m`` (cubic metres).
+
+    By the divergence theorem with the field ``(0, 0, z - z_m)``, whose
+    divergence is 1 and which vanishes on the plane: the sum over the
+    surface above it (clipped there) of ``(z - z_m) n_z dA``, exact per
+    triangle at its centroid. No cap is triangulated.
+    """
+    part = trimesh.intersections.slice_mesh_plane(mesh, plane_normal=[0, 0, 1], plane_origin=[0, 0, z_m], cap=False)
+    if part is None or not len(part.faces):
+        return 0.0
+    height = part.triangles[:, :, 2].mean(axis=1) - z_m
+    return float(np.sum(part.area_faces * part.face_normals[:, 2] * height))
+
+
 def to_input_frame(mesh: trimesh.Trimesh, origin_xy: tuple[float, float], metres_per_unit: float) -> trimesh.Trimesh:
     """Copy of ``mesh`` moved from the local metric frame back to input coordinates.
 
