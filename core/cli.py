@@ -240,6 +240,16 @@ def _outputs(out: Path, input: Path, *others, folder: bool = False) -> None:
     check_output(out, [input, sidecar, *others], folder=folder)
 
 
+def _wanted(holes, given: list[str] | None) -> list[str]:
+    """The geozones ``--geozone`` asks for, repeated or separated by commas; all of them when not given.
+
+    A value that is a label of the table is taken whole: a label may hold a comma ("ore, oxide").
+    """
+    labels = set(holes.geozones)
+    parts = [[v] if v in labels else [g.strip() for g in v.split(",") if g.strip()] for v in given or []]
+    return holes.check_geozones([g for part in parts for g in part])
+
+
 def _load_project(project: Path | None, holes, geozones: list[str], command: str):
     from core.io.project import check_project, load_project
 
@@ -269,7 +279,8 @@ def contours(
     input: InputArg,
     out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("contours.geojson"),
     geozone: Annotated[
-        list[str] | None, typer.Option("--geozone", help="Geozone to extract (repeat for several; default all).")
+        list[str] | None,
+        typer.Option("--geozone", help="Geozone(s) to extract (repeat, or separate with commas; default all)."),
     ] = None,
     search_radius: Annotated[
         float | None, typer.Option(help="Region-growing radius r in input units (default 1.6 x hole spacing).")
@@ -298,7 +309,7 @@ def contours(
     _positive("--search-radius", search_radius)
     _outputs(out, input)
     holes = table.read(input)
-    wanted = holes.check_geozones(geozone)
+    wanted = _wanted(holes, geozone)
     session = _session(holes, None, wanted, "contours", no_cache)
     radius_m = None if search_radius is None else float(holes.frame.length_to_local(search_radius))
     params = with_values(session.params, search_radius_m=radius_m, keep_isolated_holes=keep_isolated)
@@ -601,7 +612,7 @@ def _benches_at(holes, benches: set[int]) -> str:
 def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None, no_cache=False) -> dict:
     from core.model.build import build
 
-    wanted = holes.check_geozones(geozone)
+    wanted = _wanted(holes, geozone)
     session = _session(holes, project, wanted, "build", no_cache)
     with progress_bar("building") as update:
         summary = build(
@@ -625,7 +636,10 @@ def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None
 def build(
     input: InputArg,
     out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-out"),
-    geozone: Annotated[list[str] | None, typer.Option("--geozone", help="Geozones to model (default all).")] = None,
+    geozone: Annotated[
+        list[str] | None,
+        typer.Option("--geozone", help="Geozones to model (repeat, or separate with commas; default all)."),
+    ] = None,
     project: ProjectOpt = None,
     workers: Annotated[int | None, typer.Option(help="Local processes (default: one per usable core).")] = None,
     scheduler: Annotated[
@@ -742,7 +756,7 @@ def suggest(
     _band_probability(band_probability)
     _outputs(out, input, project, pattern)
     holes = table.read(input)
-    wanted = holes.check_geozones([g.strip() for part in geozone for g in part.split(",") if g.strip()])
+    wanted = _wanted(holes, geozone)
     if holes.n_benches < 2:
         raise BGMInputError(f"{input} has a single bench; predicting the next one needs two or more benches")
     labels, z_pattern, candidates = None, None, None

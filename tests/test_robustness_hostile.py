@@ -912,3 +912,14 @@ def test_a_planned_pattern_in_other_coordinates_is_refused(csv, table, tmp_path,
     else:
         line = error_line(run, "from the nearest blasthole", "coordinates")
         assert "4,9" in line or "5,0" in line, line  # how far, in the input's units
+
+
+def test_geozones_given_with_commas_as_suggest_takes_them_and_a_label_holding_a_comma_whole(table, tmp_path):
+    path = tmp_path / "holes.csv"
+    table.assign(geozone=table["geozone"].replace({"g3": "ore, oxide"})).to_csv(path, index=False)  # quoted
+    out = tmp_path / "c.geojson"
+    for asked, expected in ((["g1,g2"], {"g1", "g2"}), (["g1", "ore, oxide"], {"g1", "ore, oxide"})):
+        options = [a for g in asked for a in ("--geozone", g)]
+        assert bgm("contours", path, *options, "--out", out).returncode == 0
+        assert {f["properties"]["geozone"] for f in json.loads(out.read_text())["features"]} == expected, asked
+    error_line(bgm("contours", path, "--geozone", "g1,nope", "--out", out), "'nope' is not in")
