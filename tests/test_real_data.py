@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import warnings
 
+import shapely
+
 from core.extraction.contours import extract_contours
 from core.io.blastholes import BGMWarning, read_blastholes
 from core.io.reporting import containment_summary
@@ -32,6 +34,11 @@ def test_kennecott_contours_for_every_geozone_and_bench(kennecott_csv):
     assert summary["holes_inside_median"] >= 0.95
     assert summary["contours_with_95pct_inside"] >= 0.9
     assert summary["other_holes_inside_median"] <= 0.1
+    # Each holds one of its holes at least: a speck of one hole beside another geozone's twin hole (0.1-0.2 m
+    # apart on bench 6) was a cell beside its hole, holding none of it.
+    for c in contours:
+        xy = holes.xy[c.holes]
+        assert not len(xy) or shapely.contains_xy(c.polygon, xy[:, 0], xy[:, 1]).any(), (c.geozone, c.bench)
 
 
 def test_kennecott_builds_end_to_end_for_every_geozone(kennecott_csv, tmp_path):

@@ -447,7 +447,7 @@ def _part_contour(
         # Too small for a snake, or the snake pinched off part of the region (a
         # parametric snake cannot split where the region narrows to one row):
         # the part's outline is the honest answer.
-        polygon, contour.method = _largest_holding(outline.difference(others), xy), "outline"
+        polygon, contour.method = _outline_holding(outline, others, xy, ev.spacing_m), "outline"
     # Each hole stands for the cells nearest it: the share the holes give a body is what its area is
     # on their evidence, and no smaller (smoothing over a spacing shrank a lens of 3-5 holes to 0.7 of it).
     share = np.isin(ev.nearest_hole[rs, cs], members) & (ev.transition.label[rs, cs] >= 0)
@@ -750,6 +750,23 @@ def _largest_polygon(geometry) -> Polygon:
     if not parts:
         return Polygon()
     return shapely.geometry.polygon.orient(max(parts, key=lambda p: p.area))
+
+
+def _outline_holding(outline: MultiPolygon, others: MultiPolygon, xy: np.ndarray, spacing_m: float) -> Polygon:
+    """A part's outline less the other geozones' regions, holding its holes ``xy``.
+
+    A hole the cells miss (a hole of one or two at the edge of another geozone's region, on the edge of its own
+    cell) gets the disc the snake's missed holes get (:data:`OWN_HOLE_SPACINGS`): without it, a Kennecott speck's
+    contour was a cell beside its hole, holding none of it. Where the other regions cover the hole too, they
+    are not cut from it: its own holes are the part's evidence.
+    """
+    polygon = _largest_holding(outline.difference(others), xy)
+    missed = ~shapely.contains_xy(polygon, xy[:, 0], xy[:, 1])
+    if not missed.any():
+        return polygon
+    own = outline.union(shapely.buffer(shapely.MultiPoint(xy[missed]), OWN_HOLE_SPACINGS * spacing_m, quad_segs=4))
+    polygon = _largest_holding(own.difference(others), xy)
+    return polygon if shapely.contains_xy(polygon, xy[:, 0], xy[:, 1]).any() else _largest_holding(own, xy)
 
 
 def _largest_holding(geometry, xy: np.ndarray) -> Polygon:
