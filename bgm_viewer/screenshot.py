@@ -35,6 +35,9 @@ _NEEDS = {
     "predicted contours": "prediction",
     "surfaces": "surface",
     "selected components": "morph",
+    # The next bench's band and suggested holes are drawn from the geozone's whole model, built with the prediction.
+    "uncertainty": "prediction",
+    "suggested holes": "prediction",
 }
 
 
