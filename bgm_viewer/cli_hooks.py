@@ -8,8 +8,8 @@ without them and ``bgm view`` says in one line what to install.
 
 ``view_command(input, project, screenshot, layers, camera)``:
 
-* with ``screenshot``: render the scene off-screen to that PNG (no Qt, no display
-  needed) and return 0;
+* with ``screenshot``: render the scene off-screen to that picture (PNG, JPEG,
+  BMP or TIFF by its extension; no Qt, no display needed) and return 0;
 * otherwise: open the Qt window (``run_viewer``) and return its exit code.
 
 Every option is checked before anything is loaded or drawn: an unknown layer
@@ -36,6 +36,9 @@ if TYPE_CHECKING:
 MAX_EXAGGERATION = 100.0
 #: A camera direction closer than this (degrees) to vertical has no "up" to draw: use ``top``.
 MIN_CAMERA_TILT_DEG = 1.0
+#: Picture formats ``--screenshot`` writes: those of ``pyvista.Plotter.screenshot`` (its ``SUPPORTED_FORMATS``),
+#: named here so a wrong name is refused before PyVista is imported or the table read.
+SCREENSHOT_FORMATS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 QT_MISSING = "the viewer needs Qt and PyVista ({}); install them with: pip install -e '.[viewer]'"
 
 
@@ -56,7 +59,10 @@ def view(
     ] = None,
     screenshot: Annotated[
         Path | None,
-        typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window."),
+        typer.Option(
+            "--screenshot",
+            help=f"Render off-screen to this picture ({', '.join(SCREENSHOT_FORMATS)}) instead of opening the window.",
+        ),
     ] = None,
     layers: Annotated[
         str | None,
@@ -81,6 +87,7 @@ def view(
         raise BGMInputError(f"input file {str(input)!r} does not exist")
     if screenshot is not None:
         _outputs(screenshot, input if input is not None else DEMO_CSV, project)
+        check_screenshot_name(screenshot)
     source = input
     if table is not None and table.given():
         if input is None:
@@ -167,6 +174,16 @@ def check_view_options(layers=None, camera: str | None = None, vertical_exaggera
     ):
         raise BGMInputError(
             f"--exaggeration must be a number above 0 and at most {MAX_EXAGGERATION:g}, got {vertical_exaggeration}"
+        )
+
+
+def check_screenshot_name(screenshot: str | Path) -> None:
+    """Refuse a picture name whose extension is not one of :data:`SCREENSHOT_FORMATS` (any case)."""
+    suffix = Path(screenshot).suffix
+    if suffix.lower() not in SCREENSHOT_FORMATS:
+        what = f"bgm writes no {quoted(suffix)} pictures" if suffix else "a picture needs an extension"
+        raise BGMInputError(
+            f"--screenshot {quoted(Path(screenshot).name)}: {what}; use one of {', '.join(SCREENSHOT_FORMATS)}"
         )
 
 

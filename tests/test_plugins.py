@@ -49,7 +49,7 @@ def test_bgm_view_renders_a_screenshot(tmp_path):
     table = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
     # Columns no reader would find by name: the viewer takes the options every reading command takes.
     table.rename(columns={"x": "E (grid)", "y": "N (grid)", "z": "toe"}).to_csv(csv, index=False)
-    png = tmp_path / "view.png"
+    png = tmp_path / "view.PNG"  # PyVista knows lower-case extensions only; bgm takes any case
     args = ["view", str(csv), "--screenshot", str(png), "--layers", "blastholes,contours", "--geozone", "g1"]
     args += ["--x", "E (grid)", "--y", "N (grid)", "--z", "toe", "--bench-height", "10"]
     proc = subprocess.run([sys.executable, "-c", BGM_WITH_VIEWER, *args], capture_output=True, text=True, timeout=600)
@@ -69,3 +69,12 @@ def test_bgm_view_without_qt_and_pyvista_says_what_to_install(tmp_path):
     # and the engine's commands still work
     proc = subprocess.run([sys.executable, "-c", hide + BGM_WITH_VIEWER, "--help"], capture_output=True, text=True)
     assert proc.returncode == 0 and "correspond" in proc.stdout
+
+
+def test_the_picture_formats_bgm_view_takes_are_those_pyvista_writes():
+    pytest.importorskip("pyvista")
+    from pyvista.plotting.plotter import SUPPORTED_FORMATS
+
+    from bgm_viewer.cli_hooks import SCREENSHOT_FORMATS
+
+    assert sorted(SCREENSHOT_FORMATS) == sorted(SUPPORTED_FORMATS)
