@@ -22,6 +22,8 @@ input or project; the CLI reports them in one line.
 from __future__ import annotations
 
 import math
+import os
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -39,6 +41,10 @@ MIN_CAMERA_TILT_DEG = 1.0
 #: Picture formats ``--screenshot`` writes: those of ``pyvista.Plotter.screenshot`` (its ``SUPPORTED_FORMATS``),
 #: named here so a wrong name is refused before PyVista is imported or the table read.
 SCREENSHOT_FORMATS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+#: Qt platforms that draw through a display server (X or Wayland); any other one the user names
+#: (offscreen, minimal, linuxfb, eglfs, vnc, ...) needs none.
+DISPLAY_PLATFORMS = ("xcb", "wayland")
+NO_DISPLAY = "no display to open a window on (DISPLAY is not set); use --screenshot FILE to render offscreen"
 QT_MISSING = "the viewer needs Qt and PyVista ({}); install them with: pip install -e '.[viewer]'"
 
 
@@ -88,6 +94,8 @@ def view(
     if screenshot is not None:
         _outputs(screenshot, input if input is not None else DEMO_CSV, project)
         check_screenshot_name(screenshot)
+    if screenshot is None:
+        check_display()  # before the table is read: Qt would abort the process, not raise
     source = input
     if table is not None and table.given():
         if input is None:
@@ -131,6 +139,7 @@ def view_command(
         if screenshot:
             from .screenshot import render_screenshot
         else:
+            check_display()
             from .app import run_viewer
     except ImportError as exc:
         raise BGMInputError(QT_MISSING.format(exc)) from None
@@ -175,6 +184,24 @@ def check_view_options(layers=None, camera: str | None = None, vertical_exaggera
         raise BGMInputError(
             f"--exaggeration must be a number above 0 and at most {MAX_EXAGGERATION:g}, got {vertical_exaggeration}"
         )
+
+
+def check_display() -> None:
+    """Refuse to open a window where Qt would find no display server (it aborts the process instead).
+
+    Only X11/Wayland systems (Linux, the BSDs) have one to miss; macOS and
+    Windows always have their own. A ``QT_QPA_PLATFORM`` that needs no display
+    (offscreen, minimal, a frame buffer) is left to Qt.
+    """
+    if sys.platform.startswith(("darwin", "win", "cygwin", "msys")):
+        return
+    wanted = os.environ.get("QT_QPA_PLATFORM", "").strip()
+    # "name:options", or a ';'-separated list Qt tries in turn
+    platforms = [p.split(":")[0].strip().lower() for p in wanted.split(";") if p.strip()]
+    if any(not p.startswith(DISPLAY_PLATFORMS) for p in platforms):
+        return
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        raise BGMInputError(NO_DISPLAY)
 
 
 def check_screenshot_name(screenshot: str | Path) -> None:

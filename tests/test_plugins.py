@@ -7,9 +7,11 @@ import sys
 import tomllib
 from importlib.metadata import EntryPoint
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 import typer
+from clirun import bgm, error_line, succeeds
 
 from core import cli
 
@@ -78,3 +80,38 @@ def test_the_picture_formats_bgm_view_takes_are_those_pyvista_writes():
     from bgm_viewer.cli_hooks import SCREENSHOT_FORMATS
 
     assert sorted(SCREENSHOT_FORMATS) == sorted(SUPPORTED_FORMATS)
+
+
+@pytest.mark.parametrize(
+    ("platform", "env", "refused"),
+    [
+        ("linux", {}, True),
+        ("linux", {"QT_QPA_PLATFORM": "xcb"}, True),
+        ("freebsd14", {"QT_QPA_PLATFORM": "wayland;xcb"}, True),
+        ("linux", {"DISPLAY": ":0"}, False),
+        ("linux", {"WAYLAND_DISPLAY": "wayland-0"}, False),
+        ("linux", {"QT_QPA_PLATFORM": "offscreen"}, False),
+        ("linux", {"QT_QPA_PLATFORM": "minimal:enable_fonts"}, False),
+        ("darwin", {}, False),
+        ("win32", {}, False),
+    ],
+)
+def test_bgm_view_with_no_display_says_so_in_one_line_before_qt_starts(monkeypatch, platform, env, refused):
+    """Qt finding no display aborts the process (exit 134, a plug-in dump): bgm refuses first, where it matters."""
+    pytest.importorskip("pyvista")
+    import bgm_viewer.app
+    from bgm_viewer import cli_hooks
+
+    opened = []
+    monkeypatch.setattr(bgm_viewer.app, "run_viewer", lambda *args, **kw: opened.append(args) or 0)
+    monkeypatch.setattr(cli_hooks, "sys", SimpleNamespace(platform=platform))
+    for name in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"):
+        monkeypatch.delenv(name, raising=False)
+    for name, value in env.items():
+        monkeypatch.setenv(name, value)
+    run = bgm("view", cli.DEMO_CSV)
+    if refused:
+        assert error_line(run) == f"bgm: error: {cli_hooks.NO_DISPLAY}" and not opened
+        assert len(run.stderr.splitlines()) == 1  # refused before the table is read
+    else:
+        assert succeeds(run) and len(opened) == 1
