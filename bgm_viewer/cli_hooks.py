@@ -52,7 +52,9 @@ def register(app: typer.Typer) -> None:
     """Add ``bgm view`` to the engine's typer app, with the table options every reading command takes."""
     from core.cli import reads_table
 
-    app.command("view")(reads_table(view))
+    command = reads_table(view)
+    command.preflight = check_display  # what ``bgm demo --view`` checks before building
+    app.command("view")(command)
 
 
 def view(

@@ -115,3 +115,40 @@ def test_bgm_view_with_no_display_says_so_in_one_line_before_qt_starts(monkeypat
         assert len(run.stderr.splitlines()) == 1  # refused before the table is read
     else:
         assert succeeds(run) and len(opened) == 1
+
+
+@pytest.fixture
+def demo_build_stub(monkeypatch):
+    """``bgm demo``'s build replaced by a report (the build is tested in test_build.py): the folders it was asked for."""
+    built = []
+
+    def build(holes, out, *args, **kw):
+        built.append(out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.md").write_text("# demo report\n")
+
+    monkeypatch.setattr(cli, "_run_build", build)
+    return built
+
+
+def test_bgm_demo_view_opens_the_viewer_on_the_demo_it_built(monkeypatch, tmp_path, demo_build_stub):
+    """It once failed after the build: the viewer was called without the table options (KeyError: 'x')."""
+    pytest.importorskip("pyvista")
+    import bgm_viewer.app
+
+    opened = []
+    monkeypatch.setattr(bgm_viewer.app, "run_viewer", lambda *args, **kw: opened.append((args, kw)) or 0)
+    monkeypatch.setenv("DISPLAY", ":0")
+    run = succeeds(bgm("demo", "--out", tmp_path / "demo", "--view"))
+    assert "# demo report" in run.stdout and demo_build_stub == [tmp_path / "demo"]
+    assert opened == [((cli.DEMO_CSV, None), {"cache": True})]  # the build's stages, from the cache
+
+
+def test_bgm_demo_view_with_no_display_is_refused_before_the_build(monkeypatch, tmp_path, demo_build_stub):
+    from bgm_viewer import cli_hooks
+
+    monkeypatch.setattr(cli_hooks, "sys", SimpleNamespace(platform="linux"))
+    for name in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"):
+        monkeypatch.delenv(name, raising=False)
+    error_line(bgm("demo", "--out", tmp_path / "demo", "--view"), "no display")
+    assert demo_build_stub == [] and not (tmp_path / "demo").exists()
