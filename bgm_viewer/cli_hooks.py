@@ -31,6 +31,8 @@ import typer
 
 from core.errors import BGMInputError, quoted
 
+from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers
+
 if TYPE_CHECKING:
     from core.io.blastholes import Blastholes
 
@@ -45,6 +47,11 @@ SCREENSHOT_FORMATS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 #: (offscreen, minimal, linuxfb, eglfs, vnc, ...) needs none.
 DISPLAY_PLATFORMS = ("xcb", "wayland")
 NO_DISPLAY = "no display to open a window on (DISPLAY is not set); use --screenshot FILE to render offscreen"
+#: What --bench selects: the stage layers (edge map, GVF, snake, wavefront, trajectories) show one bench pair.
+BENCH_HELP = (
+    "Bench pair to select, by the index of its upper bench: 0 = the top bench and the one below it, "
+    "up to the number of benches minus 2 (default: the pair where the geozone has the most holes)."
+)
 QT_MISSING = "the viewer needs Qt and PyVista ({}); install them with: pip install -e '.[viewer]'"
 
 
@@ -75,12 +82,13 @@ def view(
     layers: Annotated[
         str | None,
         typer.Option(
-            help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."
+            help=f"Layers to show, comma-separated (any case, - or _ for a space): {', '.join(LAYER_NAMES)} "
+            f"(default: {', '.join(DEFAULT_VISIBLE)})."
         ),
     ] = None,
     camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
     geozone: Annotated[str | None, typer.Option("--geozone", help="Geozone to select.")] = None,
-    bench: Annotated[int | None, typer.Option(help="Bench index to select (0 = top).")] = None,
+    bench: Annotated[int | None, typer.Option(help=BENCH_HELP)] = None,
     exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
     no_cache: Annotated[
         bool, typer.Option("--no-cache", help="Compute every stage afresh instead of reusing earlier runs' results.")
@@ -169,7 +177,6 @@ def view_command(
 
 def check_view_options(layers=None, camera: str | None = None, vertical_exaggeration: float | None = None) -> None:
     """Refuse layers, cameras and exaggerations that cannot make a picture (one sentence each)."""
-    from .builders import LAYER_NAMES, parse_layers
     from .scene import CAMERAS
 
     try:
@@ -239,9 +246,10 @@ def _checked_holes(input, geozone: str | None, bench: int | None):
     holes = load_holes(input)
     if geozone is not None:
         holes.check_geozones([geozone])
-    if bench is not None and not 0 <= bench < max(holes.n_benches - 1, 1):
+    last = max(holes.n_benches - 2, 0)  # a single bench still has its own contours to show, as pair 0
+    if bench is not None and not 0 <= bench <= last:
         raise BGMInputError(
-            f"--bench {bench} is out of range: bench pairs of {holes.source or 'the input'} are numbered 0 "
-            f"(top) to {max(holes.n_benches - 2, 0)}"
+            f"--bench {bench} is out of range: it selects a bench pair by its upper bench, and "
+            f"{holes.source or 'the input'} has {holes.n_benches} bench(es), so --bench must be 0 to {last}"
         )
     return holes

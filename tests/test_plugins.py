@@ -152,3 +152,37 @@ def test_bgm_demo_view_with_no_display_is_refused_before_the_build(monkeypatch, 
         monkeypatch.delenv(name, raising=False)
     error_line(bgm("demo", "--out", tmp_path / "demo", "--view"), "no display")
     assert demo_build_stub == [] and not (tmp_path / "demo").exists()
+
+
+def _view_option_help(name: str) -> str:
+    """The ``--help`` text of ``bgm view``'s option ``name``, as typer shows it."""
+    from typer.main import get_command
+
+    from bgm_viewer.cli_hooks import register
+
+    if "view" not in {c.name for c in cli.app.registered_commands}:
+        register(cli.app)  # as its installed entry point does
+    command = get_command(cli.app).get_command(None, "view")  # type: ignore[attr-defined]
+    return next(p.help for p in command.params if p.name == name)
+
+
+def test_view_layers_help_lists_exactly_the_names_it_accepts():
+    from bgm_viewer.layer_names import LAYER_NAMES, parse_layers
+
+    text = _view_option_help("layers")
+    listed = text.split("): ", 1)[1].split(" (default")[0].split(", ")
+    assert listed == list(LAYER_NAMES)  # uncertainty and suggested holes too
+    for name in listed:
+        for spelling in (name, name.upper(), name.replace(" ", "-"), name.replace(" ", "_")):
+            assert parse_layers(spelling) == [name]
+
+
+def test_view_bench_is_a_bench_pair_and_its_range_is_stated(tmp_path):
+    pytest.importorskip("pyvista")
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    assert "pair" in _view_option_help("bench") and "upper bench" in _view_option_help("bench")
+    csv = tmp_path / "mine.csv"
+    sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4).to_csv(csv)
+    for bench in (2, -1):
+        error_line(bgm("view", csv, "--screenshot", tmp_path / "s.png", "--bench", bench), "3 bench", "0 to 1")
