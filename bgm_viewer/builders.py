@@ -1,6 +1,7 @@
 """Layers of the standard scene, fed from a :class:`~bgm_viewer.model.PipelineResult`.
 
-Layer names (what ``--layers`` and the layer panel use): see :data:`LAYER_NAMES`.
+Layer names (what ``--layers`` and the layer panel use): see
+:data:`bgm_viewer.layer_names.LAYER_NAMES`.
 """
 
 from __future__ import annotations
@@ -8,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _vtkenv  # noqa: F401
+from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers  # noqa: F401 - long imported from here
 from .layers import (
     BlastholesLayer,
     ContoursLayer,
@@ -24,66 +26,6 @@ from .model import PipelineResult, Selection
 from .palette import geozone_colours
 from .sampling_layers import NextBench, SuggestedHolesLayer, UncertaintyLayer
 from .scene import Scene
-
-LAYER_NAMES = (
-    "blastholes",
-    "contours",
-    "edge map",
-    "GVF",
-    "snake",
-    "wavefront",
-    "trajectories",
-    "predicted contours",
-    "surfaces",
-    "selected components",
-    "uncertainty",
-    "suggested holes",
-)
-#: Shown when nothing else is asked for.
-DEFAULT_VISIBLE = ("blastholes", "contours", "snake", "trajectories", "surfaces", "selected components")
-
-
-def _alias(name: str) -> str:
-    key = name.strip().lower().replace("_", " ").replace("-", " ")
-    aliases = {
-        "holes": "blastholes",
-        "edges": "edge map",
-        "edgemap": "edge map",
-        "gvf": "GVF",
-        "arrows": "GVF",
-        "front": "wavefront",
-        "fronts": "wavefront",
-        "tracks": "trajectories",
-        "predicted": "predicted contours",
-        "prediction": "predicted contours",
-        "surface": "surfaces",
-        "band": "uncertainty",
-        "suggestions": "suggested holes",
-        "suggested": "suggested holes",
-        "selection": "selected components",
-        "selected": "selected components",
-    }
-    key = aliases.get(key, key)
-    for n in LAYER_NAMES:
-        if n.lower() == key.lower():
-            return n
-    raise KeyError(f"unknown layer {name!r}; layers are: {', '.join(LAYER_NAMES)}")
-
-
-def parse_layers(layers) -> list[str]:
-    """``"blastholes,contours"`` or a list of names (aliases allowed) to canonical layer names."""
-    if layers is None:
-        return list(DEFAULT_VISIBLE)
-    if isinstance(layers, str):
-        layers = [p for p in layers.split(",") if p.strip()]
-    out = []
-    for part in layers:
-        for p in str(part).split(","):
-            if p.strip():
-                n = _alias(p)
-                if n not in out:
-                    out.append(n)
-    return out
 
 
 def make_layers(holes, result: PipelineResult, selection: Selection, predicted=()) -> list[Layer]:

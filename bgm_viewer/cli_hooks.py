@@ -8,8 +8,8 @@ without them and ``bgm view`` says in one line what to install.
 
 ``view_command(input, project, screenshot, layers, camera)``:
 
-* with ``screenshot``: render the scene off-screen to that PNG (no Qt, no display
-  needed) and return 0;
+* with ``screenshot``: render the scene off-screen to that picture (PNG, JPEG,
+  BMP or TIFF by its extension; no Qt, no display needed) and return 0;
 * otherwise: open the Qt window (``run_viewer``) and return its exit code.
 
 Every option is checked before anything is loaded or drawn: an unknown layer
@@ -22,12 +22,16 @@ input or project; the CLI reports them in one line.
 from __future__ import annotations
 
 import math
+import os
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from core.errors import BGMInputError, quoted
+
+from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers
 
 if TYPE_CHECKING:
     from core.io.blastholes import Blastholes
@@ -36,6 +40,18 @@ if TYPE_CHECKING:
 MAX_EXAGGERATION = 100.0
 #: A camera direction closer than this (degrees) to vertical has no "up" to draw: use ``top``.
 MIN_CAMERA_TILT_DEG = 1.0
+#: Picture formats ``--screenshot`` writes: those of ``pyvista.Plotter.screenshot`` (its ``SUPPORTED_FORMATS``),
+#: named here so a wrong name is refused before PyVista is imported or the table read.
+SCREENSHOT_FORMATS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+#: Qt platforms that draw through a display server (X or Wayland); any other one the user names
+#: (offscreen, minimal, linuxfb, eglfs, vnc, ...) needs none.
+DISPLAY_PLATFORMS = ("xcb", "wayland")
+NO_DISPLAY = "no display to open a window on (DISPLAY is not set); use --screenshot FILE to render offscreen"
+#: What --bench selects: the stage layers (edge map, GVF, snake, wavefront, trajectories) show one bench pair.
+BENCH_HELP = (
+    "Bench pair to select, by the index of its upper bench: 0 = the top bench and the one below it, "
+    "up to the number of benches minus 2 (default: the pair where the geozone has the most holes)."
+)
 QT_MISSING = "the viewer needs Qt and PyVista ({}); install them with: pip install -e '.[viewer]'"
 
 
@@ -43,7 +59,9 @@ def register(app: typer.Typer) -> None:
     """Add ``bgm view`` to the engine's typer app, with the table options every reading command takes."""
     from core.cli import reads_table
 
-    app.command("view")(reads_table(view))
+    command = reads_table(view)
+    command.preflight = check_display  # what ``bgm demo --view`` checks before building
+    app.command("view")(command)
 
 
 def view(
@@ -56,17 +74,21 @@ def view(
     ] = None,
     screenshot: Annotated[
         Path | None,
-        typer.Option("--screenshot", help="Render off-screen to this PNG instead of opening the window."),
+        typer.Option(
+            "--screenshot",
+            help=f"Render off-screen to this picture ({', '.join(SCREENSHOT_FORMATS)}) instead of opening the window.",
+        ),
     ] = None,
     layers: Annotated[
         str | None,
         typer.Option(
-            help="Layers to show, comma-separated: blastholes, contours, edge-map, gvf, snake, wavefront, trajectories, predicted, surfaces."
+            help=f"Layers to show, comma-separated (any case, - or _ for a space): {', '.join(LAYER_NAMES)} "
+            f"(default: {', '.join(DEFAULT_VISIBLE)})."
         ),
     ] = None,
     camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
     geozone: Annotated[str | None, typer.Option("--geozone", help="Geozone to select.")] = None,
-    bench: Annotated[int | None, typer.Option(help="Bench index to select (0 = top).")] = None,
+    bench: Annotated[int | None, typer.Option(help=BENCH_HELP)] = None,
     exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
     no_cache: Annotated[
         bool, typer.Option("--no-cache", help="Compute every stage afresh instead of reusing earlier runs' results.")
@@ -81,6 +103,9 @@ def view(
         raise BGMInputError(f"input file {str(input)!r} does not exist")
     if screenshot is not None:
         _outputs(screenshot, input if input is not None else DEMO_CSV, project)
+        check_screenshot_name(screenshot)
+    if screenshot is None:
+        check_display()  # before the table is read: Qt would abort the process, not raise
     source = input
     if table is not None and table.given():
         if input is None:
@@ -124,6 +149,7 @@ def view_command(
         if screenshot:
             from .screenshot import render_screenshot
         else:
+            check_display()
             from .app import run_viewer
     except ImportError as exc:
         raise BGMInputError(QT_MISSING.format(exc)) from None
@@ -151,7 +177,6 @@ def view_command(
 
 def check_view_options(layers=None, camera: str | None = None, vertical_exaggeration: float | None = None) -> None:
     """Refuse layers, cameras and exaggerations that cannot make a picture (one sentence each)."""
-    from .builders import LAYER_NAMES, parse_layers
     from .scene import CAMERAS
 
     try:
@@ -167,6 +192,34 @@ def check_view_options(layers=None, camera: str | None = None, vertical_exaggera
     ):
         raise BGMInputError(
             f"--exaggeration must be a number above 0 and at most {MAX_EXAGGERATION:g}, got {vertical_exaggeration}"
+        )
+
+
+def check_display() -> None:
+    """Refuse to open a window where Qt would find no display server (it aborts the process instead).
+
+    Only X11/Wayland systems (Linux, the BSDs) have one to miss; macOS and
+    Windows always have their own. A ``QT_QPA_PLATFORM`` that needs no display
+    (offscreen, minimal, a frame buffer) is left to Qt.
+    """
+    if sys.platform.startswith(("darwin", "win", "cygwin", "msys")):
+        return
+    wanted = os.environ.get("QT_QPA_PLATFORM", "").strip()
+    # "name:options", or a ';'-separated list Qt tries in turn
+    platforms = [p.split(":")[0].strip().lower() for p in wanted.split(";") if p.strip()]
+    if any(not p.startswith(DISPLAY_PLATFORMS) for p in platforms):
+        return
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        raise BGMInputError(NO_DISPLAY)
+
+
+def check_screenshot_name(screenshot: str | Path) -> None:
+    """Refuse a picture name whose extension is not one of :data:`SCREENSHOT_FORMATS` (any case)."""
+    suffix = Path(screenshot).suffix
+    if suffix.lower() not in SCREENSHOT_FORMATS:
+        what = f"bgm writes no {quoted(suffix)} pictures" if suffix else "a picture needs an extension"
+        raise BGMInputError(
+            f"--screenshot {quoted(Path(screenshot).name)}: {what}; use one of {', '.join(SCREENSHOT_FORMATS)}"
         )
 
 
@@ -193,9 +246,10 @@ def _checked_holes(input, geozone: str | None, bench: int | None):
     holes = load_holes(input)
     if geozone is not None:
         holes.check_geozones([geozone])
-    if bench is not None and not 0 <= bench < max(holes.n_benches - 1, 1):
+    last = max(holes.n_benches - 2, 0)  # a single bench still has its own contours to show, as pair 0
+    if bench is not None and not 0 <= bench <= last:
         raise BGMInputError(
-            f"--bench {bench} is out of range: bench pairs of {holes.source or 'the input'} are numbered 0 "
-            f"(top) to {max(holes.n_benches - 2, 0)}"
+            f"--bench {bench} is out of range: it selects a bench pair by its upper bench, and "
+            f"{holes.source or 'the input'} has {holes.n_benches} bench(es), so --bench must be 0 to {last}"
         )
     return holes

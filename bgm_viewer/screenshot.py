@@ -35,6 +35,9 @@ _NEEDS = {
     "predicted contours": "prediction",
     "surfaces": "surface",
     "selected components": "morph",
+    # The next bench's band and suggested holes are drawn from the geozone's whole model, built with the prediction.
+    "uncertainty": "prediction",
+    "suggested holes": "prediction",
 }
 
 
@@ -140,7 +143,8 @@ def render_screenshot(
     out_png = Path(out_png)
     plotter, _ = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)
     try:
-        with atomic_path(out_png) as tmp:
+        # PyVista picks the format by a lower-case extension only: picture.PNG is written through picture.png's.
+        with atomic_path(out_png, suffix=out_png.suffix.lower()) as tmp:
             image = np.asarray(plotter.screenshot(str(tmp), return_img=True))
             if image.size == 0 or np.ptp(image[..., :3]) == 0:  # a render failure leaves one colour
                 raise BGMInputError(f"the picture came out blank (one colour); {out_png} was not written")

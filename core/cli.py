@@ -164,7 +164,8 @@ def reads_table(command):
 
     @functools.wraps(command)
     def run(*args, **kwargs):
-        return command(*args, table=TableOptions(**{n: kwargs.pop(n) for n in names}), **kwargs)
+        # Called by another command (demo --view) rather than by typer, it is given none of them.
+        return command(*args, table=TableOptions(**{n: kwargs.pop(n, None) for n in names}), **kwargs)
 
     run.__signature__ = signature.replace(parameters=[*own, *added])  # what typer reads
     run.__annotations__ = {p.name: p.annotation for p in [*own, *added]}
@@ -666,25 +667,38 @@ def build(
 @app.command()
 def demo(
     out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-demo"),
-    view: Annotated[bool, typer.Option(help="Open the 3D viewer on the result when a display is available.")] = False,
+    view: Annotated[
+        bool, typer.Option(help="Open the 3D viewer on the result (needs the viewer installed and a display).")
+    ] = False,
     no_cache: NoCacheOpt = False,
 ) -> None:
     """Build the whole model on the bundled synthetic demo data (assets/demo_blastholes.csv)."""
     from core.io.blastholes import read_blastholes
     from core.model.build import check_model_folder, load_truth
 
+    viewer = _viewer_command() if view else None
     _outputs(out, DEMO_CSV, folder=True)
     check_model_folder(out)
     holes = read_blastholes(DEMO_CSV)
     _run_build(holes, out, None, None, load_truth(DEMO_CSV, holes), no_cache=no_cache)
     typer.echo((out / "report.md").read_text())
-    if not view:
+    if viewer is None:
         _say("open it in 3D with: bgm view")
         return
+    viewer(DEMO_CSV, no_cache=no_cache)  # the stages just built, from the cache (unless --no-cache)
+
+
+def _viewer_command():
+    """The ``view`` command's callback, refused before any work if it is not installed or cannot open a window.
+
+    A viewer plug-in may give its callback a ``preflight()`` that raises
+    :class:`BGMInputError` when no window can be opened (no display).
+    """
     viewer = next((c.callback for c in app.registered_commands if c.name == "view" and c.callback), None)
     if viewer is None:
         raise BGMInputError("the 3D viewer is not installed: pip install -e '.[viewer]'")
-    viewer(DEMO_CSV)
+    getattr(viewer, "preflight", lambda: None)()
+    return viewer
 
 
 @app.command()

@@ -7,9 +7,11 @@ import sys
 import tomllib
 from importlib.metadata import EntryPoint
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 import typer
+from clirun import bgm, error_line, succeeds
 
 from core import cli
 
@@ -49,7 +51,7 @@ def test_bgm_view_renders_a_screenshot(tmp_path):
     table = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
     # Columns no reader would find by name: the viewer takes the options every reading command takes.
     table.rename(columns={"x": "E (grid)", "y": "N (grid)", "z": "toe"}).to_csv(csv, index=False)
-    png = tmp_path / "view.png"
+    png = tmp_path / "view.PNG"  # PyVista knows lower-case extensions only; bgm takes any case
     args = ["view", str(csv), "--screenshot", str(png), "--layers", "blastholes,contours", "--geozone", "g1"]
     args += ["--x", "E (grid)", "--y", "N (grid)", "--z", "toe", "--bench-height", "10"]
     proc = subprocess.run([sys.executable, "-c", BGM_WITH_VIEWER, *args], capture_output=True, text=True, timeout=600)
@@ -69,3 +71,118 @@ def test_bgm_view_without_qt_and_pyvista_says_what_to_install(tmp_path):
     # and the engine's commands still work
     proc = subprocess.run([sys.executable, "-c", hide + BGM_WITH_VIEWER, "--help"], capture_output=True, text=True)
     assert proc.returncode == 0 and "correspond" in proc.stdout
+
+
+def test_the_picture_formats_bgm_view_takes_are_those_pyvista_writes():
+    pytest.importorskip("pyvista")
+    from pyvista.plotting.plotter import SUPPORTED_FORMATS
+
+    from bgm_viewer.cli_hooks import SCREENSHOT_FORMATS
+
+    assert sorted(SCREENSHOT_FORMATS) == sorted(SUPPORTED_FORMATS)
+
+
+@pytest.mark.parametrize(
+    ("platform", "env", "refused"),
+    [
+        ("linux", {}, True),
+        ("linux", {"QT_QPA_PLATFORM": "xcb"}, True),
+        ("freebsd14", {"QT_QPA_PLATFORM": "wayland;xcb"}, True),
+        ("linux", {"DISPLAY": ":0"}, False),
+        ("linux", {"WAYLAND_DISPLAY": "wayland-0"}, False),
+        ("linux", {"QT_QPA_PLATFORM": "offscreen"}, False),
+        ("linux", {"QT_QPA_PLATFORM": "minimal:enable_fonts"}, False),
+        ("darwin", {}, False),
+        ("win32", {}, False),
+    ],
+)
+def test_bgm_view_with_no_display_says_so_in_one_line_before_qt_starts(monkeypatch, platform, env, refused):
+    """Qt finding no display aborts the process (exit 134, a plug-in dump): bgm refuses first, where it matters."""
+    pytest.importorskip("pyvista")
+    import bgm_viewer.app
+    from bgm_viewer import cli_hooks
+
+    opened = []
+    monkeypatch.setattr(bgm_viewer.app, "run_viewer", lambda *args, **kw: opened.append(args) or 0)
+    monkeypatch.setattr(cli_hooks, "sys", SimpleNamespace(platform=platform))
+    for name in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"):
+        monkeypatch.delenv(name, raising=False)
+    for name, value in env.items():
+        monkeypatch.setenv(name, value)
+    run = bgm("view", cli.DEMO_CSV)
+    if refused:
+        assert error_line(run) == f"bgm: error: {cli_hooks.NO_DISPLAY}" and not opened
+        assert len(run.stderr.splitlines()) == 1  # refused before the table is read
+    else:
+        assert succeeds(run) and len(opened) == 1
+
+
+@pytest.fixture
+def demo_build_stub(monkeypatch):
+    """``bgm demo``'s build replaced by a report (the build is tested in test_build.py): the folders it was asked for."""
+    built = []
+
+    def build(holes, out, *args, **kw):
+        built.append(out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.md").write_text("# demo report\n")
+
+    monkeypatch.setattr(cli, "_run_build", build)
+    return built
+
+
+def test_bgm_demo_view_opens_the_viewer_on_the_demo_it_built(monkeypatch, tmp_path, demo_build_stub):
+    """It once failed after the build: the viewer was called without the table options (KeyError: 'x')."""
+    pytest.importorskip("pyvista")
+    import bgm_viewer.app
+
+    opened = []
+    monkeypatch.setattr(bgm_viewer.app, "run_viewer", lambda *args, **kw: opened.append((args, kw)) or 0)
+    monkeypatch.setenv("DISPLAY", ":0")
+    run = succeeds(bgm("demo", "--out", tmp_path / "demo", "--view"))
+    assert "# demo report" in run.stdout and demo_build_stub == [tmp_path / "demo"]
+    assert opened == [((cli.DEMO_CSV, None), {"cache": True})]  # the build's stages, from the cache
+
+
+def test_bgm_demo_view_with_no_display_is_refused_before_the_build(monkeypatch, tmp_path, demo_build_stub):
+    from bgm_viewer import cli_hooks
+
+    monkeypatch.setattr(cli_hooks, "sys", SimpleNamespace(platform="linux"))
+    for name in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"):
+        monkeypatch.delenv(name, raising=False)
+    error_line(bgm("demo", "--out", tmp_path / "demo", "--view"), "no display")
+    assert demo_build_stub == [] and not (tmp_path / "demo").exists()
+
+
+def _view_option_help(name: str) -> str:
+    """The ``--help`` text of ``bgm view``'s option ``name``, as typer shows it."""
+    from typer.main import get_command
+
+    from bgm_viewer.cli_hooks import register
+
+    if "view" not in {c.name for c in cli.app.registered_commands}:
+        register(cli.app)  # as its installed entry point does
+    command = get_command(cli.app).get_command(None, "view")  # type: ignore[attr-defined]
+    return next(p.help for p in command.params if p.name == name)
+
+
+def test_view_layers_help_lists_exactly_the_names_it_accepts():
+    from bgm_viewer.layer_names import LAYER_NAMES, parse_layers
+
+    text = _view_option_help("layers")
+    listed = text.split("): ", 1)[1].split(" (default")[0].split(", ")
+    assert listed == list(LAYER_NAMES)  # uncertainty and suggested holes too
+    for name in listed:
+        for spelling in (name, name.upper(), name.replace(" ", "-"), name.replace(" ", "_")):
+            assert parse_layers(spelling) == [name]
+
+
+def test_view_bench_is_a_bench_pair_and_its_range_is_stated(tmp_path):
+    pytest.importorskip("pyvista")
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    assert "pair" in _view_option_help("bench") and "upper bench" in _view_option_help("bench")
+    csv = tmp_path / "mine.csv"
+    sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4).to_csv(csv)
+    for bench in (2, -1):
+        error_line(bgm("view", csv, "--screenshot", tmp_path / "s.png", "--bench", bench), "3 bench", "0 to 1")

@@ -541,6 +541,17 @@ def test_blank_pictures_are_errors(csv, tmp_path):
         assert not out.exists()
 
 
+def test_a_picture_name_bgm_cannot_write_is_refused_before_the_table_is_read(tmp_path):
+    # A table no reader accepts: the extension must be the error, so it was checked first.
+    junk = tmp_path / "junk.csv"
+    junk.write_bytes(b"\x00\xff not a table")
+    before = snapshot(tmp_path)
+    for name in ("out.txt", "out", "out.svg", "out.png.gz"):
+        line = error_line(bgm("view", junk, "--screenshot", tmp_path / name), "--screenshot", ".png", ".tiff")
+        assert name in line
+    unchanged(before, snapshot(tmp_path))
+
+
 # --------------------------------------------------------------------------- silently wrong results
 
 

@@ -9,8 +9,11 @@ import pytest
 
 pv = pytest.importorskip("pyvista")
 
-from bgm_viewer.builders import build_scene, parse_layers  # noqa: E402
-from bgm_viewer.sampling_layers import NextBench, SuggestedHolesLayer, UncertaintyLayer  # noqa: E402
+from clirun import bgm, succeeds  # noqa: E402
+
+from bgm_viewer.builders import LAYER_NAMES, build_scene, parse_layers  # noqa: E402
+from bgm_viewer.model import STEPS  # noqa: E402
+from bgm_viewer.sampling_layers import SUGGESTED_COLOUR, NextBench, SuggestedHolesLayer, UncertaintyLayer  # noqa: E402
 from bgm_viewer.testing import small_model  # noqa: E402
 
 warnings.filterwarnings("ignore", category=FutureWarning)
@@ -58,3 +61,26 @@ def test_without_a_model_the_layers_are_empty(viewer_model):
     nothing = NextBench(viewer_model.holes, None)
     assert UncertaintyLayer(nothing).build() == [] and SuggestedHolesLayer(nothing).build() == []
     assert SuggestedHolesLayer(nothing).n_frames == 1
+
+
+def test_every_layer_says_which_step_a_screenshot_must_run_for_it():
+    from bgm_viewer import screenshot
+
+    assert set(screenshot._NEEDS) == set(LAYER_NAMES)
+    assert set(screenshot._NEEDS.values()) <= set(STEPS)
+
+
+@pytest.mark.parametrize("layer", ["uncertainty", "suggested holes"])
+def test_bgm_view_draws_the_next_bench_layers_offscreen(layer, tmp_path):
+    """Both layers are advertised by ``--layers``: a screenshot of either draws it (it once raised KeyError)."""
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    csv, png = tmp_path / "mine.csv", tmp_path / "next.png"
+    sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4).to_csv(csv)
+    succeeds(bgm("view", csv, "--screenshot", png, "--layers", layer, "--geozone", "g1", "--camera", "top"))
+    img = np.asarray(pv.read(str(png)).point_data.active_scalars)[:, :3].astype(int)
+    if layer == "suggested holes":
+        drawn = np.all(img == SUGGESTED_COLOUR, axis=1)
+    else:  # the probability map, red to blue; the axes' own colours take a few hundred pixels
+        drawn = img.max(axis=1) - img.min(axis=1) > 80
+    assert drawn.sum() > (500 if layer == "suggested holes" else 20_000)
