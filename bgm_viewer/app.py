@@ -32,7 +32,8 @@ from core.io.blastholes import Blastholes
 from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
-from .builders import DEFAULT_VISIBLE, LAYER_NAMES, build_scene, empty_layer_reasons, refresh_scene
+from .builders import build_scene, empty_layer_reasons, refresh_scene
+from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers
 from .model import STEPS, ViewerModel, bodies, compute, display_unit, project_input
 from .scene import SceneRenderer, drag_on_plane
 
@@ -1067,9 +1068,33 @@ def _quietly(inputs, previous, step, cancelled):
         yield from compute(inputs, previous, step, cancelled)
 
 
-def run_viewer(input_path=None, project_path=None, *, cache: bool = True) -> int:
-    """Open the viewer window on ``input_path`` (demo if ``None``) and a project; returns the exit code."""
+def run_viewer(input_path=None, project_path=None, *, cache: bool = True, **view) -> int:
+    """Open the viewer window on ``input_path`` (demo if ``None``) and a project; returns the exit code.
+
+    ``view``: the command line's choices of what to show first (see :func:`viewer_window`).
+    """
     app = QtWidgets.QApplication.instance() or QtWidgets.QApplication([])
+    window = viewer_window(input_path, project_path, cache=cache, **view)
+    window.show()
+    return int(app.exec())
+
+
+def viewer_window(
+    input_path=None,
+    project_path=None,
+    *,
+    cache: bool = True,
+    geozone: str | None = None,
+    bench: int | None = None,
+    layers=None,
+    camera: str | None = None,
+    vertical_exaggeration: float | None = None,
+) -> MainWindow:
+    """The viewer's window on ``input_path`` and a project, showing what ``bgm view``'s options ask for.
+
+    The geozone and bench pair selected, the layers shown (see :data:`bgm_viewer.layer_names.LAYER_NAMES`),
+    the camera and the vertical exaggeration are what a screenshot with the same options shows.
+    """
     if input_path is None and project_path is not None:
         input_path = project_input(project_path)
     model = ViewerModel(input_path, cache=cache)
@@ -1077,6 +1102,15 @@ def run_viewer(input_path=None, project_path=None, *, cache: bool = True) -> int
         model.input_path = input_path.source  # read with the command line's options: its file, for the extra columns
     if project_path is not None:
         model.load_project(project_path)
+    if geozone is not None or bench is not None:
+        model.select(geozone, bench)
+    if vertical_exaggeration:
+        model.vertical_exaggeration = float(vertical_exaggeration)
     window = MainWindow(model)
-    window.show()
-    return int(app.exec())
+    if layers is not None:
+        shown = parse_layers(layers)
+        for name in LAYER_NAMES:
+            window.set_layer_visible(name, name in shown)
+    if camera:
+        window._camera = camera  # applied once the window is laid out (showEvent)
+    return window

@@ -171,8 +171,11 @@ def view_command(
         )
         return 0
     if geozone is not None or bench is not None:
-        _checked_holes(input, geozone, bench)
-    return run_viewer(input, project, cache=cache)
+        holes = _checked_holes(input, geozone, bench)
+        geozone = geozone if geozone is None else holes.check_geozones([geozone])[0]
+    view = {"geozone": geozone, "bench": bench, "layers": layers, "camera": camera}
+    view["vertical_exaggeration"] = vertical_exaggeration
+    return run_viewer(input, project, cache=cache, **{k: v for k, v in view.items() if v is not None})
 
 
 def check_view_options(layers=None, camera: str | None = None, vertical_exaggeration: float | None = None) -> None:

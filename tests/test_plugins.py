@@ -186,3 +186,18 @@ def test_view_bench_is_a_bench_pair_and_its_range_is_stated(tmp_path):
     sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4).to_csv(csv)
     for bench in (2, -1):
         error_line(bgm("view", csv, "--screenshot", tmp_path / "s.png", "--bench", bench), "3 bench", "0 to 1")
+
+
+def test_bgm_view_hands_its_view_options_to_the_window(monkeypatch):
+    """--geozone, --bench, --layers, --camera and --exaggeration were checked, then only a screenshot used them."""
+    pytest.importorskip("pyvista")
+    import bgm_viewer.app
+
+    opened = []
+    monkeypatch.setattr(bgm_viewer.app, "run_viewer", lambda *args, **kw: opened.append(kw) or 0)
+    monkeypatch.setenv("DISPLAY", ":0")
+    asked = ("--geozone", "g2", "--bench", "1", "--layers", "contours", "--camera", "top", "--exaggeration", "3")
+    succeeds(bgm("view", cli.DEMO_CSV, *asked))
+    succeeds(bgm("view", cli.DEMO_CSV))
+    view = {"geozone": "g2", "bench": 1, "layers": "contours", "camera": "top", "vertical_exaggeration": 3.0}
+    assert opened == [{"cache": True, **view}, {"cache": True}]

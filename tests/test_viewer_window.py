@@ -276,3 +276,35 @@ def test_the_window_picture_holds_the_rendered_view_and_the_docks(qtbot, tmp_pat
         assert drawn > 20 if g in shown else drawn == 0, f"{g}: {drawn} pixels"
     # the docks are drawn too: the left third is mostly Qt's light panels, not the view
     assert img[:, : WINDOW_SIZE[0] // 6].mean() > 150
+
+
+def test_the_window_opens_on_what_the_command_line_asked_for(qtbot):
+    """`bgm view --geozone --bench --layers --camera --exaggeration` chose a screenshot's view and not the window's."""
+    from qtpy.QtCore import Qt
+
+    from bgm_viewer.app import viewer_window
+    from bgm_viewer.layer_names import DEFAULT_VISIBLE, LAYER_NAMES
+
+    def shown(win) -> set[str]:
+        items = {n: win.layer_list.findItems(n, Qt.MatchFlag.MatchExactly)[0] for n in LAYER_NAMES}
+        return {n for n, item in items.items() if item.checkState() == Qt.CheckState.Checked}
+
+    def looks_down(win) -> bool:
+        return abs(win.plotter.camera.direction[2]) > 0.99
+
+    holes = small_holes()
+    for asked in ({"geozone": "g2", "bench": 1, "layers": "contours,Surfaces", "camera": "top"}, {}):
+        win = viewer_window(holes, vertical_exaggeration=3 if asked else None, **asked)
+        try:
+            win.show()
+            qtbot.waitUntil(lambda w=win: not w.busy and w.model.result.complete, timeout=60_000)
+            qtbot.wait(50)  # the camera is set once the window is laid out
+            selected = (win.model.selection.geozone, win.model.selection.bench)
+            if asked:
+                assert shown(win) == {"contours", "surfaces"} and selected == ("g2", 1)
+                assert win.model.vertical_exaggeration == 3.0 and looks_down(win)
+            else:
+                assert shown(win) == set(DEFAULT_VISIBLE) and selected != ("g2", 1) and not looks_down(win)
+        finally:
+            win.model.dirty = False
+            win.close()
