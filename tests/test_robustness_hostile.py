@@ -24,7 +24,9 @@ Class -> tests:
 * interrupted build keeps the previous model: test_interrupted_build_keeps_the_previous_model (and the kill test)
 * Ctrl-C: exit 130, one line, workers included: test_ctrl_c_on_a_parallel_build_is_one_line (and the kill test)
 * user errors that were exit 3: test_user_errors_exit_2_with_one_line
-* labels 3310 / 3310.0: test_number_spellings_of_one_label_are_merged_with_a_warning (and test_properties.py)
+* labels 3310 / 3310.0: test_number_spellings_of_one_label_are_merged_with_a_warning (and test_properties.py),
+  test_codes_with_leading_zeros_are_never_merged, test_a_float_column_gives_the_same_labels_from_csv_and_parquet,
+  test_labels_differing_only_by_case_are_kept_with_a_warning
 * degrees: test_degrees_are_refused
 * uneven benches, z without benches: test_uneven_benches_are_taken_as_measured, test_z_that_forms_no_benches_is_refused
 * far elevations: test_far_elevations_need_force
@@ -544,7 +546,7 @@ def test_blank_pictures_are_errors(csv, tmp_path):
 
 
 def spellings(rng, value: int) -> list[str]:
-    forms = [str(value), f"{value}.0", f"{value}.00", f"0{value}", f"+{value}", f"{value}e0", f"{value * 10}e-1"]
+    forms = [str(value), f"{value}.0", f"{value}.00", f"+{value}", f"{value}e0", f"{value * 10}e-1"]
     return list(rng.choice(forms, 2, replace=False))
 
 
@@ -564,6 +566,51 @@ def test_number_spellings_of_one_label_are_merged_with_a_warning(table, tmp_path
     assert any("merged" in w for w in warnings_of(proc)), proc.stderr
     labels = {f["properties"]["geozone"] for f in json.loads(out.read_text())["features"]}
     assert labels == {target}  # one geozone, under its plain spelling
+    assert "4 geozones" in proc.stderr
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_codes_with_leading_zeros_are_never_merged(table, tmp_path, seed):
+    """Codes 007, 010, 0010 and 10 are four geozones: a float column never writes leading zeros."""
+    rng = rng_for("leading zeros", seed)
+    value = int(rng.integers(1, 99))
+    codes = [f"00{value + 1}", f"0{value}", f"00{value}", str(value)]
+    t = table.assign(geozone=table.geozone.map(dict(zip(sorted(set(table.geozone)), codes))))
+    path = tmp_path / "codes.csv"
+    t.to_csv(path, index=False)
+    out = tmp_path / "c.geojson"
+    proc = succeeds(bgm("contours", path, "--out", out))
+    assert not any("merged" in w for w in warnings_of(proc)), proc.stderr
+    assert "4 geozones" in proc.stderr
+    assert {f["properties"]["geozone"] for f in json.loads(out.read_text())["features"]} <= set(codes)
+    assert sorted(quiet_read(path).geozones) == sorted(codes)
+    error_line(bgm("contours", path, "--out", out, "--geozone", f"000{value}"), "not in", f"0{value}")
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_float_column_gives_the_same_labels_from_csv_and_parquet(table, tmp_path, seed):
+    """Codes 3310.0 everywhere (a float column) are 3310 whether the table is CSV or Parquet."""
+    rng = rng_for("float labels", seed)
+    codes = rng.choice(np.arange(100, 9999), 4, replace=False).astype(float)
+    t = table.assign(geozone=table.geozone.map(dict(zip(sorted(set(table.geozone)), codes))))
+    t.to_csv(tmp_path / "f.csv", index=False)
+    t.to_parquet(tmp_path / "f.parquet")
+    csv_labels = quiet_read(tmp_path / "f.csv").geozones
+    assert csv_labels == quiet_read(tmp_path / "f.parquet").geozones == sorted(str(int(c)) for c in codes)
+    # Non-integral codes keep their fraction, the same way from both.
+    t = t.assign(geozone=t.geozone + 0.5)
+    t.to_csv(tmp_path / "h.csv", index=False)
+    t.to_parquet(tmp_path / "h.parquet")
+    assert quiet_read(tmp_path / "h.csv").geozones == quiet_read(tmp_path / "h.parquet").geozones
+    assert quiet_read(tmp_path / "h.csv").geozones == sorted(f"{c + 0.5}" for c in codes)
+
+
+def test_labels_differing_only_by_case_are_kept_with_a_warning(table, tmp_path):
+    t = table.assign(geozone=table.geozone.replace({"g1": "G0"}))
+    path = tmp_path / "case.csv"
+    t.to_csv(path, index=False)
+    proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson"))
+    assert any("'G0' and 'g0'" in w and "only by case" in w for w in warnings_of(proc)), proc.stderr
     assert "4 geozones" in proc.stderr
 
 

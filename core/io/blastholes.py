@@ -7,7 +7,10 @@ CSV or Parquet table into :class:`Blastholes`:
 * columns are found by name, case-insensitively (or named explicitly), and
   only those columns are parsed (see :mod:`core.io.tables` for file formats);
 * numbers may use decimal commas or thousands separators; geozone labels that
-  spell one number two ways (``3310``, ``3310.0``) are merged, with a warning;
+  spell one number two ways (``3310``, ``3310.0``) are merged, with a warning,
+  and an integral number written with a zero fraction is its plain spelling
+  (``3310.0`` is ``3310``, as a float column read from Parquet gives it);
+  labels with leading zeros (``010``) are codes, never merged with ``10``;
 * coordinates in degrees of latitude and longitude are refused;
 * benches are found by clustering elevations, at the levels as measured
   (uneven bench heights are fine); z that does not form benches is refused;
@@ -64,6 +67,10 @@ MAX_DEGREES_SPREAD = 1.0
 HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id")
 #: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
 NUMBER_LABEL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,3})?")
+#: A label whose integer part has leading zeros (``010``, ``-007.5``): a code, not a number.
+LEADING_ZEROS = re.compile(r"[+-]?0\d")
+#: An integer written with a zero fraction, as a float column is written to CSV (``3310.0``).
+ZERO_FRACTION = re.compile(r"-?\d+\.0+")
 #: Numbers with decimal commas, and with thousands separators.
 DECIMAL_COMMA = r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?"
 THOUSANDS = r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d*)?(?:[eE][+-]?\d+)?"
@@ -286,8 +293,13 @@ def _label_strings(values: pd.Series) -> np.ndarray:
 
 
 def label_number(label: str) -> Decimal | None:
-    """The number a geozone label spells (``3310``, ``3310.0``, ``3.31e3``...), exactly; None if none."""
-    if len(label) > 40 or not NUMBER_LABEL.fullmatch(label):
+    """The number a geozone label spells (``3310``, ``3310.0``, ``3.31e3``...), exactly; None if none.
+
+    A label with leading zeros (``010``, ``0010``) is a code and spells no
+    number: ``010`` and ``10`` are distinct codes, and no program writing a
+    float column pads it with zeros.
+    """
+    if len(label) > 40 or not NUMBER_LABEL.fullmatch(label) or LEADING_ZEROS.match(label):
         return None
     return Decimal(label)
 
@@ -301,14 +313,18 @@ def merge_number_spellings(labels: np.ndarray) -> tuple[np.ndarray, dict[str, st
     """Make labels that spell the same number differently one label.
 
     ``3310`` and ``3310.0`` in one file are one geozone written by two
-    programs, not two geozones. Labels that spell a number no other label
-    spells stay as written.
+    programs, not two geozones. An integer written with a zero fraction
+    (``3310.0``) is its plain spelling even alone: a float column gives it
+    in CSV, and the same column read from Parquet gives ``3310``. Other
+    labels that spell a number no other label spells stay as written, and
+    labels with leading zeros (codes, see :func:`label_number`) always do.
 
     Returns
     -------
     labels : (n,) object
     renamed : dict
-        Spelling -> the plain spelling it became (empty when nothing merged).
+        Spelling -> the plain spelling it was merged into (empty when nothing
+        merged); lone zero fractions made plain are not listed.
     """
     by_value: dict[Decimal, list[str]] = {}
     for label in pd.unique(np.asarray(labels, dtype=object)):
@@ -317,9 +333,10 @@ def merge_number_spellings(labels: np.ndarray) -> tuple[np.ndarray, dict[str, st
             by_value.setdefault(value, []).append(label)
     renamed = {s: number_label(v) for v, spellings in by_value.items() if len(spellings) > 1 for s in spellings}
     renamed = {s: t for s, t in renamed.items() if s != t}
-    if not renamed:
+    plain = {s: number_label(v) for v, (s, *more) in by_value.items() if not more and ZERO_FRACTION.fullmatch(s)}
+    if not renamed and not plain:
         return np.asarray(labels, dtype=object), {}
-    merged = pd.Series(labels, dtype=object).replace(renamed).to_numpy(dtype=object)
+    merged = pd.Series(labels, dtype=object).replace(renamed | plain).to_numpy(dtype=object)
     return merged, renamed
 
 
@@ -475,7 +492,24 @@ def _geozone_labels(raw: pd.Series, column: str, first_line: int, notes: list[st
         )
         notes.append(msg)
         warnings.warn(msg, BGMWarning, stacklevel=4)
+    _warn_case_twins(labels, column, notes)
     return labels
+
+
+def _warn_case_twins(labels: np.ndarray, column: str, notes: list[str]) -> None:
+    """Warn about labels differing only by case (``G0``, ``g0``): kept distinct, but often one code typed twice."""
+    by_fold: dict[str, list[str]] = {}
+    for label in pd.unique(labels):
+        by_fold.setdefault(str(label).casefold(), []).append(str(label))
+    twins = [sorted(group) for group in by_fold.values() if len(group) > 1]
+    if twins:
+        more = f" ({len(twins) - 1} more such group(s))" if len(twins) > 1 else ""
+        msg = (
+            f"geozone labels {' and '.join(quoted(t) for t in twins[0][:5])}{more} in column {quoted(column)} "
+            "differ only by case: they are kept as distinct geozones"
+        )
+        notes.append(msg)
+        warnings.warn(msg, BGMWarning, stacklevel=4)
 
 
 def _is_numeric(raw: pd.Series) -> bool:
