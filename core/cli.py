@@ -119,7 +119,11 @@ class TableOptions:
         ),
     ] = None
     bench_height: Annotated[
-        float | None, typer.Option("--bench-height", help="Bench height in input units (default: detected from z).")
+        float | None,
+        typer.Option(
+            "--bench-height",
+            help="Bench height in input units (default: detected from z); benches stay at the collars' levels.",
+        ),
     ] = None
     units: Annotated[
         str | None,

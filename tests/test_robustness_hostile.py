@@ -42,6 +42,7 @@ Class -> tests:
 * "on one bench only" said of geozones on several benches: test_hostile_labels_get_safe_unique_folders
 * rows longer than the header (an unquoted delimiter): test_rows_longer_than_the_header_are_refused
 * a bench height that puts several benches on one: test_a_bench_height_that_puts_several_benches_on_one_is_refused
+* a bench height other than the collars': test_a_bench_height_keeps_the_levels_where_the_collars_are
 """
 
 from __future__ import annotations
@@ -906,6 +907,23 @@ def test_a_bench_height_that_puts_several_benches_on_one_is_refused(tmp_path, fa
     error_line(bgm("contours", path, "--out", out, "--bench-height", 10 * factor), "bench height", "on one bench")
     succeeds(bgm("contours", path, "--out", out, "--bench-height", 10))
     assert len({f["properties"]["bench"] for f in json.loads(out.read_text())["features"]}) == 6
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_bench_height_keeps_the_levels_where_the_collars_are(tmp_path, seed):
+    """``--bench-height 9.5`` on 10 m benches moved the levels (the bottom one 2.9 m off) and dropped holes."""
+    rng = rng_for("given height", seed)
+    levels = np.round(rng.uniform(600, 700) - 10.0 * np.arange(int(rng.integers(4, 8))), 1)
+    path = tmp_path / "benches.csv"
+    bench_table(levels, rng).to_csv(path, index=False)
+    out = tmp_path / "o.geojson"
+    for wrong in (rng.uniform(8.5, 9.6), rng.uniform(10.4, 11.5), 5.0):
+        error_line(bgm("contours", path, "--out", out, "--bench-height", f"{wrong:.2f}"), "disagrees", "10 apart")
+    # A height that agrees with the collars (within a few percent) leaves every level and hole where it is.
+    proc = succeeds(bgm("contours", path, "--out", out, "--bench-height", f"{rng.uniform(9.75, 10.25):.2f}"))
+    assert not warnings_of(proc), proc.stderr
+    found = sorted({f["properties"]["bench"] for f in json.loads(out.read_text())["features"]}, reverse=True)
+    assert np.allclose(found, levels, atol=0.15), (found, levels)
 
 
 def test_benches_of_two_holes_are_refused_as_such(tmp_path):

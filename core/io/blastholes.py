@@ -59,6 +59,8 @@ MAX_COORDINATE = 1e12
 MAX_OFF_BENCH_SHARE = 0.25
 #: A single cluster of elevations thicker than this many hole spacings is not one bench.
 MAX_BENCH_THICKNESS_SPACINGS = 5.0
+#: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
+BENCH_HEIGHT_TOLERANCE = 0.03
 #: More benches than this from an explicit bench height is a unit mistake.
 MAX_BENCHES = 10_000
 #: x and y both spanning less than this many units (and within +-180, +-90) are degrees.
@@ -645,7 +647,11 @@ def detect_benches(
     z : (n,) float
         Elevations, input units.
     bench_height : float, optional
-        Known bench height (input units): a regular ladder of that height.
+        Known bench height (input units). Where the collars form benches by
+        themselves their levels stand, and a height more than
+        :data:`BENCH_HEIGHT_TOLERANCE` off the median gap between them is
+        refused; where they spread continuously, a regular ladder of that
+        height groups them.
     xy : (n, 2) float, optional
         Hole positions (input units), to tell one bench from elevations spread
         continuously (which is refused).
@@ -668,7 +674,7 @@ def detect_benches(
     BGMInputError
         When z does not form benches: one elevation cluster far thicker than
         the hole spacing, or more than ``MAX_OFF_BENCH_SHARE`` of the holes
-        between levels.
+        between levels; or when ``bench_height`` disagrees with the levels.
     """
     z = np.asarray(z, float)
     if bench_height is not None and not (np.isfinite(bench_height) and bench_height > 0):
@@ -676,10 +682,10 @@ def detect_benches(
     zs = np.sort(z)
     if zs[-1] == zs[0]:
         return np.array([zs[0]]), np.zeros(len(z), int), np.nan, np.zeros(len(z), bool)
+    clusters = _elevation_clusters(zs)
+    min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
+    big = [c for c in clusters if len(c) >= min_count]
     if bench_height is None:
-        clusters = _elevation_clusters(zs)
-        min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
-        big = [c for c in clusters if len(c) >= min_count]
         if len(clusters) >= 2 and max(len(c) for c in clusters) < 3:
             raise BGMInputError(
                 f"z falls on {len(clusters)} levels ({zs[-1]:g} to {zs[0]:g}) of at most "
@@ -688,7 +694,14 @@ def detect_benches(
         if len(big) < 2:
             return _single_bench(z, xy)
         levels = _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
+    elif len(big) >= 2:
+        # The collars form benches by themselves: their levels stand, and a
+        # given height only has to agree with them (a grid of it from the top
+        # would move every level the height is off, and drop holes).
+        levels = _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
+        _refuse_disagreeing_height(levels, float(bench_height))
     else:
+        # One continuous spread of elevations: the given height groups it into benches.
         if np.ptp(zs) / bench_height > MAX_BENCHES:
             raise BGMInputError(
                 f"bench height {bench_height:g} would cut the elevations ({zs[0]:g} to {zs[-1]:g}) into more "
@@ -706,6 +719,25 @@ def detect_benches(
         )
     height = float(bench_height) if bench_height is not None else float(np.median(-np.diff(levels)))
     return levels, bench, (height if len(levels) >= 2 else np.nan), off
+
+
+def _refuse_disagreeing_height(levels: np.ndarray, bench_height: float) -> None:
+    """Refuse a given bench height other than the one between the collars' own levels (ascending ``levels``).
+
+    The measured height is the median distance between successive levels;
+    it agrees within :data:`BENCH_HEIGHT_TOLERANCE` of the given height.
+    """
+    measured = float(np.median(np.diff(levels)))
+    if abs(measured - bench_height) <= BENCH_HEIGHT_TOLERANCE * bench_height:
+        return
+    # A height several times the levels' gap would merge benches: say so, as _refuse_merged_benches does.
+    merges = bench_height > 1.5 * measured
+    grouping = f", so it would put the holes of {bench_height / measured:.0f} levels on one bench" if merges else ""
+    raise BGMInputError(
+        f"a bench height of {bench_height:g} disagrees with the holes' own benches: their collars lie on "
+        f"{len(levels)} levels ({levels[-1]:g} to {levels[0]:g}) {measured:.4g} apart{grouping}; "
+        f"leave --bench-height out to use the levels as drilled, or give {measured:.4g}"
+    )
 
 
 def _elevation_clusters(zs: np.ndarray) -> list[np.ndarray]:
