@@ -28,6 +28,7 @@ Class -> tests:
   test_codes_with_leading_zeros_are_never_merged, test_a_float_column_gives_the_same_labels_from_csv_and_parquet,
   test_labels_differing_only_by_case_are_kept_with_a_warning
 * degrees: test_degrees_are_refused
+* depths given as z: test_a_depth_column_given_as_z_is_warned_about
 * uneven benches, z without benches: test_uneven_benches_are_taken_as_measured, test_z_that_forms_no_benches_is_refused
 * far elevations: test_far_elevations_need_force
 * unused overrides: test_unused_overrides_are_named
@@ -613,6 +614,22 @@ def test_labels_differing_only_by_case_are_kept_with_a_warning(table, tmp_path):
     proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson"))
     assert any("'G0' and 'g0'" in w and "only by case" in w for w in warnings_of(proc)), proc.stderr
     assert "4 geozones" in proc.stderr
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_depth_column_given_as_z_is_warned_about(table, tmp_path, seed):
+    """Depths (positive down) read as elevations put the deepest bench on top: say so, naming the column."""
+    rng = rng_for("depth", seed)
+    name = str(rng.choice(["depth", "Depth", "DEPTH", "depth_m", "from", "to", "Hole Depth (m)"]))
+    t = table.assign(**{name: 700.0 - table.z}).drop(columns="z")
+    path = tmp_path / "depth.csv"
+    t.to_csv(path, index=False)
+    proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson", "--z", name))
+    assert any(repr(name) in w and "elevation" in w and "--z" in w for w in warnings_of(proc)), proc.stderr
+    # The elevations under an elevation's name get no such warning.
+    t.assign(RL=table.z).to_csv(path, index=False)
+    proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson", "--z", "RL"))
+    assert not any("depth" in w for w in warnings_of(proc)), proc.stderr
 
 
 @pytest.mark.parametrize("seed", [0, 1])

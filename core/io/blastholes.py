@@ -73,6 +73,8 @@ NUMBER_LABEL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,3})?")
 LEADING_ZEROS = re.compile(r"[+-]?0\d")
 #: An integer written with a zero fraction, as a float column is written to CSV (``3310.0``).
 ZERO_FRACTION = re.compile(r"-?\d+\.0+")
+#: A z column named like this (any case) holds depths, positive down: ``depth``, ``Depth_m``, ``from``, ``to (m)``.
+DEPTH_NAME = re.compile(r"(?:.*depth.*|(?:from|to)(?:[_\s(].*)?)", re.IGNORECASE)
 #: Numbers with decimal commas, and with thousands separators.
 DECIMAL_COMMA = r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?"
 THOUSANDS = r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d*)?(?:[eE][+-]?\d+)?"
@@ -425,6 +427,7 @@ def blastholes_from_table(
     }
     _refuse_degrees(coords["x"], coords["y"], source)
     notes: list[str] = []
+    _warn_depth_column(cols["z"], notes)
     labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], first_line, notes)
     hole_id = table[cols["hole_id"]].astype(str).to_numpy(dtype=object) if "hole_id" in cols else None
 
@@ -475,6 +478,21 @@ def blastholes_from_table(
             f"cannot measure the hole spacing of {source or 'the input'}: no bench has two distinct holes"
         )
     return holes
+
+
+def _warn_depth_column(column: str, notes: list[str]) -> None:
+    """Warn when z is read from a column named as a depth: positive down, it turns the benches upside down.
+
+    Not flipped: a name is no proof, and an elevation needs the collar's, which the table may not hold.
+    """
+    if DEPTH_NAME.fullmatch(column.strip()):
+        msg = (
+            f"column {quoted(column)} given for z is named like a depth (positive down), but z must be an "
+            "elevation (positive up): read as one, the deepest bench is the top; give an elevation column "
+            "with --z, or convert first (elevation = collar elevation - depth)"
+        )
+        notes.append(msg)
+        warnings.warn(msg, BGMWarning, stacklevel=3)
 
 
 def _geozone_labels(raw: pd.Series, column: str, first_line: int, notes: list[str]) -> np.ndarray:
