@@ -53,6 +53,8 @@ COINCIDENT_M = 1e-3
 MIN_BENCH_GAP = 2.0
 #: Blastholes closer than this (metres, the median across benches) are no drilling pattern: the unit is not feet.
 MIN_HOLE_SPACING_M = 2.5
+#: Blasthole spacings (metres, the median across benches) outside this range are a unit mistake (mm, cm, km...).
+PLAUSIBLE_SPACING_M = (0.5, 50.0)
 #: Coordinates larger than this (input units) are rejected as not coordinates.
 MAX_COORDINATE = 1e12
 #: More holes than this share between bench levels: z does not form benches.
@@ -157,6 +159,9 @@ class Blastholes:
         Where the table came from.
     notes : list of str
         Repairs made while reading (deduplication, off-bench holes...).
+    unit_guess : str
+        How the length unit was guessed when it was not given and is not
+        metres (said in the command line's summary of the input); else empty.
     """
 
     xy: np.ndarray
@@ -170,6 +175,7 @@ class Blastholes:
     hole_id: np.ndarray | None = None
     source: str = ""
     notes: list[str] = field(default_factory=list)
+    unit_guess: str = ""
     _drilled: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -234,6 +240,7 @@ class Blastholes:
             hole_id=None if self.hole_id is None else self.hole_id[keep],
             source=self.source,
             notes=list(self.notes),
+            unit_guess=self.unit_guess,
         )
 
 
@@ -477,6 +484,9 @@ def blastholes_from_table(
         raise BGMInputError(
             f"cannot measure the hole spacing of {source or 'the input'}: no bench has two distinct holes"
         )
+    _check_spacing(holes, given=bool(length_unit))
+    if unit == "ft" and not length_unit:
+        holes.unit_guess = f"feet guessed from the {height_in:.4g}-unit bench height: give --units m if not"
     return holes
 
 
@@ -610,6 +620,30 @@ def _refuse_degrees(x: np.ndarray, y: np.ndarray, source: str) -> None:
                 f"(x {x.min():.6g} to {x.max():.6g}, y {y.min():.6g} to {y.max():.6g}: all holes within "
                 f"{spread:.3g} units); BGM needs projected coordinates in metres or feet (a mine grid or UTM)"
             )
+
+
+def _check_spacing(holes: Blastholes, given: bool) -> None:
+    """Refuse a hole spacing no blasthole pattern has (outside :data:`PLAUSIBLE_SPACING_M`): a unit mistake.
+
+    A table in millimetres reads as benches 10,000 feet high with holes 5,500
+    feet apart. With ``--units`` given (``given``) the user vouches for the
+    unit, and the odd spacing is only warned about.
+    """
+    low, high = PLAUSIBLE_SPACING_M
+    spacing = holes.hole_spacing_m
+    if low <= spacing <= high:
+        return
+    unit = holes.frame.length_unit
+    said = f"{holes.frame.length_to_input(spacing):.4g} {unit} ({spacing:.4g} m)" if unit != "m" else f"{spacing:.4g} m"
+    msg = (
+        f"the median hole spacing of {holes.source or 'the input'} is {said}, where blastholes are {low:g} "
+        f"to {high:g} m apart: the table's length unit is likely neither metres nor feet "
+        f"(millimetres, centimetres, kilometres?); convert it to metres or feet"
+    )
+    if given:
+        warnings.warn(msg, BGMWarning, stacklevel=3)
+    else:
+        raise BGMInputError(f"{msg}, or give --units m or ft if it is one")
 
 
 def _guess_unit(bench_height: float, length_unit: str | None, spacing=lambda: float("nan")) -> str:
