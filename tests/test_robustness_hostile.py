@@ -42,6 +42,7 @@ Class -> tests:
   test_standard_input, test_huge_labels_are_shortened_in_messages
 * "on one bench only" said of geozones on several benches: test_hostile_labels_get_safe_unique_folders
 * rows longer than the header (an unquoted delimiter): test_rows_longer_than_the_header_are_refused
+* empty rows, line numbers after blank lines: test_empty_rows_are_skipped_and_lines_named_as_in_the_file
 * a bench height that puts several benches on one: test_a_bench_height_that_puts_several_benches_on_one_is_refused
 * a bench height other than the collars': test_a_bench_height_keeps_the_levels_where_the_collars_are
 """
@@ -912,6 +913,28 @@ def test_rows_longer_than_the_header_are_refused(table, tmp_path, seed):
     ]
     path.write_text("\n".join(trailing) + "\n")
     assert len(quiet_read(path).xy) == len(quiet_read(t).xy)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_empty_rows_are_skipped_and_lines_named_as_in_the_file(table, tmp_path, seed):
+    """Spreadsheets end a CSV with ``,,,,`` rows (a hard error); after a blank line, errors named the line before."""
+    rng = rng_for("empty rows", seed)
+    lines = table.to_csv(index=False).splitlines()
+    empty = "," * (len(table.columns) - 1)
+    for at in sorted(rng.choice(np.arange(2, len(lines)), 4, replace=False), reverse=True):
+        lines.insert(int(at), str(rng.choice(["", "   ", empty])))
+    path = tmp_path / "excel.csv"
+    path.write_text("\n".join([*lines, empty, empty]) + "\n")
+    with pytest.warns(BGMWarning, match="empty row"):
+        holes = read_blastholes(path)
+    assert len(holes.xy) == len(quiet_read(table).xy)
+    # A bad value is named by the line an editor shows it on.
+    bad = int(rng.integers(len(lines) // 2, len(lines)))
+    while not lines[bad - 1].strip(",").strip():  # a data row (line numbers are 1-based)
+        bad -= 1
+    lines[bad - 1] = "abc" + lines[bad - 1][lines[bad - 1].index(",") :]
+    path.write_text("\n".join(lines) + "\n")
+    error_line(bgm("contours", path, "--out", tmp_path / "o.geojson"), f"data line(s) {bad} ", "'abc'")
 
 
 @pytest.mark.parametrize("factor", [4, 12])

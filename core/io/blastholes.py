@@ -35,6 +35,7 @@ import pandas as pd
 from scipy.spatial import cKDTree
 
 from core.errors import BGMInputError, BGMWarning, listing, quoted
+from core.io.tables import data_lines
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "x": ("x", "east", "easting"),
@@ -351,9 +352,9 @@ def merge_number_spellings(labels: np.ndarray) -> tuple[np.ndarray, dict[str, st
     return merged, renamed
 
 
-def _rows(idx: np.ndarray, limit: int = 10, first_line: int = 2) -> str:
-    """Data row numbers as a file shows them (the first row is on line ``first_line``)."""
-    shown = ", ".join(str(int(i) + first_line) for i in idx[:limit])
+def _rows(idx: np.ndarray, lines: np.ndarray, limit: int = 10) -> str:
+    """The file lines of data rows ``idx``, ``lines`` being each row's (see :func:`core.io.tables.data_lines`)."""
+    shown = ", ".join(str(int(lines[i])) for i in idx[:limit])
     more = f" and {len(idx) - limit} more" if len(idx) > limit else ""
     return f"{shown}{more}"
 
@@ -424,18 +425,16 @@ def blastholes_from_table(
     """:func:`read_blastholes` on a table already in memory."""
     if len(table) == 0:
         raise BGMInputError(f"{source or 'the input'} has a header but no rows")
-    first_line = int(table.attrs.get("first_data_line", 2))
+    lines = data_lines(table)
     delimiter = table.attrs.get("delimiter")
     cols = table_columns(list(table.columns), x, y, z, geozone)
     table = table[list(cols.values())].copy()
     table.columns = list(cols.values())
-    coords = {
-        role: _coordinates(table[cols[role]], cols[role], role, delimiter, first_line) for role in ("x", "y", "z")
-    }
+    coords = {role: _coordinates(table[cols[role]], cols[role], role, delimiter, lines) for role in ("x", "y", "z")}
     _refuse_degrees(coords["x"], coords["y"], source)
     notes: list[str] = []
     _warn_depth_column(cols["z"], notes)
-    labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], first_line, notes)
+    labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], lines, notes)
     hole_id = table[cols["hole_id"]].astype(str).to_numpy(dtype=object) if "hole_id" in cols else None
 
     if len(labels) < 3:
@@ -446,7 +445,7 @@ def blastholes_from_table(
     if off.any():
         msg = (
             f"{int(off.sum())} hole(s) lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from "
-            f"every bench level (data line(s) {_rows(np.flatnonzero(off), first_line=first_line)}) and were left out"
+            f"every bench level (data line(s) {_rows(np.flatnonzero(off), lines)}) and were left out"
         )
         notes.append(msg)
         warnings.warn(msg, BGMWarning, stacklevel=2)
@@ -478,7 +477,7 @@ def blastholes_from_table(
         source=source,
         notes=notes,
     )
-    holes = _deduplicate(holes, np.flatnonzero(keep), first_line)
+    holes = _deduplicate(holes, lines[keep])
     holes.hole_spacing_m = median_hole_spacing(holes.xy, holes.bench)
     if not np.isfinite(holes.hole_spacing_m) or holes.hole_spacing_m <= 0:
         raise BGMInputError(
@@ -505,14 +504,13 @@ def _warn_depth_column(column: str, notes: list[str]) -> None:
         warnings.warn(msg, BGMWarning, stacklevel=3)
 
 
-def _geozone_labels(raw: pd.Series, column: str, first_line: int, notes: list[str]) -> np.ndarray:
+def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[str]) -> np.ndarray:
     """Labels as strings, none blank, spellings of one number merged (said in ``notes`` and a warning)."""
     labels = _label_strings(raw)
     blank = np.flatnonzero(labels == "")
     if len(blank):
         raise BGMInputError(
-            f"column {quoted(column)} (geozone) is empty on {len(blank)} row(s): "
-            f"data line(s) {_rows(blank, first_line=first_line)}"
+            f"column {quoted(column)} (geozone) is empty on {len(blank)} row(s): data line(s) {_rows(blank, lines)}"
         )
     labels, renamed = merge_number_spellings(labels)
     if renamed:
@@ -554,7 +552,7 @@ def coordinate_values(raw: pd.Series, delimiter: str | None) -> np.ndarray:
     return pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
 
 
-def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, first_line: int) -> np.ndarray:
+def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, lines: np.ndarray) -> np.ndarray:
     """A coordinate column as finite floats, or one sentence naming the rows that are not."""
     values = coordinate_values(raw, delimiter)
     bad = np.flatnonzero(~np.isfinite(values))
@@ -566,7 +564,7 @@ def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, 
             hint = "; commas there are neither all decimal commas nor all thousands separators"
         raise BGMInputError(
             f"column {quoted(column)} ({role}) has {len(bad)} missing, non-numeric or infinite "
-            f"value(s), on data line(s) {_rows(bad, first_line=first_line)}{example}{hint}"
+            f"value(s), on data line(s) {_rows(bad, lines)}{example}{hint}"
         )
     # Finite but absurd magnitudes (1e300) overflow distance computations
     # (kD-tree) deep in the engine; no mine grid comes near 1e12 units, and
@@ -575,7 +573,7 @@ def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, 
     if len(huge):
         raise BGMInputError(
             f"column {quoted(column)} ({role}) has {len(huge)} value(s) beyond {MAX_COORDINATE:.0e} in "
-            f"magnitude, too large to be coordinates, on data line(s) {_rows(huge, first_line=first_line)}"
+            f"magnitude, too large to be coordinates, on data line(s) {_rows(huge, lines)}"
         )
     return values
 
@@ -954,8 +952,8 @@ def _merge_scatter_splits(zs: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return labels
 
 
-def _deduplicate(holes: Blastholes, rows: np.ndarray, first_line: int = 2) -> Blastholes:
-    """Merge holes at the same position on the same bench, warning about it."""
+def _deduplicate(holes: Blastholes, lines: np.ndarray) -> Blastholes:
+    """Merge holes at the same position on the same bench, warning about it (``lines``: each hole's file line)."""
     key = np.column_stack([holes.bench, np.round(holes.xy / COINCIDENT_M).astype(np.int64)])
     _, first, inverse, counts = np.unique(key, axis=0, return_index=True, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
@@ -967,10 +965,9 @@ def _deduplicate(holes: Blastholes, rows: np.ndarray, first_line: int = 2) -> Bl
     msg = f"{n_removed} duplicate hole(s) at the same position on the same bench were merged (first row kept)"
     if conflicting:
         g = conflicting[0]
-        lines = rows[np.flatnonzero(inverse == g)]
         msg += (
             f"; {len(conflicting)} of those positions carry conflicting geozone labels "
-            f"(e.g. data lines {_rows(lines, 4, first_line)}: {listing(sorted(set(holes.geozone[inverse == g].tolist())), 5)})"
+            f"(e.g. data lines {_rows(np.flatnonzero(inverse == g), lines, 4)}: {listing(sorted(set(holes.geozone[inverse == g].tolist())), 5)})"
         )
     warnings.warn(msg, BGMWarning, stacklevel=3)
     keep = np.sort(first)
