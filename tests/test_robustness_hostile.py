@@ -28,6 +28,7 @@ Class -> tests:
   test_codes_with_leading_zeros_are_never_merged, test_a_float_column_gives_the_same_labels_from_csv_and_parquet,
   test_labels_differing_only_by_case_are_kept_with_a_warning
 * degrees: test_degrees_are_refused
+* an identifier column read as geozones: test_an_identifier_read_as_geozones_is_warned_about
 * depths given as z: test_a_depth_column_given_as_z_is_warned_about
 * uneven benches, z without benches: test_uneven_benches_are_taken_as_measured, test_z_that_forms_no_benches_is_refused
 * far elevations: test_far_elevations_need_force
@@ -606,6 +607,22 @@ def test_a_float_column_gives_the_same_labels_from_csv_and_parquet(table, tmp_pa
     t.to_parquet(tmp_path / "h.parquet")
     assert quiet_read(tmp_path / "h.csv").geozones == quiet_read(tmp_path / "h.parquet").geozones
     assert quiet_read(tmp_path / "h.csv").geozones == sorted(f"{c + 0.5}" for c in codes)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_an_identifier_read_as_geozones_is_warned_about(table, tmp_path, seed):
+    """``--geozone-column HOLEID`` made one geozone per hole without a word."""
+    rng = rng_for("identifier", seed)
+    ids = [f"{int(rng.integers(10**9, 10**10))}-{i}" for i in range(len(table))]
+    # A few holes share an id (redrills): still an identifier.
+    k = len(ids) // 20
+    ids[k : 2 * k] = ids[:k]
+    path = tmp_path / "ids.csv"
+    table.assign(HOLEID=ids).to_csv(path, index=False)
+    out = tmp_path / "c.geojson"
+    proc = succeeds(bgm("contours", path, "--out", out, "--geozone-column", "HOLEID", "--geozone", ids[-1]))
+    assert any("'HOLEID'" in w and "identifier" in w and "--geozone-column" in w for w in warnings_of(proc))
+    assert not any("identifier" in w for w in warnings_of(succeeds(bgm("contours", path, "--out", out))))
 
 
 def test_labels_differing_only_by_case_are_kept_with_a_warning(table, tmp_path):

@@ -68,6 +68,10 @@ BENCH_HEIGHT_TOLERANCE = 0.03
 MAX_BENCHES = 10_000
 #: x and y both spanning less than this many units (and within +-180, +-90) are degrees.
 MAX_DEGREES_SPREAD = 1.0
+#: More than this share of the holes with a label of their own: the geozone column is an identifier.
+MAX_OWN_LABEL_SHARE = 0.5
+#: Fewer holes than this are too few to tell geozones from identifiers.
+MIN_HOLES_FOR_ID_CHECK = 20
 #: Column names (any case) taken as the hole identifier.
 HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id")
 #: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
@@ -521,7 +525,29 @@ def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[
         notes.append(msg)
         warnings.warn(msg, BGMWarning, stacklevel=4)
     _warn_case_twins(labels, column, notes)
+    _warn_identifier_labels(labels, column, notes)
     return labels
+
+
+def _warn_identifier_labels(labels: np.ndarray, column: str, notes: list[str]) -> None:
+    """Warn when most holes have a label of their own: the column is a hole identifier, not geozones.
+
+    A geozone holds many holes; more than :data:`MAX_OWN_LABEL_SHARE` of the
+    holes alone in theirs (of at least :data:`MIN_HOLES_FOR_ID_CHECK`) is an
+    identifier column read as geozones, which would make a geozone per hole.
+    """
+    if len(labels) < MIN_HOLES_FOR_ID_CHECK:
+        return
+    counts = pd.Series(labels, dtype=object).value_counts().to_numpy()  # no fixed-width copy: a label may be 50 MB
+    alone = int((counts == 1).sum())
+    if alone > MAX_OWN_LABEL_SHARE * len(labels):
+        msg = (
+            f"column {quoted(column)} (geozone) gives {len(counts)} geozones to {len(labels)} holes, {alone} of them "
+            "a label of their own: it looks like an identifier, not geozone labels; name the geozone column "
+            "with --geozone-column"
+        )
+        notes.append(msg)
+        warnings.warn(msg, BGMWarning, stacklevel=4)
 
 
 def _warn_case_twins(labels: np.ndarray, column: str, notes: list[str]) -> None:
