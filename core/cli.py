@@ -119,7 +119,11 @@ class TableOptions:
         ),
     ] = None
     bench_height: Annotated[
-        float | None, typer.Option("--bench-height", help="Bench height in input units (default: detected from z).")
+        float | None,
+        typer.Option(
+            "--bench-height",
+            help="Bench height in input units (default: detected from z); benches stay at the collars' levels.",
+        ),
     ] = None
     units: Annotated[
         str | None,
@@ -146,7 +150,8 @@ class TableOptions:
             bench_height=self.bench_height,
             length_unit=self.units,
         )
-        _say(f"{holes.source}: {len(holes.xy)} holes, {len(holes.geozones)} geozones, {_benches(holes)}")
+        guess = f" ({holes.unit_guess})" if holes.unit_guess else ""
+        _say(f"{holes.source}: {len(holes.xy)} holes, {len(holes.geozones)} geozones, {_benches(holes)}{guess}")
         return holes
 
 

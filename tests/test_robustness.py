@@ -496,6 +496,29 @@ def test_units_option_overrides_the_guess(table, tmp_path):
     assert "bench height 32.8 ft" in proc.stderr
 
 
+@pytest.mark.parametrize("scale", [1000.0, 100.0, 0.05])
+def test_a_table_in_no_length_unit_blastholes_have_is_refused(table, tmp_path, scale):
+    """Millimetres read as "bench height 10003.6 ft, hole spacing 5542 ft"; now refused, naming the spacing."""
+    scaled = table.assign(x=table.x * scale, y=table.y * scale, z=table.z * max(scale, 1.0))
+    path = tmp_path / "scaled.csv"
+    scaled.to_csv(path, index=False)
+    out = tmp_path / "o.geojson"
+    fails_cleanly(bgm("contours", path, "--out", out), "median hole spacing", " m)" if scale > 1 else " m,", "--units")
+    # Given --units, the user vouches for the unit: a warning only.
+    proc = succeeds(bgm("contours", path, "--units", "m", "--out", out))
+    assert "bgm: warning: the median hole spacing" in proc.stderr
+
+
+def test_the_summary_says_when_feet_were_guessed(table, base_csv, tmp_path):
+    ft = table.assign(x=table.x / 0.3048, y=table.y / 0.3048, z=table.z / 0.3048)
+    path = tmp_path / "feet.csv"
+    ft.to_csv(path, index=False)
+    guessed = succeeds(bgm("contours", path, "--out", tmp_path / "o.geojson")).stderr
+    assert "feet guessed from the 32.8-unit bench height" in guessed and "--units m" in guessed
+    assert "guessed" not in succeeds(bgm("contours", path, "--units", "ft", "--out", tmp_path / "o.geojson")).stderr
+    assert "guessed" not in succeeds(bgm("contours", base_csv, "--out", tmp_path / "o.geojson")).stderr  # metres
+
+
 # ---------------------------------------------------------------------------
 # Atomic saves: an interrupted write leaves the previous output intact
 

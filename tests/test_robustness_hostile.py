@@ -24,8 +24,12 @@ Class -> tests:
 * interrupted build keeps the previous model: test_interrupted_build_keeps_the_previous_model (and the kill test)
 * Ctrl-C: exit 130, one line, workers included: test_ctrl_c_on_a_parallel_build_is_one_line (and the kill test)
 * user errors that were exit 3: test_user_errors_exit_2_with_one_line
-* labels 3310 / 3310.0: test_number_spellings_of_one_label_are_merged_with_a_warning (and test_properties.py)
+* labels 3310 / 3310.0: test_number_spellings_of_one_label_are_merged_with_a_warning (and test_properties.py),
+  test_codes_with_leading_zeros_are_never_merged, test_a_float_column_gives_the_same_labels_from_csv_and_parquet,
+  test_labels_differing_only_by_case_are_kept_with_a_warning
 * degrees: test_degrees_are_refused
+* an identifier column read as geozones: test_an_identifier_read_as_geozones_is_warned_about
+* depths given as z: test_a_depth_column_given_as_z_is_warned_about
 * uneven benches, z without benches: test_uneven_benches_are_taken_as_measured, test_z_that_forms_no_benches_is_refused
 * far elevations: test_far_elevations_need_force
 * unused overrides: test_unused_overrides_are_named
@@ -39,7 +43,9 @@ Class -> tests:
   test_standard_input, test_huge_labels_are_shortened_in_messages
 * "on one bench only" said of geozones on several benches: test_hostile_labels_get_safe_unique_folders
 * rows longer than the header (an unquoted delimiter): test_rows_longer_than_the_header_are_refused
+* empty rows, line numbers after blank lines: test_empty_rows_are_skipped_and_lines_named_as_in_the_file
 * a bench height that puts several benches on one: test_a_bench_height_that_puts_several_benches_on_one_is_refused
+* a bench height other than the collars': test_a_bench_height_keeps_the_levels_where_the_collars_are
 """
 
 from __future__ import annotations
@@ -556,7 +562,7 @@ def test_a_picture_name_bgm_cannot_write_is_refused_before_the_table_is_read(tmp
 
 
 def spellings(rng, value: int) -> list[str]:
-    forms = [str(value), f"{value}.0", f"{value}.00", f"0{value}", f"+{value}", f"{value}e0", f"{value * 10}e-1"]
+    forms = [str(value), f"{value}.0", f"{value}.00", f"+{value}", f"{value}e0", f"{value * 10}e-1"]
     return list(rng.choice(forms, 2, replace=False))
 
 
@@ -577,6 +583,83 @@ def test_number_spellings_of_one_label_are_merged_with_a_warning(table, tmp_path
     labels = {f["properties"]["geozone"] for f in json.loads(out.read_text())["features"]}
     assert labels == {target}  # one geozone, under its plain spelling
     assert "4 geozones" in proc.stderr
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_codes_with_leading_zeros_are_never_merged(table, tmp_path, seed):
+    """Codes 007, 010, 0010 and 10 are four geozones: a float column never writes leading zeros."""
+    rng = rng_for("leading zeros", seed)
+    value = int(rng.integers(1, 99))
+    codes = [f"00{value + 1}", f"0{value}", f"00{value}", str(value)]
+    t = table.assign(geozone=table.geozone.map(dict(zip(sorted(set(table.geozone)), codes))))
+    path = tmp_path / "codes.csv"
+    t.to_csv(path, index=False)
+    out = tmp_path / "c.geojson"
+    proc = succeeds(bgm("contours", path, "--out", out))
+    assert not any("merged" in w for w in warnings_of(proc)), proc.stderr
+    assert "4 geozones" in proc.stderr
+    assert {f["properties"]["geozone"] for f in json.loads(out.read_text())["features"]} <= set(codes)
+    assert sorted(quiet_read(path).geozones) == sorted(codes)
+    error_line(bgm("contours", path, "--out", out, "--geozone", f"000{value}"), "not in", f"0{value}")
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_float_column_gives_the_same_labels_from_csv_and_parquet(table, tmp_path, seed):
+    """Codes 3310.0 everywhere (a float column) are 3310 whether the table is CSV or Parquet."""
+    rng = rng_for("float labels", seed)
+    codes = rng.choice(np.arange(100, 9999), 4, replace=False).astype(float)
+    t = table.assign(geozone=table.geozone.map(dict(zip(sorted(set(table.geozone)), codes))))
+    t.to_csv(tmp_path / "f.csv", index=False)
+    t.to_parquet(tmp_path / "f.parquet")
+    csv_labels = quiet_read(tmp_path / "f.csv").geozones
+    assert csv_labels == quiet_read(tmp_path / "f.parquet").geozones == sorted(str(int(c)) for c in codes)
+    # Non-integral codes keep their fraction, the same way from both.
+    t = t.assign(geozone=t.geozone + 0.5)
+    t.to_csv(tmp_path / "h.csv", index=False)
+    t.to_parquet(tmp_path / "h.parquet")
+    assert quiet_read(tmp_path / "h.csv").geozones == quiet_read(tmp_path / "h.parquet").geozones
+    assert quiet_read(tmp_path / "h.csv").geozones == sorted(f"{c + 0.5}" for c in codes)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_an_identifier_read_as_geozones_is_warned_about(table, tmp_path, seed):
+    """``--geozone-column HOLEID`` made one geozone per hole without a word."""
+    rng = rng_for("identifier", seed)
+    ids = [f"{int(rng.integers(10**9, 10**10))}-{i}" for i in range(len(table))]
+    # A few holes share an id (redrills): still an identifier.
+    k = len(ids) // 20
+    ids[k : 2 * k] = ids[:k]
+    path = tmp_path / "ids.csv"
+    table.assign(HOLEID=ids).to_csv(path, index=False)
+    out = tmp_path / "c.geojson"
+    proc = succeeds(bgm("contours", path, "--out", out, "--geozone-column", "HOLEID", "--geozone", ids[-1]))
+    assert any("'HOLEID'" in w and "identifier" in w and "--geozone-column" in w for w in warnings_of(proc))
+    assert not any("identifier" in w for w in warnings_of(succeeds(bgm("contours", path, "--out", out))))
+
+
+def test_labels_differing_only_by_case_are_kept_with_a_warning(table, tmp_path):
+    t = table.assign(geozone=table.geozone.replace({"g1": "G0"}))
+    path = tmp_path / "case.csv"
+    t.to_csv(path, index=False)
+    proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson"))
+    assert any("'G0' and 'g0'" in w and "only by case" in w for w in warnings_of(proc)), proc.stderr
+    assert "4 geozones" in proc.stderr
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_depth_column_given_as_z_is_warned_about(table, tmp_path, seed):
+    """Depths (positive down) read as elevations put the deepest bench on top: say so, naming the column."""
+    rng = rng_for("depth", seed)
+    name = str(rng.choice(["depth", "Depth", "DEPTH", "depth_m", "from", "to", "Hole Depth (m)"]))
+    t = table.assign(**{name: 700.0 - table.z}).drop(columns="z")
+    path = tmp_path / "depth.csv"
+    t.to_csv(path, index=False)
+    proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson", "--z", name))
+    assert any(repr(name) in w and "elevation" in w and "--z" in w for w in warnings_of(proc)), proc.stderr
+    # The elevations under an elevation's name get no such warning.
+    t.assign(RL=table.z).to_csv(path, index=False)
+    proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson", "--z", "RL"))
+    assert not any("depth" in w for w in warnings_of(proc)), proc.stderr
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -861,6 +944,28 @@ def test_rows_longer_than_the_header_are_refused(table, tmp_path, seed):
     assert len(quiet_read(path).xy) == len(quiet_read(t).xy)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_empty_rows_are_skipped_and_lines_named_as_in_the_file(table, tmp_path, seed):
+    """Spreadsheets end a CSV with ``,,,,`` rows (a hard error); after a blank line, errors named the line before."""
+    rng = rng_for("empty rows", seed)
+    lines = table.to_csv(index=False).splitlines()
+    empty = "," * (len(table.columns) - 1)
+    for at in sorted(rng.choice(np.arange(2, len(lines)), 4, replace=False), reverse=True):
+        lines.insert(int(at), str(rng.choice(["", "   ", empty])))
+    path = tmp_path / "excel.csv"
+    path.write_text("\n".join([*lines, empty, empty]) + "\n")
+    with pytest.warns(BGMWarning, match="empty row"):
+        holes = read_blastholes(path)
+    assert len(holes.xy) == len(quiet_read(table).xy)
+    # A bad value is named by the line an editor shows it on.
+    bad = int(rng.integers(len(lines) // 2, len(lines)))
+    while not lines[bad - 1].strip(",").strip():  # a data row (line numbers are 1-based)
+        bad -= 1
+    lines[bad - 1] = "abc" + lines[bad - 1][lines[bad - 1].index(",") :]
+    path.write_text("\n".join(lines) + "\n")
+    error_line(bgm("contours", path, "--out", tmp_path / "o.geojson"), f"data line(s) {bad} ", "'abc'")
+
+
 @pytest.mark.parametrize("factor", [4, 12])
 def test_a_bench_height_that_puts_several_benches_on_one_is_refused(tmp_path, factor):
     """Benches 10 m apart read with ``--bench-height 40``: the holes of four benches were contoured as one."""
@@ -871,6 +976,23 @@ def test_a_bench_height_that_puts_several_benches_on_one_is_refused(tmp_path, fa
     error_line(bgm("contours", path, "--out", out, "--bench-height", 10 * factor), "bench height", "on one bench")
     succeeds(bgm("contours", path, "--out", out, "--bench-height", 10))
     assert len({f["properties"]["bench"] for f in json.loads(out.read_text())["features"]}) == 6
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_bench_height_keeps_the_levels_where_the_collars_are(tmp_path, seed):
+    """``--bench-height 9.5`` on 10 m benches moved the levels (the bottom one 2.9 m off) and dropped holes."""
+    rng = rng_for("given height", seed)
+    levels = np.round(rng.uniform(600, 700) - 10.0 * np.arange(int(rng.integers(4, 8))), 1)
+    path = tmp_path / "benches.csv"
+    bench_table(levels, rng).to_csv(path, index=False)
+    out = tmp_path / "o.geojson"
+    for wrong in (rng.uniform(8.5, 9.6), rng.uniform(10.4, 11.5), 5.0):
+        error_line(bgm("contours", path, "--out", out, "--bench-height", f"{wrong:.2f}"), "disagrees", "10 apart")
+    # A height that agrees with the collars (within a few percent) leaves every level and hole where it is.
+    proc = succeeds(bgm("contours", path, "--out", out, "--bench-height", f"{rng.uniform(9.75, 10.25):.2f}"))
+    assert not warnings_of(proc), proc.stderr
+    found = sorted({f["properties"]["bench"] for f in json.loads(out.read_text())["features"]}, reverse=True)
+    assert np.allclose(found, levels, atol=0.15), (found, levels)
 
 
 def test_benches_of_two_holes_are_refused_as_such(tmp_path):

@@ -7,7 +7,10 @@ CSV or Parquet table into :class:`Blastholes`:
 * columns are found by name, case-insensitively (or named explicitly), and
   only those columns are parsed (see :mod:`core.io.tables` for file formats);
 * numbers may use decimal commas or thousands separators; geozone labels that
-  spell one number two ways (``3310``, ``3310.0``) are merged, with a warning;
+  spell one number two ways (``3310``, ``3310.0``) are merged, with a warning,
+  and an integral number written with a zero fraction is its plain spelling
+  (``3310.0`` is ``3310``, as a float column read from Parquet gives it);
+  labels with leading zeros (``010``) are codes, never merged with ``10``;
 * coordinates in degrees of latitude and longitude are refused;
 * benches are found by clustering elevations, at the levels as measured
   (uneven bench heights are fine); z that does not form benches is refused;
@@ -32,6 +35,7 @@ import pandas as pd
 from scipy.spatial import cKDTree
 
 from core.errors import BGMInputError, BGMWarning, listing, quoted
+from core.io.tables import data_lines
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "x": ("x", "east", "easting"),
@@ -50,20 +54,34 @@ COINCIDENT_M = 1e-3
 MIN_BENCH_GAP = 2.0
 #: Blastholes closer than this (metres, the median across benches) are no drilling pattern: the unit is not feet.
 MIN_HOLE_SPACING_M = 2.5
+#: Blasthole spacings (metres, the median across benches) outside this range are a unit mistake (mm, cm, km...).
+PLAUSIBLE_SPACING_M = (0.5, 50.0)
 #: Coordinates larger than this (input units) are rejected as not coordinates.
 MAX_COORDINATE = 1e12
 #: More holes than this share between bench levels: z does not form benches.
 MAX_OFF_BENCH_SHARE = 0.25
 #: A single cluster of elevations thicker than this many hole spacings is not one bench.
 MAX_BENCH_THICKNESS_SPACINGS = 5.0
+#: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
+BENCH_HEIGHT_TOLERANCE = 0.03
 #: More benches than this from an explicit bench height is a unit mistake.
 MAX_BENCHES = 10_000
 #: x and y both spanning less than this many units (and within +-180, +-90) are degrees.
 MAX_DEGREES_SPREAD = 1.0
+#: More than this share of the holes with a label of their own: the geozone column is an identifier.
+MAX_OWN_LABEL_SHARE = 0.5
+#: Fewer holes than this are too few to tell geozones from identifiers.
+MIN_HOLES_FOR_ID_CHECK = 20
 #: Column names (any case) taken as the hole identifier.
 HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id")
 #: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
 NUMBER_LABEL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,3})?")
+#: A label whose integer part has leading zeros (``010``, ``-007.5``): a code, not a number.
+LEADING_ZEROS = re.compile(r"[+-]?0\d")
+#: An integer written with a zero fraction, as a float column is written to CSV (``3310.0``).
+ZERO_FRACTION = re.compile(r"-?\d+\.0+")
+#: A z column named like this (any case) holds depths, positive down: ``depth``, ``Depth_m``, ``from``, ``to (m)``.
+DEPTH_NAME = re.compile(r"(?:.*depth.*|(?:from|to)(?:[_\s(].*)?)", re.IGNORECASE)
 #: Numbers with decimal commas, and with thousands separators.
 DECIMAL_COMMA = r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?"
 THOUSANDS = r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d*)?(?:[eE][+-]?\d+)?"
@@ -146,6 +164,9 @@ class Blastholes:
         Where the table came from.
     notes : list of str
         Repairs made while reading (deduplication, off-bench holes...).
+    unit_guess : str
+        How the length unit was guessed when it was not given and is not
+        metres (said in the command line's summary of the input); else empty.
     """
 
     xy: np.ndarray
@@ -159,6 +180,7 @@ class Blastholes:
     hole_id: np.ndarray | None = None
     source: str = ""
     notes: list[str] = field(default_factory=list)
+    unit_guess: str = ""
     _drilled: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -223,6 +245,7 @@ class Blastholes:
             hole_id=None if self.hole_id is None else self.hole_id[keep],
             source=self.source,
             notes=list(self.notes),
+            unit_guess=self.unit_guess,
         )
 
 
@@ -286,8 +309,13 @@ def _label_strings(values: pd.Series) -> np.ndarray:
 
 
 def label_number(label: str) -> Decimal | None:
-    """The number a geozone label spells (``3310``, ``3310.0``, ``3.31e3``...), exactly; None if none."""
-    if len(label) > 40 or not NUMBER_LABEL.fullmatch(label):
+    """The number a geozone label spells (``3310``, ``3310.0``, ``3.31e3``...), exactly; None if none.
+
+    A label with leading zeros (``010``, ``0010``) is a code and spells no
+    number: ``010`` and ``10`` are distinct codes, and no program writing a
+    float column pads it with zeros.
+    """
+    if len(label) > 40 or not NUMBER_LABEL.fullmatch(label) or LEADING_ZEROS.match(label):
         return None
     return Decimal(label)
 
@@ -301,14 +329,18 @@ def merge_number_spellings(labels: np.ndarray) -> tuple[np.ndarray, dict[str, st
     """Make labels that spell the same number differently one label.
 
     ``3310`` and ``3310.0`` in one file are one geozone written by two
-    programs, not two geozones. Labels that spell a number no other label
-    spells stay as written.
+    programs, not two geozones. An integer written with a zero fraction
+    (``3310.0``) is its plain spelling even alone: a float column gives it
+    in CSV, and the same column read from Parquet gives ``3310``. Other
+    labels that spell a number no other label spells stay as written, and
+    labels with leading zeros (codes, see :func:`label_number`) always do.
 
     Returns
     -------
     labels : (n,) object
     renamed : dict
-        Spelling -> the plain spelling it became (empty when nothing merged).
+        Spelling -> the plain spelling it was merged into (empty when nothing
+        merged); lone zero fractions made plain are not listed.
     """
     by_value: dict[Decimal, list[str]] = {}
     for label in pd.unique(np.asarray(labels, dtype=object)):
@@ -317,15 +349,16 @@ def merge_number_spellings(labels: np.ndarray) -> tuple[np.ndarray, dict[str, st
             by_value.setdefault(value, []).append(label)
     renamed = {s: number_label(v) for v, spellings in by_value.items() if len(spellings) > 1 for s in spellings}
     renamed = {s: t for s, t in renamed.items() if s != t}
-    if not renamed:
+    plain = {s: number_label(v) for v, (s, *more) in by_value.items() if not more and ZERO_FRACTION.fullmatch(s)}
+    if not renamed and not plain:
         return np.asarray(labels, dtype=object), {}
-    merged = pd.Series(labels, dtype=object).replace(renamed).to_numpy(dtype=object)
+    merged = pd.Series(labels, dtype=object).replace(renamed | plain).to_numpy(dtype=object)
     return merged, renamed
 
 
-def _rows(idx: np.ndarray, limit: int = 10, first_line: int = 2) -> str:
-    """Data row numbers as a file shows them (the first row is on line ``first_line``)."""
-    shown = ", ".join(str(int(i) + first_line) for i in idx[:limit])
+def _rows(idx: np.ndarray, lines: np.ndarray, limit: int = 10) -> str:
+    """The file lines of data rows ``idx``, ``lines`` being each row's (see :func:`core.io.tables.data_lines`)."""
+    shown = ", ".join(str(int(lines[i])) for i in idx[:limit])
     more = f" and {len(idx) - limit} more" if len(idx) > limit else ""
     return f"{shown}{more}"
 
@@ -396,17 +429,16 @@ def blastholes_from_table(
     """:func:`read_blastholes` on a table already in memory."""
     if len(table) == 0:
         raise BGMInputError(f"{source or 'the input'} has a header but no rows")
-    first_line = int(table.attrs.get("first_data_line", 2))
+    lines = data_lines(table)
     delimiter = table.attrs.get("delimiter")
     cols = table_columns(list(table.columns), x, y, z, geozone)
     table = table[list(cols.values())].copy()
     table.columns = list(cols.values())
-    coords = {
-        role: _coordinates(table[cols[role]], cols[role], role, delimiter, first_line) for role in ("x", "y", "z")
-    }
+    coords = {role: _coordinates(table[cols[role]], cols[role], role, delimiter, lines) for role in ("x", "y", "z")}
     _refuse_degrees(coords["x"], coords["y"], source)
     notes: list[str] = []
-    labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], first_line, notes)
+    _warn_depth_column(cols["z"], notes)
+    labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], lines, notes)
     hole_id = table[cols["hole_id"]].astype(str).to_numpy(dtype=object) if "hole_id" in cols else None
 
     if len(labels) < 3:
@@ -417,7 +449,7 @@ def blastholes_from_table(
     if off.any():
         msg = (
             f"{int(off.sum())} hole(s) lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from "
-            f"every bench level (data line(s) {_rows(np.flatnonzero(off), first_line=first_line)}) and were left out"
+            f"every bench level (data line(s) {_rows(np.flatnonzero(off), lines)}) and were left out"
         )
         notes.append(msg)
         warnings.warn(msg, BGMWarning, stacklevel=2)
@@ -449,23 +481,40 @@ def blastholes_from_table(
         source=source,
         notes=notes,
     )
-    holes = _deduplicate(holes, np.flatnonzero(keep), first_line)
+    holes = _deduplicate(holes, lines[keep])
     holes.hole_spacing_m = median_hole_spacing(holes.xy, holes.bench)
     if not np.isfinite(holes.hole_spacing_m) or holes.hole_spacing_m <= 0:
         raise BGMInputError(
             f"cannot measure the hole spacing of {source or 'the input'}: no bench has two distinct holes"
         )
+    _check_spacing(holes, given=bool(length_unit))
+    if unit == "ft" and not length_unit:
+        holes.unit_guess = f"feet guessed from the {height_in:.4g}-unit bench height: give --units m if not"
     return holes
 
 
-def _geozone_labels(raw: pd.Series, column: str, first_line: int, notes: list[str]) -> np.ndarray:
+def _warn_depth_column(column: str, notes: list[str]) -> None:
+    """Warn when z is read from a column named as a depth: positive down, it turns the benches upside down.
+
+    Not flipped: a name is no proof, and an elevation needs the collar's, which the table may not hold.
+    """
+    if DEPTH_NAME.fullmatch(column.strip()):
+        msg = (
+            f"column {quoted(column)} given for z is named like a depth (positive down), but z must be an "
+            "elevation (positive up): read as one, the deepest bench is the top; give an elevation column "
+            "with --z, or convert first (elevation = collar elevation - depth)"
+        )
+        notes.append(msg)
+        warnings.warn(msg, BGMWarning, stacklevel=3)
+
+
+def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[str]) -> np.ndarray:
     """Labels as strings, none blank, spellings of one number merged (said in ``notes`` and a warning)."""
     labels = _label_strings(raw)
     blank = np.flatnonzero(labels == "")
     if len(blank):
         raise BGMInputError(
-            f"column {quoted(column)} (geozone) is empty on {len(blank)} row(s): "
-            f"data line(s) {_rows(blank, first_line=first_line)}"
+            f"column {quoted(column)} (geozone) is empty on {len(blank)} row(s): data line(s) {_rows(blank, lines)}"
         )
     labels, renamed = merge_number_spellings(labels)
     if renamed:
@@ -475,7 +524,46 @@ def _geozone_labels(raw: pd.Series, column: str, first_line: int, notes: list[st
         )
         notes.append(msg)
         warnings.warn(msg, BGMWarning, stacklevel=4)
+    _warn_case_twins(labels, column, notes)
+    _warn_identifier_labels(labels, column, notes)
     return labels
+
+
+def _warn_identifier_labels(labels: np.ndarray, column: str, notes: list[str]) -> None:
+    """Warn when most holes have a label of their own: the column is a hole identifier, not geozones.
+
+    A geozone holds many holes; more than :data:`MAX_OWN_LABEL_SHARE` of the
+    holes alone in theirs (of at least :data:`MIN_HOLES_FOR_ID_CHECK`) is an
+    identifier column read as geozones, which would make a geozone per hole.
+    """
+    if len(labels) < MIN_HOLES_FOR_ID_CHECK:
+        return
+    counts = pd.Series(labels, dtype=object).value_counts().to_numpy()  # no fixed-width copy: a label may be 50 MB
+    alone = int((counts == 1).sum())
+    if alone > MAX_OWN_LABEL_SHARE * len(labels):
+        msg = (
+            f"column {quoted(column)} (geozone) gives {len(counts)} geozones to {len(labels)} holes, {alone} of them "
+            "a label of their own: it looks like an identifier, not geozone labels; name the geozone column "
+            "with --geozone-column"
+        )
+        notes.append(msg)
+        warnings.warn(msg, BGMWarning, stacklevel=4)
+
+
+def _warn_case_twins(labels: np.ndarray, column: str, notes: list[str]) -> None:
+    """Warn about labels differing only by case (``G0``, ``g0``): kept distinct, but often one code typed twice."""
+    by_fold: dict[str, list[str]] = {}
+    for label in pd.unique(labels):
+        by_fold.setdefault(str(label).casefold(), []).append(str(label))
+    twins = [sorted(group) for group in by_fold.values() if len(group) > 1]
+    if twins:
+        more = f" ({len(twins) - 1} more such group(s))" if len(twins) > 1 else ""
+        msg = (
+            f"geozone labels {' and '.join(quoted(t) for t in twins[0][:5])}{more} in column {quoted(column)} "
+            "differ only by case: they are kept as distinct geozones"
+        )
+        notes.append(msg)
+        warnings.warn(msg, BGMWarning, stacklevel=4)
 
 
 def _is_numeric(raw: pd.Series) -> bool:
@@ -490,7 +578,7 @@ def coordinate_values(raw: pd.Series, delimiter: str | None) -> np.ndarray:
     return pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
 
 
-def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, first_line: int) -> np.ndarray:
+def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, lines: np.ndarray) -> np.ndarray:
     """A coordinate column as finite floats, or one sentence naming the rows that are not."""
     values = coordinate_values(raw, delimiter)
     bad = np.flatnonzero(~np.isfinite(values))
@@ -502,7 +590,7 @@ def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, 
             hint = "; commas there are neither all decimal commas nor all thousands separators"
         raise BGMInputError(
             f"column {quoted(column)} ({role}) has {len(bad)} missing, non-numeric or infinite "
-            f"value(s), on data line(s) {_rows(bad, first_line=first_line)}{example}{hint}"
+            f"value(s), on data line(s) {_rows(bad, lines)}{example}{hint}"
         )
     # Finite but absurd magnitudes (1e300) overflow distance computations
     # (kD-tree) deep in the engine; no mine grid comes near 1e12 units, and
@@ -511,7 +599,7 @@ def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, 
     if len(huge):
         raise BGMInputError(
             f"column {quoted(column)} ({role}) has {len(huge)} value(s) beyond {MAX_COORDINATE:.0e} in "
-            f"magnitude, too large to be coordinates, on data line(s) {_rows(huge, first_line=first_line)}"
+            f"magnitude, too large to be coordinates, on data line(s) {_rows(huge, lines)}"
         )
     return values
 
@@ -556,6 +644,30 @@ def _refuse_degrees(x: np.ndarray, y: np.ndarray, source: str) -> None:
                 f"(x {x.min():.6g} to {x.max():.6g}, y {y.min():.6g} to {y.max():.6g}: all holes within "
                 f"{spread:.3g} units); BGM needs projected coordinates in metres or feet (a mine grid or UTM)"
             )
+
+
+def _check_spacing(holes: Blastholes, given: bool) -> None:
+    """Refuse a hole spacing no blasthole pattern has (outside :data:`PLAUSIBLE_SPACING_M`): a unit mistake.
+
+    A table in millimetres reads as benches 10,000 feet high with holes 5,500
+    feet apart. With ``--units`` given (``given``) the user vouches for the
+    unit, and the odd spacing is only warned about.
+    """
+    low, high = PLAUSIBLE_SPACING_M
+    spacing = holes.hole_spacing_m
+    if low <= spacing <= high:
+        return
+    unit = holes.frame.length_unit
+    said = f"{holes.frame.length_to_input(spacing):.4g} {unit} ({spacing:.4g} m)" if unit != "m" else f"{spacing:.4g} m"
+    msg = (
+        f"the median hole spacing of {holes.source or 'the input'} is {said}, where blastholes are {low:g} "
+        f"to {high:g} m apart: the table's length unit is likely neither metres nor feet "
+        f"(millimetres, centimetres, kilometres?); convert it to metres or feet"
+    )
+    if given:
+        warnings.warn(msg, BGMWarning, stacklevel=3)
+    else:
+        raise BGMInputError(f"{msg}, or give --units m or ft if it is one")
 
 
 def _guess_unit(bench_height: float, length_unit: str | None, spacing=lambda: float("nan")) -> str:
@@ -611,7 +723,11 @@ def detect_benches(
     z : (n,) float
         Elevations, input units.
     bench_height : float, optional
-        Known bench height (input units): a regular ladder of that height.
+        Known bench height (input units). Where the collars form benches by
+        themselves their levels stand, and a height more than
+        :data:`BENCH_HEIGHT_TOLERANCE` off the median gap between them is
+        refused; where they spread continuously, a regular ladder of that
+        height groups them.
     xy : (n, 2) float, optional
         Hole positions (input units), to tell one bench from elevations spread
         continuously (which is refused).
@@ -634,7 +750,7 @@ def detect_benches(
     BGMInputError
         When z does not form benches: one elevation cluster far thicker than
         the hole spacing, or more than ``MAX_OFF_BENCH_SHARE`` of the holes
-        between levels.
+        between levels; or when ``bench_height`` disagrees with the levels.
     """
     z = np.asarray(z, float)
     if bench_height is not None and not (np.isfinite(bench_height) and bench_height > 0):
@@ -642,10 +758,10 @@ def detect_benches(
     zs = np.sort(z)
     if zs[-1] == zs[0]:
         return np.array([zs[0]]), np.zeros(len(z), int), np.nan, np.zeros(len(z), bool)
+    clusters = _elevation_clusters(zs)
+    min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
+    big = [c for c in clusters if len(c) >= min_count]
     if bench_height is None:
-        clusters = _elevation_clusters(zs)
-        min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
-        big = [c for c in clusters if len(c) >= min_count]
         if len(clusters) >= 2 and max(len(c) for c in clusters) < 3:
             raise BGMInputError(
                 f"z falls on {len(clusters)} levels ({zs[-1]:g} to {zs[0]:g}) of at most "
@@ -654,7 +770,14 @@ def detect_benches(
         if len(big) < 2:
             return _single_bench(z, xy)
         levels = _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
+    elif len(big) >= 2:
+        # The collars form benches by themselves: their levels stand, and a
+        # given height only has to agree with them (a grid of it from the top
+        # would move every level the height is off, and drop holes).
+        levels = _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
+        _refuse_disagreeing_height(levels, float(bench_height))
     else:
+        # One continuous spread of elevations: the given height groups it into benches.
         if np.ptp(zs) / bench_height > MAX_BENCHES:
             raise BGMInputError(
                 f"bench height {bench_height:g} would cut the elevations ({zs[0]:g} to {zs[-1]:g}) into more "
@@ -672,6 +795,25 @@ def detect_benches(
         )
     height = float(bench_height) if bench_height is not None else float(np.median(-np.diff(levels)))
     return levels, bench, (height if len(levels) >= 2 else np.nan), off
+
+
+def _refuse_disagreeing_height(levels: np.ndarray, bench_height: float) -> None:
+    """Refuse a given bench height other than the one between the collars' own levels (ascending ``levels``).
+
+    The measured height is the median distance between successive levels;
+    it agrees within :data:`BENCH_HEIGHT_TOLERANCE` of the given height.
+    """
+    measured = float(np.median(np.diff(levels)))
+    if abs(measured - bench_height) <= BENCH_HEIGHT_TOLERANCE * bench_height:
+        return
+    # A height several times the levels' gap would merge benches: say so, as _refuse_merged_benches does.
+    merges = bench_height > 1.5 * measured
+    grouping = f", so it would put the holes of {bench_height / measured:.0f} levels on one bench" if merges else ""
+    raise BGMInputError(
+        f"a bench height of {bench_height:g} disagrees with the holes' own benches: their collars lie on "
+        f"{len(levels)} levels ({levels[-1]:g} to {levels[0]:g}) {measured:.4g} apart{grouping}; "
+        f"leave --bench-height out to use the levels as drilled, or give {measured:.4g}"
+    )
 
 
 def _elevation_clusters(zs: np.ndarray) -> list[np.ndarray]:
@@ -836,8 +978,8 @@ def _merge_scatter_splits(zs: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return labels
 
 
-def _deduplicate(holes: Blastholes, rows: np.ndarray, first_line: int = 2) -> Blastholes:
-    """Merge holes at the same position on the same bench, warning about it."""
+def _deduplicate(holes: Blastholes, lines: np.ndarray) -> Blastholes:
+    """Merge holes at the same position on the same bench, warning about it (``lines``: each hole's file line)."""
     key = np.column_stack([holes.bench, np.round(holes.xy / COINCIDENT_M).astype(np.int64)])
     _, first, inverse, counts = np.unique(key, axis=0, return_index=True, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
@@ -849,10 +991,9 @@ def _deduplicate(holes: Blastholes, rows: np.ndarray, first_line: int = 2) -> Bl
     msg = f"{n_removed} duplicate hole(s) at the same position on the same bench were merged (first row kept)"
     if conflicting:
         g = conflicting[0]
-        lines = rows[np.flatnonzero(inverse == g)]
         msg += (
             f"; {len(conflicting)} of those positions carry conflicting geozone labels "
-            f"(e.g. data lines {_rows(lines, 4, first_line)}: {listing(sorted(set(holes.geozone[inverse == g].tolist())), 5)})"
+            f"(e.g. data lines {_rows(np.flatnonzero(inverse == g), lines, 4)}: {listing(sorted(set(holes.geozone[inverse == g].tolist())), 5)})"
         )
     warnings.warn(msg, BGMWarning, stacklevel=3)
     keep = np.sort(first)

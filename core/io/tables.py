@@ -26,6 +26,7 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from core.errors import BGMInputError, BGMWarning
@@ -65,7 +66,9 @@ def read_table(path: str | Path, choose: ColumnChooser | None = None) -> pd.Data
     -------
     DataFrame
         ``attrs["first_data_line"]`` is the file line of the first row (1-based),
-        so messages can point at lines as an editor shows them.
+        and :func:`data_lines` each row's, so messages can point at lines as an
+        editor shows them. CSV rows whose every field is blank (``,,,,`` as
+        spreadsheets export them) are left out, with a warning.
     """
     name, data = _content(path)
     kind = _kind(name, data)
@@ -78,6 +81,14 @@ def read_table(path: str | Path, choose: ColumnChooser | None = None) -> pd.Data
         with opener() as fh:
             return _read_parquet(name, fh.read(), choose)
     return _read_csv(name, opener, choose)
+
+
+def data_lines(frame: pd.DataFrame) -> np.ndarray:
+    """The file line (1-based) of each row of a table :func:`read_table` read (blank lines skipped)."""
+    lines = frame.attrs.get("lines")
+    if lines is not None and len(lines) == len(frame):
+        return np.asarray(lines)
+    return int(frame.attrs.get("first_data_line", 2)) + np.arange(len(frame))
 
 
 def display_name(path: str | Path) -> str:
@@ -233,33 +244,61 @@ def _read_csv(name: str, opener, choose: ColumnChooser | None) -> pd.DataFrame:
         raise BGMInputError(f"cannot read {name}: it is not UTF-8 text; BGM reads CSV and Parquet tables") from None
     except Exception as exc:  # pandas raises many types for unreadable files
         raise BGMInputError(f"cannot read {name} as CSV: {_parser_message(exc, skip)}") from None
-    if wanted is not None:  # usecols makes pandas drop a row's fields beyond the header without a word
-        _refuse_long_rows(name, opener, sep, skip, len(header))
+    # usecols makes pandas drop a row's fields beyond the header without a word: refuse such rows then.
+    lines, empty = _scan_rows(name, opener, sep, skip, len(header) if wanted is not None else None)
     frame.columns = [header[i] for i in sorted(wanted)] if wanted is not None else header[: frame.shape[1]]
+    if len(lines) == len(frame):  # else the csv module split records unlike pandas: number rows as before
+        frame = _without_empty_rows(name, frame, lines, empty)
     frame.attrs["first_data_line"] = skip + 2
     frame.attrs["delimiter"] = sep
     return frame
 
 
-def _refuse_long_rows(name: str, opener, sep: str, skip: int, n_fields: int) -> None:
-    """Refuse rows with a non-empty field past the header's: an unquoted delimiter shifted them.
+def _without_empty_rows(name: str, frame: pd.DataFrame, lines: np.ndarray, empty: np.ndarray) -> pd.DataFrame:
+    """``frame`` without its rows whose every field is blank (said in a warning), its rows' lines in attrs."""
+    if empty.any():
+        warnings.warn(
+            f"{name}: {int(empty.sum())} empty row(s) (every field blank) were skipped, on line(s) "
+            f"{', '.join(map(str, lines[empty][:10]))}{' ...' if empty.sum() > 10 else ''}",
+            BGMWarning,
+            stacklevel=5,
+        )
+        frame = frame[~empty].reset_index(drop=True)
+    frame.attrs["lines"] = lines[~empty]
+    return frame
 
-    Python's C ``csv`` reader, one more pass (about a second per million rows):
-    pandas, given the columns to keep, drops the rest of a row without a word.
+
+def _scan_rows(name: str, opener, sep: str, skip: int, n_fields: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """Each data row's first file line and whether its every field is blank, as pandas sees the rows.
+
+    Python's C ``csv`` reader, one more pass (about a second per million
+    rows). Lines pandas skips (empty or only spaces) are no rows, so a row
+    after them is still named by its own line. With ``n_fields``, rows with
+    a non-empty field past the header's are refused: an unquoted delimiter
+    shifted them.
     """
     limit = csv.field_size_limit(sys.maxsize)  # pandas read these fields already, however long
+    lines: list[int] = []
+    empty: list[bool] = []
     try:
         with opener() as fh:
             text = io.TextIOWrapper(fh, encoding="utf-8-sig", newline="")
             rows = csv.reader(text, delimiter=sep)
+            end = 0  # the last line of the previous record
             for row in rows:
-                if len(row) > n_fields and rows.line_num > skip + 1 and any(f.strip() for f in row[n_fields:]):
+                start, end = end + 1, rows.line_num
+                if end <= skip + 1 or not any(f.strip() for f in row) and len(row) <= 1:
+                    continue  # comments, the header, and lines pandas skips as blank
+                if n_fields is not None and len(row) > n_fields and any(f.strip() for f in row[n_fields:]):
                     raise BGMInputError(
-                        f"cannot read {name} as CSV: line {rows.line_num} has {len(row)} fields where the header has "
+                        f"cannot read {name} as CSV: line {end} has {len(row)} fields where the header has "
                         f"{n_fields}; quote fields that hold the delimiter {sep!r}"
                     )
+                lines.append(start)
+                empty.append(not any(f.strip() for f in row))
     finally:
         csv.field_size_limit(limit)
+    return np.array(lines, dtype=np.int64), np.array(empty, dtype=bool)
 
 
 def _decompressed(name: str, read, n: int) -> bytes:

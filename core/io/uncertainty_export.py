@@ -171,7 +171,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     """
     from core.errors import BGMInputError
     from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, find_column
-    from core.io.tables import read_table
+    from core.io.tables import data_lines, read_table
 
     table = read_table(path)
     columns = [str(c) for c in table.columns]
@@ -193,14 +193,13 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
         if len(bad):
             raise BGMInputError(
                 f"pattern {str(path)!r}: column {column!r} has {len(bad)} missing or non-numeric value(s) "
-                f"(first on data line {int(bad[0]) + table.attrs.get('first_data_line', 2)})"
+                f"(first on data line {data_lines(table)[bad[0]]})"
             )
         values[role] = number
     xy = holes.frame.to_local(values["x"], values["y"])
     _refuse_far_pattern(path, xy, holes)
     ids = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES), None)
-    first = int(table.attrs.get("first_data_line", 2))
-    labels = table[ids].astype(str).tolist() if ids is not None else [str(first + i) for i in range(len(table))]
+    labels = table[ids].astype(str).tolist() if ids is not None else [str(n) for n in data_lines(table)]
     z = float(np.median(values["z"])) if "z" in values else None
     return xy, labels, z
 
