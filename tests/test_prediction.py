@@ -131,6 +131,26 @@ def test_a_strip_moving_8_m_per_bench_is_predicted_within_a_hole_spacing():
     assert iou(predicted.intersection(drilled), truth.intersection(drilled)) > 0.75
 
 
+def test_a_strip_in_ground_only_the_deepest_bench_drilled_moves_with_the_rest_of_it():
+    """A pit pushed back east 25 m a bench: the strip's stretch no bench above drilled moves as the rest does.
+
+    One bench observed that ground, so no bench pair measured its movement; held, it lagged the rest of the
+    strip by its 8 m a bench. It takes its outline's movement instead (``outline_movement``'s ``unmeasured``).
+    """
+    sections = [_strip(8.0 * k) for k in range(5)]
+    holes = _bench_table(sections, extent=(220.0, 200.0))
+    east = holes.xy[:, 0] - holes.xy[:, 0].min()
+    keep = east <= 100.0 + 25.0 * holes.bench  # bench k drilled up to 100 + 25 k m east
+    holes = holes.subset(keep)
+    predicted, _, truth = _predict_next(holes, sections, 4)
+    west = holes.xy[:, 0].min()
+    fresh = shapely.box(west + 155.0, -1e4, west + 170.0, 1e4).intersection(holes.drilled_area(4))  # bench 3's own
+    edge = shapely.points(shapely.get_coordinates(predicted.boundary.intersection(fresh)))
+    assert len(edge) > 3
+    lag = np.median(shapely.distance(truth.boundary, edge))
+    assert lag < 0.5 * holes.hole_spacing_m, lag
+
+
 def test_the_benches_above_place_a_bench_boundary_nearer_the_truth_with_no_hole_changing_side():
     """Each bench's signed distance is drawn towards its prediction from the benches above (``assimilated``).
 

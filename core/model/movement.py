@@ -410,8 +410,9 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     ``j2`` to ``j1`` (within :func:`movement_reach_m`), per bench height; where that boundary has no
     counterpart, the change from ``F_j2`` to ``F_j1``, held where faster than
     a boundary moves (:data:`MIN_DIP_DEG`). A cell drilled by one bench only
-    has no change; a cell none drilled takes the deepest bench's nearest
-    evidence, with no change.
+    has no change here (its outline's movement is given it later,
+    :func:`outline_movement`); a cell none drilled takes the deepest bench's
+    nearest evidence, with no change.
 
     Returns
     -------
@@ -451,7 +452,9 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
     return f_last, np.where(observed, z[np.maximum(last, 0)], z[-1]), rate, matched
 
 
-def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, cell_size_m: float) -> np.ndarray:
+def outline_movement(
+    rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, cell_size_m: float, unmeasured: np.ndarray | None = None
+) -> np.ndarray:
     """The part of a movement that moves each outline as a whole: translation, growth and elongation.
 
     Per connected stretch of the boundary of ``f_last`` (the outline of a
@@ -469,9 +472,11 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     long winding contact whose normals point some way at a few cells only,
     the harmonics alone made up movements no cell showed: single geozones of
     the mix family lost 10-27 F1 points). Every cell in ``matched`` (its boundary's movement measured,
-    :func:`boundary_movement`) takes the fit at its nearest boundary cell;
-    the others keep ``rate``. ``rate`` may hold several movements stacked on
-    a first axis, fitted on the same outlines at once.
+    :func:`boundary_movement`) takes the fit at its nearest boundary cell, and
+    so does every cell in ``unmeasured`` (observed by one bench only, so no
+    bench pair measured its movement: a bite the deepest bench left undrilled,
+    ground only it drilled); the others keep ``rate``. ``rate`` may hold several
+    movements stacked on a first axis, fitted on the same outlines at once.
 
     The finer changes are what shape noise is made of, and with two benches
     known nothing tells them from a change that carries on
@@ -505,4 +510,5 @@ def outline_movement(rate: np.ndarray, matched: np.ndarray, f_last: np.ndarray, 
     on_band[..., band] = fitted.T.reshape(rate[..., band].shape)
     _, (r, c) = ndimage.distance_transform_edt(~band, return_indices=True)
     nearest = on_band[..., r, c]
-    return np.where(matched & np.isfinite(nearest), nearest, rate)
+    takes = matched if unmeasured is None else matched | unmeasured
+    return np.where(takes & np.isfinite(nearest), nearest, rate)
