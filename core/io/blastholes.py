@@ -451,8 +451,7 @@ def blastholes_from_table(
             f"{int(off.sum())} hole(s) lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from "
             f"every bench level (data line(s) {_rows(np.flatnonzero(off), lines)}) and were left out"
         )
-        notes.append(msg)
-        warnings.warn(msg, BGMWarning, stacklevel=2)
+        _note(notes, msg, stacklevel=3)
 
     unit = _guess_unit(
         height_in,
@@ -493,6 +492,12 @@ def blastholes_from_table(
     return holes
 
 
+def _note(notes: list[str], msg: str, stacklevel: int) -> None:
+    """A repair or doubt about the input: kept in the holes' ``notes`` and warned about."""
+    notes.append(msg)
+    warnings.warn(msg, BGMWarning, stacklevel=stacklevel)
+
+
 def _warn_depth_column(column: str, notes: list[str]) -> None:
     """Warn when z is read from a column named as a depth: positive down, it turns the benches upside down.
 
@@ -504,8 +509,7 @@ def _warn_depth_column(column: str, notes: list[str]) -> None:
             "elevation (positive up): read as one, the deepest bench is the top; give an elevation column "
             "with --z, or convert first (elevation = collar elevation - depth)"
         )
-        notes.append(msg)
-        warnings.warn(msg, BGMWarning, stacklevel=3)
+        _note(notes, msg, stacklevel=4)
 
 
 def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[str]) -> np.ndarray:
@@ -522,8 +526,7 @@ def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[
             f"geozone labels {listing(sorted(renamed), 5)} spell the same number as other labels and were merged "
             f"into {listing(sorted(set(renamed.values())), 5)}"
         )
-        notes.append(msg)
-        warnings.warn(msg, BGMWarning, stacklevel=4)
+        _note(notes, msg, stacklevel=5)
     _warn_case_twins(labels, column, notes)
     _warn_identifier_labels(labels, column, notes)
     return labels
@@ -546,8 +549,7 @@ def _warn_identifier_labels(labels: np.ndarray, column: str, notes: list[str]) -
             "a label of their own: it looks like an identifier, not geozone labels; name the geozone column "
             "with --geozone-column"
         )
-        notes.append(msg)
-        warnings.warn(msg, BGMWarning, stacklevel=4)
+        _note(notes, msg, stacklevel=5)
 
 
 def _warn_case_twins(labels: np.ndarray, column: str, notes: list[str]) -> None:
@@ -562,8 +564,7 @@ def _warn_case_twins(labels: np.ndarray, column: str, notes: list[str]) -> None:
             f"geozone labels {' and '.join(quoted(t) for t in twins[0][:5])}{more} in column {quoted(column)} "
             "differ only by case: they are kept as distinct geozones"
         )
-        notes.append(msg)
-        warnings.warn(msg, BGMWarning, stacklevel=4)
+        _note(notes, msg, stacklevel=5)
 
 
 def _is_numeric(raw: pd.Series) -> bool:
