@@ -382,3 +382,18 @@ def test_the_volume_above_a_plane_is_the_part_of_the_closed_mesh_above_it(z_m):
     ball = trimesh.creation.icosphere(subdivisions=4, radius=5.0)
     h = float(np.clip(5.0 - z_m / 2, 0.0, 10.0))  # the cap above z_m / 2: pi h^2 (3 r - h) / 3
     assert volume_above(ball, z_m / 2) == pytest.approx(np.pi * h**2 * (15.0 - h) / 3, abs=0.005 * ball.volume)
+
+
+def test_geozones_only_accents_tell_apart_get_their_own_dxf_layers(tmp_path):
+    """Sanitised for R12, "Süd/Oxid" and "Sud_Oxid" were one layer: mine software merges what shares a layer."""
+    from core.io.export import write_polylines_dxf
+
+    labels = ["Süd/Oxid", "Sud_Oxid", "Süd-Oxid", "g1", "Zone Nord éste"]
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    path = write_polylines_dxf([(g, 600.0 + k, square + k) for k, g in enumerate(labels)], tmp_path / "c.dxf")
+    lines = list(ezdxf.readfile(path).modelspace().query("POLYLINE"))
+    by_z = {round(line.dxf.elevation[2]) - 600: line.dxf.layer for line in lines}
+    layers = [by_z[k] for k in range(len(labels))]
+    assert len(set(layers)) == len(labels), layers
+    assert layers[1] == "Sud_Oxid" and layers[2] == "Sud-Oxid" and layers[4] == "Zone_Nord_este", layers
+    assert all(len(layer) <= 31 and layer.isascii() for layer in layers)

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import json
 import re
+import unicodedata
 import warnings
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -404,7 +405,9 @@ def write_polylines_dxf(rings: Iterable[tuple[str, float, np.ndarray]], path: st
     Leapfrog and Deswik all read R12 POLYLINEs as strings or polylines, the
     usual way to bring digitised bench contours in.
     """
-    rings = [(_dxf_layer_name(g), float(z), np.asarray(xy, float)) for g, z, xy in rings]
+    rings = list(rings)
+    layer = dxf_layer_names(g for g, _, _ in rings)
+    rings = [(layer[g], float(z), np.asarray(xy, float)) for g, z, xy in rings]
     xyz = [np.column_stack([xy, np.full(len(xy), z)]) for _, z, xy in rings if len(xy)]
     pts = np.vstack(xyz) if xyz else np.zeros((1, 3))
     body = _dxf_head(sorted({g for g, _, _ in rings}) or ["BGM"], pts.min(axis=0), pts.max(axis=0))
@@ -476,9 +479,30 @@ _DXF_BAD = re.compile(r"[^A-Za-z0-9_$-]")
 
 
 def _dxf_layer_name(name: str) -> str:
-    """R12-safe layer name: letters, digits, ``_ $ -`` only, at most 31 characters."""
-    layer = _DXF_BAD.sub("_", str(name).strip())
+    """R12-safe layer name: letters, digits, ``_ $ -`` only, at most 31 characters.
+
+    Accented letters lose their accents (``Süd`` is ``Sud``); anything else becomes ``_``.
+    """
+    ascii_name = unicodedata.normalize("NFKD", str(name).strip()).encode("ascii", "ignore").decode()
+    layer = _DXF_BAD.sub("_", ascii_name if ascii_name.strip() else str(name).strip())
     return layer[:31] or "BGM_SURFACE"
+
+
+def dxf_layer_names(names: Iterable[str]) -> dict[str, str]:
+    """Each name's R12 layer (:func:`_dxf_layer_name`), distinct names on distinct layers (``_2``, ``_3``...).
+
+    Two labels that only non-ASCII characters tell apart (``Süd/Oxid``, ``Süd-Oxid``) would share one
+    layer, and mine software would merge the two geozones.
+    """
+    layers: dict[str, str] = {}
+    for name in sorted(set(names)):
+        base = layer = _dxf_layer_name(name)
+        n = 1
+        while layer in layers.values():
+            n += 1
+            layer = f"{base[: 31 - len(str(n)) - 1]}_{n}"
+        layers[name] = layer
+    return layers
 
 
 def _one_line(text) -> str:
