@@ -603,9 +603,15 @@ def _refuse_empty_scores(rows, holes, geozone: str) -> None:
     on = _benches_at(holes, set(holes.bench[holes.geozone == geozone].tolist()))
     scored = _benches_at(holes, {int(k) + 1 for k in rows["bench"]})
     if not rows["g_area"].any():
-        why = f"has no contour on any bench it could be scored on ({scored}): its holes are on {on}, and one or two holes alone are taken as label noise"
+        why = (
+            f"has no contour on any bench it could be scored on ({scored}): its holes are on {on}, "
+            "and one or two holes alone are taken as label noise"
+        )
     else:
-        why = f"is predicted by no method on the benches scored ({scored}): the benches above do not show it there (its holes are on {on})"
+        why = (
+            f"is predicted by no method on the benches scored ({scored}): "
+            f"the benches above do not show it there (its holes are on {on})"
+        )
     raise BGMInputError(f"geozone {geozone} {why}; nothing to evaluate")
 
 

@@ -30,18 +30,17 @@ from core.geometry.sdf import boundary_distance
 #: says nothing about how the one nearby moves, and a cell at the cap is not moved
 #: by the movement of its nearest boundary (:func:`core.model.extrapolation.depth_trend`).
 CAP_SPACINGS = 8.0
-#: Shallowest dip taken as movement of a boundary (degrees). A change of the
-#: signed distance faster than ``1 / tan(dip)`` bench heights per bench is a
-#: body appearing or vanishing (a pod, a new lens), not a boundary moving: the
-#: trend is held there. 30 degrees is 1.7 bench heights per bench, a little past the
-#: shallowest contacts a pit's benches follow (the synthetic strips dip 35-80 degrees);
-#: 34 degrees, the linear reference's bound (:class:`core.model.evaluation.LinearSDF`),
-#: held the fastest strips (chosen on the tuning seeds only: +0.4 and +1.1 F1 at 5 and
-#: 10 m, strips +1.3 and +3.2, pods -0.3 and -0.4). It is a floor: where a bench pair's
-#: sections align at a larger translation (a shallower contact), that is the bound for the
-#: pair (:func:`core.model.movement.movement_reach_m`). Where the geozone's bodies are smaller across than that, their
-#: size is the floor instead (:func:`core.model.movement.fastest_movement_m`). A geozone's own benches may choose
-#: :data:`core.model.extrapolation.SHALLOW_DIP_DEG` instead, and two benches take :data:`core.model.extrapolation.TWO_BENCH_DIP_DEG` (:func:`core.model.extrapolation.with_backtested_dip`).
+#: Shallowest dip taken as movement of a boundary (degrees). A change of the signed distance faster than ``1 /
+#: tan(dip)`` bench heights per bench is a body appearing or vanishing (a pod, a new lens), not a boundary
+#: moving: the trend is held there. 30 degrees is 1.7 bench heights per bench, a little past the shallowest
+#: contacts a pit's benches follow (the synthetic strips dip 35-80 degrees); 34 degrees, the linear
+#: reference's bound (:class:`core.model.evaluation.LinearSDF`), held the fastest strips (chosen on the tuning
+#: seeds only: +0.4 and +1.1 F1 at 5 and 10 m, strips +1.3 and +3.2, pods -0.3 and -0.4). It is a floor: where
+#: a bench pair's sections align at a larger translation (a shallower contact), that is the bound for the pair
+#: (:func:`core.model.movement.movement_reach_m`). Where the geozone's bodies are smaller across than that,
+#: their size is the floor instead (:func:`core.model.movement.fastest_movement_m`). A geozone's own benches
+#: may choose :data:`core.model.extrapolation.SHALLOW_DIP_DEG` instead, and two benches take
+#: :data:`core.model.extrapolation.TWO_BENCH_DIP_DEG` (:func:`core.model.extrapolation.with_backtested_dip`).
 MIN_DIP_DEG = 30.0
 
 #: The memo's entry of the last sections' transports (:func:`core.model.trend.with_shared_transport`), the latest last.
@@ -96,7 +95,9 @@ class BenchFields:
     height_m: float | None = None
 
     def measured(self) -> BenchFields:
-        """The benches' signed distances as their holes showed them (``observed``), before :func:`core.model.extrapolation.assimilated`.
+        """The benches' signed distances as their holes showed them (``observed``).
+
+        That is, before :func:`core.model.extrapolation.assimilated` drew them towards the benches above.
 
         Their memo is kept in this one's (under ``("observed",)``), so its views share it as well.
         """

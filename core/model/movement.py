@@ -100,8 +100,8 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float, chance: floa
     """
     if len(fields.z_m) < 3:
         return 1.0, 0.0
-    # The benches as their holes showed them: drawn towards the benches above (:func:`core.model.extrapolation.assimilated`), their
-    # movements agree by construction (a test's travelling waves agree under 0.5 observed, 0.53 drawn).
+    # The benches as their holes showed them: drawn towards the benches above (core.model.extrapolation.assimilated),
+    # their movements agree by construction (a test's travelling waves agree under 0.5 observed, 0.53 drawn).
     fields = fields.measured()
     n = len(fields.z_m)
     fastest = geozone_fastest_movement_m(fields, float(abs(fields.z_m[-2] - fields.z_m[-1])))

@@ -48,14 +48,14 @@ RIDGE_SHARE = 0.01
 #: further than their half-width, 1,911 of 1,935 ridge cells lay within 1.5 cells of a directed one, all within 2).
 RIDGE_REACH_CELLS = 2.0
 
-#: Evidence of a cell that only benches above the deepest observed is kept while it is more likely
-#: than not to hold at the predicted elevation: while ``carried_precision ** benches`` is at least
-#: this, ``carried_precision`` the share of the geozone's carried section that the next bench
-#: confirmed, backtested on its own benches (:func:`core.model.extrapolation.carried_precision`). Layers, strips and folds
-#: are confirmed at 0.8-0.97 a bench and keep it for 2-6 benches; lenses that end or jump within a
-#: bench or two at 0.1-0.5 and lose it at once. Bodies reaching the next bench
-#: (:func:`core.model.extrapolation.body_continuity`), used before, counted a lens 15 m away as reached: on the tuning seeds
-#: 90% of the lenses it kept were wrong (pods +0.2 and +0.1 F1 points at 5 and 10 m, +0.8 and
+#: Evidence of a cell that only benches above the deepest observed is kept while it is more likely than not to
+#: hold at the predicted elevation: while ``carried_precision ** benches`` is at least this,
+#: ``carried_precision`` the share of the geozone's carried section that the next bench confirmed, backtested
+#: on its own benches (:func:`core.model.extrapolation.carried_precision`). Layers, strips and folds are
+#: confirmed at 0.8-0.97 a bench and keep it for 2-6 benches; lenses that end or jump within a bench or two at
+#: 0.1-0.5 and lose it at once. Bodies reaching the next bench
+#: (:func:`core.model.extrapolation.body_continuity`), used before, counted a lens 15 m away as reached: on
+#: the tuning seeds 90% of the lenses it kept were wrong (pods +0.2 and +0.1 F1 points at 5 and 10 m, +0.8 and
 #: +0.5 with 3-4 m patterns, other families and Kennecott within 0.1).
 STALE_EVIDENCE_PROBABILITY = 0.5
 
