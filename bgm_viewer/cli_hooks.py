@@ -104,7 +104,7 @@ def view(
     if screenshot is not None:
         _outputs(screenshot, input if input is not None else DEMO_CSV, project)
         check_screenshot_name(screenshot)
-    if screenshot is None:
+    else:
         check_display()  # before the table is read: Qt would abort the process, not raise
     source = input
     if table is not None and table.given():
@@ -171,8 +171,8 @@ def view_command(
         )
         return 0
     if geozone is not None or bench is not None:
-        holes = _checked_holes(input, geozone, bench)
-        geozone = geozone if geozone is None else holes.check_geozones([geozone])[0]
+        input = _checked_holes(input, geozone, bench)  # read once: the window opens on these holes
+        geozone = geozone if geozone is None else input.check_geozones([geozone])[0]
     view = {"geozone": geozone, "bench": bench, "layers": layers, "camera": camera}
     view["vertical_exaggeration"] = vertical_exaggeration
     return run_viewer(input, project, cache=cache, **{k: v for k, v in view.items() if v is not None})

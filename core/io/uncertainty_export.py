@@ -129,19 +129,19 @@ def write_suggestions(path: str | Path, table: pd.DataFrame) -> Path:
     return Path(path)
 
 
-#: How far from the blastholes a planned pattern may lie, in hole spacings, before it is taken to be in other
-#: coordinates: the predictions reach as far as a bench's evidence does past its drilling (10 spacings).
-PATTERN_REACH_SPACINGS = 10.0
-
-
 def _refuse_far_pattern(path, xy: np.ndarray, holes: Blastholes) -> None:
-    """Refuse a pattern whose nearest hole lies further than :data:`PATTERN_REACH_SPACINGS` from every blasthole."""
+    """Refuse a pattern whose nearest hole lies further from every blasthole than the predictions reach.
+
+    They reach as far past the drilling as a bench's evidence does (the model's default
+    ``frontier_reach_spacings``); a pattern beyond that is in other coordinates.
+    """
     from scipy.spatial import cKDTree
 
     from core.errors import BGMInputError
+    from core.model.parameters import ModelParameters
 
     gap_m = float(cKDTree(holes.xy).query(xy)[0].min())
-    reach_m = PATTERN_REACH_SPACINGS * holes.hole_spacing_m
+    reach_m = ModelParameters().frontier_reach_spacings * holes.hole_spacing_m
     if gap_m > reach_m:
         unit = holes.frame.length_unit
         gap, centre = holes.frame.length_to_input(gap_m), holes.frame.to_input(xy.mean(axis=0, keepdims=True))[0]
@@ -165,9 +165,9 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     ------
     BGMInputError
         A missing column, a value that is not a finite number, fewer than one
-        hole, or a pattern none of whose holes lies within
-        :data:`PATTERN_REACH_SPACINGS` hole spacings of a blasthole (other
-        coordinates: a local grid against the mine grid, or another site).
+        hole, or a pattern none of whose holes lies within the predictions'
+        reach of a blasthole (other coordinates: a local grid against the
+        mine grid, or another site).
     """
     from core.errors import BGMInputError
     from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, find_column

@@ -44,7 +44,6 @@ from core.model.movement import (
     fit_trend,
     geozone_body_size_m,
     geozone_persistence,
-    last_observations,
     outline_movement,
 )
 from core.model.trend import TRANSPORT_SMOOTHING_SPACINGS, DepthTrend, sliding_bias, with_shared_transport
@@ -479,7 +478,7 @@ def _section_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m
     :func:`with_backtested_dip`, the ways' backtests and the assimilation, and :func:`depth_trend` make the same
     ones: a Kennecott build fitted 363 trends, 162 distinct).
     """
-    f_last, z_last, rate, matched = fit_trend(fields, bench_height_m)
+    f_last, z_last, rate, matched, unmeasured = fit_trend(fields, bench_height_m)
     smoothing_m = TRANSPORT_SMOOTHING_SPACINGS * hole_spacing_m
     # The outlines are traced on the section as measured: smoothed, the gap between two parts that have just split
     # narrows, and traced as one outline their opposite movements cancelled (the constructed split lost 0.1 IoU).
@@ -509,8 +508,7 @@ def _section_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m
     continuity = body_continuity(fields, bench_height_m)
     # A cell one bench observed has no movement of its own: held, a bite of the deepest bench or ground only it
     # drilled lagged the rest of its body (a pit pushed back 20-40 m a bench: 0.8 F1 at one bench, tuning seeds).
-    last, before = last_observations(fields)
-    unmeasured = (last >= 0) & (before < 0) & ~at_cap
+    unmeasured &= ~at_cap
     outline = outline_movement(rate, matched, outlines_of, fields.grid.cell_size_m, unmeasured)
     rate = np.where(unmeasured, outline, rate)
     for a in (f_last, z_last, rate, at_cap, outline):

@@ -401,7 +401,7 @@ def coherent_reach_m(fields: BenchFields, older: int, newer: int, fastest_m: flo
     return far_m if coherence >= COHERENCE else fastest_m
 
 
-def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, ...]:
     """Per cell, the last observed signed distance, where it was observed and its change with depth.
 
     Each cell's trend rests on the last two benches drilled there (the
@@ -421,6 +421,8 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
         of the boundary per bench height downwards.
     matched : (rows, cols) bool
         Where ``rate`` is the movement of a boundary matched on both benches.
+    unmeasured : (rows, cols) bool
+        Cells one bench observed: no bench pair measured their movement.
     """
     last, before = last_observations(fields)
     z = fields.z_m
@@ -449,7 +451,7 @@ def fit_trend(fields: BenchFields, bench_height_m: float) -> tuple[np.ndarray, n
         rate[cells] = np.where(matched[cells], moved[cells] / gap, rate[cells])
     observed = last >= 0
     f_last = np.where(observed, f_last, fields.distance[-1])
-    return f_last, np.where(observed, z[np.maximum(last, 0)], z[-1]), rate, matched
+    return f_last, np.where(observed, z[np.maximum(last, 0)], z[-1]), rate, matched, observed & (before < 0)
 
 
 def outline_movement(
