@@ -295,8 +295,9 @@ def contours(
         bool,
         typer.Option(
             "--keep-isolated",
-            help="Keep components of one or two holes surrounded by other geozones as contours "
-            "(by default they are taken as label noise and reported as isolated_holes).",
+            help="Keep components of one or two holes surrounded by other geozones as contours, and the "
+            "labels of holes at noisy contacts (by default both are taken as label noise and reported "
+            "as isolated_holes).",
         ),
     ] = False,
     no_cache: NoCacheOpt = False,

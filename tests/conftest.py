@@ -103,10 +103,11 @@ def constructed_offset(holes) -> np.ndarray:
     return holes.frame.to_input(np.zeros((1, 2)))[0] - CONSTRUCTED_ORIGIN
 
 
-def straight_contacts(seed: int, n: int, spacing: float = 6.0) -> list[tuple]:
+def straight_contacts(seed: int, n: int, spacing: float = 6.0, contact_noise: float = 0.0) -> list[tuple]:
     """``n`` straight contacts at random offsets and headings through a staggered pattern (holes 0.08 of a
     spacing off it), each extracted: ``(holes, contour of "a", offsets)``, the contour's signed distances
-    to the true line in spacings, away from the drilling's edge."""
+    to the true line in spacings, away from the drilling's edge. With ``contact_noise``, that share of the
+    holes within a spacing of the line carry the other side's label."""
     from core.extraction.contours import extract_bench
 
     rng = np.random.default_rng(seed)
@@ -116,7 +117,10 @@ def straight_contacts(seed: int, n: int, spacing: float = 6.0) -> list[tuple]:
         xy = pattern - [90.0, 88.0] + rng.normal(0, 0.08 * spacing, pattern.shape)
         heading = rng.uniform(0, np.pi)
         normal, at = np.array([np.cos(heading), np.sin(heading)]), rng.uniform(-spacing, spacing)
-        holes = constructed_bench(xy, np.where(xy @ normal > at, "a", "b"))
+        labels = np.where(xy @ normal > at, "a", "b")
+        flip = (np.abs(xy @ normal - at) < spacing) & (rng.random(len(xy)) < contact_noise)
+        labels[flip] = np.where(labels[flip] == "a", "b", "a")
+        holes = constructed_bench(xy, labels)
         contour = max(extract_bench(holes, 0, ["a"]), key=lambda c: c.polygon.area)
         ring = np.asarray(contour.polygon.exterior.coords) + constructed_offset(holes)
         inner = np.abs(ring).max(axis=1) < 50.0  # away from the drilling's edge

@@ -411,6 +411,25 @@ def test_label_noise_is_1_to_3_percent_drawn_per_mine(family):
     assert len(set(rates)) == len(rates)
 
 
+def test_contact_noise_mislabels_holes_at_contacts_only_and_leaves_the_default_drilling_alone():
+    _, default_table, _ = scenario("strips", SEEDS[0])
+    mine, table, true = scenario(
+        "strips", SEEDS[0], drilling={"label_noise_range": (0.0, 0.0), "contact_noise_range": (0.2, 0.2)}
+    )
+    _, again, _ = scenario("strips", SEEDS[0])
+    assert again.equals(default_table)  # drawn only when asked
+    labels, truth = table["geozone"].to_numpy(), true.to_numpy()
+    wrong = labels != truth
+    assert wrong.sum() > 50
+    bench, xy = bench_of(table), local_xy(mine, table)
+    for k in np.unique(bench):
+        on = np.flatnonzero(bench == k)
+        spacing = np.median(cKDTree(xy[on]).query(xy[on], k=2)[0][:, 1])
+        for i in on[wrong[on]]:
+            near = on[np.hypot(*(xy[on] - xy[i]).T) < drilling.CONTACT_SPACINGS * spacing * 1.2]
+            assert labels[i] in set(truth[near])  # it took the label of a neighbour across the contact
+
+
 def test_footprints_shrink_bench_by_bench_and_have_bites():
     mine, table, _ = scenario("folds", SEEDS[0])
     levels = mine.bench_levels_m

@@ -5,7 +5,8 @@ Per bench:
 1. label noise (:mod:`core.extraction.noise`): holes in components of one or
    two holes surrounded by other geozones are taken as mislabelled and
    counted with the geozone around them (reported on the contour that holds
-   them, never a contour of their own);
+   them, never a contour of their own), and on a bench whose contacts are
+   noisy, holes there that their neighbours outvote take the vote's geozone;
 2. connected components (section 2.1), boundary holes by local entropy and
    gap closure (sections 2.2-2.3);
 3. the transition field (:mod:`core.extraction.transition`): where each
@@ -69,7 +70,7 @@ from skimage.measure import find_contours
 from core.errors import Range, check_ranges
 from core.extraction.boundary import entropy_boundary, gap_boundary, local_entropy, neighbour_table
 from core.extraction.gvf import gvf_steady_state
-from core.extraction.noise import FIRST_RING_SPACINGS, absorbed_labels, isolated_holes
+from core.extraction.noise import FIRST_RING_SPACINGS, absorbed_labels, contact_votes, isolated_holes
 from core.extraction.snake import evolve_snake, resample_closed
 from core.extraction.transition import TransitionField, bench_grid, edge_map, nearest_hole, transition_field
 from core.geometry.grid import Grid, as_multipolygon, cells_covering
@@ -287,8 +288,13 @@ def bench_evidence(holes: Blastholes, bench: int, params: ExtractionParameters) 
     spacing = bench_spacing(xy, holes.hole_spacing_m)
     radius = params.radius_m(spacing)
     given = holes.geozone[idx]
-    isolated = np.zeros(len(idx), bool) if params.keep_isolated_holes else isolated_holes(xy, given, spacing, radius)
-    labels = absorbed_labels(xy, given, isolated)
+    if params.keep_isolated_holes:
+        isolated, voted = np.zeros(len(idx), bool), given
+    else:
+        isolated = isolated_holes(xy, given, spacing, radius)
+        voted = contact_votes(xy, given, spacing, radius, isolated)
+    labels = absorbed_labels(xy, voted, isolated)
+    isolated = isolated | (voted != given)  # the contacts' mislabels are label noise too
     table = neighbour_table(xy, radius)
     on_entropy = entropy_boundary(local_entropy(labels, table), table, params.entropy_threshold)
     grid = bench_grid(xy, spacing)

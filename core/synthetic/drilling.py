@@ -23,6 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+from scipy.spatial import cKDTree
 from shapely import affinity
 from shapely.geometry import Polygon, box
 
@@ -125,6 +126,7 @@ def drill_mine(
     pushback_range_m: tuple[float, float] = (0.0, 0.0),
     collar_scatter_spacings: float = 0.08,
     pattern: str = "staggered",
+    contact_noise_range: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[pd.DataFrame, pd.Series]:
     """Drill every bench of ``mine`` and label its holes, as a mine would.
 
@@ -156,6 +158,11 @@ def drill_mine(
         their offset (each way), in spacings.
     pattern : {"staggered", "square"}
         The drilling pattern (:func:`~core.synthetic.blobs.drill_pattern`).
+    contact_noise_range : (float, float)
+        Range of the share of holes at a contact (a hole of another geozone
+        within :data:`CONTACT_SPACINGS` spacings) labelled as that neighbour,
+        drawn once per mine: mislabels where a sample mixes two geozones, as
+        real assays near a contact do, rather than anywhere. None by default.
 
     Returns
     -------
@@ -172,6 +179,8 @@ def drill_mine(
     height = float(np.median(-np.diff(levels))) if len(levels) > 1 else 10.0
     step = pit_step_m(mine.extent_m, len(levels), height)
     noise = float(rng.uniform(*label_noise_range))
+    # Drawn only when asked, so that the default drilling's draws stay as they were.
+    contact_noise = float(rng.uniform(*contact_noise_range)) if contact_noise_range[1] > 0 else 0.0
     pushback = np.zeros(2)
     if pushback_range_m[1] > 0:  # drawn only when asked: the default drilling's draws stay as they were
         heading = rng.uniform(0, 2 * np.pi)
@@ -192,6 +201,8 @@ def drill_mine(
         xy = xy_table * mpu - np.asarray(mine.origin)
         truth = mine.label_at(xy, float(z))
         labels = _with_label_noise(truth, noise, rng)
+        if contact_noise > 0:
+            labels = _with_contact_noise(xy, truth, labels, contact_noise, spacing, rng)
         ids = np.array([f"B{k:02d}-{i:05d}" for i in range(len(xy))], dtype=object)
         z_holes = z + rng.uniform(-z_scatter_fraction, z_scatter_fraction, len(xy)) * height
         frames.append(
@@ -210,6 +221,30 @@ def drill_mine(
     true_labels.index.name = "hole_id"
     true_labels.attrs["label_noise"] = noise
     return pd.concat(frames, ignore_index=True), true_labels
+
+
+#: A hole is at a contact when a hole of another true geozone lies within this many spacings.
+CONTACT_SPACINGS = 1.5
+
+
+def _with_contact_noise(
+    xy: np.ndarray, truth: np.ndarray, labels: np.ndarray, rate: float, spacing_m: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Labels where a share ``rate`` of the holes at a contact take their nearest other geozone's label."""
+    tree = cKDTree(xy)
+    pairs = tree.query_pairs(CONTACT_SPACINGS * spacing_m, output_type="ndarray")
+    pairs = pairs[truth[pairs[:, 0]] != truth[pairs[:, 1]]]
+    if not len(pairs):
+        return labels
+    both = np.concatenate([pairs, pairs[:, ::-1]])
+    gap = np.linalg.norm(xy[both[:, 0]] - xy[both[:, 1]], axis=1)
+    order = np.lexsort((gap, both[:, 0]))  # each hole's nearest hole of another geozone first
+    first = np.unique(both[order, 0], return_index=True)[1]
+    at_contact, neighbour = both[order][first].T
+    flip = rng.random(len(at_contact)) < rate
+    out = labels.copy()
+    out[at_contact[flip]] = truth[neighbour[flip]]
+    return out
 
 
 def _with_label_noise(truth: np.ndarray, rate: float, rng: np.random.Generator) -> np.ndarray:

@@ -15,7 +15,8 @@ on held-out seeds only:
   a layer dipping 16-29 degrees), which no default was chosen on, drilled the
   default way;
 * ``drilling`` -- every family drilled otherwise (:data:`DRILLING`): patterns of
-  9-12 m and 3-4 m, 6-10% label noise, 15 m benches in feet, 6 m benches, and each
+  9-12 m and 3-4 m, 6-10% label noise, 10-25% of the holes at the contacts labelled as
+  the neighbour (samples mixing two geozones), 15 m benches in feet, 6 m benches, and each
   bench's pit 20-40 m sideways of the one above (a pushback: ground no bench above drilled),
   holes collared off the pattern by 0.3 of a spacing (standard deviation; 0.08 by default),
   a square pattern instead of a staggered one (the same spacing, so 13% fewer holes),
@@ -59,6 +60,8 @@ DRILLING: dict[str, tuple[dict, dict]] = {
     "pattern 9-12 m": ({}, {"spacing_range_m": (9.0, 12.0)}),
     "pattern 3-4 m": ({}, {"spacing_range_m": (3.0, 4.0)}),
     "label noise 6-10%": ({}, {"label_noise_range": (0.06, 0.10)}),
+    # Mislabels where samples mix two geozones: 10-25% of the holes at a contact take the neighbour's label.
+    "label noise at the contacts 10-25%": ({}, {"contact_noise_range": (0.10, 0.25)}),
     "15 m benches, feet": ({"bench_height_m": 15.0, "units": "ft"}, {}),
     "6 m benches": ({"bench_height_m": 6.0}, {}),
     "pushback 20-40 m a bench": ({}, {"pushback_range_m": (20.0, 40.0)}),
