@@ -722,22 +722,35 @@ class MainWindow(QtWidgets.QMainWindow):
         """Metres per input unit (the panels speak the input's units, the model metres)."""
         return float(self.model.holes.frame.metres_per_unit)
 
+    def _align(self, change, *args) -> None:
+        """Apply an alignment change of the model and re-run; a change it refuses is said in the status bar.
+
+        These are slots (buttons, keys, a drag): an exception raised in one would
+        only be printed, or end the application.
+        """
+        try:
+            step = change(*args)
+        except ValueError as exc:
+            self.statusBar().showMessage(f"alignment not changed: {exc}", 10000)
+            return
+        self.request(step, immediate=True)
+
     def apply_translation(self) -> None:
         """Lock the translation typed in the panel (input units)."""
         dx, dy = self.dx_spin.value() * self._mpu, self.dy_spin.value() * self._mpu
-        self.request(self.model.set_translation(dx, dy), immediate=True)
+        self._align(self.model.set_translation, dx, dy)
 
     def nudge(self, ddx: float, ddy: float) -> None:
-        self.request(self.model.nudge(ddx, ddy), immediate=True)
+        self._align(self.model.nudge, ddx, ddy)
 
     def lock_current(self) -> None:
-        self.request(self.model.lock_current(), immediate=True)
+        self._align(self.model.lock_current)
 
     def clear_override(self) -> None:
-        self.request(self.model.clear_override(), immediate=True)
+        self._align(self.model.clear_override)
 
     def set_association(self, target: int, flag) -> None:
-        self.request(self.model.set_association(target, flag), immediate=True)
+        self._align(self.model.set_association, target, flag)
 
     def undo(self) -> None:
         stage = self.model.undo()

@@ -640,10 +640,27 @@ class ViewerModel:
         return float(t[0]), float(t[1])
 
     def set_translation(self, dx_m: float, dy_m: float) -> str:
-        """Lock the selected source's translation to ``(dx_m, dy_m)`` metres; returns the step to re-run."""
-        self._push_undo()
+        """Lock the selected source's translation to ``(dx_m, dy_m)`` metres; returns the step to re-run.
+
+        Raises
+        ------
+        ValueError
+            If the translation is not finite or longer than the input spans (a project
+            holding it would not open: :func:`core.io.project.check_project`).
+        """
+        from core.io.project import input_extent, translation_fits
+
         mpu = self.holes.frame.metres_per_unit
-        self.override_here(create=True).translation = (float(dx_m) / mpu, float(dy_m) / mpu)
+        t = (float(dx_m) / mpu, float(dy_m) / mpu)
+        extent = input_extent(self.holes)
+        if not translation_fits(t, extent):
+            unit = self.holes.frame.length_unit
+            raise ValueError(
+                f"a translation of ({t[0]:.6g}, {t[1]:.6g}) {unit} moves the source off the input,"
+                f" which spans {extent:.6g} {unit}"
+            )
+        self._push_undo()
+        self.override_here(create=True).translation = t
         self._changed_overrides()
         return "correspondence"
 

@@ -272,3 +272,18 @@ def test_manual_alignment_undo_and_project_roundtrip(model, tmp_path):
     model.run("correspondence", until="correspondence")
     np.testing.assert_allclose(model.current_translation_m(), auto, atol=1e-9)
     assert model.dirty and not model.overrides
+
+
+def test_a_translation_the_project_could_not_reopen_is_refused(tmp_path):
+    """The viewer saved a translation longer than the input spans, which loading the project refuses."""
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.testing import small_model
+
+    model = small_model(until="correspondence")
+    for bad in ((900.0, 0.0), (0.0, float("nan"))):
+        with pytest.raises(ValueError, match="off the input"):
+            model.set_translation(*bad)
+    assert not model.overrides and not model.can_undo
+    model.set_translation(100.0, -100.0)  # long but on the input: a correction
+    model.save_project(tmp_path / "p.json")
+    ViewerModel(model.holes).load_project(tmp_path / "p.json")
