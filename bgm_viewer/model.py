@@ -633,11 +633,37 @@ class ViewerModel:
         del self._undo[:-50]
 
     def current_translation_m(self) -> tuple[float, float] | None:
-        pc = self.result.correspondence
+        """The selected source's translation (metres), ``None`` until its bench pair is corresponded."""
+        pc = self.result.correspondence if self.result.selection == self.selection else None
         if pc is None or not 0 <= self.selection.component < len(pc.translations):
             return None
         t = pc.translations[self.selection.component]
         return float(t[0]), float(t[1])
+
+    def _selected_pair(self) -> BenchPair:
+        """The selected bench pair, whose selected source an override corrects.
+
+        Raises
+        ------
+        ValueError
+            If the pair is not computed yet, the selected geozone has no
+            component on one of its benches, or the selected source is not
+            among its components: an override of it would name a component
+            the model does not have, and fail every run of the geozone.
+        """
+        sel, res = self.selection, self.result
+        pair = res.pair if res.selection == sel else None
+        if pair is None or pair.upper != sel.bench:
+            raise ValueError(
+                f"geozone {sel.geozone} has no bench pair from bench {self.source_z_input():g} to align"
+                " (not computed yet, or no component on one of its benches)"
+            )
+        if not 0 <= sel.component < len(pair.sources):
+            raise ValueError(
+                f"source component {sel.component} does not exist: geozone {sel.geozone} has"
+                f" {len(pair.sources)} on bench {self.source_z_input():g}"
+            )
+        return pair
 
     def set_translation(self, dx_m: float, dy_m: float) -> str:
         """Lock the selected source's translation to ``(dx_m, dy_m)`` metres; returns the step to re-run.
@@ -645,11 +671,13 @@ class ViewerModel:
         Raises
         ------
         ValueError
-            If the translation is not finite or longer than the input spans (a project
-            holding it would not open: :func:`core.io.project.check_project`).
+            If the selected source does not exist (see :meth:`_selected_pair`), or the
+            translation is not finite or longer than the input spans (a project holding it
+            would not open: :func:`core.io.project.check_project`).
         """
         from core.io.project import input_extent, translation_fits
 
+        self._selected_pair()
         mpu = self.holes.frame.metres_per_unit
         t = (float(dx_m) / mpu, float(dy_m) / mpu)
         extent = input_extent(self.holes)
@@ -671,11 +699,26 @@ class ViewerModel:
 
     def lock_current(self) -> str:
         """Lock the selected source at its current (automatic) translation."""
-        cur = self.current_translation_m() or (0.0, 0.0)
+        cur = self.current_translation_m()
+        if cur is None:
+            self._selected_pair()  # says why, when the source does not exist
+            raise ValueError("the selected source has no translation to lock yet: its correspondence failed")
         return self.set_translation(*cur)
 
     def set_association(self, target: int, flag: bool | None) -> str:
-        """Force (``True``), forbid (``False``) or reset (``None``) association with ``target``."""
+        """Force (``True``), forbid (``False``) or reset (``None``) association with ``target``.
+
+        Raises
+        ------
+        ValueError
+            If the selected source or ``target`` is not a component of the selected bench pair.
+        """
+        pair = self._selected_pair()
+        if flag is not None and not 0 <= int(target) < len(pair.targets):
+            raise ValueError(
+                f"target component {target} does not exist: geozone {pair.geozone} has"
+                f" {len(pair.targets)} on bench {self.holes.bench_z_input(pair.lower):g}"
+            )
         self._push_undo()
         o = self.override_here(create=True)
         if flag is None:

@@ -274,6 +274,26 @@ def test_manual_alignment_undo_and_project_roundtrip(model, tmp_path):
     assert model.dirty and not model.overrides
 
 
+def test_an_override_of_a_component_the_pair_lacks_is_refused():
+    """Locking source 40 of a bench with one component broke the geozone's every run, and was saved."""
+    from bgm_viewer.testing import small_model
+
+    model = small_model(until="correspondence")
+    n_sources, n_targets = len(model.result.pair.sources), len(model.result.pair.targets)
+    model.select(component=n_sources + 39)
+    model.run("morph", until="correspondence")
+    for change in (model.lock_current, lambda: model.set_translation(1.0, 2.0), lambda: model.nudge(1.0, 0.0)):
+        with pytest.raises(ValueError, match="does not exist"):
+            change()
+    model.select(component=0)
+    model.run("morph", until="correspondence")
+    with pytest.raises(ValueError, match="target component"):
+        model.set_association(n_targets + 5, True)
+    assert not model.overrides and not model.can_undo and not model.dirty
+    model.set_association(0, False)  # an existing target: accepted
+    assert model.overrides
+
+
 def test_a_translation_the_project_could_not_reopen_is_refused(tmp_path):
     """The viewer saved a translation longer than the input spans, which loading the project refuses."""
     from bgm_viewer.model import ViewerModel

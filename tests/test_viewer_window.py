@@ -308,3 +308,12 @@ def test_the_window_opens_on_what_the_command_line_asked_for(qtbot):
         finally:
             win.model.dirty = False
             win.close()
+
+
+def test_an_alignment_the_model_refuses_is_said_in_the_status_bar(window, qtbot):
+    """Ctrl+arrow on a source the bench lacks raised out of the key's slot instead of saying why."""
+    window.component_spin.setValue(40)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.nudge(1.0, 0.0)
+    assert "does not exist" in window.statusBar().currentMessage()
+    assert not window.model.overrides and not window.busy
