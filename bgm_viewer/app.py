@@ -15,6 +15,7 @@ real display or ``xvfb-run``.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import itertools
 import threading
@@ -34,7 +35,7 @@ from core.model.parameters import PARAMETERS, ParameterSpec
 from . import _vtkenv  # noqa: F401
 from .builders import build_scene, empty_layer_reasons, refresh_scene
 from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers
-from .model import STEPS, ViewerModel, bodies, compute, display_unit, project_input
+from .model import STEPS, Cancelled, ViewerModel, bodies, compute, display_unit, project_input
 from .scene import SceneRenderer, drag_on_plane
 
 Qt = QtCore.Qt
@@ -805,12 +806,18 @@ class MainWindow(QtWidgets.QMainWindow):
         self._started = time.perf_counter()
         self.statusBar().showMessage(f"running from {step}...")
         self.progress_bar.setValue(0)
+        # errored is connected here: connected later, superqt also raised every error again in Qt's thread
         worker = create_worker(
-            _quietly, self.model.inputs(), self.model.result, step, self._stop.is_set, _start_thread=False
+            _quietly,
+            self.model.inputs(),
+            self.model.result,
+            step,
+            self._stop.is_set,
+            _start_thread=False,
+            _connect={"errored": lambda exc, job=job: self._on_failed(job, exc)},
         )
         worker.yielded.connect(lambda item, job=job: self._on_progress(job, *item))
         worker.returned.connect(lambda _, job=job: self._on_finished(job))
-        worker.errored.connect(lambda exc, job=job: self._on_failed(job, exc))
         self._worker = worker
         worker.start()
 
@@ -1075,8 +1082,11 @@ elevations and cuts the view with a plane you drag along its axis.</p>"""
 
 
 def _quietly(inputs, previous, step, cancelled):
-    """:func:`compute` with the engine's warnings silenced (the status bar reports errors)."""
-    with warnings.catch_warnings():
+    """:func:`compute` with the engine's warnings silenced (the status bar reports errors).
+
+    A run a newer request cancelled just ends: it is no error.
+    """
+    with warnings.catch_warnings(), contextlib.suppress(Cancelled):
         warnings.simplefilter("ignore")
         yield from compute(inputs, previous, step, cancelled)
 

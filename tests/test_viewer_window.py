@@ -317,3 +317,43 @@ def test_an_alignment_the_model_refuses_is_said_in_the_status_bar(window, qtbot)
     window.nudge(1.0, 0.0)
     assert "does not exist" in window.statusBar().currentMessage()
     assert not window.model.overrides and not window.busy
+
+
+def test_a_run_superseded_or_failing_raises_nothing_in_the_window(window, qtbot, monkeypatch):
+    """A run cancelled in the middle of a step (switching geozones on Kennecott) raised ``Cancelled``
+    in Qt's thread, and a failed run its error, besides saying it in the status bar."""
+    import threading
+
+    import bgm_viewer.app as app
+    from bgm_viewer.model import Cancelled
+
+    started = threading.Event()
+
+    def slow_step(inputs, previous, from_step, cancelled, until="surface"):
+        started.set()
+        while not cancelled():  # a long step, cancelled half-way: compute's run.check() raises
+            threading.Event().wait(0.01)
+        raise Cancelled()
+        yield
+
+    monkeypatch.setattr(app, "compute", slow_step)
+    with qtbot.captureExceptions() as raised:
+        window.geozone_combo.setCurrentText("g2")
+        assert started.wait(10)
+        window.geozone_combo.setCurrentText("g3")  # cancels the first
+        qtbot.wait(300)
+        window._cancel()  # the second too (as closing the window does)
+        qtbot.wait(300)
+    assert not raised, raised[0][1]
+
+    def failing(*args, **kwargs):
+        raise ValueError("boom")
+        yield
+
+    monkeypatch.setattr(app, "compute", failing)
+    with qtbot.captureExceptions() as raised:
+        window.geozone_combo.setCurrentText("g1")
+        qtbot.waitUntil(lambda: "boom" in window.statusBar().currentMessage(), timeout=10_000)
+        qtbot.wait(100)
+    assert not raised, raised[0][1]
+    assert not window.busy
