@@ -864,7 +864,8 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         self._pending_step = None
         self._worker = None
-        self.statusBar().showMessage(f"failed: {type(exc).__name__}: {exc}")
+        what = str(exc) if isinstance(exc, RunFailed) else f"{type(exc).__name__}: {exc}"
+        self.statusBar().showMessage(f"failed: {what}")
 
     def _show_translation(self) -> None:
         t = self.model.current_translation_m()
@@ -1084,11 +1085,20 @@ elevations and cuts the view with a plane you drag along its axis.</p>"""
 def _quietly(inputs, previous, step, cancelled):
     """:func:`compute` with the engine's warnings silenced (the status bar reports errors).
 
-    A run a newer request cancelled just ends: it is no error.
+    A run a newer request cancelled just ends: it is no error. An engine's
+    ``RuntimeError`` is raised as :class:`RunFailed`: superqt takes a
+    ``RuntimeError`` for a deleted worker and drops it, and the run would never end.
     """
     with warnings.catch_warnings(), contextlib.suppress(Cancelled):
         warnings.simplefilter("ignore")
-        yield from compute(inputs, previous, step, cancelled)
+        try:
+            yield from compute(inputs, previous, step, cancelled)
+        except RuntimeError as exc:
+            raise RunFailed(f"{type(exc).__name__}: {exc}") from exc
+
+
+class RunFailed(Exception):
+    """A run of the engine failed with a ``RuntimeError`` (the message names it)."""
 
 
 def run_viewer(input_path=None, project_path=None, *, cache: bool = True, **view) -> int:

@@ -357,3 +357,18 @@ def test_a_run_superseded_or_failing_raises_nothing_in_the_window(window, qtbot,
         qtbot.wait(100)
     assert not raised, raised[0][1]
     assert not window.busy
+
+
+def test_a_run_failing_with_a_runtime_error_is_reported_and_ends(window, qtbot, monkeypatch):
+    """superqt takes a RuntimeError for a deleted worker and drops it: the window said
+    "running..." for ever, and stayed busy (``wait_idle`` waited out its timeout)."""
+    import bgm_viewer.app as app
+
+    def failing(*args, **kwargs):
+        raise RuntimeError("SuperLU failed")
+        yield
+
+    monkeypatch.setattr(app, "compute", failing)
+    window.geozone_combo.setCurrentText("g2")
+    qtbot.waitUntil(lambda: not window.busy, timeout=10_000)
+    assert "failed: RuntimeError: SuperLU failed" in window.statusBar().currentMessage()
