@@ -977,12 +977,16 @@ class MainWindow(QtWidgets.QMainWindow):
         self._guard(lambda: self.export_screenshot(path, size))
 
     def export_surfaces(self, folder) -> dict[str, dict]:
-        """The shown surfaces, in every format ``bgm build`` writes, as ``folder/<geozone>/surface.<fmt>``."""
+        """The shown geozones' surfaces, in every format ``bgm build`` writes, as ``folder/<geozone>/surface.<fmt>``.
+
+        Each is the surface ``bgm build`` writes: the bodies the body filter hides from
+        the view are kept (label-noise bodies are the geologist's call in the mine software).
+        """
         from core.io.export import export_all
         from core.model.build import geozone_folders
         from core.model.surfaces import to_input_frame
 
-        surfaces = {g: m for g, m in self.model.result.surfaces.items() if self.scene.view.shows(g)}
+        surfaces = {g: m for g, m in self.model.result.built.items() if self.scene.view.shows(g)}
         if not surfaces:
             raise ValueError("no surface is shown: build or tick some first")
         f = self.model.holes.frame

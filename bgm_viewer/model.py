@@ -107,6 +107,8 @@ class PipelineResult:
     surface: trimesh.Trimesh | None = None  #: the selected geozone's surface, as ``bgm build`` exports it
     #: The surfaces shown, by geozone: ``bgm build``'s, less the bodies the body filter drops.
     surfaces: dict[str, trimesh.Trimesh] = field(default_factory=dict)
+    #: The same geozones' surfaces as ``bgm build`` exports them, every body kept (what the viewer exports).
+    built: dict[str, trimesh.Trimesh] = field(default_factory=dict)
     predicted: list = field(default_factory=list)  #: (geozone, z_m, polygon) below the deepest bench
     selection: Selection | None = None  #: what the pair, morph, model and surface were computed for
     min_component_holes: int = ModelParameters().min_component_holes
@@ -168,6 +170,7 @@ class _Run:
             predicted=prev.predicted if same else [],
             # other geozones' surfaces stay on screen until redone; those no longer asked for go
             surfaces={g: m for g, m in prev.surfaces.items() if g in (*inputs.surface_geozones, self.sel.geozone)},
+            built={g: m for g, m in prev.built.items() if g in (*inputs.surface_geozones, self.sel.geozone)},
             selection=self.sel,
             min_component_holes=self.session.params.min_component_holes,
             timings=dict(prev.timings),
@@ -180,7 +183,12 @@ class _Run:
     def snapshot(self) -> PipelineResult:
         r = self.res
         return replace(
-            r, contours=dict(r.contours), timings=dict(r.timings), errors=dict(r.errors), surfaces=dict(r.surfaces)
+            r,
+            contours=dict(r.contours),
+            timings=dict(r.timings),
+            errors=dict(r.errors),
+            surfaces=dict(r.surfaces),
+            built=dict(r.built),
         )
 
     def step(self, name: str, fn: Callable[[], object], error_key: str | None = None):
@@ -343,7 +351,7 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
 
 
 def _show_surface(run: _Run, geozone: str, mesh) -> None:
-    """Put ``mesh`` among the shown surfaces, without the bodies the body filter drops."""
+    """Put ``mesh`` among the built surfaces, and among the shown ones without the bodies the body filter drops."""
     from core.model.surfaces import drop_small_bodies
 
     inputs, holes = run.inputs, run.session.holes
@@ -354,10 +362,11 @@ def _show_surface(run: _Run, geozone: str, mesh) -> None:
         shown = drop_small_bodies(
             mesh, min_volume_m3=inputs.min_body_volume_m3, min_holes=inputs.min_body_holes, holes_xyz=xyz
         )
-    if shown is None:
-        run.res.surfaces.pop(geozone, None)
-    else:
-        run.res.surfaces[geozone] = shown
+    for kept, surfaces in ((mesh, run.res.built), (shown, run.res.surfaces)):
+        if kept is None:
+            surfaces.pop(geozone, None)
+        else:
+            surfaces[geozone] = kept
 
 
 def _other_surfaces(run: _Run) -> Iterator[Progress]:

@@ -372,3 +372,22 @@ def test_a_run_failing_with_a_runtime_error_is_reported_and_ends(window, qtbot, 
     window.geozone_combo.setCurrentText("g2")
     qtbot.waitUntil(lambda: not window.busy, timeout=10_000)
     assert "failed: RuntimeError: SuperLU failed" in window.statusBar().currentMessage()
+
+
+def test_exported_surfaces_keep_the_bodies_the_body_filter_hides(window, qtbot, tmp_path):
+    """The filter's tooltip says the exported surfaces keep the small bodies; they were dropped."""
+    import trimesh
+
+    g = max(
+        window.model.result.surfaces, key=lambda k: len(window.model.result.surfaces[k].split(only_watertight=False))
+    )
+    whole = window.model.result.surfaces[g]
+    volumes = sorted(abs(b.volume) for b in whole.split(only_watertight=False))
+    assert len(volumes) > 1
+    window.min_volume.setValue(volumes[-1] / window._mpu**3)  # only the biggest body is shown
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert len(window.model.result.surfaces[g].faces) < len(whole.faces)
+    assert "keep" in window.min_volume.toolTip()
+    written = window.export_surfaces(tmp_path)
+    exported = trimesh.load(written[g]["ply"], force="mesh")
+    assert len(exported.faces) == len(whole.faces)
