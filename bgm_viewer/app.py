@@ -986,6 +986,7 @@ class MainWindow(QtWidgets.QMainWindow):
         from core.model.build import geozone_folders
         from core.model.surfaces import to_input_frame
 
+        self._check_up_to_date()
         surfaces = {g: m for g, m in self.model.result.built.items() if self.scene.view.shows(g)}
         if not surfaces:
             raise ValueError("no surface is shown: build or tick some first")
@@ -998,6 +999,17 @@ class MainWindow(QtWidgets.QMainWindow):
             moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
             out[g] = export_all(moved, gdir, "surface", name=g)
         return out
+
+    def _check_up_to_date(self) -> None:
+        """Refuse to export while a run is pending: the surfaces shown are those before the last change.
+
+        An alignment or parameter just changed leaves the old surfaces on screen until
+        they are redone; exported then, they would not hold the change.
+        """
+        if self.busy:
+            raise ValueError(
+                "the model is being recomputed after the last change: export once the status bar says done"
+            )
 
     def export_surfaces_dialog(self) -> None:
         folder = QtWidgets.QFileDialog.getExistingDirectory(self, "Export shown surfaces to")
@@ -1012,6 +1024,7 @@ class MainWindow(QtWidgets.QMainWindow):
         from core.io.export import export_surface
         from core.model.surfaces import to_input_frame
 
+        self._check_up_to_date()
         mesh = self.model.result.surface
         if mesh is None:
             raise ValueError("no surface has been computed yet")

@@ -391,3 +391,18 @@ def test_exported_surfaces_keep_the_bodies_the_body_filter_hides(window, qtbot, 
     written = window.export_surfaces(tmp_path)
     exported = trimesh.load(written[g]["ply"], force="mesh")
     assert len(exported.faces) == len(whole.faces)
+
+
+def test_a_surface_is_not_exported_before_the_last_change_is_in_it(window, qtbot, tmp_path):
+    """Exported right after an alignment change, the surface was the one from before it."""
+    auto = window.model.current_translation_m()
+    window.dx_spin.setValue(auto[0] + 8.0)
+    window.apply_translation()
+    assert window.busy
+    for export in (window.export_surface, window.export_surfaces):
+        with pytest.raises(ValueError, match="recomputed"):
+            export(tmp_path / "surface.obj")
+    assert not list(tmp_path.iterdir())
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.export_surface(tmp_path / "surface.obj")
+    assert (tmp_path / "surface.obj").stat().st_size > 0
