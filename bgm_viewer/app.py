@@ -301,15 +301,9 @@ class MainWindow(QtWidgets.QMainWindow):
         w = QtWidgets.QWidget()
         form = QtWidgets.QFormLayout(w)
         self.surface_scope = QtWidgets.QComboBox()
-        self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
-        if self.model.surface_geozones is not None:  # a host rock's surface would wrap the bodies
-            host = sorted(set(self.model.holes.geozones) - set(self.model.surface_geozones))
-            self.surface_scope.insertItem(0, f"all but the host rock ({', '.join(host)})")
-            self.surface_scope.setCurrentIndex(0)
         self.surface_scope.setToolTip("Whose surfaces are built and shown (each is the one bgm build exports)")
         self.surface_scope.currentIndexChanged.connect(self._on_shown_geozones)
         form.addRow("surfaces of", self.surface_scope)
-        unit = self.model.holes.frame.length_unit
         self.min_volume = QtWidgets.QDoubleSpinBox()
         self.min_volume.setRange(0.0, 1e12)
         self.min_volume.setDecimals(0)
@@ -319,7 +313,7 @@ class MainWindow(QtWidgets.QMainWindow):
             " makes a small body of its own. The exported surfaces keep them."
         )
         self.min_volume.valueChanged.connect(self._on_body_filter)
-        self._volume_label = QtWidgets.QLabel(f"min body volume ({unit}³)")
+        self._volume_label = QtWidgets.QLabel()
         form.addRow(self._volume_label, self.min_volume)
         self.min_holes = QtWidgets.QSpinBox()
         self.min_holes.setRange(0, 10000)
@@ -327,7 +321,26 @@ class MainWindow(QtWidgets.QMainWindow):
         self.min_holes.setToolTip("Bodies holding fewer of their geozone's holes than this are not shown")
         self.min_holes.valueChanged.connect(self._on_body_filter)
         form.addRow("min holes in a body", self.min_holes)
+        self._fill_surface_panel()
         self._dock("Surfaces", w, Qt.DockWidgetArea.LeftDockWidgetArea)
+
+    def _fill_surface_panel(self) -> None:
+        """Show the model's surface scope and body filter, in its input's units, without emitting."""
+        m = self.model
+        widgets = (self.surface_scope, self.min_volume, self.min_holes)
+        for wid in widgets:
+            wid.blockSignals(True)
+        self.surface_scope.clear()
+        self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
+        if m.surface_geozones is not None:  # a host rock's surface would wrap the bodies
+            host = sorted(set(m.holes.geozones) - set(m.surface_geozones))
+            self.surface_scope.insertItem(0, f"all but the host rock ({', '.join(host)})")
+        self.surface_scope.setCurrentIndex(0)
+        self._volume_label.setText(f"min body volume ({m.holes.frame.length_unit}³)")
+        self.min_volume.setValue(m.min_body_volume_m3 / self._mpu**3)
+        self.min_holes.setValue(m.min_body_holes)
+        for wid in widgets:
+            wid.blockSignals(False)
 
     def _on_shown_geozones(self, *_) -> None:
         """Whose surfaces are built changed (scope or legend ticks): build the ones missing."""
@@ -914,6 +927,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.ve_spin.setValue(model.vertical_exaggeration)
         self.legend.set_holes(model.holes)
         self.sections.set_holes(model.holes)
+        self._fill_surface_panel()
         self._fitted = False
         self.renderer.set_camera("iso")
         self._update_title()

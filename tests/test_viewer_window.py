@@ -406,3 +406,30 @@ def test_a_surface_is_not_exported_before_the_last_change_is_in_it(window, qtbot
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
     window.export_surface(tmp_path / "surface.obj")
     assert (tmp_path / "surface.obj").stat().st_size > 0
+
+
+def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp_path):
+    """After File > Open, the Surfaces dock still said m³, showed the old body filter (which no
+    longer applied) and named the old input's host rock."""
+    from core.io.blastholes import FEET_TO_METRES
+
+    window.min_volume.setValue(500.0)
+    window.min_holes.setValue(3)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    h = small_holes()
+    feet = pd.DataFrame(
+        {
+            "x": h.xy[:, 0] / FEET_TO_METRES + 10_000,
+            "y": h.xy[:, 1] / FEET_TO_METRES + 20_000,
+            "z": h.z / FEET_TO_METRES,
+            "geozone": [f"z{g}" for g in h.geozone],
+        }
+    )
+    feet.to_csv(tmp_path / "feet.csv", index=False)
+    window.open_input(tmp_path / "feet.csv")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.model.holes.frame.length_unit == "ft"
+    assert window._volume_label.text() == "min body volume (ft³)"
+    assert (window.min_volume.value(), window.min_holes.value()) == (0.0, 0)
+    assert (window.model.min_body_volume_m3, window.model.min_body_holes) == (0.0, 0)
+    assert window.surface_scope.currentText() == "all but the host rock (zg0)"
