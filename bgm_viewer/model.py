@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import functools
+import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
@@ -433,6 +434,23 @@ def project_input(project_path) -> str | None:
     return str(path)
 
 
+def input_relative_to(input_path: str | None, project_path) -> str | None:
+    """``input_path`` as a project file at ``project_path`` names it: relative to the project's folder.
+
+    :func:`project_input` reads it against that folder; named as given (relative to
+    the folder the viewer was started in), a project saved in another folder did not
+    find its input. An input that is no file (``-``, the demo) is named as given, and
+    one that no relative path reaches (another drive) by its absolute path.
+    """
+    if input_path is None or not Path(input_path).is_file():
+        return input_path
+    absolute = Path(input_path).resolve()
+    try:
+        return os.path.relpath(absolute, Path(project_path).resolve().parent)
+    except ValueError:
+        return str(absolute)
+
+
 def _hole_attributes(path: str | None, holes: Blastholes):
     from scipy.spatial import cKDTree
 
@@ -778,9 +796,12 @@ class ViewerModel:
         return Project(parameters=params, overrides=copy.deepcopy(self.overrides), input_path=self.input_path)
 
     def save_project(self, path: str | Path) -> None:
+        """Write the project to ``path``, naming the input relative to the project's folder (as it is read)."""
         from core.io.project import save_project
 
-        save_project(self.to_project(), path)
+        project = self.to_project()
+        project.input_path = input_relative_to(self.input_path, path)
+        save_project(project, path)
         self.project_path = str(path)
         self.dirty = False
 

@@ -307,3 +307,19 @@ def test_a_translation_the_project_could_not_reopen_is_refused(tmp_path):
     model.set_translation(100.0, -100.0)  # long but on the input: a correction
     model.save_project(tmp_path / "p.json")
     ViewerModel(model.holes).load_project(tmp_path / "p.json")
+
+
+def test_a_project_saved_in_another_folder_finds_its_input(tmp_path, monkeypatch):
+    """`bgm view holes.csv`, saved as sub/p.json: the project named holes.csv, read as sub/holes.csv."""
+    from pathlib import Path
+
+    from bgm_viewer.model import ViewerModel, project_input
+
+    monkeypatch.chdir(tmp_path)
+    Path("holes.csv").write_text(Path(__file__).parents[1].joinpath("assets/demo_blastholes.csv").read_text())
+    model = ViewerModel("holes.csv")
+    (tmp_path / "sub").mkdir()
+    model.save_project("sub/p.json")
+    model.save_project(tmp_path / "p.json")
+    for project in ("sub/p.json", tmp_path / "p.json"):
+        assert Path(project_input(project)).resolve() == (tmp_path / "holes.csv").resolve()
