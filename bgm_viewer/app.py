@@ -903,9 +903,11 @@ class MainWindow(QtWidgets.QMainWindow):
         return not self.busy
 
     # ------------------------------------------------------------------ files
-    def open_input(self, path) -> None:
-        model = ViewerModel(path, cache=self.model.store.cache is not None)
+    def open_input(self, path) -> list[str]:
+        """Show the blastholes of ``path``; returns what reading them warned of (repairs), also shown by the dialog."""
+        model, notes = _noted(lambda: ViewerModel(path, cache=self.model.store.cache is not None))
         self._replace_model(model)
+        return notes
 
     def _replace_model(self, model: ViewerModel) -> None:
         self._cancel()
@@ -940,21 +942,33 @@ class MainWindow(QtWidgets.QMainWindow):
             self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
         )
         if path:
-            self._guard(lambda: self.open_input(path))
+            self._guard(lambda: self._tell(self.open_input(path)))
 
-    def open_project(self, path) -> None:
-        inp = project_input(path)
-        cache = self.model.store.cache is not None
-        model = ViewerModel(inp, cache=cache) if inp else ViewerModel(self.model.holes, cache=cache)
-        model.load_project(path)
+    def open_project(self, path) -> list[str]:
+        """Open a project and its input; returns what they warned of (overrides or parameters left unused)."""
+
+        def load() -> ViewerModel:
+            inp = project_input(path)
+            cache = self.model.store.cache is not None
+            model = ViewerModel(inp, cache=cache) if inp else ViewerModel(self.model.holes, cache=cache)
+            model.load_project(path)
+            return model
+
+        model, notes = _noted(load)
         self._replace_model(model)
+        return notes
+
+    def _tell(self, notes: list[str]) -> None:
+        """Show the warnings of opening a file: only on stderr, a geologist never saw them."""
+        if notes:
+            QtWidgets.QMessageBox.warning(self, "BGM viewer", "\n\n".join(notes))
 
     def open_project_dialog(self) -> None:
         if not self._confirm_discard():
             return
         path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Open project", "", "BGM project (*.json);;All files (*)")
         if path:
-            self._guard(lambda: self.open_project(path))
+            self._guard(lambda: self._tell(self.open_project(path)))
 
     def save_project(self, ask: bool = False) -> bool:
         path = self.model.project_path
@@ -1111,6 +1125,23 @@ selects its geozone (and bench pair and component)</td></tr>
 </table>
 <p>The Geozones dock shows or hides each geozone; Benches and section hides benches, limits
 elevations and cuts the view with a plane you drag along its axis.</p>"""
+
+
+def _noted(fn):
+    """``(fn(), messages)``: the messages of the :class:`~core.errors.BGMWarning` ``fn`` gave, which go
+    on stderr too. Other warnings pass on as usual.
+    """
+    from core.errors import BGMWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BGMWarning)
+        out = fn()
+    notes = []
+    for w in caught:
+        if issubclass(w.category, BGMWarning):
+            notes.append(str(w.message))
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return out, notes
 
 
 def _quietly(inputs, previous, step, cancelled):

@@ -433,3 +433,21 @@ def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp
     assert (window.min_volume.value(), window.min_holes.value()) == (0.0, 0)
     assert (window.model.min_body_volume_m3, window.model.min_body_holes) == (0.0, 0)
     assert window.surface_scope.currentText() == "all but the host rock (zg0)"
+
+
+def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeypatch, tmp_path):
+    """File > Open project: check_project's warnings (an override of a geozone or bench the
+    input lacks is not used) went to stderr only, and the geologist thought it applied."""
+    import json
+
+    path = tmp_path / "p.json"
+    window.model.save_project(path)
+    data = json.loads(path.read_text())
+    data["overrides"] = [{"geozone": "nope", "source_z": 1.0, "source": 0, "translation": [1.0, 0.0]}]
+    path.write_text(json.dumps(data))
+    shown = []
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (str(path), ""))
+    monkeypatch.setattr(QtWidgets.QMessageBox, "warning", lambda parent, title, text, *a: shown.append(text))
+    with pytest.warns(UserWarning, match="is not used"):  # on stderr as before
+        window.open_project_dialog()
+    assert len(shown) == 1 and "'nope'" in shown[0] and "is not used" in shown[0]
