@@ -30,6 +30,7 @@ from superqt import QLabeledDoubleSlider, QLabeledSlider
 from superqt.utils import create_worker
 
 from core.io.blastholes import Blastholes
+from core.io.project import VIEWER_RANGES
 from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
@@ -400,7 +401,9 @@ class MainWindow(QtWidgets.QMainWindow):
         buttons.addWidget(step)
         form.addRow(buttons)
         self.ve_spin = QtWidgets.QDoubleSpinBox()
-        self.ve_spin.setRange(0.1, 20.0)
+        # what a project and bgm view --exaggeration may ask for: a narrower range showed another value than drawn
+        self.ve_spin.setDecimals(2)
+        self.ve_spin.setRange(0.01, VIEWER_RANGES["vertical_exaggeration"].high)
         self.ve_spin.setSingleStep(0.5)
         self.ve_spin.setValue(self.model.vertical_exaggeration)
         self.ve_spin.valueChanged.connect(self._on_ve)

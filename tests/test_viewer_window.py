@@ -451,3 +451,17 @@ def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeyp
     with pytest.warns(UserWarning, match="is not used"):  # on stderr as before
         window.open_project_dialog()
     assert len(shown) == 1 and "'nope'" in shown[0] and "is not used" in shown[0]
+
+
+@pytest.mark.parametrize("exaggeration", [50.0, 0.05])
+def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration):
+    """`bgm view --exaggeration 50` (or a project's) drew 50 while the panel, limited to 0.1-20, said 20."""
+    from bgm_viewer.app import viewer_window
+
+    win = viewer_window(small_holes(), vertical_exaggeration=exaggeration)
+    try:
+        assert win.scene.vertical_exaggeration == win.model.vertical_exaggeration == exaggeration
+        assert win.ve_spin.value() == exaggeration
+    finally:
+        win.model.dirty = False
+        win.close()
