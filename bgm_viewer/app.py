@@ -35,7 +35,7 @@ from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
 from .builders import build_scene, empty_layer_reasons, refresh_scene
-from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers
+from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, SCREENSHOT_FORMATS, parse_layers
 from .model import STEPS, Cancelled, ViewerModel, bodies, compute, display_unit, project_input
 from .scene import SceneRenderer, drag_on_plane
 
@@ -983,15 +983,30 @@ class MainWindow(QtWidgets.QMainWindow):
                 return False
         return self._guard(lambda: self.model.save_project(path))
 
-    def export_screenshot(self, path, size: tuple[int, int] | None = None) -> None:
-        """The current view as a PNG, ``size`` pixels (width, height; default the view's), written atomically."""
+    def export_screenshot(self, path, size: tuple[int, int] | None = None) -> Path:
+        """The current view as a picture, ``size`` pixels (width, height; default the view's), written atomically.
+
+        The format is the extension's, in any case (:data:`SCREENSHOT_FORMATS`); a name
+        without one (the file dialog adds none) gets ``.png``. Returns the path written.
+        """
         from core.io.atomic import atomic_path
 
-        with atomic_path(path) as tmp:
+        path = Path(path)
+        if not path.suffix:
+            path = path.with_name(path.name + ".png")
+        suffix = path.suffix.lower()  # PyVista knows lower-case extensions only
+        if suffix not in SCREENSHOT_FORMATS:
+            raise ValueError(
+                f"{path.name}: no picture format {path.suffix}; use one of {', '.join(SCREENSHOT_FORMATS)}"
+            )
+        with atomic_path(path, suffix=suffix) as tmp:
             self.plotter.screenshot(str(tmp), window_size=list(size) if size else None)
+        return path
 
     def export_screenshot_dialog(self) -> None:
-        path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Export screenshot", "bgm.png", "PNG (*.png)")
+        path, _ = QtWidgets.QFileDialog.getSaveFileName(
+            self, "Export screenshot", "bgm.png", "Pictures (" + " ".join(f"*{s}" for s in SCREENSHOT_FORMATS) + ")"
+        )
         if not path:
             return
         w, h = self.plotter.window_size

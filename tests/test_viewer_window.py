@@ -465,3 +465,15 @@ def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration
     finally:
         win.model.dirty = False
         win.close()
+
+
+def test_a_screenshot_named_in_capitals_or_without_an_extension_is_written(window, tmp_path):
+    """File > Export screenshot: View.PNG and a name the dialog left without .png failed with
+    PyVista's "Unsupported extension" (of the temporary file's random name, for the latter)."""
+    assert window.export_screenshot(tmp_path / "View.PNG", (320, 240)) == tmp_path / "View.PNG"
+    assert window.export_screenshot(tmp_path / "view", (320, 240)) == tmp_path / "view.png"
+    for name in ("View.PNG", "view.png"):
+        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(ValueError, match="no picture format .gif"):
+        window.export_screenshot(tmp_path / "view.gif")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["View.PNG", "view.png"]
