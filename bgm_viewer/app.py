@@ -716,6 +716,7 @@ class MainWindow(QtWidgets.QMainWindow):
         with self.renderer.batch():
             self.scene.vertical_exaggeration = float(v)
             self.renderer.fit()  # the data got taller or flatter: fit them again
+        self.sections.follow_view()
 
     def set_layer_visible(self, name: str, visible: bool) -> None:
         item = self.layer_list.findItems(name, Qt.MatchFlag.MatchExactly)[0]

@@ -172,6 +172,15 @@ class SectionPanel(QtWidgets.QWidget):
             float(f.z_to_local(self.z_min.value())), float(f.z_to_local(self.z_max.value()))
         )
 
+    def follow_view(self) -> None:
+        """Put the section back where its slider says in the data, after the drawing changed scale.
+
+        The cut is in drawn coordinates: after a change of vertical exaggeration an
+        elevation section kept its drawn height and so cut another elevation.
+        """
+        if self.clip_axis() is not None:
+            self._clip_changed()
+
     def clip_axis(self) -> str | None:
         return (None, "x", "y", "z")[self.axis.currentIndex()]
 

@@ -477,3 +477,20 @@ def test_a_screenshot_named_in_capitals_or_without_an_extension_is_written(windo
     with pytest.raises(ValueError, match="no picture format .gif"):
         window.export_screenshot(tmp_path / "view.gif")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["View.PNG", "view.png"]
+
+
+def test_an_elevation_section_stays_at_its_elevation_when_the_exaggeration_changes(window):
+    """The section plane is drawn in display z: after a change of vertical exaggeration it cut another elevation."""
+
+    def cut_elevation() -> float:
+        axis, value, _ = window.renderer.clip
+        assert axis == "z"
+        view = window.scene.view
+        return view.z_ref + (value - view.z_ref) / view.vertical_exaggeration
+
+    window.sections.axis.setCurrentIndex(3)  # elevation (z)
+    window.sections.position.setValue(700)
+    before = cut_elevation()
+    window.ve_spin.setValue(5.0)
+    assert window.scene.view.vertical_exaggeration == 5.0
+    assert cut_elevation() == pytest.approx(before, abs=0.05)  # the glyphs of the holes do not scale
