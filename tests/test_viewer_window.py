@@ -494,3 +494,16 @@ def test_an_elevation_section_stays_at_its_elevation_when_the_exaggeration_chang
     window.ve_spin.setValue(5.0)
     assert window.scene.view.vertical_exaggeration == 5.0
     assert cut_elevation() == pytest.approx(before, abs=0.05)  # the glyphs of the holes do not scale
+
+
+def test_a_section_is_placed_in_another_input_once_opened(window, qtbot):
+    """File > Open with a section on: the cut and its plane handle stayed where they cut the old input."""
+    from pathlib import Path
+
+    window.sections.axis.setCurrentIndex(1)  # easting (x)
+    window.sections.position.setValue(900)
+    window.open_input(Path(__file__).parents[1] / "assets" / "demo_blastholes.csv")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=120_000)
+    lo, hi = window.renderer.data_bounds()[:2]
+    axis, value, _ = window.renderer.clip
+    assert axis == "x" and (value - lo) / (hi - lo) == pytest.approx(0.9, abs=0.02)
