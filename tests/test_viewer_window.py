@@ -507,3 +507,34 @@ def test_a_section_is_placed_in_another_input_once_opened(window, qtbot):
     lo, hi = window.renderer.data_bounds()[:2]
     axis, value, _ = window.renderer.clip
     assert axis == "x" and (value - lo) / (hi - lo) == pytest.approx(0.9, abs=0.02)
+
+
+def test_a_click_reports_what_is_shown_not_what_a_section_hides(window):
+    """With only the deepest bench shown, a click on its holes reported holes of the benches
+    above (hidden by the elevation range): the picker ignored the clipping planes."""
+    from bgm_viewer.scene import world_to_pixels
+
+    h = window.model.holes
+    for name in ("contours", "snake", "trajectories", "surfaces", "predicted contours"):
+        window.set_layer_visible(name, False)
+    window.set_camera("top")
+    deep = h.n_benches - 1
+    z_input = float(h.frame.z_to_input(h.bench_levels_m[deep]))
+    window.sections.set_elevation_range(z_input - 1.0, z_input + 1.0)
+    z = window.scene.view.z(h.bench_levels_m[deep])
+    on_bench = h.on_bench(deep)
+    reported = []
+    for i in on_bench[:: max(len(on_bench) // 12, 1)]:
+        col, row = world_to_pixels(window.plotter, np.array([[*h.xy[i], z]]))[0]
+        info = window.pick(int(round(col)), int(round(window.plotter.window_size[1] - 1 - row)))
+        reported.append(None if info is None else info[f"bench ({h.frame.length_unit})"])
+    assert reported and set(reported) == {z_input}
+    # contours are picked as before: a click on a contour's vertex selects its geozone
+    window.sections.set_elevation_range(-1e5, 1e5)
+    window.set_layer_visible("blastholes", False)
+    window.set_layer_visible("contours", True)
+    g, z_m, poly = window.scene["contours"].items[0]
+    x, y = poly.exterior.coords[0]
+    col, row = world_to_pixels(window.plotter, np.array([[x, y, window.scene.view.z(z_m)]]))[0]
+    info = window.pick(int(round(col)), int(round(window.plotter.window_size[1] - 1 - row)))
+    assert info is not None and info["geozone"] == g
