@@ -443,7 +443,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.bench_combo.clear()
         for k in range(max(h.n_benches - 1, 1)):
             lo = h.bench_z_input(k + 1) if k + 1 < h.n_benches else float("nan")
-            self.bench_combo.addItem(f"{h.bench_z_input(k):g} -> {lo:g}")
+            self.bench_combo.addItem(f"{h.bench_z_input(k):g} -> {lo:g} {h.frame.length_unit}")
         self.bench_combo.setCurrentIndex(sel.bench)
         self.component_spin.setValue(sel.component)
         for wid in (self.geozone_combo, self.bench_combo, self.component_spin):

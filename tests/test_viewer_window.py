@@ -182,6 +182,8 @@ def test_panels_speak_the_inputs_units_and_sliders_keep_values(qtbot):
     try:
         qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
         assert "(ft)" in win._unit_labels[0].text() and "(ft)" in win._unit_labels[1].text()
+        h = win.model.holes  # the bench pairs are elevations in feet too
+        assert win.bench_combo.itemText(0) == f"{h.bench_z_input(0):g} -> {h.bench_z_input(1):g} ft"
         t_m = win.model.current_translation_m()
         assert t_m is not None
         np.testing.assert_allclose([win.dx_spin.value(), win.dy_spin.value()], np.divide(t_m, 0.3048), atol=0.01)
