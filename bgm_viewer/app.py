@@ -15,6 +15,7 @@ real display or ``xvfb-run``.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import itertools
 import threading
@@ -29,12 +30,13 @@ from superqt import QLabeledDoubleSlider, QLabeledSlider
 from superqt.utils import create_worker
 
 from core.io.blastholes import Blastholes
+from core.io.project import VIEWER_RANGES
 from core.model.parameters import PARAMETERS, ParameterSpec
 
 from . import _vtkenv  # noqa: F401
 from .builders import build_scene, empty_layer_reasons, refresh_scene
-from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers
-from .model import STEPS, ViewerModel, bodies, compute, display_unit, project_input
+from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, SCREENSHOT_FORMATS, parse_layers
+from .model import STEPS, Cancelled, ViewerModel, bodies, compute, display_unit, project_input
 from .scene import SceneRenderer, drag_on_plane
 
 Qt = QtCore.Qt
@@ -300,15 +302,9 @@ class MainWindow(QtWidgets.QMainWindow):
         w = QtWidgets.QWidget()
         form = QtWidgets.QFormLayout(w)
         self.surface_scope = QtWidgets.QComboBox()
-        self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
-        if self.model.surface_geozones is not None:  # a host rock's surface would wrap the bodies
-            host = sorted(set(self.model.holes.geozones) - set(self.model.surface_geozones))
-            self.surface_scope.insertItem(0, f"all but the host rock ({', '.join(host)})")
-            self.surface_scope.setCurrentIndex(0)
         self.surface_scope.setToolTip("Whose surfaces are built and shown (each is the one bgm build exports)")
         self.surface_scope.currentIndexChanged.connect(self._on_shown_geozones)
         form.addRow("surfaces of", self.surface_scope)
-        unit = self.model.holes.frame.length_unit
         self.min_volume = QtWidgets.QDoubleSpinBox()
         self.min_volume.setRange(0.0, 1e12)
         self.min_volume.setDecimals(0)
@@ -318,7 +314,7 @@ class MainWindow(QtWidgets.QMainWindow):
             " makes a small body of its own. The exported surfaces keep them."
         )
         self.min_volume.valueChanged.connect(self._on_body_filter)
-        self._volume_label = QtWidgets.QLabel(f"min body volume ({unit}³)")
+        self._volume_label = QtWidgets.QLabel()
         form.addRow(self._volume_label, self.min_volume)
         self.min_holes = QtWidgets.QSpinBox()
         self.min_holes.setRange(0, 10000)
@@ -326,7 +322,26 @@ class MainWindow(QtWidgets.QMainWindow):
         self.min_holes.setToolTip("Bodies holding fewer of their geozone's holes than this are not shown")
         self.min_holes.valueChanged.connect(self._on_body_filter)
         form.addRow("min holes in a body", self.min_holes)
+        self._fill_surface_panel()
         self._dock("Surfaces", w, Qt.DockWidgetArea.LeftDockWidgetArea)
+
+    def _fill_surface_panel(self) -> None:
+        """Show the model's surface scope and body filter, in its input's units, without emitting."""
+        m = self.model
+        widgets = (self.surface_scope, self.min_volume, self.min_holes)
+        for wid in widgets:
+            wid.blockSignals(True)
+        self.surface_scope.clear()
+        self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
+        if m.surface_geozones is not None:  # a host rock's surface would wrap the bodies
+            host = sorted(set(m.holes.geozones) - set(m.surface_geozones))
+            self.surface_scope.insertItem(0, f"all but the host rock ({', '.join(host)})")
+        self.surface_scope.setCurrentIndex(0)
+        self._volume_label.setText(f"min body volume ({m.holes.frame.length_unit}³)")
+        self.min_volume.setValue(m.min_body_volume_m3 / self._mpu**3)
+        self.min_holes.setValue(m.min_body_holes)
+        for wid in widgets:
+            wid.blockSignals(False)
 
     def _on_shown_geozones(self, *_) -> None:
         """Whose surfaces are built changed (scope or legend ticks): build the ones missing."""
@@ -386,7 +401,9 @@ class MainWindow(QtWidgets.QMainWindow):
         buttons.addWidget(step)
         form.addRow(buttons)
         self.ve_spin = QtWidgets.QDoubleSpinBox()
-        self.ve_spin.setRange(0.1, 20.0)
+        # what a project and bgm view --exaggeration may ask for: a narrower range showed another value than drawn
+        self.ve_spin.setDecimals(2)
+        self.ve_spin.setRange(0.01, VIEWER_RANGES["vertical_exaggeration"].high)
         self.ve_spin.setSingleStep(0.5)
         self.ve_spin.setValue(self.model.vertical_exaggeration)
         self.ve_spin.valueChanged.connect(self._on_ve)
@@ -426,7 +443,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.bench_combo.clear()
         for k in range(max(h.n_benches - 1, 1)):
             lo = h.bench_z_input(k + 1) if k + 1 < h.n_benches else float("nan")
-            self.bench_combo.addItem(f"{h.bench_z_input(k):g} -> {lo:g}")
+            self.bench_combo.addItem(f"{h.bench_z_input(k):g} -> {lo:g} {h.frame.length_unit}")
         self.bench_combo.setCurrentIndex(sel.bench)
         self.component_spin.setValue(sel.component)
         for wid in (self.geozone_combo, self.bench_combo, self.component_spin):
@@ -699,6 +716,7 @@ class MainWindow(QtWidgets.QMainWindow):
         with self.renderer.batch():
             self.scene.vertical_exaggeration = float(v)
             self.renderer.fit()  # the data got taller or flatter: fit them again
+        self.sections.follow_view()
 
     def set_layer_visible(self, name: str, visible: bool) -> None:
         item = self.layer_list.findItems(name, Qt.MatchFlag.MatchExactly)[0]
@@ -722,22 +740,35 @@ class MainWindow(QtWidgets.QMainWindow):
         """Metres per input unit (the panels speak the input's units, the model metres)."""
         return float(self.model.holes.frame.metres_per_unit)
 
+    def _align(self, change, *args) -> None:
+        """Apply an alignment change of the model and re-run; a change it refuses is said in the status bar.
+
+        These are slots (buttons, keys, a drag): an exception raised in one would
+        only be printed, or end the application.
+        """
+        try:
+            step = change(*args)
+        except ValueError as exc:
+            self.statusBar().showMessage(f"alignment not changed: {exc}", 10000)
+            return
+        self.request(step, immediate=True)
+
     def apply_translation(self) -> None:
         """Lock the translation typed in the panel (input units)."""
         dx, dy = self.dx_spin.value() * self._mpu, self.dy_spin.value() * self._mpu
-        self.request(self.model.set_translation(dx, dy), immediate=True)
+        self._align(self.model.set_translation, dx, dy)
 
     def nudge(self, ddx: float, ddy: float) -> None:
-        self.request(self.model.nudge(ddx, ddy), immediate=True)
+        self._align(self.model.nudge, ddx, ddy)
 
     def lock_current(self) -> None:
-        self.request(self.model.lock_current(), immediate=True)
+        self._align(self.model.lock_current)
 
     def clear_override(self) -> None:
-        self.request(self.model.clear_override(), immediate=True)
+        self._align(self.model.clear_override)
 
     def set_association(self, target: int, flag) -> None:
-        self.request(self.model.set_association(target, flag), immediate=True)
+        self._align(self.model.set_association, target, flag)
 
     def undo(self) -> None:
         stage = self.model.undo()
@@ -792,12 +823,18 @@ class MainWindow(QtWidgets.QMainWindow):
         self._started = time.perf_counter()
         self.statusBar().showMessage(f"running from {step}...")
         self.progress_bar.setValue(0)
+        # errored is connected here: connected later, superqt also raised every error again in Qt's thread
         worker = create_worker(
-            _quietly, self.model.inputs(), self.model.result, step, self._stop.is_set, _start_thread=False
+            _quietly,
+            self.model.inputs(),
+            self.model.result,
+            step,
+            self._stop.is_set,
+            _start_thread=False,
+            _connect={"errored": lambda exc, job=job: self._on_failed(job, exc)},
         )
         worker.yielded.connect(lambda item, job=job: self._on_progress(job, *item))
         worker.returned.connect(lambda _, job=job: self._on_finished(job))
-        worker.errored.connect(lambda exc, job=job: self._on_failed(job, exc))
         self._worker = worker
         worker.start()
 
@@ -844,7 +881,8 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         self._pending_step = None
         self._worker = None
-        self.statusBar().showMessage(f"failed: {type(exc).__name__}: {exc}")
+        what = str(exc) if isinstance(exc, RunFailed) else f"{type(exc).__name__}: {exc}"
+        self.statusBar().showMessage(f"failed: {what}")
 
     def _show_translation(self) -> None:
         t = self.model.current_translation_m()
@@ -869,9 +907,11 @@ class MainWindow(QtWidgets.QMainWindow):
         return not self.busy
 
     # ------------------------------------------------------------------ files
-    def open_input(self, path) -> None:
-        model = ViewerModel(path, cache=self.model.store.cache is not None)
+    def open_input(self, path) -> list[str]:
+        """Show the blastholes of ``path``; returns what reading them warned of (repairs), also shown by the dialog."""
+        model, notes = _noted(lambda: ViewerModel(path, cache=self.model.store.cache is not None))
         self._replace_model(model)
+        return notes
 
     def _replace_model(self, model: ViewerModel) -> None:
         self._cancel()
@@ -893,6 +933,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.ve_spin.setValue(model.vertical_exaggeration)
         self.legend.set_holes(model.holes)
         self.sections.set_holes(model.holes)
+        self._fill_surface_panel()
         self._fitted = False
         self.renderer.set_camera("iso")
         self._update_title()
@@ -905,21 +946,33 @@ class MainWindow(QtWidgets.QMainWindow):
             self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
         )
         if path:
-            self._guard(lambda: self.open_input(path))
+            self._guard(lambda: self._tell(self.open_input(path)))
 
-    def open_project(self, path) -> None:
-        inp = project_input(path)
-        cache = self.model.store.cache is not None
-        model = ViewerModel(inp, cache=cache) if inp else ViewerModel(self.model.holes, cache=cache)
-        model.load_project(path)
+    def open_project(self, path) -> list[str]:
+        """Open a project and its input; returns what they warned of (overrides or parameters left unused)."""
+
+        def load() -> ViewerModel:
+            inp = project_input(path)
+            cache = self.model.store.cache is not None
+            model = ViewerModel(inp, cache=cache) if inp else ViewerModel(self.model.holes, cache=cache)
+            model.load_project(path)
+            return model
+
+        model, notes = _noted(load)
         self._replace_model(model)
+        return notes
+
+    def _tell(self, notes: list[str]) -> None:
+        """Show the warnings of opening a file: only on stderr, a geologist never saw them."""
+        if notes:
+            QtWidgets.QMessageBox.warning(self, "BGM viewer", "\n\n".join(notes))
 
     def open_project_dialog(self) -> None:
         if not self._confirm_discard():
             return
         path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Open project", "", "BGM project (*.json);;All files (*)")
         if path:
-            self._guard(lambda: self.open_project(path))
+            self._guard(lambda: self._tell(self.open_project(path)))
 
     def save_project(self, ask: bool = False) -> bool:
         path = self.model.project_path
@@ -931,15 +984,30 @@ class MainWindow(QtWidgets.QMainWindow):
                 return False
         return self._guard(lambda: self.model.save_project(path))
 
-    def export_screenshot(self, path, size: tuple[int, int] | None = None) -> None:
-        """The current view as a PNG, ``size`` pixels (width, height; default the view's), written atomically."""
+    def export_screenshot(self, path, size: tuple[int, int] | None = None) -> Path:
+        """The current view as a picture, ``size`` pixels (width, height; default the view's), written atomically.
+
+        The format is the extension's, in any case (:data:`SCREENSHOT_FORMATS`); a name
+        without one (the file dialog adds none) gets ``.png``. Returns the path written.
+        """
         from core.io.atomic import atomic_path
 
-        with atomic_path(path) as tmp:
+        path = Path(path)
+        if not path.suffix:
+            path = path.with_name(path.name + ".png")
+        suffix = path.suffix.lower()  # PyVista knows lower-case extensions only
+        if suffix not in SCREENSHOT_FORMATS:
+            raise ValueError(
+                f"{path.name}: no picture format {path.suffix}; use one of {', '.join(SCREENSHOT_FORMATS)}"
+            )
+        with atomic_path(path, suffix=suffix) as tmp:
             self.plotter.screenshot(str(tmp), window_size=list(size) if size else None)
+        return path
 
     def export_screenshot_dialog(self) -> None:
-        path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Export screenshot", "bgm.png", "PNG (*.png)")
+        path, _ = QtWidgets.QFileDialog.getSaveFileName(
+            self, "Export screenshot", "bgm.png", "Pictures (" + " ".join(f"*{s}" for s in SCREENSHOT_FORMATS) + ")"
+        )
         if not path:
             return
         w, h = self.plotter.window_size
@@ -956,12 +1024,17 @@ class MainWindow(QtWidgets.QMainWindow):
         self._guard(lambda: self.export_screenshot(path, size))
 
     def export_surfaces(self, folder) -> dict[str, dict]:
-        """The shown surfaces, in every format ``bgm build`` writes, as ``folder/<geozone>/surface.<fmt>``."""
+        """The shown geozones' surfaces, in every format ``bgm build`` writes, as ``folder/<geozone>/surface.<fmt>``.
+
+        Each is the surface ``bgm build`` writes: the bodies the body filter hides from
+        the view are kept (label-noise bodies are the geologist's call in the mine software).
+        """
         from core.io.export import export_all
         from core.model.build import geozone_folders
         from core.model.surfaces import to_input_frame
 
-        surfaces = {g: m for g, m in self.model.result.surfaces.items() if self.scene.view.shows(g)}
+        self._check_up_to_date()
+        surfaces = {g: m for g, m in self.model.result.built.items() if self.scene.view.shows(g)}
         if not surfaces:
             raise ValueError("no surface is shown: build or tick some first")
         f = self.model.holes.frame
@@ -973,6 +1046,17 @@ class MainWindow(QtWidgets.QMainWindow):
             moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
             out[g] = export_all(moved, gdir, "surface", name=g)
         return out
+
+    def _check_up_to_date(self) -> None:
+        """Refuse to export while a run is pending: the surfaces shown are those before the last change.
+
+        An alignment or parameter just changed leaves the old surfaces on screen until
+        they are redone; exported then, they would not hold the change.
+        """
+        if self.busy:
+            raise ValueError(
+                "the model is being recomputed after the last change: export once the status bar says done"
+            )
 
     def export_surfaces_dialog(self) -> None:
         folder = QtWidgets.QFileDialog.getExistingDirectory(self, "Export shown surfaces to")
@@ -987,6 +1071,7 @@ class MainWindow(QtWidgets.QMainWindow):
         from core.io.export import export_surface
         from core.model.surfaces import to_input_frame
 
+        self._check_up_to_date()
         mesh = self.model.result.surface
         if mesh is None:
             raise ValueError("no surface has been computed yet")
@@ -1061,11 +1146,40 @@ selects its geozone (and bench pair and component)</td></tr>
 elevations and cuts the view with a plane you drag along its axis.</p>"""
 
 
+def _noted(fn):
+    """``(fn(), messages)``: the messages of the :class:`~core.errors.BGMWarning` ``fn`` gave, which go
+    on stderr too. Other warnings pass on as usual.
+    """
+    from core.errors import BGMWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BGMWarning)
+        out = fn()
+    notes = []
+    for w in caught:
+        if issubclass(w.category, BGMWarning):
+            notes.append(str(w.message))
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return out, notes
+
+
 def _quietly(inputs, previous, step, cancelled):
-    """:func:`compute` with the engine's warnings silenced (the status bar reports errors)."""
-    with warnings.catch_warnings():
+    """:func:`compute` with the engine's warnings silenced (the status bar reports errors).
+
+    A run a newer request cancelled just ends: it is no error. An engine's
+    ``RuntimeError`` is raised as :class:`RunFailed`: superqt takes a
+    ``RuntimeError`` for a deleted worker and drops it, and the run would never end.
+    """
+    with warnings.catch_warnings(), contextlib.suppress(Cancelled):
         warnings.simplefilter("ignore")
-        yield from compute(inputs, previous, step, cancelled)
+        try:
+            yield from compute(inputs, previous, step, cancelled)
+        except RuntimeError as exc:
+            raise RunFailed(f"{type(exc).__name__}: {exc}") from exc
+
+
+class RunFailed(Exception):
+    """A run of the engine failed with a ``RuntimeError`` (the message names it)."""
 
 
 def run_viewer(input_path=None, project_path=None, *, cache: bool = True, **view) -> int:

@@ -31,7 +31,7 @@ import typer
 
 from core.errors import BGMInputError, quoted
 
-from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers
+from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, SCREENSHOT_FORMATS, parse_layers
 
 if TYPE_CHECKING:
     from core.io.blastholes import Blastholes
@@ -40,9 +40,6 @@ if TYPE_CHECKING:
 MAX_EXAGGERATION = 100.0
 #: A camera direction closer than this (degrees) to vertical has no "up" to draw: use ``top``.
 MIN_CAMERA_TILT_DEG = 1.0
-#: Picture formats ``--screenshot`` writes: those of ``pyvista.Plotter.screenshot`` (its ``SUPPORTED_FORMATS``),
-#: named here so a wrong name is refused before PyVista is imported or the table read.
-SCREENSHOT_FORMATS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 #: Qt platforms that draw through a display server (X or Wayland); any other one the user names
 #: (offscreen, minimal, linuxfb, eglfs, vnc, ...) needs none.
 DISPLAY_PLATFORMS = ("xcb", "wayland")

@@ -66,3 +66,8 @@ def parse_layers(layers) -> list[str]:
                 if n not in out:
                     out.append(n)
     return out
+
+
+#: Picture formats ``--screenshot`` and File > Export screenshot write: those of ``pyvista.Plotter.screenshot``
+#: (its ``SUPPORTED_FORMATS``), named here so a wrong name is refused before PyVista is imported or the table read.
+SCREENSHOT_FORMATS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")

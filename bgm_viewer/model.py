@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import functools
+import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
@@ -107,6 +108,8 @@ class PipelineResult:
     surface: trimesh.Trimesh | None = None  #: the selected geozone's surface, as ``bgm build`` exports it
     #: The surfaces shown, by geozone: ``bgm build``'s, less the bodies the body filter drops.
     surfaces: dict[str, trimesh.Trimesh] = field(default_factory=dict)
+    #: The same geozones' surfaces as ``bgm build`` exports them, every body kept (what the viewer exports).
+    built: dict[str, trimesh.Trimesh] = field(default_factory=dict)
     predicted: list = field(default_factory=list)  #: (geozone, z_m, polygon) below the deepest bench
     selection: Selection | None = None  #: what the pair, morph, model and surface were computed for
     min_component_holes: int = ModelParameters().min_component_holes
@@ -168,6 +171,7 @@ class _Run:
             predicted=prev.predicted if same else [],
             # other geozones' surfaces stay on screen until redone; those no longer asked for go
             surfaces={g: m for g, m in prev.surfaces.items() if g in (*inputs.surface_geozones, self.sel.geozone)},
+            built={g: m for g, m in prev.built.items() if g in (*inputs.surface_geozones, self.sel.geozone)},
             selection=self.sel,
             min_component_holes=self.session.params.min_component_holes,
             timings=dict(prev.timings),
@@ -180,7 +184,12 @@ class _Run:
     def snapshot(self) -> PipelineResult:
         r = self.res
         return replace(
-            r, contours=dict(r.contours), timings=dict(r.timings), errors=dict(r.errors), surfaces=dict(r.surfaces)
+            r,
+            contours=dict(r.contours),
+            timings=dict(r.timings),
+            errors=dict(r.errors),
+            surfaces=dict(r.surfaces),
+            built=dict(r.built),
         )
 
     def step(self, name: str, fn: Callable[[], object], error_key: str | None = None):
@@ -343,7 +352,7 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
 
 
 def _show_surface(run: _Run, geozone: str, mesh) -> None:
-    """Put ``mesh`` among the shown surfaces, without the bodies the body filter drops."""
+    """Put ``mesh`` among the built surfaces, and among the shown ones without the bodies the body filter drops."""
     from core.model.surfaces import drop_small_bodies
 
     inputs, holes = run.inputs, run.session.holes
@@ -354,10 +363,11 @@ def _show_surface(run: _Run, geozone: str, mesh) -> None:
         shown = drop_small_bodies(
             mesh, min_volume_m3=inputs.min_body_volume_m3, min_holes=inputs.min_body_holes, holes_xyz=xyz
         )
-    if shown is None:
-        run.res.surfaces.pop(geozone, None)
-    else:
-        run.res.surfaces[geozone] = shown
+    for kept, surfaces in ((mesh, run.res.built), (shown, run.res.surfaces)):
+        if kept is None:
+            surfaces.pop(geozone, None)
+        else:
+            surfaces[geozone] = kept
 
 
 def _other_surfaces(run: _Run) -> Iterator[Progress]:
@@ -422,6 +432,23 @@ def project_input(project_path) -> str | None:
     if not path.is_absolute():
         path = Path(project_path).resolve().parent / path
     return str(path)
+
+
+def input_relative_to(input_path: str | None, project_path) -> str | None:
+    """``input_path`` as a project file at ``project_path`` names it: relative to the project's folder.
+
+    :func:`project_input` reads it against that folder; named as given (relative to
+    the folder the viewer was started in), a project saved in another folder did not
+    find its input. An input that is no file (``-``, the demo) is named as given, and
+    one that no relative path reaches (another drive) by its absolute path.
+    """
+    if input_path is None or not Path(input_path).is_file():
+        return input_path
+    absolute = Path(input_path).resolve()
+    try:
+        return os.path.relpath(absolute, Path(project_path).resolve().parent)
+    except ValueError:
+        return str(absolute)
 
 
 def _hole_attributes(path: str | None, holes: Blastholes):
@@ -633,17 +660,62 @@ class ViewerModel:
         del self._undo[:-50]
 
     def current_translation_m(self) -> tuple[float, float] | None:
-        pc = self.result.correspondence
+        """The selected source's translation (metres), ``None`` until its bench pair is corresponded."""
+        pc = self.result.correspondence if self.result.selection == self.selection else None
         if pc is None or not 0 <= self.selection.component < len(pc.translations):
             return None
         t = pc.translations[self.selection.component]
         return float(t[0]), float(t[1])
 
+    def _selected_pair(self) -> BenchPair:
+        """The selected bench pair, whose selected source an override corrects.
+
+        Raises
+        ------
+        ValueError
+            If the pair is not computed yet, the selected geozone has no
+            component on one of its benches, or the selected source is not
+            among its components: an override of it would name a component
+            the model does not have, and fail every run of the geozone.
+        """
+        sel, res = self.selection, self.result
+        pair = res.pair if res.selection == sel else None
+        if pair is None or pair.upper != sel.bench:
+            raise ValueError(
+                f"geozone {sel.geozone} has no bench pair from bench {self.source_z_input():g} to align"
+                " (not computed yet, or no component on one of its benches)"
+            )
+        if not 0 <= sel.component < len(pair.sources):
+            raise ValueError(
+                f"source component {sel.component} does not exist: geozone {sel.geozone} has"
+                f" {len(pair.sources)} on bench {self.source_z_input():g}"
+            )
+        return pair
+
     def set_translation(self, dx_m: float, dy_m: float) -> str:
-        """Lock the selected source's translation to ``(dx_m, dy_m)`` metres; returns the step to re-run."""
-        self._push_undo()
+        """Lock the selected source's translation to ``(dx_m, dy_m)`` metres; returns the step to re-run.
+
+        Raises
+        ------
+        ValueError
+            If the selected source does not exist (see :meth:`_selected_pair`), or the
+            translation is not finite or longer than the input spans (a project holding it
+            would not open: :func:`core.io.project.check_project`).
+        """
+        from core.io.project import input_extent, translation_fits
+
+        self._selected_pair()
         mpu = self.holes.frame.metres_per_unit
-        self.override_here(create=True).translation = (float(dx_m) / mpu, float(dy_m) / mpu)
+        t = (float(dx_m) / mpu, float(dy_m) / mpu)
+        extent = input_extent(self.holes)
+        if not translation_fits(t, extent):
+            unit = self.holes.frame.length_unit
+            raise ValueError(
+                f"a translation of ({t[0]:.6g}, {t[1]:.6g}) {unit} moves the source off the input,"
+                f" which spans {extent:.6g} {unit}"
+            )
+        self._push_undo()
+        self.override_here(create=True).translation = t
         self._changed_overrides()
         return "correspondence"
 
@@ -654,11 +726,26 @@ class ViewerModel:
 
     def lock_current(self) -> str:
         """Lock the selected source at its current (automatic) translation."""
-        cur = self.current_translation_m() or (0.0, 0.0)
+        cur = self.current_translation_m()
+        if cur is None:
+            self._selected_pair()  # says why, when the source does not exist
+            raise ValueError("the selected source has no translation to lock yet: its correspondence failed")
         return self.set_translation(*cur)
 
     def set_association(self, target: int, flag: bool | None) -> str:
-        """Force (``True``), forbid (``False``) or reset (``None``) association with ``target``."""
+        """Force (``True``), forbid (``False``) or reset (``None``) association with ``target``.
+
+        Raises
+        ------
+        ValueError
+            If the selected source or ``target`` is not a component of the selected bench pair.
+        """
+        pair = self._selected_pair()
+        if flag is not None and not 0 <= int(target) < len(pair.targets):
+            raise ValueError(
+                f"target component {target} does not exist: geozone {pair.geozone} has"
+                f" {len(pair.targets)} on bench {self.holes.bench_z_input(pair.lower):g}"
+            )
         self._push_undo()
         o = self.override_here(create=True)
         if flag is None:
@@ -709,9 +796,12 @@ class ViewerModel:
         return Project(parameters=params, overrides=copy.deepcopy(self.overrides), input_path=self.input_path)
 
     def save_project(self, path: str | Path) -> None:
+        """Write the project to ``path``, naming the input relative to the project's folder (as it is read)."""
         from core.io.project import save_project
 
-        save_project(self.to_project(), path)
+        project = self.to_project()
+        project.input_path = input_relative_to(self.input_path, path)
+        save_project(project, path)
         self.project_path = str(path)
         self.dirty = False
 

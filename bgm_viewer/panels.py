@@ -152,6 +152,7 @@ class SectionPanel(QtWidgets.QWidget):
             spin.setValue(value)
             spin.blockSignals(False)
         self.renderer.set_elevation_range(None, None)
+        self.follow_view()  # a section in the new data where its slider says, not where it cut the old
 
     def _benches_changed(self, *_) -> None:
         items = [self.benches.item(i) for i in range(self.benches.count())]
@@ -171,6 +172,16 @@ class SectionPanel(QtWidgets.QWidget):
         self.renderer.set_elevation_range(
             float(f.z_to_local(self.z_min.value())), float(f.z_to_local(self.z_max.value()))
         )
+
+    def follow_view(self) -> None:
+        """Put the section back where its slider says in the data, after the drawing changed.
+
+        The cut is in drawn coordinates: after a change of vertical exaggeration an
+        elevation section kept its drawn height and so cut another elevation, and after
+        another input was opened a section stayed where it cut the old one.
+        """
+        if self.clip_axis() is not None:
+            self._clip_changed()
 
     def clip_axis(self) -> str | None:
         return (None, "x", "y", "z")[self.axis.currentIndex()]

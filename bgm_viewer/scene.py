@@ -282,11 +282,13 @@ class SceneRenderer:
 
         The item is what the layer's meshes carry for each point: a hole's
         index (``"hole"``) or an item's index in the layer (``"item"``).
-        ``None`` when nothing pickable is under the pixel.
+        ``None`` when nothing pickable is under the pixel. What the section plane or
+        the elevation range cuts away is not picked (a cell picker honours the
+        mappers' clipping planes; a point picker reported hidden holes above).
         """
         import vtk
 
-        picker = vtk.vtkPointPicker()
+        picker = vtk.vtkCellPicker()
         picker.SetTolerance(tolerance)
         picker.PickFromListOn()
         owner = {}

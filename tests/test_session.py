@@ -296,3 +296,24 @@ def test_a_build_worker_lets_go_of_a_geozones_results_once_it_has_sent_them(monk
     assert store.peek("morph", "g1", disk=False) is MISSING  # not held in memory
     assert store.peek("morph", "g1") == "morph of g1"  # still on disk, with a cache
     assert store.peek("contours", "bench 0", disk=False) == "contours"
+
+
+def test_a_geozones_fields_on_a_traced_bench_trace_that_geozone_alone(holes, tmp_path, monkeypatch):
+    """The viewer's switch of geozone traced the whole bench again for one geozone's fields (Kennecott: 2-5 s)."""
+    import core.model.session as session_module
+
+    session = _session(holes, tmp_path)
+    stored = session.bench_contours(1)
+    traced = []
+    extract = session_module.extract_bench
+
+    def spy(holes_, bench, geozones=None, *args, **kwargs):
+        traced.append(None if geozones is None else list(geozones))
+        return extract(holes_, bench, geozones, *args, **kwargs)
+
+    monkeypatch.setattr(session_module, "extract_bench", spy)
+    for g in ("g1", "g2"):
+        with_fields = session.bench_contours_with_fields(1, g)
+        assert [c.polygon.wkb for c in with_fields] == [c.polygon.wkb for c in stored]
+        assert {c.geozone for c in with_fields if c.fields is not None} == {g}
+    assert traced == [["g1"], ["g2"]]

@@ -272,3 +272,54 @@ def test_manual_alignment_undo_and_project_roundtrip(model, tmp_path):
     model.run("correspondence", until="correspondence")
     np.testing.assert_allclose(model.current_translation_m(), auto, atol=1e-9)
     assert model.dirty and not model.overrides
+
+
+def test_an_override_of_a_component_the_pair_lacks_is_refused():
+    """Locking source 40 of a bench with one component broke the geozone's every run, and was saved."""
+    from bgm_viewer.testing import small_model
+
+    model = small_model(until="correspondence")
+    n_sources, n_targets = len(model.result.pair.sources), len(model.result.pair.targets)
+    model.select(component=n_sources + 39)
+    model.run("morph", until="correspondence")
+    for change in (model.lock_current, lambda: model.set_translation(1.0, 2.0), lambda: model.nudge(1.0, 0.0)):
+        with pytest.raises(ValueError, match="does not exist"):
+            change()
+    model.select(component=0)
+    model.run("morph", until="correspondence")
+    with pytest.raises(ValueError, match="target component"):
+        model.set_association(n_targets + 5, True)
+    assert not model.overrides and not model.can_undo and not model.dirty
+    model.set_association(0, False)  # an existing target: accepted
+    assert model.overrides
+
+
+def test_a_translation_the_project_could_not_reopen_is_refused(tmp_path):
+    """The viewer saved a translation longer than the input spans, which loading the project refuses."""
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.testing import small_model
+
+    model = small_model(until="correspondence")
+    for bad in ((900.0, 0.0), (0.0, float("nan"))):
+        with pytest.raises(ValueError, match="off the input"):
+            model.set_translation(*bad)
+    assert not model.overrides and not model.can_undo
+    model.set_translation(100.0, -100.0)  # long but on the input: a correction
+    model.save_project(tmp_path / "p.json")
+    ViewerModel(model.holes).load_project(tmp_path / "p.json")
+
+
+def test_a_project_saved_in_another_folder_finds_its_input(tmp_path, monkeypatch):
+    """`bgm view holes.csv`, saved as sub/p.json: the project named holes.csv, read as sub/holes.csv."""
+    from pathlib import Path
+
+    from bgm_viewer.model import ViewerModel, project_input
+
+    monkeypatch.chdir(tmp_path)
+    Path("holes.csv").write_text(Path(__file__).parents[1].joinpath("assets/demo_blastholes.csv").read_text())
+    model = ViewerModel("holes.csv")
+    (tmp_path / "sub").mkdir()
+    model.save_project("sub/p.json")
+    model.save_project(tmp_path / "p.json")
+    for project in ("sub/p.json", tmp_path / "p.json"):
+        assert Path(project_input(project)).resolve() == (tmp_path / "holes.csv").resolve()

@@ -182,6 +182,8 @@ def test_panels_speak_the_inputs_units_and_sliders_keep_values(qtbot):
     try:
         qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
         assert "(ft)" in win._unit_labels[0].text() and "(ft)" in win._unit_labels[1].text()
+        h = win.model.holes  # the bench pairs are elevations in feet too
+        assert win.bench_combo.itemText(0) == f"{h.bench_z_input(0):g} -> {h.bench_z_input(1):g} ft"
         t_m = win.model.current_translation_m()
         assert t_m is not None
         np.testing.assert_allclose([win.dx_spin.value(), win.dy_spin.value()], np.divide(t_m, 0.3048), atol=0.01)
@@ -308,3 +310,233 @@ def test_the_window_opens_on_what_the_command_line_asked_for(qtbot):
         finally:
             win.model.dirty = False
             win.close()
+
+
+def test_an_alignment_the_model_refuses_is_said_in_the_status_bar(window, qtbot):
+    """Ctrl+arrow on a source the bench lacks raised out of the key's slot instead of saying why."""
+    window.component_spin.setValue(40)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.nudge(1.0, 0.0)
+    assert "does not exist" in window.statusBar().currentMessage()
+    assert not window.model.overrides and not window.busy
+
+
+def test_a_run_superseded_or_failing_raises_nothing_in_the_window(window, qtbot, monkeypatch):
+    """A run cancelled in the middle of a step (switching geozones on Kennecott) raised ``Cancelled``
+    in Qt's thread, and a failed run its error, besides saying it in the status bar."""
+    import threading
+
+    import bgm_viewer.app as app
+    from bgm_viewer.model import Cancelled
+
+    started = threading.Event()
+
+    def slow_step(inputs, previous, from_step, cancelled, until="surface"):
+        started.set()
+        while not cancelled():  # a long step, cancelled half-way: compute's run.check() raises
+            threading.Event().wait(0.01)
+        raise Cancelled()
+        yield
+
+    monkeypatch.setattr(app, "compute", slow_step)
+    with qtbot.captureExceptions() as raised:
+        window.geozone_combo.setCurrentText("g2")
+        assert started.wait(10)
+        window.geozone_combo.setCurrentText("g3")  # cancels the first
+        qtbot.wait(300)
+        window._cancel()  # the second too (as closing the window does)
+        qtbot.wait(300)
+    assert not raised, raised[0][1]
+
+    def failing(*args, **kwargs):
+        raise ValueError("boom")
+        yield
+
+    monkeypatch.setattr(app, "compute", failing)
+    with qtbot.captureExceptions() as raised:
+        window.geozone_combo.setCurrentText("g1")
+        qtbot.waitUntil(lambda: "boom" in window.statusBar().currentMessage(), timeout=10_000)
+        qtbot.wait(100)
+    assert not raised, raised[0][1]
+    assert not window.busy
+
+
+def test_a_run_failing_with_a_runtime_error_is_reported_and_ends(window, qtbot, monkeypatch):
+    """superqt takes a RuntimeError for a deleted worker and drops it: the window said
+    "running..." for ever, and stayed busy (``wait_idle`` waited out its timeout)."""
+    import bgm_viewer.app as app
+
+    def failing(*args, **kwargs):
+        raise RuntimeError("SuperLU failed")
+        yield
+
+    monkeypatch.setattr(app, "compute", failing)
+    window.geozone_combo.setCurrentText("g2")
+    qtbot.waitUntil(lambda: not window.busy, timeout=10_000)
+    assert "failed: RuntimeError: SuperLU failed" in window.statusBar().currentMessage()
+
+
+def test_exported_surfaces_keep_the_bodies_the_body_filter_hides(window, qtbot, tmp_path):
+    """The filter's tooltip says the exported surfaces keep the small bodies; they were dropped."""
+    import trimesh
+
+    g = max(
+        window.model.result.surfaces, key=lambda k: len(window.model.result.surfaces[k].split(only_watertight=False))
+    )
+    whole = window.model.result.surfaces[g]
+    volumes = sorted(abs(b.volume) for b in whole.split(only_watertight=False))
+    assert len(volumes) > 1
+    window.min_volume.setValue(volumes[-1] / window._mpu**3)  # only the biggest body is shown
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert len(window.model.result.surfaces[g].faces) < len(whole.faces)
+    assert "keep" in window.min_volume.toolTip()
+    written = window.export_surfaces(tmp_path)
+    exported = trimesh.load(written[g]["ply"], force="mesh")
+    assert len(exported.faces) == len(whole.faces)
+
+
+def test_a_surface_is_not_exported_before_the_last_change_is_in_it(window, qtbot, tmp_path):
+    """Exported right after an alignment change, the surface was the one from before it."""
+    auto = window.model.current_translation_m()
+    window.dx_spin.setValue(auto[0] + 8.0)
+    window.apply_translation()
+    assert window.busy
+    for export in (window.export_surface, window.export_surfaces):
+        with pytest.raises(ValueError, match="recomputed"):
+            export(tmp_path / "surface.obj")
+    assert not list(tmp_path.iterdir())
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.export_surface(tmp_path / "surface.obj")
+    assert (tmp_path / "surface.obj").stat().st_size > 0
+
+
+def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp_path):
+    """After File > Open, the Surfaces dock still said m³, showed the old body filter (which no
+    longer applied) and named the old input's host rock."""
+    from core.io.blastholes import FEET_TO_METRES
+
+    window.min_volume.setValue(500.0)
+    window.min_holes.setValue(3)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    h = small_holes()
+    feet = pd.DataFrame(
+        {
+            "x": h.xy[:, 0] / FEET_TO_METRES + 10_000,
+            "y": h.xy[:, 1] / FEET_TO_METRES + 20_000,
+            "z": h.z / FEET_TO_METRES,
+            "geozone": [f"z{g}" for g in h.geozone],
+        }
+    )
+    feet.to_csv(tmp_path / "feet.csv", index=False)
+    window.open_input(tmp_path / "feet.csv")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.model.holes.frame.length_unit == "ft"
+    assert window._volume_label.text() == "min body volume (ft³)"
+    assert (window.min_volume.value(), window.min_holes.value()) == (0.0, 0)
+    assert (window.model.min_body_volume_m3, window.model.min_body_holes) == (0.0, 0)
+    assert window.surface_scope.currentText() == "all but the host rock (zg0)"
+
+
+def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeypatch, tmp_path):
+    """File > Open project: check_project's warnings (an override of a geozone or bench the
+    input lacks is not used) went to stderr only, and the geologist thought it applied."""
+    import json
+
+    path = tmp_path / "p.json"
+    window.model.save_project(path)
+    data = json.loads(path.read_text())
+    data["overrides"] = [{"geozone": "nope", "source_z": 1.0, "source": 0, "translation": [1.0, 0.0]}]
+    path.write_text(json.dumps(data))
+    shown = []
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (str(path), ""))
+    monkeypatch.setattr(QtWidgets.QMessageBox, "warning", lambda parent, title, text, *a: shown.append(text))
+    with pytest.warns(UserWarning, match="is not used"):  # on stderr as before
+        window.open_project_dialog()
+    assert len(shown) == 1 and "'nope'" in shown[0] and "is not used" in shown[0]
+
+
+@pytest.mark.parametrize("exaggeration", [50.0, 0.05])
+def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration):
+    """`bgm view --exaggeration 50` (or a project's) drew 50 while the panel, limited to 0.1-20, said 20."""
+    from bgm_viewer.app import viewer_window
+
+    win = viewer_window(small_holes(), vertical_exaggeration=exaggeration)
+    try:
+        assert win.scene.vertical_exaggeration == win.model.vertical_exaggeration == exaggeration
+        assert win.ve_spin.value() == exaggeration
+    finally:
+        win.model.dirty = False
+        win.close()
+
+
+def test_a_screenshot_named_in_capitals_or_without_an_extension_is_written(window, tmp_path):
+    """File > Export screenshot: View.PNG and a name the dialog left without .png failed with
+    PyVista's "Unsupported extension" (of the temporary file's random name, for the latter)."""
+    assert window.export_screenshot(tmp_path / "View.PNG", (320, 240)) == tmp_path / "View.PNG"
+    assert window.export_screenshot(tmp_path / "view", (320, 240)) == tmp_path / "view.png"
+    for name in ("View.PNG", "view.png"):
+        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(ValueError, match="no picture format .gif"):
+        window.export_screenshot(tmp_path / "view.gif")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["View.PNG", "view.png"]
+
+
+def test_an_elevation_section_stays_at_its_elevation_when_the_exaggeration_changes(window):
+    """The section plane is drawn in display z: after a change of vertical exaggeration it cut another elevation."""
+
+    def cut_elevation() -> float:
+        axis, value, _ = window.renderer.clip
+        assert axis == "z"
+        view = window.scene.view
+        return view.z_ref + (value - view.z_ref) / view.vertical_exaggeration
+
+    window.sections.axis.setCurrentIndex(3)  # elevation (z)
+    window.sections.position.setValue(700)
+    before = cut_elevation()
+    window.ve_spin.setValue(5.0)
+    assert window.scene.view.vertical_exaggeration == 5.0
+    assert cut_elevation() == pytest.approx(before, abs=0.05)  # the glyphs of the holes do not scale
+
+
+def test_a_section_is_placed_in_another_input_once_opened(window, qtbot):
+    """File > Open with a section on: the cut and its plane handle stayed where they cut the old input."""
+    from pathlib import Path
+
+    window.sections.axis.setCurrentIndex(1)  # easting (x)
+    window.sections.position.setValue(900)
+    window.open_input(Path(__file__).parents[1] / "assets" / "demo_blastholes.csv")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=120_000)
+    lo, hi = window.renderer.data_bounds()[:2]
+    axis, value, _ = window.renderer.clip
+    assert axis == "x" and (value - lo) / (hi - lo) == pytest.approx(0.9, abs=0.02)
+
+
+def test_a_click_reports_what_is_shown_not_what_a_section_hides(window):
+    """With only the deepest bench shown, a click on its holes reported holes of the benches
+    above (hidden by the elevation range): the picker ignored the clipping planes."""
+    from bgm_viewer.scene import world_to_pixels
+
+    h = window.model.holes
+    for name in ("contours", "snake", "trajectories", "surfaces", "predicted contours"):
+        window.set_layer_visible(name, False)
+    window.set_camera("top")
+    deep = h.n_benches - 1
+    z_input = float(h.frame.z_to_input(h.bench_levels_m[deep]))
+    window.sections.set_elevation_range(z_input - 1.0, z_input + 1.0)
+    z = window.scene.view.z(h.bench_levels_m[deep])
+    on_bench = h.on_bench(deep)
+    reported = []
+    for i in on_bench[:: max(len(on_bench) // 12, 1)]:
+        col, row = world_to_pixels(window.plotter, np.array([[*h.xy[i], z]]))[0]
+        info = window.pick(int(round(col)), int(round(window.plotter.window_size[1] - 1 - row)))
+        reported.append(None if info is None else info[f"bench ({h.frame.length_unit})"])
+    assert reported and set(reported) == {z_input}
+    # contours are picked as before: a click on a contour's vertex selects its geozone
+    window.sections.set_elevation_range(-1e5, 1e5)
+    window.set_layer_visible("blastholes", False)
+    window.set_layer_visible("contours", True)
+    g, z_m, poly = window.scene["contours"].items[0]
+    x, y = poly.exterior.coords[0]
+    col, row = world_to_pixels(window.plotter, np.array([[x, y, window.scene.view.z(z_m)]]))[0]
+    info = window.pick(int(round(col)), int(round(window.plotter.window_size[1] - 1 - row)))
+    assert info is not None and info["geozone"] == g

@@ -264,16 +264,14 @@ def check_project(
         The command applies the project's parameters (every command with
         ``--project`` and the viewer do).
     """
-    import numpy as np
-
     from core.errors import BGMWarning
 
-    extent = float(holes.frame.length_to_input(np.ptp(holes.xy, axis=0).max())) if len(holes.xy) else 0.0
+    extent = input_extent(holes)
     uppers = [holes.bench_z_input(k) for k in range(holes.n_benches - 1)]
     modelled = set(geozones if geozones is not None else holes.geozones)
     for i, o in enumerate(project.overrides):
         where = f"project override {i} ({quoted(o.geozone)} at {o.source_z:g}, source {o.source})"
-        if o.translation is not None and max(abs(o.translation[0]), abs(o.translation[1])) > max(extent, 1.0):
+        if o.translation is not None and not translation_fits(o.translation, extent):
             raise BGMInputError(
                 f"{where} moves its component by ({o.translation[0]:.6g}, {o.translation[1]:.6g}), more than "
                 f"the whole input spans ({extent:.6g} {holes.frame.length_unit}); fix or remove it"
@@ -304,6 +302,23 @@ def check_project(
             BGMWarning,
             stacklevel=2,
         )
+
+
+def input_extent(holes) -> float:
+    """How far the input spans along its longer horizontal axis, in input units (0 without holes)."""
+    import numpy as np
+
+    return float(holes.frame.length_to_input(np.ptp(holes.xy, axis=0).max())) if len(holes.xy) else 0.0
+
+
+def translation_fits(translation: tuple[float, float], extent: float) -> bool:
+    """Whether a locked translation (input units) can be a correction: finite, and not longer than the input spans.
+
+    A longer one moves its component off the input altogether; :func:`check_project`
+    refuses it, so the viewer refuses to set it (a project it saved would not open).
+    """
+    dx, dy = (float(v) for v in translation)
+    return math.isfinite(dx) and math.isfinite(dy) and max(abs(dx), abs(dy)) <= max(extent, 1.0)
 
 
 def _is_number(x) -> bool:

@@ -280,11 +280,20 @@ class ModelSession:
     def bench_contours_with_fields(self, bench: int, geozone: str) -> list[Contour]:
         """:meth:`bench_contours`, with the edge map, GVF and snake history of ``geozone``'s contours.
 
-        Kept in memory only, for the newest few requests: fields are large.
+        Kept in memory only, for the newest few requests: fields are large. Once the
+        bench's contours are stored, only ``geozone``'s are traced again, with their
+        fields (the viewer's switch of geozone on a Kennecott bench: 0.4 s, not 2-5 s
+        tracing all thirteen).
         """
         key = self._contours_key(bench)
 
         def extract() -> list[Contour]:
+            stored = self.store.peek("contours", key)
+            if stored is not MISSING:
+                own = extract_bench(self.holes, bench, [geozone], self.params.extraction, keep_fields=True)
+                if len(own) == sum(c.geozone == geozone for c in stored):  # a geozone's contours come in order
+                    traced = iter(own)
+                    return [next(traced) if c.geozone == geozone else c for c in stored]
             full = extract_bench(self.holes, bench, None, self.params.extraction, keep_fields=True)
             if self.store.peek("contours", key, disk=False) is MISSING:
                 self.store.put("contours", key, [replace(c, fields=None) for c in full])
