@@ -178,3 +178,14 @@ def test_mine_grid_coordinates_keep_full_precision():
 
     d, _ = cKDTree(original).query(back)
     assert d.max() < 1e-6
+
+
+def test_a_missing_column_message_names_the_option_that_names_it(tmp_path):
+    """``--geozone`` selects geozones: the hint for an unfound geozone column is ``--geozone-column``."""
+    path = write(tmp_path, small_table().rename(columns={"lookup_domain": "rocktype"}))
+    with pytest.raises(BGMInputError, match="name it with --geozone-column COLUMN"):
+        read_blastholes(path)
+    path = write(tmp_path, small_table().assign(zone="a"), name="two.csv")
+    with pytest.raises(BGMInputError, match="choose one with --geozone-column COLUMN"):
+        read_blastholes(path)
+    assert read_blastholes(path, geozone="zone").geozones == ["a"]

@@ -43,6 +43,8 @@ COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "z": ("z", "rl", "elevation", "elev", "mid_z"),
     "geozone": ("geozone", "domain", "lookup_domain", "label", "zone"),
 }
+#: The command-line option naming each role's column (``--geozone`` selects geozones, not a column).
+COLUMN_OPTIONS = {"x": "--x", "y": "--y", "z": "--z", "geozone": "--geozone-column"}
 FEET_TO_METRES = 0.3048
 #: Holes farther than this fraction of the bench height from every bench
 #: level are not assigned to a bench (they sit between benches).
@@ -272,11 +274,11 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
     if not matches:
         raise BGMInputError(
             f"no {role} column: looked for {', '.join(aliases)} (any case); columns are: "
-            f"{listing(columns)}; name it with --{role} COLUMN"
+            f"{listing(columns)}; name it with {COLUMN_OPTIONS[role]} COLUMN"
         )
     if len(matches) > 1:
         raise BGMInputError(
-            f"ambiguous {role} column: {listing(map(repr, matches))} could all be {role}; choose one with --{role} COLUMN"
+            f"ambiguous {role} column: {listing(map(repr, matches))} could all be {role}; choose one with {COLUMN_OPTIONS[role]} COLUMN"
         )
     return matches[0]
 
