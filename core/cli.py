@@ -106,8 +106,10 @@ NoCacheOpt = Annotated[
 class TableOptions:
     """How to read the blasthole table: the options every command that reads one takes."""
 
-    x: Annotated[str | None, typer.Option("--x", help="Column holding x (default: x/east/easting, any case).")] = None
-    y: Annotated[str | None, typer.Option("--y", help="Column holding y (default: y/north/northing).")] = None
+    x: Annotated[
+        str | None, typer.Option("--x", help="Column holding x (default: x/east/easting/mid_x, any case).")
+    ] = None
+    y: Annotated[str | None, typer.Option("--y", help="Column holding y (default: y/north/northing/mid_y).")] = None
     z: Annotated[
         str | None, typer.Option("--z", help="Column holding elevation (default: z/rl/elevation/elev/mid_z).")
     ] = None

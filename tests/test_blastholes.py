@@ -189,3 +189,10 @@ def test_a_missing_column_message_names_the_option_that_names_it(tmp_path):
     with pytest.raises(BGMInputError, match="choose one with --geozone-column COLUMN"):
         read_blastholes(path)
     assert read_blastholes(path, geozone="zone").geozones == ["a"]
+
+
+def test_mid_point_columns_are_found_for_x_and_y_as_for_z(tmp_path):
+    """A table of mid-points (``MID_X, MID_Y, MID_Z``, as mine databases export them) reads as found."""
+    mid = small_table().rename(columns={"EAST": "MID_X", "NORTH": "MID_Y", "RL": "MID_Z"})
+    holes = read_blastholes(write(tmp_path, mid))
+    assert holes.n_benches == 3 and holes.geozones == ["2210", "3310"]

@@ -38,8 +38,8 @@ from core.errors import BGMInputError, BGMWarning, listing, quoted
 from core.io.tables import data_lines
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
-    "x": ("x", "east", "easting"),
-    "y": ("y", "north", "northing"),
+    "x": ("x", "east", "easting", "mid_x"),
+    "y": ("y", "north", "northing", "mid_y"),
     "z": ("z", "rl", "elevation", "elev", "mid_z"),
     "geozone": ("geozone", "domain", "lookup_domain", "label", "zone"),
 }

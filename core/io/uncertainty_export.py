@@ -157,7 +157,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     """A planned blast pattern: hole positions (local metres), their identifiers, and their elevation if given.
 
     The table (CSV or Parquet, read as the blasthole table is) needs x and y
-    columns, found by the same names (``x/east/easting``, ``y/north/northing``,
+    columns, found by the same names (``x/east/easting/mid_x``, ``y/north/northing/mid_y``,
     any case); a ``z`` column gives the bench's elevation (input units, the
     median), a ``hole_id`` column the identifiers (else the data line numbers).
 
