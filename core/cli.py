@@ -4,7 +4,8 @@ Every command reads a blasthole table (CSV or Parquet, a file or ``-`` for
 standard input), finds its columns and benches, and writes results in the
 input's own coordinates. Exit status: 0 done; 2 for any problem with the
 input, options or output paths, told in one line (``bgm: error: ...``); 130
-when interrupted (Ctrl-C), also one line; 3 only for a bug in BGM. Outputs
+when interrupted (Ctrl-C) and 143 when terminated (SIGTERM: ``kill``, ``timeout``,
+a job scheduler), also one line; 3 only for a bug in BGM. Outputs
 never replace an input, a device or anything outside ``--out``, and every file
 is written atomically.
 """
@@ -965,20 +966,32 @@ def _import_uninterrupted(argv: list[str]) -> None:
         import trimesh  # noqa: F401  (its optional-import guards catch BaseException)
 
 
+def _stopped_status(code: int) -> tuple[int, str | None]:
+    """The exit status and line of a command stopped by a signal (Ctrl-C or SIGTERM); ``code`` and None if not."""
+    if code != 130 and not (_INTERRUPTS and code != 0):  # typer turns Ctrl-C into exit status 130 without a word
+        return code, None
+    if _INTERRUPTS and _INTERRUPTS[0] == signal.SIGTERM:
+        return 128 + signal.SIGTERM, "bgm: terminated; files being written were left as they were"
+    return 130, "bgm: interrupted; files being written were left as they were"
+
+
 def main() -> None:
     """Entry point of the ``bgm`` console script: run the command, print at most one line, exit."""
     with contextlib.suppress(ValueError):  # not the main thread: Python's default handling
         signal.signal(signal.SIGINT, _on_ctrl_c)
-    code = _run()
-    if code == 130 or (_INTERRUPTS and code != 0):  # typer turns Ctrl-C into exit status 130 without a word
-        _say("bgm: interrupted; files being written were left as they were")
-        code = 130
+        # SIGTERM (kill, timeout, a job scheduler) stops the command as Ctrl-C does: by default
+        # Python would die on the spot, leaving its staging folder and its build's workers behind.
+        signal.signal(signal.SIGTERM, _on_ctrl_c)
+    code, line = _stopped_status(_run())
+    if line is not None:
+        _say(line)
     # The work is done (or abandoned): a Ctrl-C while the interpreter shuts down changes
     # nothing. Ignored, not handled: Python resets its own handlers to the default
     # (die by SIGINT) while it shuts down.
     with contextlib.suppress(ValueError):
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if _INTERRUPTS and code == 130:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if _INTERRUPTS and line is not None:
         # Every file is closed and every staging folder gone; the interpreter's own
         # shutdown, with worker-pool threads cut short, can crash ("Fatal Python
         # error") and would add a second message: leave now, without a worker process
@@ -986,7 +999,7 @@ def main() -> None:
         _stop_worker_processes()
         sys.stdout.flush()
         sys.stderr.flush()
-        os._exit(130)
+        os._exit(code)
     sys.exit(code)
 
 

@@ -11,8 +11,10 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import os
 import re
 import signal
+import sys
 import threading
 import time
 from collections import Counter
@@ -378,13 +380,35 @@ class BuildContext:
 _WORKER_CONTEXT: BuildContext | ModelSession | None = None
 
 
-def _init_worker(ctx: BuildContext | ModelSession) -> None:
+def _init_worker(ctx: BuildContext | ModelSession, parent: int) -> None:
     # Ctrl-C reaches every process of the terminal's group: the parent alone
-    # handles it (one line, exit 130) and stops the workers.
+    # handles it (one line, exit 130) and stops the workers, by SIGTERM, which
+    # must end them (the parent's handler, inherited by fork, would not).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    _end_with_parent(parent)
     global _WORKER_CONTEXT
     _WORKER_CONTEXT = ctx
+
+
+#: ``prctl`` option: the signal this process gets when the thread that forked it ends (Linux).
+PR_SET_PDEATHSIG = 1
+
+
+def _end_with_parent(parent: int) -> None:
+    """End this worker when its parent (pid ``parent``) dies, even by SIGKILL, where the system allows (Linux).
+
+    Else a worker whose parent was killed finishes its job into a folder no
+    one will read, then waits for work forever.
+    """
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:  # it died before the line above
+        os._exit(1)
 
 
 def _map_geozones(ctx: BuildContext, geozones: list[str], workers: int | None, scheduler: str | None = None):
@@ -415,7 +439,7 @@ def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | 
         max_workers=min(workers, len(items)),
         mp_context=multiprocessing.get_context("fork"),
         initializer=_init_worker,
-        initargs=(ctx,),
+        initargs=(ctx, os.getpid()),
     )
     try:
         # Workers are forked on the first submit: with SIGINT blocked they are
