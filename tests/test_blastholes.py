@@ -196,3 +196,13 @@ def test_mid_point_columns_are_found_for_x_and_y_as_for_z(tmp_path):
     mid = small_table().rename(columns={"EAST": "MID_X", "NORTH": "MID_Y", "RL": "MID_Z"})
     holes = read_blastholes(write(tmp_path, mid))
     assert holes.n_benches == 3 and holes.geozones == ["2210", "3310"]
+
+
+@pytest.mark.parametrize("sep", [";", ",", "\t"])
+def test_an_excel_sep_line_names_the_delimiter(tmp_path, sep):
+    """Excel writes (and reads) ``sep=;`` before the header: it names the delimiter and is no header."""
+    path = tmp_path / "holes.csv"
+    text = small_table().assign(lookup_domain="ore, oxide").to_csv(index=False, sep=sep, lineterminator="\r\n")
+    path.write_text(f"sep={sep}\r\n{text}")
+    holes = read_blastholes(path)
+    assert holes.n_benches == 3 and holes.geozones == ["ore, oxide"] and len(holes.xy) == 120
