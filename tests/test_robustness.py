@@ -605,3 +605,21 @@ def test_ctrl_c_in_the_cli_exits_130_with_one_line(base_csv, tmp_path):
     assert proc.returncode == 130
     assert out.read_text() == "previous\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["contours.geojson"]
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["contours"],
+        ["correspond", "--geozone", "g1"],
+        ["predict", "--geozone", "g1", "--elevations", "600"],
+        ["suggest", "--geozone", "g1", "--budget", "3"],
+        ["evaluate", "--geozone", "g1"],
+        ["build"],
+    ],
+)
+def test_out_dash_is_refused_not_written_as_a_file_named_dash(base_csv, tmp_path, monkeypatch, command):
+    """``-`` reads standard input, so ``--out -`` reads as standard output: no file named ``-`` is made."""
+    monkeypatch.chdir(tmp_path)
+    fails_cleanly(bgm(command[0], base_csv, *command[1:], "--out", "-"), "--out -", "named '-'")
+    assert not (tmp_path / "-").exists()
