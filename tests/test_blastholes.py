@@ -206,3 +206,10 @@ def test_an_excel_sep_line_names_the_delimiter(tmp_path, sep):
     path.write_text(f"sep={sep}\r\n{text}")
     holes = read_blastholes(path)
     assert holes.n_benches == 3 and holes.geozones == ["ore, oxide"] and len(holes.xy) == 120
+
+
+def test_a_huge_bench_height_is_said_to_merge_the_levels_there_are():
+    """``--bench-height 1e9`` on 10 m benches merges the 3 levels there are, not "100000000 levels"."""
+    with pytest.raises(BGMInputError, match="the holes of all 3 levels on one bench") as refused:
+        detect_benches(small_table()["RL"].to_numpy(), 1e9)
+    assert "100000000" not in str(refused.value)

@@ -811,7 +811,9 @@ def _refuse_disagreeing_height(levels: np.ndarray, bench_height: float) -> None:
         return
     # A height several times the levels' gap would merge benches: say so, as _refuse_merged_benches does.
     merges = bench_height > 1.5 * measured
-    grouping = f", so it would put the holes of {bench_height / measured:.0f} levels on one bench" if merges else ""
+    merged = bench_height / measured
+    count = f"all {len(levels)}" if merged >= len(levels) else f"{merged:.0f}"
+    grouping = f", so it would put the holes of {count} levels on one bench" if merges else ""
     raise BGMInputError(
         f"a bench height of {bench_height:g} disagrees with the holes' own benches: their collars lie on "
         f"{len(levels)} levels ({levels[-1]:g} to {levels[0]:g}) {measured:.4g} apart{grouping}; "
