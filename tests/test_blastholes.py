@@ -213,3 +213,15 @@ def test_a_huge_bench_height_is_said_to_merge_the_levels_there_are():
     with pytest.raises(BGMInputError, match="the holes of all 3 levels on one bench") as refused:
         detect_benches(small_table()["RL"].to_numpy(), 1e9)
     assert "100000000" not in str(refused.value)
+
+
+@pytest.mark.parametrize("missing", ["NA", "NULL", "-99"])
+def test_labels_spelling_a_missing_value_are_warned_about(tmp_path, missing):
+    """R writes a missing label ``NA``, SQL ``NULL``, mine databases ``-99``: a geozone of unlabelled holes, said so."""
+    table = small_table()
+    table.loc[[3, 50], "lookup_domain"] = missing
+    with pytest.warns(
+        BGMWarning, match=rf"'{missing}'.*look like missing values \(2 hole\(s\), data line\(s\) 5, 52\)"
+    ):
+        holes = read_blastholes(write(tmp_path, table))
+    assert missing in holes.geozones  # kept: a code may be a real geozone

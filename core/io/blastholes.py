@@ -74,6 +74,8 @@ MAX_DEGREES_SPREAD = 1.0
 MAX_OWN_LABEL_SHARE = 0.5
 #: Fewer holes than this are too few to tell geozones from identifiers.
 MIN_HOLES_FOR_ID_CHECK = 20
+#: Geozone labels (any case) that spell a missing value in common exports (R, SQL, Excel, no-data codes).
+MISSING_LABELS = frozenset({"na", "n/a", "#n/a", "nan", "null", "none", "-99", "-999", "-9999"})
 #: Column names (any case) taken as the hole identifier.
 HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id")
 #: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
@@ -530,6 +532,7 @@ def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[
         )
         _note(notes, msg, stacklevel=5)
     _warn_case_twins(labels, column, notes)
+    _warn_missing_labels(labels, column, lines, notes)
     _warn_identifier_labels(labels, column, notes)
     return labels
 
@@ -552,6 +555,25 @@ def _warn_identifier_labels(labels: np.ndarray, column: str, notes: list[str]) -
             "with --geozone-column"
         )
         _note(notes, msg, stacklevel=5)
+
+
+def _warn_missing_labels(labels: np.ndarray, column: str, lines: np.ndarray, notes: list[str]) -> None:
+    """Warn about labels that spell a missing value (``NA``, ``NULL``, ``-99``...): modelled as a geozone of their own.
+
+    A blank label is refused; these are not refused, since a code may be a
+    real geozone, but unlabelled holes outlined as a geozone reshape their
+    neighbours' boundaries, so the warning names them and their rows.
+    """
+    found = sorted(str(g) for g in pd.unique(labels) if str(g).casefold() in MISSING_LABELS)
+    if not found:
+        return
+    missing = pd.Series(labels, dtype=object).isin(found).to_numpy()
+    msg = (
+        f"geozone label(s) {listing(map(quoted, found), 5)} in column {quoted(column)} look like missing values "
+        f"({int(missing.sum())} hole(s), data line(s) {_rows(np.flatnonzero(missing), lines)}): they are modelled "
+        "as a geozone of their own; drop those rows or give them their geozone if they are unlabelled"
+    )
+    _note(notes, msg, stacklevel=5)
 
 
 def _warn_case_twins(labels: np.ndarray, column: str, notes: list[str]) -> None:
