@@ -170,7 +170,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
         mine grid, or another site).
     """
     from core.errors import BGMInputError
-    from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, find_column
+    from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, coordinate_values, find_column
     from core.io.tables import data_lines, read_table
 
     table = read_table(path)
@@ -188,7 +188,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
             # The input's --x/--y/--z options do not apply to the pattern: its columns go by name.
             message = re.sub(r";? (name it|choose one) with --\w+ COLUMN", "", str(exc))
             raise BGMInputError(f"pattern {str(path)!r}: {message}") from None
-        number = pd.to_numeric(table[column], errors="coerce").to_numpy(dtype=float)
+        number = coordinate_values(table[column], table.attrs.get("delimiter"))  # decimal commas as the holes'
         bad = np.flatnonzero(~np.isfinite(number))
         if len(bad):
             raise BGMInputError(
