@@ -167,7 +167,8 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
         A missing column, a value that is not a finite number, fewer than one
         hole, or a pattern none of whose holes lies within the predictions'
         reach of a blasthole (other coordinates: a local grid against the
-        mine grid, or another site).
+        mine grid, or another site). Collars more than half a bench height apart
+        (the patterns of several benches).
     """
     from core.errors import BGMInputError
     from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, coordinate_values, find_column
@@ -200,8 +201,31 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     _refuse_far_pattern(path, xy, holes)
     ids = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES), None)
     labels = table[ids].astype(str).tolist() if ids is not None else [str(n) for n in data_lines(table)]
-    z = float(np.median(values["z"])) if "z" in values else None
+    z = _pattern_level(path, values["z"], holes) if "z" in values else None
     return xy, labels, z
+
+
+#: A pattern's collars may scatter this fraction of a bench height; more is holes of several benches.
+MAX_PATTERN_Z_SPREAD = 0.5
+
+
+def _pattern_level(path: str | Path, z: np.ndarray, holes: Blastholes) -> float:
+    """The elevation of a pattern's bench (input units): its collars' median, refused if they span benches.
+
+    The suggestions are laid on one bench: a file holding the patterns of two
+    benches would be sampled at the level between them, where no hole is drilled.
+    """
+    from core.errors import BGMInputError
+
+    spread = float(np.ptp(z))
+    height = float(holes.frame.z_to_input(holes.bench_height_m))
+    if np.isfinite(height) and spread > MAX_PATTERN_Z_SPREAD * height:
+        unit = holes.frame.length_unit
+        raise BGMInputError(
+            f"pattern {str(path)!r} has collars from {z.min():g} to {z.max():g} {unit}, more than half a bench "
+            f"({height:.4g} {unit}) apart: give one bench's pattern at a time"
+        )
+    return float(np.median(z))
 
 
 def shade_polygons(ax, geometry, **style) -> None:
