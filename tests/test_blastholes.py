@@ -225,3 +225,13 @@ def test_labels_spelling_a_missing_value_are_warned_about(tmp_path, missing):
     ):
         holes = read_blastholes(write(tmp_path, table))
     assert missing in holes.geozones  # kept: a code may be a real geozone
+
+
+@pytest.mark.parametrize(
+    "names", [("Easting (m)", "Northing (m)", "RL (m)"), ("EAST_M", "NORTH_M", "RL_M"), ("x [ft]", "y [ft]", "z [ft]")]
+)
+def test_columns_named_with_their_unit_are_found(tmp_path, names):
+    """``Easting (m)``, ``RL_M``: a length unit ending a column's name does not hide its role."""
+    table = small_table().rename(columns=dict(zip(["EAST", "NORTH", "RL"], names)))
+    holes = read_blastholes(write(tmp_path, table))
+    assert holes.n_benches == 3 and holes.geozones == ["2210", "3310"]

@@ -43,6 +43,8 @@ COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
     "z": ("z", "rl", "elevation", "elev", "mid_z"),
     "geozone": ("geozone", "domain", "lookup_domain", "label", "zone"),
 }
+#: A length unit ending a column name (``Easting (m)``, ``RL [ft]``, ``NORTHING_M``): not part of the name's role.
+UNIT_SUFFIX = re.compile(r"\s*(?:[(\[]\s*(?:m|ft|metres?|meters?|feet)\s*[)\]]|_(?:m|ft))$", re.IGNORECASE)
 #: The command-line option naming each role's column (``--geozone`` selects geozones, not a column).
 COLUMN_OPTIONS = {"x": "--x", "y": "--y", "z": "--z", "geozone": "--geozone-column"}
 FEET_TO_METRES = 0.3048
@@ -260,8 +262,9 @@ class Blastholes:
 def find_column(columns: list[str], role: str, explicit: str | None = None) -> str:
     """The column playing ``role`` (x, y, z or geozone), found by name case-insensitively.
 
-    Names are compared with surrounding spaces removed; an explicit name is
-    matched exactly first, then ignoring case and spaces.
+    Names are compared with surrounding spaces and a length unit ending them
+    removed (``Easting (m)``, ``RL_ft``, see :func:`column_key`); an explicit
+    name is matched exactly first, then ignoring case and spaces.
     """
     if explicit:
         key = explicit.strip().lower()
@@ -272,7 +275,7 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
             )
         return matches[0]
     aliases = COLUMN_ALIASES[role]
-    matches = [c for c in columns if str(c).strip().lower() in aliases]
+    matches = [c for c in columns if column_key(c) in aliases]
     if not matches:
         raise BGMInputError(
             f"no {role} column: looked for {', '.join(aliases)} (any case); columns are: "
@@ -283,6 +286,11 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
             f"ambiguous {role} column: {listing(map(repr, matches))} could all be {role}; choose one with {COLUMN_OPTIONS[role]} COLUMN"
         )
     return matches[0]
+
+
+def column_key(name: str) -> str:
+    """A column name as compared with :data:`COLUMN_ALIASES`: trimmed, lower case, a length unit ending it dropped."""
+    return UNIT_SUFFIX.sub("", str(name).strip()).lower()
 
 
 def table_columns(columns: list[str], x=None, y=None, z=None, geozone=None) -> dict[str, str]:
