@@ -240,13 +240,13 @@ def _positive(option: str, value: float | None) -> None:
         raise BGMInputError(f"{option} must be a positive number, got {value}")
 
 
-def _outputs(out: Path, input: Path, *others, folder: bool = False) -> None:
+def _outputs(out: Path, input: Path, *others, folder: bool = False, what: str = "--out") -> None:
     """Refuse an output that is an input, a device or (for a folder) holds an input, before any work."""
     from core.io.atomic import check_output
     from core.model.build import truth_sidecar
 
     sidecar = None if str(input) == "-" else truth_sidecar(Path(input))
-    check_output(out, [input, sidecar, *others], folder=folder)
+    check_output(out, [input, sidecar, *others], folder=folder, what=what)
 
 
 def _wanted(holes, given: list[str] | None) -> list[str]:
@@ -477,7 +477,9 @@ def predict(
     levels = _elevations(elevations)
     _band_probability(band_probability)
     sidecars = uncertainty_sidecars(out)
-    _outputs(out, input, project, *sidecars)
+    _outputs(out, input, project)
+    for sidecar in sidecars:  # written too: none may be an input, a folder or a device
+        _outputs(sidecar, input, project, what="the uncertainty file beside --out")
     holes = table.read(input)
     geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 2:
