@@ -109,7 +109,45 @@ def load_truth(path: Path, holes: Blastholes):
             raise ValueError(f"unknown generator {spec.get('generator')!r}")
     except (ValueError, KeyError, TypeError) as exc:
         raise BGMInputError(f"truth file {side} is not usable: {exc}") from None
-    return truth_from_mine(mine, holes.frame)
+    truth = truth_from_mine(mine, holes.frame)
+    _check_truth_describes(truth, holes, side, path)
+    return truth
+
+
+#: Fewer of a table's holes than this inside their own geozone's true section: its truth file describes another table.
+MIN_TRUTH_AGREEMENT = 0.5
+
+
+def truth_agreement(truth, holes: Blastholes) -> float:
+    """The share of the holes that lie inside their own geozone's true section on their bench."""
+    inside = 0
+    for k in range(holes.n_benches):
+        for g in holes.geozones:
+            idx = holes.on_bench(k, g)
+            if len(idx):
+                try:
+                    region = truth(g, float(holes.bench_levels_m[k]))
+                except (KeyError, ValueError):  # a geozone the generator does not know
+                    continue
+                inside += int(np.sum(shapely.contains_xy(region, holes.xy[idx, 0], holes.xy[idx, 1])))
+    return inside / max(len(holes.xy), 1)
+
+
+def _check_truth_describes(truth, holes: Blastholes, side: Path, path: Path) -> None:
+    """Refuse a truth file that does not describe the table beside it (moved, relabelled or replaced since).
+
+    A generated table's holes lie in their true sections but for label
+    noise (97-99% of them); scored against another table's truth, every
+    figure of an evaluation would be meaningless, or it would fail with a
+    message about contours.
+    """
+    share = truth_agreement(truth, holes)
+    if share < MIN_TRUTH_AGREEMENT:
+        raise BGMInputError(
+            f"truth file {side} does not describe {path}: only {share:.0%} of its holes lie in their geozone's true "
+            f"section (a generated table: 97-99%); the table was changed since it was generated: delete or rename "
+            f"{side.name} to score against the holes of the next bench"
+        )
 
 
 def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelParameters):
