@@ -235,3 +235,21 @@ def test_columns_named_with_their_unit_are_found(tmp_path, names):
     table = small_table().rename(columns=dict(zip(["EAST", "NORTH", "RL"], names)))
     holes = read_blastholes(write(tmp_path, table))
     assert holes.n_benches == 3 and holes.geozones == ["2210", "3310"]
+
+
+def test_decimal_commas_with_dots_grouping_thousands(tmp_path):
+    """European spreadsheets write mine-grid coordinates ``7.400.517,77``: read as 7400517.77, not refused."""
+    table = small_table()
+    table["EAST"] += 650_000.0
+    table["NORTH"] += 7_400_000.0
+    expected = read_blastholes(write(tmp_path, table, name="plain.csv"))
+
+    def european(v: float) -> str:
+        return f"{v:,.2f}".replace(",", " ").replace(".", ",").replace(" ", ".")
+
+    styled = table.assign(EAST=table["EAST"].map(european), NORTH=table["NORTH"].map(european))
+    styled.loc[0, "EAST"] = f"{round(table.loc[0, 'EAST']):,}".replace(",", ".")  # a whole number: dots only
+    styled["RL"] = styled["RL"].map(lambda v: f"{v:.2f}".replace(".", ","))
+    holes = read_blastholes(write(tmp_path, styled, name="european.csv", sep=";"))
+    np.testing.assert_allclose(holes.frame.to_input(holes.xy)[1:], expected.frame.to_input(expected.xy)[1:], atol=0.006)
+    assert holes.frame.to_input(holes.xy)[0, 0] == round(table.loc[0, "EAST"])

@@ -91,6 +91,8 @@ DEPTH_NAME = re.compile(r"(?:.*depth.*|(?:from|to)(?:[_\s(].*)?)", re.IGNORECASE
 #: Numbers with decimal commas, and with thousands separators.
 DECIMAL_COMMA = r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?"
 THOUSANDS = r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d*)?(?:[eE][+-]?\d+)?"
+#: Decimal commas with dots grouping thousands, as European spreadsheets write them (``7.400.517,77``).
+DOTS_DECIMAL_COMMA = r"[+-]?\d{1,3}(?:\.\d{3})+,\d*(?:[eE][+-]?\d+)?"
 
 __all__ = ["BGMWarning", "Blastholes", "LocalFrame", "blastholes_from_table", "detect_benches", "read_blastholes"]
 
@@ -638,7 +640,8 @@ def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, 
 
 
 def _without_digit_grouping(text: pd.Series, delimiter: str | None) -> pd.Series:
-    """Numbers written with decimal commas (``650053,80``) or thousands separators (``650,053.80``) in plain form.
+    """Numbers written with decimal commas (``650053,80``, ``650.053,80``) or thousands separators (``650,053.80``)
+    in plain form.
 
     Decided per column: commas that can only be decimal commas, or only
     thousands separators, are read as such; where every comma could be either
@@ -649,7 +652,8 @@ def _without_digit_grouping(text: pd.Series, delimiter: str | None) -> pd.Series
     comma = text.str.contains(",", regex=False)
     if not comma.any():
         return text
-    decimal = text.str.fullmatch(DECIMAL_COMMA)
+    dots = text.str.fullmatch(DOTS_DECIMAL_COMMA)
+    decimal = text.str.fullmatch(DECIMAL_COMMA) | dots
     grouped = text.str.fullmatch(THOUSANDS)
     if (comma & ~decimal & ~grouped).any():
         return text
@@ -658,6 +662,9 @@ def _without_digit_grouping(text: pd.Series, delimiter: str | None) -> pd.Series
     if decimal_only and grouped_only:
         return text
     use_decimal = decimal_only or (not grouped_only and delimiter not in (",", None))
+    if use_decimal and dots.any():  # dots group thousands in this column, in whole numbers too (7.400.517)
+        dots |= ~comma & text.str.fullmatch(r"[+-]?\d{1,3}(?:\.\d{3})+")
+        text = text.where(~dots, text.str.replace(".", "", regex=False))
     return text.str.replace(",", "." if use_decimal else "", regex=False)
 
 
