@@ -701,6 +701,8 @@ def demo(
     if viewer is None:
         _say("open it in 3D with: bgm view")
         return
+    with contextlib.suppress(ValueError):  # the window closes on SIGTERM, as a window does (see main)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     viewer(DEMO_CSV, no_cache=no_cache)  # the stages just built, from the cache (unless --no-cache)
 
 
@@ -956,13 +958,33 @@ _WITHOUT_SURFACES = frozenset(
 )
 
 
+#: The engine's own commands (add-ons such as ``view`` are not among them).
+_ENGINE_COMMANDS = _WITHOUT_SURFACES | {"build", "demo"}
+
+
+def _command(argv: list[str]) -> str | None:
+    """The command ``bgm ARGV`` runs: its first argument that is not an option."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def _stop_on_sigterm(argv: list[str]) -> None:
+    """Make SIGTERM (kill, timeout, a job scheduler) stop the engine's commands as Ctrl-C does.
+
+    By default Python dies on the spot, leaving its staging folder and a
+    build's workers behind. Not an add-on's command (``view``): a Qt event
+    loop runs no Python handler until an event comes, and a window that
+    ignored SIGTERM would stay open.
+    """
+    if _command(argv) in _ENGINE_COMMANDS:
+        signal.signal(signal.SIGTERM, _on_ctrl_c)
+
+
 def _import_uninterrupted(argv: list[str]) -> None:
     """Import the libraries that swallow Ctrl-C during their own import, with Ctrl-C held until done.
 
     Only for commands that may load them: ``build``, ``demo`` and add-ons.
     """
-    command = next((a for a in argv if not a.startswith("-")), None)
-    if command in _WITHOUT_SURFACES:
+    if _command(argv) in _WITHOUT_SURFACES:
         return
     with _ctrl_c_held():
         import trimesh  # noqa: F401  (its optional-import guards catch BaseException)
@@ -981,9 +1003,7 @@ def main() -> None:
     """Entry point of the ``bgm`` console script: run the command, print at most one line, exit."""
     with contextlib.suppress(ValueError):  # not the main thread: Python's default handling
         signal.signal(signal.SIGINT, _on_ctrl_c)
-        # SIGTERM (kill, timeout, a job scheduler) stops the command as Ctrl-C does: by default
-        # Python would die on the spot, leaving its staging folder and its build's workers behind.
-        signal.signal(signal.SIGTERM, _on_ctrl_c)
+        _stop_on_sigterm(sys.argv[1:])
     code, line = _stopped_status(_run())
     if line is not None:
         _say(line)
