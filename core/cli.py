@@ -1001,6 +1001,7 @@ def _stopped_status(code: int) -> tuple[int, str | None]:
 
 def main() -> None:
     """Entry point of the ``bgm`` console script: run the command, print at most one line, exit."""
+    on_sigterm = signal.getsignal(signal.SIGTERM)
     with contextlib.suppress(ValueError):  # not the main thread: Python's default handling
         signal.signal(signal.SIGINT, _on_ctrl_c)
         _stop_on_sigterm(sys.argv[1:])
@@ -1012,7 +1013,10 @@ def main() -> None:
     # (die by SIGINT) while it shuts down.
     with contextlib.suppress(ValueError):
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        # SIGTERM as it was: ignored, it would be inherited by whatever this process forks next when
+        # main() runs inside another program (the tests), and a terminated worker would live on.
+        if on_sigterm is not None:
+            signal.signal(signal.SIGTERM, on_sigterm)
     if _INTERRUPTS and line is not None:
         # Every file is closed and every staging folder gone; the interpreter's own
         # shutdown, with worker-pool threads cut short, can crash ("Fatal Python

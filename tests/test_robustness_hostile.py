@@ -1070,3 +1070,15 @@ def test_sigterm_stops_the_engines_commands_but_leaves_a_window_to_die_as_window
             assert (signal.getsignal(signal.SIGTERM) is cli._on_ctrl_c) is handled, argv
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def test_main_leaves_sigterm_as_it_found_it(tmp_path):
+    """Run inside another program (the tests), ``bgm`` left SIGTERM ignored: a process forked later could not be
+    terminated (test_an_interrupted_command_leaves_no_worker_behind failed after any in-process command)."""
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        bgm("make-demo-data", "--family", "strips", "--out", tmp_path / "m.csv")
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGTERM, previous)
