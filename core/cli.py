@@ -4,7 +4,8 @@ Every command reads a blasthole table (CSV or Parquet, a file or ``-`` for
 standard input), finds its columns and benches, and writes results in the
 input's own coordinates. Exit status: 0 done; 2 for any problem with the
 input, options or output paths, told in one line (``bgm: error: ...``); 130
-when interrupted (Ctrl-C), also one line; 3 only for a bug in BGM. Outputs
+when interrupted (Ctrl-C) and 143 when terminated (SIGTERM: ``kill``, ``timeout``,
+a job scheduler), also one line; 3 only for a bug in BGM. Outputs
 never replace an input, a device or anything outside ``--out``, and every file
 is written atomically.
 """
@@ -106,8 +107,10 @@ NoCacheOpt = Annotated[
 class TableOptions:
     """How to read the blasthole table: the options every command that reads one takes."""
 
-    x: Annotated[str | None, typer.Option("--x", help="Column holding x (default: x/east/easting, any case).")] = None
-    y: Annotated[str | None, typer.Option("--y", help="Column holding y (default: y/north/northing).")] = None
+    x: Annotated[
+        str | None, typer.Option("--x", help="Column holding x (default: x/east/easting/mid_x, any case).")
+    ] = None
+    y: Annotated[str | None, typer.Option("--y", help="Column holding y (default: y/north/northing/mid_y).")] = None
     z: Annotated[
         str | None, typer.Option("--z", help="Column holding elevation (default: z/rl/elevation/elev/mid_z).")
     ] = None
@@ -237,13 +240,13 @@ def _positive(option: str, value: float | None) -> None:
         raise BGMInputError(f"{option} must be a positive number, got {value}")
 
 
-def _outputs(out: Path, input: Path, *others, folder: bool = False) -> None:
+def _outputs(out: Path, input: Path, *others, folder: bool = False, what: str = "--out") -> None:
     """Refuse an output that is an input, a device or (for a folder) holds an input, before any work."""
     from core.io.atomic import check_output
     from core.model.build import truth_sidecar
 
     sidecar = None if str(input) == "-" else truth_sidecar(Path(input))
-    check_output(out, [input, sidecar, *others], folder=folder)
+    check_output(out, [input, sidecar, *others], folder=folder, what=what)
 
 
 def _wanted(holes, given: list[str] | None) -> list[str]:
@@ -475,7 +478,9 @@ def predict(
     levels = _elevations(elevations)
     _band_probability(band_probability)
     sidecars = uncertainty_sidecars(out)
-    _outputs(out, input, project, *sidecars)
+    _outputs(out, input, project)
+    for sidecar in sidecars:  # written too: none may be an input, a folder or a device
+        _outputs(sidecar, input, project, what="the uncertainty file beside --out")
     holes = table.read(input)
     geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 2:
@@ -697,6 +702,8 @@ def demo(
     if viewer is None:
         _say("open it in 3D with: bgm view")
         return
+    with contextlib.suppress(ValueError):  # the window closes on SIGTERM, as a window does (see main)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     viewer(DEMO_CSV, no_cache=no_cache)  # the stages just built, from the cache (unless --no-cache)
 
 
@@ -952,32 +959,66 @@ _WITHOUT_SURFACES = frozenset(
 )
 
 
+#: The engine's own commands (add-ons such as ``view`` are not among them).
+_ENGINE_COMMANDS = _WITHOUT_SURFACES | {"build", "demo"}
+
+
+def _command(argv: list[str]) -> str | None:
+    """The command ``bgm ARGV`` runs: its first argument that is not an option."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def _stop_on_sigterm(argv: list[str]) -> None:
+    """Make SIGTERM (kill, timeout, a job scheduler) stop the engine's commands as Ctrl-C does.
+
+    By default Python dies on the spot, leaving its staging folder and a
+    build's workers behind. Not an add-on's command (``view``): a Qt event
+    loop runs no Python handler until an event comes, and a window that
+    ignored SIGTERM would stay open.
+    """
+    if _command(argv) in _ENGINE_COMMANDS:
+        signal.signal(signal.SIGTERM, _on_ctrl_c)
+
+
 def _import_uninterrupted(argv: list[str]) -> None:
     """Import the libraries that swallow Ctrl-C during their own import, with Ctrl-C held until done.
 
     Only for commands that may load them: ``build``, ``demo`` and add-ons.
     """
-    command = next((a for a in argv if not a.startswith("-")), None)
-    if command in _WITHOUT_SURFACES:
+    if _command(argv) in _WITHOUT_SURFACES:
         return
     with _ctrl_c_held():
         import trimesh  # noqa: F401  (its optional-import guards catch BaseException)
 
 
+def _stopped_status(code: int) -> tuple[int, str | None]:
+    """The exit status and line of a command stopped by a signal (Ctrl-C or SIGTERM); ``code`` and None if not."""
+    if code != 130 and not (_INTERRUPTS and code != 0):  # typer turns Ctrl-C into exit status 130 without a word
+        return code, None
+    if _INTERRUPTS and _INTERRUPTS[0] == signal.SIGTERM:
+        return 128 + signal.SIGTERM, "bgm: terminated; files being written were left as they were"
+    return 130, "bgm: interrupted; files being written were left as they were"
+
+
 def main() -> None:
     """Entry point of the ``bgm`` console script: run the command, print at most one line, exit."""
+    on_sigterm = signal.getsignal(signal.SIGTERM)
     with contextlib.suppress(ValueError):  # not the main thread: Python's default handling
         signal.signal(signal.SIGINT, _on_ctrl_c)
-    code = _run()
-    if code == 130 or (_INTERRUPTS and code != 0):  # typer turns Ctrl-C into exit status 130 without a word
-        _say("bgm: interrupted; files being written were left as they were")
-        code = 130
+        _stop_on_sigterm(sys.argv[1:])
+    code, line = _stopped_status(_run())
+    if line is not None:
+        _say(line)
     # The work is done (or abandoned): a Ctrl-C while the interpreter shuts down changes
     # nothing. Ignored, not handled: Python resets its own handlers to the default
     # (die by SIGINT) while it shuts down.
     with contextlib.suppress(ValueError):
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if _INTERRUPTS and code == 130:
+        # SIGTERM as it was: ignored, it would be inherited by whatever this process forks next when
+        # main() runs inside another program (the tests), and a terminated worker would live on.
+        if on_sigterm is not None:
+            signal.signal(signal.SIGTERM, on_sigterm)
+    if _INTERRUPTS and line is not None:
         # Every file is closed and every staging folder gone; the interpreter's own
         # shutdown, with worker-pool threads cut short, can crash ("Fatal Python
         # error") and would add a second message: leave now, without a worker process
@@ -985,7 +1026,7 @@ def main() -> None:
         _stop_worker_processes()
         sys.stdout.flush()
         sys.stderr.flush()
-        os._exit(130)
+        os._exit(code)
     sys.exit(code)
 
 

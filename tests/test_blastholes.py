@@ -178,3 +178,78 @@ def test_mine_grid_coordinates_keep_full_precision():
 
     d, _ = cKDTree(original).query(back)
     assert d.max() < 1e-6
+
+
+def test_a_missing_column_message_names_the_option_that_names_it(tmp_path):
+    """``--geozone`` selects geozones: the hint for an unfound geozone column is ``--geozone-column``."""
+    path = write(tmp_path, small_table().rename(columns={"lookup_domain": "rocktype"}))
+    with pytest.raises(BGMInputError, match="name it with --geozone-column COLUMN"):
+        read_blastholes(path)
+    path = write(tmp_path, small_table().assign(zone="a"), name="two.csv")
+    with pytest.raises(BGMInputError, match="choose one with --geozone-column COLUMN"):
+        read_blastholes(path)
+    assert read_blastholes(path, geozone="zone").geozones == ["a"]
+
+
+def test_mid_point_columns_are_found_for_x_and_y_as_for_z(tmp_path):
+    """A table of mid-points (``MID_X, MID_Y, MID_Z``, as mine databases export them) reads as found."""
+    mid = small_table().rename(columns={"EAST": "MID_X", "NORTH": "MID_Y", "RL": "MID_Z"})
+    holes = read_blastholes(write(tmp_path, mid))
+    assert holes.n_benches == 3 and holes.geozones == ["2210", "3310"]
+
+
+@pytest.mark.parametrize("sep", [";", ",", "\t"])
+def test_an_excel_sep_line_names_the_delimiter(tmp_path, sep):
+    """Excel writes (and reads) ``sep=;`` before the header: it names the delimiter and is no header."""
+    path = tmp_path / "holes.csv"
+    text = small_table().assign(lookup_domain="ore, oxide").to_csv(index=False, sep=sep, lineterminator="\r\n")
+    path.write_text(f"sep={sep}\r\n{text}")
+    holes = read_blastholes(path)
+    assert holes.n_benches == 3 and holes.geozones == ["ore, oxide"] and len(holes.xy) == 120
+
+
+def test_a_huge_bench_height_is_said_to_merge_the_levels_there_are():
+    """``--bench-height 1e9`` on 10 m benches merges the 3 levels there are, not "100000000 levels"."""
+    with pytest.raises(BGMInputError, match="the holes of all 3 levels on one bench") as refused:
+        detect_benches(small_table()["RL"].to_numpy(), 1e9)
+    assert "100000000" not in str(refused.value)
+
+
+@pytest.mark.parametrize("missing", ["NA", "NULL", "-99"])
+def test_labels_spelling_a_missing_value_are_warned_about(tmp_path, missing):
+    """R writes a missing label ``NA``, SQL ``NULL``, mine databases ``-99``: a geozone of unlabelled holes, said so."""
+    table = small_table()
+    table.loc[[3, 50], "lookup_domain"] = missing
+    with pytest.warns(
+        BGMWarning, match=rf"'{missing}'.*look like missing values \(2 hole\(s\), data line\(s\) 5, 52\)"
+    ):
+        holes = read_blastholes(write(tmp_path, table))
+    assert missing in holes.geozones  # kept: a code may be a real geozone
+
+
+@pytest.mark.parametrize(
+    "names", [("Easting (m)", "Northing (m)", "RL (m)"), ("EAST_M", "NORTH_M", "RL_M"), ("x [ft]", "y [ft]", "z [ft]")]
+)
+def test_columns_named_with_their_unit_are_found(tmp_path, names):
+    """``Easting (m)``, ``RL_M``: a length unit ending a column's name does not hide its role."""
+    table = small_table().rename(columns=dict(zip(["EAST", "NORTH", "RL"], names)))
+    holes = read_blastholes(write(tmp_path, table))
+    assert holes.n_benches == 3 and holes.geozones == ["2210", "3310"]
+
+
+def test_decimal_commas_with_dots_grouping_thousands(tmp_path):
+    """European spreadsheets write mine-grid coordinates ``7.400.517,77``: read as 7400517.77, not refused."""
+    table = small_table()
+    table["EAST"] += 650_000.0
+    table["NORTH"] += 7_400_000.0
+    expected = read_blastholes(write(tmp_path, table, name="plain.csv"))
+
+    def european(v: float) -> str:
+        return f"{v:,.2f}".replace(",", " ").replace(".", ",").replace(" ", ".")
+
+    styled = table.assign(EAST=table["EAST"].map(european), NORTH=table["NORTH"].map(european))
+    styled.loc[0, "EAST"] = f"{round(table.loc[0, 'EAST']):,}".replace(",", ".")  # a whole number: dots only
+    styled["RL"] = styled["RL"].map(lambda v: f"{v:.2f}".replace(".", ","))
+    holes = read_blastholes(write(tmp_path, styled, name="european.csv", sep=";"))
+    np.testing.assert_allclose(holes.frame.to_input(holes.xy)[1:], expected.frame.to_input(expected.xy)[1:], atol=0.006)
+    assert holes.frame.to_input(holes.xy)[0, 0] == round(table.loc[0, "EAST"])

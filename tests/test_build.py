@@ -157,3 +157,14 @@ def test_evaluate_uses_the_generator_truth_when_the_sidecar_is_there(small_mine_
         assert proc.returncode == 2 and "truth file" in proc.stderr
     finally:
         truth_sidecar(path).unlink()
+
+
+def test_a_truth_file_of_another_table_is_refused(small_mine_csv, tmp_path):
+    """A generated table moved (or replaced) with its truth file left beside it was scored against another mine."""
+    _, table = small_mine_csv
+    moved = tmp_path / "moved.csv"
+    table.assign(x=table["x"] + 300.0).to_csv(moved, index=False)
+    atomic_write_text(truth_sidecar(moved), json.dumps({"generator": "core.synthetic.make_mine", "kwargs": SMALL_MINE}))
+    proc = bgm("evaluate", moved, "--geozone", "g1", "--out", tmp_path / "e", check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert "does not describe" in proc.stderr and "moved.truth.json" in proc.stderr

@@ -605,3 +605,45 @@ def test_ctrl_c_in_the_cli_exits_130_with_one_line(base_csv, tmp_path):
     assert proc.returncode == 130
     assert out.read_text() == "previous\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["contours.geojson"]
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["contours"],
+        ["correspond", "--geozone", "g1"],
+        ["predict", "--geozone", "g1", "--elevations", "600"],
+        ["suggest", "--geozone", "g1", "--budget", "3"],
+        ["evaluate", "--geozone", "g1"],
+        ["build"],
+    ],
+)
+def test_out_dash_is_refused_not_written_as_a_file_named_dash(base_csv, tmp_path, monkeypatch, command):
+    """``-`` reads standard input, so ``--out -`` reads as standard output: no file named ``-`` is made."""
+    monkeypatch.chdir(tmp_path)
+    fails_cleanly(bgm(command[0], base_csv, *command[1:], "--out", "-"), "--out -", "named '-'")
+    assert not (tmp_path / "-").exists()
+
+
+@pytest.mark.parametrize("case", ["input", "project", "folder"])
+def test_predict_refuses_uncertainty_files_it_cannot_write_before_any_work(base_csv, tmp_path, case):
+    """``--out q.geojson`` also writes q.uncertainty.geojson and q.p_inside.npz: they overwrote an input or a
+    project file of that name, and a folder there failed only after q.geojson was written."""
+    from core.io.project import Project, save_project
+
+    sidecar = tmp_path / "q.uncertainty.geojson"
+    args = []
+    if case == "folder":
+        sidecar.mkdir()
+        data = base_csv
+    elif case == "input":
+        data = tmp_path / "q.p_inside.npz"
+        data.write_bytes(base_csv.read_bytes())
+    else:
+        data = base_csv
+        save_project(Project(), sidecar)
+        args = ["--project", sidecar]
+    kept = data.read_bytes()
+    run = bgm("predict", data, "--geozone", "g1", "--elevations", "600", "--out", tmp_path / "q.geojson", *args)
+    fails_cleanly(run, "directory" if case == "folder" else "would be overwritten")
+    assert data.read_bytes() == kept and not (tmp_path / "q.geojson").exists()

@@ -1056,3 +1056,29 @@ def test_geozones_given_with_commas_as_suggest_takes_them_and_a_label_holding_a_
         assert bgm("contours", path, *options, "--out", out).returncode == 0
         assert {f["properties"]["geozone"] for f in json.loads(out.read_text())["features"]} == expected, asked
     error_line(bgm("contours", path, "--geozone", "g1,nope", "--out", out), "'nope' is not in")
+
+
+def test_sigterm_stops_the_engines_commands_but_leaves_a_window_to_die_as_windows_do():
+    """SIGTERM becomes a Ctrl-C for ``bgm build`` and the like; ``bgm view``'s Qt loop would never run that handler."""
+    from core import cli
+
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        for argv, handled in ((["build", "h.csv"], True), (["contours", "h.csv"], True), (["view", "h.csv"], False)):
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            cli._stop_on_sigterm(argv)
+            assert (signal.getsignal(signal.SIGTERM) is cli._on_ctrl_c) is handled, argv
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def test_main_leaves_sigterm_as_it_found_it(tmp_path):
+    """Run inside another program (the tests), ``bgm`` left SIGTERM ignored: a process forked later could not be
+    terminated (test_an_interrupted_command_leaves_no_worker_behind failed after any in-process command)."""
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        bgm("make-demo-data", "--family", "strips", "--out", tmp_path / "m.csv")
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGTERM, previous)

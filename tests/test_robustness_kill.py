@@ -143,3 +143,56 @@ def test_build_killed_at_random_moments_leaves_the_previous_model(small_csv, tmp
     assert final.returncode == 0, err
     assert_valid_model(out, reference)
     assert not [p.name for p in tmp_path.iterdir() if ".bgm-" in p.name]
+
+
+def children(pid: int) -> list[int]:
+    """The live child processes of ``pid`` (Linux's /proc)."""
+    with contextlib.suppress(OSError):
+        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    return []
+
+
+def alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, dead but not yet reaped by init, does not)."""
+    with contextlib.suppress(OSError):
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    return False
+
+
+def started_workers(proc: subprocess.Popen, timeout: float = 120) -> list[int]:
+    """The build's worker processes, once it has started them."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and proc.poll() is None:
+        workers = children(proc.pid)
+        if workers:
+            return workers
+        time.sleep(0.05)
+    raise AssertionError("the build started no worker process")
+
+
+def gone(pids: list[int], timeout: float = 30) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and any(alive(p) for p in pids):
+        time.sleep(0.1)
+    return not any(alive(p) for p in pids)
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="reads processes from Linux's /proc")
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_a_build_stopped_by_kill_leaves_no_worker_running(small_csv, tmp_path, sig):
+    """``kill`` (SIGTERM, as timeout and job schedulers stop a job) ends a build as Ctrl-C does, and
+    a main process killed outright takes its workers with it instead of leaving them waiting for work."""
+    proc = start(small_csv, tmp_path / "model")
+    try:
+        workers = started_workers(proc)
+        os.kill(proc.pid, sig)
+        _, err = proc.communicate(timeout=120)
+        assert gone(workers), f"workers {workers} outlived the build's main process"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    if sig == signal.SIGTERM:
+        assert proc.returncode == 143, err
+        lines = [line for line in err.splitlines() if line.startswith("bgm:") or "Traceback" in line]
+        assert lines == ["bgm: terminated; files being written were left as they were"], err
+        assert not [p.name for p in tmp_path.iterdir() if ".bgm-" in p.name]

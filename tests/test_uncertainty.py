@@ -405,3 +405,31 @@ def test_the_geozones_of_one_suggestion_are_modelled_several_at_once_as_one_by_o
         np.testing.assert_array_equal(together.sections[g].field, section.field)
     one_by_one = plan_sampling(fresh(), geozones, 12, z, sections=sections)
     assert together.suggestions and together.suggestions == one_by_one.suggestions
+
+
+def test_a_pattern_with_decimal_commas_reads_as_the_holes_do(strip_csv, tmp_path):
+    """A pattern exported with semicolons and decimal commas, as the blasthole table may be, is read, not refused."""
+    planned = pd.DataFrame(pattern_holes((1.0, 1.0)) + [400_000.0, 7_000_000.0], columns=["X", "Y"])
+    planned["Z"] = 935.5
+    runs = []
+    for name, style in (("comma.csv", {}), ("semicolon.csv", {"sep": ";", "decimal": ","})):
+        planned.to_csv(tmp_path / name, index=False, **style)
+        out = tmp_path / f"s-{name}"
+        run = bgm("suggest", strip_csv, "--geozone", "ore", "--budget", "4", "--pattern", tmp_path / name, "--out", out)
+        assert run.returncode == 0, run.stderr
+        runs.append(pd.read_csv(out))
+    pd.testing.assert_frame_equal(runs[0], runs[1])
+    assert (runs[1]["z"] == 935.5).all()
+
+
+def test_a_pattern_spanning_two_benches_is_refused(strip_csv, tmp_path):
+    """Two benches' patterns in one file were sampled at the level between them, where no hole is drilled."""
+    planned = pd.DataFrame(pattern_holes((1.0, 1.0)) + [400_000.0, 7_000_000.0], columns=["X", "Y"])
+    planned["Z"] = np.where(np.arange(len(planned)) % 2, 935.0, 925.0)
+    path = tmp_path / "two.csv"
+    planned.to_csv(path, index=False)
+    out = tmp_path / "s.csv"
+    run = bgm("suggest", strip_csv, "--geozone", "ore", "--budget", "3", "--pattern", path, "--out", out)
+    assert run.returncode == 2, run.stderr
+    assert "collars from 925 to 935 m" in run.stderr and "one bench's pattern" in run.stderr
+    assert not out.exists()

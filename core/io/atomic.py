@@ -103,6 +103,11 @@ def check_output(
     -------
     Path
     """
+    if str(path) == "-":  # standard input as an input, but no command writes its output to standard output
+        raise BGMInputError(
+            f"{what} - would write a {'folder' if folder else 'file'} named '-', not standard output; give a "
+            f"{'folder' if folder else 'file'} name"
+        )
     path = Path(path)
     if folder:
         if path.exists() and not path.is_dir():

@@ -38,11 +38,15 @@ from core.errors import BGMInputError, BGMWarning, listing, quoted
 from core.io.tables import data_lines
 
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
-    "x": ("x", "east", "easting"),
-    "y": ("y", "north", "northing"),
+    "x": ("x", "east", "easting", "mid_x"),
+    "y": ("y", "north", "northing", "mid_y"),
     "z": ("z", "rl", "elevation", "elev", "mid_z"),
     "geozone": ("geozone", "domain", "lookup_domain", "label", "zone"),
 }
+#: A length unit ending a column name (``Easting (m)``, ``RL [ft]``, ``NORTHING_M``): not part of the name's role.
+UNIT_SUFFIX = re.compile(r"\s*(?:[(\[]\s*(?:m|ft|metres?|meters?|feet)\s*[)\]]|_(?:m|ft))$", re.IGNORECASE)
+#: The command-line option naming each role's column (``--geozone`` selects geozones, not a column).
+COLUMN_OPTIONS = {"x": "--x", "y": "--y", "z": "--z", "geozone": "--geozone-column"}
 FEET_TO_METRES = 0.3048
 #: Holes farther than this fraction of the bench height from every bench
 #: level are not assigned to a bench (they sit between benches).
@@ -72,6 +76,8 @@ MAX_DEGREES_SPREAD = 1.0
 MAX_OWN_LABEL_SHARE = 0.5
 #: Fewer holes than this are too few to tell geozones from identifiers.
 MIN_HOLES_FOR_ID_CHECK = 20
+#: Geozone labels (any case) that spell a missing value in common exports (R, SQL, Excel, no-data codes).
+MISSING_LABELS = frozenset({"na", "n/a", "#n/a", "nan", "null", "none", "-99", "-999", "-9999"})
 #: Column names (any case) taken as the hole identifier.
 HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id")
 #: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
@@ -85,6 +91,8 @@ DEPTH_NAME = re.compile(r"(?:.*depth.*|(?:from|to)(?:[_\s(].*)?)", re.IGNORECASE
 #: Numbers with decimal commas, and with thousands separators.
 DECIMAL_COMMA = r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?"
 THOUSANDS = r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d*)?(?:[eE][+-]?\d+)?"
+#: Decimal commas with dots grouping thousands, as European spreadsheets write them (``7.400.517,77``).
+DOTS_DECIMAL_COMMA = r"[+-]?\d{1,3}(?:\.\d{3})+,\d*(?:[eE][+-]?\d+)?"
 
 __all__ = ["BGMWarning", "Blastholes", "LocalFrame", "blastholes_from_table", "detect_benches", "read_blastholes"]
 
@@ -256,8 +264,9 @@ class Blastholes:
 def find_column(columns: list[str], role: str, explicit: str | None = None) -> str:
     """The column playing ``role`` (x, y, z or geozone), found by name case-insensitively.
 
-    Names are compared with surrounding spaces removed; an explicit name is
-    matched exactly first, then ignoring case and spaces.
+    Names are compared with surrounding spaces and a length unit ending them
+    removed (``Easting (m)``, ``RL_ft``, see :func:`column_key`); an explicit
+    name is matched exactly first, then ignoring case and spaces.
     """
     if explicit:
         key = explicit.strip().lower()
@@ -268,17 +277,22 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
             )
         return matches[0]
     aliases = COLUMN_ALIASES[role]
-    matches = [c for c in columns if str(c).strip().lower() in aliases]
+    matches = [c for c in columns if column_key(c) in aliases]
     if not matches:
         raise BGMInputError(
             f"no {role} column: looked for {', '.join(aliases)} (any case); columns are: "
-            f"{listing(columns)}; name it with --{role} COLUMN"
+            f"{listing(columns)}; name it with {COLUMN_OPTIONS[role]} COLUMN"
         )
     if len(matches) > 1:
         raise BGMInputError(
-            f"ambiguous {role} column: {listing(map(repr, matches))} could all be {role}; choose one with --{role} COLUMN"
+            f"ambiguous {role} column: {listing(map(repr, matches))} could all be {role}; choose one with {COLUMN_OPTIONS[role]} COLUMN"
         )
     return matches[0]
+
+
+def column_key(name: str) -> str:
+    """A column name as compared with :data:`COLUMN_ALIASES`: trimmed, lower case, a length unit ending it dropped."""
+    return UNIT_SUFFIX.sub("", str(name).strip()).lower()
 
 
 def table_columns(columns: list[str], x=None, y=None, z=None, geozone=None) -> dict[str, str]:
@@ -528,6 +542,7 @@ def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[
         )
         _note(notes, msg, stacklevel=5)
     _warn_case_twins(labels, column, notes)
+    _warn_missing_labels(labels, column, lines, notes)
     _warn_identifier_labels(labels, column, notes)
     return labels
 
@@ -550,6 +565,25 @@ def _warn_identifier_labels(labels: np.ndarray, column: str, notes: list[str]) -
             "with --geozone-column"
         )
         _note(notes, msg, stacklevel=5)
+
+
+def _warn_missing_labels(labels: np.ndarray, column: str, lines: np.ndarray, notes: list[str]) -> None:
+    """Warn about labels that spell a missing value (``NA``, ``NULL``, ``-99``...): modelled as a geozone of their own.
+
+    A blank label is refused; these are not refused, since a code may be a
+    real geozone, but unlabelled holes outlined as a geozone reshape their
+    neighbours' boundaries, so the warning names them and their rows.
+    """
+    found = sorted(str(g) for g in pd.unique(labels) if str(g).casefold() in MISSING_LABELS)
+    if not found:
+        return
+    missing = pd.Series(labels, dtype=object).isin(found).to_numpy()
+    msg = (
+        f"geozone label(s) {listing(map(quoted, found), 5)} in column {quoted(column)} look like missing values "
+        f"({int(missing.sum())} hole(s), data line(s) {_rows(np.flatnonzero(missing), lines)}): they are modelled "
+        "as a geozone of their own; drop those rows or give them their geozone if they are unlabelled"
+    )
+    _note(notes, msg, stacklevel=5)
 
 
 def _warn_case_twins(labels: np.ndarray, column: str, notes: list[str]) -> None:
@@ -606,7 +640,8 @@ def _coordinates(raw: pd.Series, column: str, role: str, delimiter: str | None, 
 
 
 def _without_digit_grouping(text: pd.Series, delimiter: str | None) -> pd.Series:
-    """Numbers written with decimal commas (``650053,80``) or thousands separators (``650,053.80``) in plain form.
+    """Numbers written with decimal commas (``650053,80``, ``650.053,80``) or thousands separators (``650,053.80``)
+    in plain form.
 
     Decided per column: commas that can only be decimal commas, or only
     thousands separators, are read as such; where every comma could be either
@@ -617,7 +652,8 @@ def _without_digit_grouping(text: pd.Series, delimiter: str | None) -> pd.Series
     comma = text.str.contains(",", regex=False)
     if not comma.any():
         return text
-    decimal = text.str.fullmatch(DECIMAL_COMMA)
+    dots = text.str.fullmatch(DOTS_DECIMAL_COMMA)
+    decimal = text.str.fullmatch(DECIMAL_COMMA) | dots
     grouped = text.str.fullmatch(THOUSANDS)
     if (comma & ~decimal & ~grouped).any():
         return text
@@ -626,6 +662,9 @@ def _without_digit_grouping(text: pd.Series, delimiter: str | None) -> pd.Series
     if decimal_only and grouped_only:
         return text
     use_decimal = decimal_only or (not grouped_only and delimiter not in (",", None))
+    if use_decimal and dots.any():  # dots group thousands in this column, in whole numbers too (7.400.517)
+        dots |= ~comma & text.str.fullmatch(r"[+-]?\d{1,3}(?:\.\d{3})+")
+        text = text.where(~dots, text.str.replace(".", "", regex=False))
     return text.str.replace(",", "." if use_decimal else "", regex=False)
 
 
@@ -809,7 +848,9 @@ def _refuse_disagreeing_height(levels: np.ndarray, bench_height: float) -> None:
         return
     # A height several times the levels' gap would merge benches: say so, as _refuse_merged_benches does.
     merges = bench_height > 1.5 * measured
-    grouping = f", so it would put the holes of {bench_height / measured:.0f} levels on one bench" if merges else ""
+    merged = bench_height / measured
+    count = f"all {len(levels)}" if merged >= len(levels) else f"{merged:.0f}"
+    grouping = f", so it would put the holes of {count} levels on one bench" if merges else ""
     raise BGMInputError(
         f"a bench height of {bench_height:g} disagrees with the holes' own benches: their collars lie on "
         f"{len(levels)} levels ({levels[-1]:g} to {levels[0]:g}) {measured:.4g} apart{grouping}; "

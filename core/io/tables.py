@@ -4,8 +4,8 @@ What a file holds is decided from its content, not its name: a Parquet file
 named ``.csv`` is read as Parquet, a gzip, bz2, xz or single-file zip archive
 is decompressed on the fly, and ``-`` (or ``/dev/stdin``, a named pipe) is read
 from the stream. CSV delimiters (comma, semicolon, tab, pipe) are found from
-the header line; comment lines before the header (``#``, ``//``, ``%``) are
-skipped. Only the columns a caller asks for are parsed, so a header of 100,000
+the header line, or from a ``sep=;`` line before it (as Excel writes and reads);
+comment lines before the header (``#``, ``//``, ``%``) are skipped. Only the columns a caller asks for are parsed, so a header of 100,000
 columns costs no more than the bytes it takes.
 
 Every file that cannot be read raises :class:`core.errors.BGMInputError` with
@@ -43,6 +43,8 @@ MAGIC = {
 }
 #: Lines before the header starting with one of these are comments.
 COMMENT_PREFIXES = ("#", "//", "%")
+#: A line before the header naming the delimiter, as Excel writes and reads it (``sep=;``).
+SEP_LINE = re.compile(r"sep=(.)\s*")
 DELIMITERS = ",;\t|"
 #: Bytes inspected to tell text from binary.
 HEAD_BYTES = 64 * 1024
@@ -221,8 +223,8 @@ def _read_csv(name: str, opener, choose: ColumnChooser | None) -> pd.DataFrame:
         raise BGMInputError(f"cannot read {name}: it is UTF-16 text, not UTF-8; save it as UTF-8 CSV")
     if b"\x00" in head:
         raise BGMInputError(f"cannot read {name}: it looks binary; BGM reads CSV and Parquet (.parquet) tables")
-    skip, header_line = _header_line(name, opener)
-    sep = max(DELIMITERS, key=header_line.count) if any(d in header_line for d in DELIMITERS) else ","
+    skip, header_line, given_sep = _header_line(name, opener)
+    sep = given_sep or _delimiter(header_line)
     try:
         header = next(csv.reader([header_line.rstrip("\r\n")], delimiter=sep))
     except csv.Error as exc:
@@ -308,14 +310,24 @@ def _decompressed(name: str, read, n: int) -> bytes:
         raise BGMInputError(f"cannot read {name}: the compressed data is damaged ({_one_line(exc)})") from None
 
 
-def _header_line(name: str, opener) -> tuple[int, str]:
-    """Number of comment or blank lines before the header, and the header line."""
+def _delimiter(header_line: str) -> str:
+    """The delimiter a header line uses: the most frequent of :data:`DELIMITERS`, else a comma."""
+    return max(DELIMITERS, key=header_line.count) if any(d in header_line for d in DELIMITERS) else ","
+
+
+def _header_line(name: str, opener) -> tuple[int, str, str | None]:
+    """Number of comment, blank or ``sep=`` lines before the header, the header line, and the delimiter a
+    ``sep=`` line names (None without one)."""
+    sep = None
     try:
         with opener() as fh:
             text = io.TextIOWrapper(fh, encoding="utf-8-sig", errors="strict", newline="")
             for skip, line in enumerate(text):
-                if line.strip() and not line.lstrip().startswith(COMMENT_PREFIXES):
-                    return skip, line
+                given = SEP_LINE.fullmatch(line.strip("\r\n")) if sep is None else None
+                if given:
+                    sep = given.group(1)
+                elif line.strip() and not line.lstrip().startswith(COMMENT_PREFIXES):
+                    return skip, line, sep
     except UnicodeDecodeError:
         raise BGMInputError(f"cannot read {name}: it is not UTF-8 text; BGM reads CSV and Parquet tables") from None
     except (OSError, EOFError, lzma.LZMAError) as exc:

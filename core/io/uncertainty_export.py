@@ -157,7 +157,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     """A planned blast pattern: hole positions (local metres), their identifiers, and their elevation if given.
 
     The table (CSV or Parquet, read as the blasthole table is) needs x and y
-    columns, found by the same names (``x/east/easting``, ``y/north/northing``,
+    columns, found by the same names (``x/east/easting/mid_x``, ``y/north/northing/mid_y``,
     any case); a ``z`` column gives the bench's elevation (input units, the
     median), a ``hole_id`` column the identifiers (else the data line numbers).
 
@@ -167,10 +167,11 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
         A missing column, a value that is not a finite number, fewer than one
         hole, or a pattern none of whose holes lies within the predictions'
         reach of a blasthole (other coordinates: a local grid against the
-        mine grid, or another site).
+        mine grid, or another site). Collars more than half a bench height apart
+        (the patterns of several benches).
     """
     from core.errors import BGMInputError
-    from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, find_column
+    from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, coordinate_values, find_column
     from core.io.tables import data_lines, read_table
 
     table = read_table(path)
@@ -188,7 +189,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
             # The input's --x/--y/--z options do not apply to the pattern: its columns go by name.
             message = re.sub(r";? (name it|choose one) with --\w+ COLUMN", "", str(exc))
             raise BGMInputError(f"pattern {str(path)!r}: {message}") from None
-        number = pd.to_numeric(table[column], errors="coerce").to_numpy(dtype=float)
+        number = coordinate_values(table[column], table.attrs.get("delimiter"))  # decimal commas as the holes'
         bad = np.flatnonzero(~np.isfinite(number))
         if len(bad):
             raise BGMInputError(
@@ -200,8 +201,31 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     _refuse_far_pattern(path, xy, holes)
     ids = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES), None)
     labels = table[ids].astype(str).tolist() if ids is not None else [str(n) for n in data_lines(table)]
-    z = float(np.median(values["z"])) if "z" in values else None
+    z = _pattern_level(path, values["z"], holes) if "z" in values else None
     return xy, labels, z
+
+
+#: A pattern's collars may scatter this fraction of a bench height; more is holes of several benches.
+MAX_PATTERN_Z_SPREAD = 0.5
+
+
+def _pattern_level(path: str | Path, z: np.ndarray, holes: Blastholes) -> float:
+    """The elevation of a pattern's bench (input units): its collars' median, refused if they span benches.
+
+    The suggestions are laid on one bench: a file holding the patterns of two
+    benches would be sampled at the level between them, where no hole is drilled.
+    """
+    from core.errors import BGMInputError
+
+    spread = float(np.ptp(z))
+    height = float(holes.frame.z_to_input(holes.bench_height_m))
+    if np.isfinite(height) and spread > MAX_PATTERN_Z_SPREAD * height:
+        unit = holes.frame.length_unit
+        raise BGMInputError(
+            f"pattern {str(path)!r} has collars from {z.min():g} to {z.max():g} {unit}, more than half a bench "
+            f"({height:.4g} {unit}) apart: give one bench's pattern at a time"
+        )
+    return float(np.median(z))
 
 
 def shade_polygons(ax, geometry, **style) -> None:

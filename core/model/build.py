@@ -11,8 +11,10 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import os
 import re
 import signal
+import sys
 import threading
 import time
 from collections import Counter
@@ -107,7 +109,45 @@ def load_truth(path: Path, holes: Blastholes):
             raise ValueError(f"unknown generator {spec.get('generator')!r}")
     except (ValueError, KeyError, TypeError) as exc:
         raise BGMInputError(f"truth file {side} is not usable: {exc}") from None
-    return truth_from_mine(mine, holes.frame)
+    truth = truth_from_mine(mine, holes.frame)
+    _check_truth_describes(truth, holes, side, path)
+    return truth
+
+
+#: Fewer of a table's holes than this inside their own geozone's true section: its truth file describes another table.
+MIN_TRUTH_AGREEMENT = 0.5
+
+
+def truth_agreement(truth, holes: Blastholes) -> float:
+    """The share of the holes that lie inside their own geozone's true section on their bench."""
+    inside = 0
+    for k in range(holes.n_benches):
+        for g in holes.geozones:
+            idx = holes.on_bench(k, g)
+            if len(idx):
+                try:
+                    region = truth(g, float(holes.bench_levels_m[k]))
+                except (KeyError, ValueError):  # a geozone the generator does not know
+                    continue
+                inside += int(np.sum(shapely.contains_xy(region, holes.xy[idx, 0], holes.xy[idx, 1])))
+    return inside / max(len(holes.xy), 1)
+
+
+def _check_truth_describes(truth, holes: Blastholes, side: Path, path: Path) -> None:
+    """Refuse a truth file that does not describe the table beside it (moved, relabelled or replaced since).
+
+    A generated table's holes lie in their true sections but for label
+    noise (97-99% of them); scored against another table's truth, every
+    figure of an evaluation would be meaningless, or it would fail with a
+    message about contours.
+    """
+    share = truth_agreement(truth, holes)
+    if share < MIN_TRUTH_AGREEMENT:
+        raise BGMInputError(
+            f"truth file {side} does not describe {path}: only {share:.0%} of its holes lie in their geozone's true "
+            f"section (a generated table: 97-99%); the table was changed since it was generated: delete or rename "
+            f"{side.name} to score against the holes of the next bench"
+        )
 
 
 def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelParameters):
@@ -378,13 +418,35 @@ class BuildContext:
 _WORKER_CONTEXT: BuildContext | ModelSession | None = None
 
 
-def _init_worker(ctx: BuildContext | ModelSession) -> None:
+def _init_worker(ctx: BuildContext | ModelSession, parent: int) -> None:
     # Ctrl-C reaches every process of the terminal's group: the parent alone
-    # handles it (one line, exit 130) and stops the workers.
+    # handles it (one line, exit 130) and stops the workers, by SIGTERM, which
+    # must end them (the parent's handler, inherited by fork, would not).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    _end_with_parent(parent)
     global _WORKER_CONTEXT
     _WORKER_CONTEXT = ctx
+
+
+#: ``prctl`` option: the signal this process gets when the thread that forked it ends (Linux).
+PR_SET_PDEATHSIG = 1
+
+
+def _end_with_parent(parent: int) -> None:
+    """End this worker when its parent (pid ``parent``) dies, even by SIGKILL, where the system allows (Linux).
+
+    Else a worker whose parent was killed finishes its job into a folder no
+    one will read, then waits for work forever.
+    """
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:  # it died before the line above
+        os._exit(1)
 
 
 def _map_geozones(ctx: BuildContext, geozones: list[str], workers: int | None, scheduler: str | None = None):
@@ -415,7 +477,7 @@ def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | 
         max_workers=min(workers, len(items)),
         mp_context=multiprocessing.get_context("fork"),
         initializer=_init_worker,
-        initargs=(ctx,),
+        initargs=(ctx, os.getpid()),
     )
     try:
         # Workers are forked on the first submit: with SIGINT blocked they are
