@@ -131,6 +131,22 @@ def test_a_strip_moving_8_m_per_bench_is_predicted_within_a_hole_spacing():
     assert iou(predicted.intersection(drilled), truth.intersection(drilled)) > 0.75
 
 
+def test_a_lens_only_the_top_bench_saw_is_not_carried_below_benches_that_never_drilled_it():
+    """A lens of a few holes on the top bench, in the corner the pit then left: nothing says it goes on.
+
+    Carried as if every body went on (no next bench drilled any, so none was counted), it came back
+    below the deepest bench, 45 m under the only bench that saw it (Kennecott's one-hole 5121: 300 ft).
+    """
+    lens = Point(14.0, 14.0).buffer(10.0)
+    sections = [lens, *[shapely.Polygon()] * 4]
+    holes = _bench_table(sections, extent=(200.0, 200.0), narrowing_m=20.0)
+    model = model_geozone(holes, "a")
+    assert any(c.bench == 0 for c in model.contours + model.minor)
+    deepest = float(holes.bench_levels_m[-1])
+    predicted = predict_geozone(model, [deepest - 5.0, deepest - 10.0], holes.hole_spacing_m)
+    assert predicted[deepest - 5.0].is_empty and predicted[deepest - 10.0].is_empty
+
+
 def test_a_strip_in_ground_only_the_deepest_bench_drilled_moves_with_the_rest_of_it():
     """A pit pushed back east 25 m a bench: the strip's stretch no bench above drilled moves as the rest does.
 
