@@ -90,8 +90,6 @@ GROWTH_CONTINUITY_POWER = 4.0
 #: constructed body 15 m across that goes on was held); seeds 0-5 of every family pooled 96.23 /
 #: 94.93 -> 96.25 / 94.97 (pods +0.7 / +0.6, widening -0.05 / -0.11); Kennecott unchanged (74.2).
 LENS_PRIOR_DISCS = 0.25
-
-
 #: The share of lens-sized bodies taken to reach the next bench where none could be counted.
 LENS_PRIOR_SHARE = 0.5
 
