@@ -225,8 +225,10 @@ class SectionPanel(QtWidgets.QWidget):
         if self._widget is not None:
             self._widget.Off()
             plotter = self.renderer.plotter
-            if self._widget in getattr(plotter, "plane_widgets", []):
-                plotter.plane_widgets.remove(self._widget)
+            # PyVista 0.47 moved the plotter's widget lists under ``widgets``; older ones keep them on the plotter.
+            planes = getattr(getattr(plotter, "widgets", plotter), "plane_widgets", [])
+            if self._widget in planes:
+                planes.remove(self._widget)
             self._widget = None
 
     def _dragged(self, normal, origin) -> None:
