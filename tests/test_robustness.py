@@ -209,7 +209,7 @@ def test_unreadable_files_fail_with_one_line(tmp_path, case):
 
 def test_non_utf8_text_names_the_encoding_problem(table, tmp_path):
     path = _latin1(table)(tmp_path / "latin1.csv")
-    fails_cleanly(bgm("contours", path, "--out", tmp_path / "o.geojson"), "not UTF-8", str(path))
+    fails_cleanly(bgm("contours", path, "--out", tmp_path / "o.geojson"), "not UTF-8", "CSV UTF-8", str(path))
 
 
 @pytest.mark.parametrize(

@@ -54,6 +54,10 @@ STDIN_NAMES = ("-",)
 ColumnChooser = Callable[[list[str]], list[int] | None]
 
 
+#: Excel on Windows saves "CSV (Comma delimited)" in the system code page: the fix is one menu away.
+NOT_UTF8 = "cannot read {name}: it is not UTF-8 text (Excel: save it as 'CSV UTF-8'); BGM reads CSV and Parquet tables"
+
+
 def read_table(path: str | Path, choose: ColumnChooser | None = None) -> pd.DataFrame:
     """Read a CSV or Parquet table into a DataFrame (CSV values as strings).
 
@@ -243,7 +247,7 @@ def _read_csv(name: str, opener, choose: ColumnChooser | None) -> pd.DataFrame:
                 index_col=False,
             )
     except UnicodeDecodeError:
-        raise BGMInputError(f"cannot read {name}: it is not UTF-8 text; BGM reads CSV and Parquet tables") from None
+        raise BGMInputError(NOT_UTF8.format(name=name)) from None
     except Exception as exc:  # pandas raises many types for unreadable files
         raise BGMInputError(f"cannot read {name} as CSV: {_parser_message(exc, skip)}") from None
     # usecols makes pandas drop a row's fields beyond the header without a word: refuse such rows then.
@@ -329,7 +333,7 @@ def _header_line(name: str, opener) -> tuple[int, str, str | None]:
                 elif line.strip() and not line.lstrip().startswith(COMMENT_PREFIXES):
                     return skip, line, sep
     except UnicodeDecodeError:
-        raise BGMInputError(f"cannot read {name}: it is not UTF-8 text; BGM reads CSV and Parquet tables") from None
+        raise BGMInputError(NOT_UTF8.format(name=name)) from None
     except (OSError, EOFError, lzma.LZMAError) as exc:
         raise BGMInputError(f"cannot read {name}: the compressed data is damaged ({_one_line(exc)})") from None
     raise BGMInputError(f"cannot read {name}: it holds no table, only blank or comment lines")
