@@ -92,21 +92,12 @@ def isolated_holes(
     same = labels[pairs[:, 0]] == labels[pairs[:, 1]]
     same_count = np.bincount(pairs[same].ravel(), minlength=n)
     other_count = np.bincount(pairs[~same].ravel(), minlength=n)
-    owner = np.zeros(n, int)  # every hole's component, numbered across geozones
-    most: list[np.ndarray] = []  # per component, one array per geozone; so is around
-    around: list[np.ndarray] = []
-    first = 0
-    for g in np.unique(labels):
-        sel = np.flatnonzero(labels == g)
-        comp = connected_components(xy[sel], radius)
-        owner[sel] = comp + first
-        first += comp.max() + 1
-        # Most same-label first-ring neighbours of a hole, and holes of others around it.
-        most.append(np.zeros(comp.max() + 1, int))
-        np.maximum.at(most[-1], comp, same_count[sel])
-        around.append(np.bincount(comp, weights=other_count[sel], minlength=comp.max() + 1))
-    size, most_same = np.bincount(owner), np.concatenate(most)
-    surrounded = np.concatenate(around) >= MIN_SURROUNDING
+    owner = geozone_components(xy, labels, radius)
+    size = np.bincount(owner)
+    # Per component: most same-label first-ring neighbours of a hole, and holes of others around it.
+    most_same = np.zeros(len(size), int)
+    np.maximum.at(most_same, owner, same_count)
+    surrounded = np.bincount(owner, weights=other_count) >= MIN_SURROUNDING
     noisy = surrounded & (most_same <= 1)
     singles, pairs = int(np.sum(noisy & (size == 1))), int(np.sum(noisy & (size == 2)))
     for k in GROUPS_PER_HOLE:
@@ -209,9 +200,12 @@ def contact_votes(
     pairs = tree.query_pairs(FIRST_RING_SPACINGS * hole_spacing_m, output_type="ndarray")
     at_contact = np.zeros(n, bool)
     at_contact[pairs[labels[pairs[:, 0]] != labels[pairs[:, 1]]].ravel()] = True
+    if np.sum(at_contact & ~isolated) < MIN_CONTACT_NOISE:
+        return labels
     sigma = VOTE_SIGMA_SPACINGS * hole_spacing_m
     reach_holes = np.pi * (2.5 * sigma) ** 2 / (np.sqrt(3) / 2 * hole_spacing_m**2)  # staggered pattern
-    voters = np.flatnonzero(at_contact & ~isolated & (_body_sizes(xy, labels, search_radius_m) > reach_holes))
+    owner = geozone_components(xy, labels, search_radius_m)
+    voters = np.flatnonzero(at_contact & ~isolated & (np.bincount(owner)[owner] > reach_holes))
     if len(voters) < MIN_CONTACT_NOISE:
         return labels
     codes, label_codes = np.unique(labels, return_inverse=True)
@@ -230,11 +224,13 @@ def contact_votes(
     return out
 
 
-def _body_sizes(xy: np.ndarray, labels: np.ndarray, search_radius_m: float) -> np.ndarray:
-    """Holes of each hole's connected component (section 2.1), per hole."""
-    size = np.zeros(len(xy), int)
+def geozone_components(xy: np.ndarray, labels: np.ndarray, search_radius_m: float) -> np.ndarray:
+    """Each hole's connected component (section 2.1) of its own geozone, numbered across geozones."""
+    owner = np.zeros(len(xy), int)
+    first = 0
     for g in np.unique(labels):
         sel = np.flatnonzero(labels == g)
         comp = connected_components(xy[sel], search_radius_m)
-        size[sel] = np.bincount(comp)[comp]
-    return size
+        owner[sel] = comp + first
+        first += comp.max() + 1
+    return owner
