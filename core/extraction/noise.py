@@ -59,6 +59,15 @@ VOTE_SIGMA_SPACINGS = 1.0
 #: splits and pods, pass).
 CONTACT_NOISE_SHARE = 0.035
 MIN_CONTACT_NOISE = 6
+#: A contact hole that keeps its label with less than this share of its neighbours' weighted vote is a
+#: near tie: a hole on a contact that wavers between holes.
+NEAR_TIE_SHARE = 0.6
+#: Mislabels at a contact are outvoted outright; a real contact that wavers by a fraction of a spacing
+#: leaves near ties beside each hole it outvotes. The outvoted holes are noise only where they are at
+#: least this share of the outvoted holes and near ties together: with 10-25% of the contact holes
+#: mislabelled 0.26-0.47 (10th-90th percentile of the benches, development seeds 0-2), contacts
+#: wavering half a spacing every five 0.05-0.27, Kennecott's benches 0.20-0.36.
+OUTVOTED_AGAINST_TIES = 0.3
 
 
 def isolated_holes(
@@ -170,7 +179,10 @@ def contact_votes(
     mislabelled it is most of the mislabels (three in four of the holes
     outvoted, development seeds 0-2 with 10-25% of the contact holes
     mislabelled), so the outvoted holes take the vote only where they are
-    more than :data:`CONTACT_NOISE_SHARE` of the contact holes. Holes of a
+    more than :data:`CONTACT_NOISE_SHARE` of the contact holes, and only
+    where they stand out against the near ties (:data:`OUTVOTED_AGAINST_TIES`):
+    a real contact that wavers by less than a spacing outvotes some of its
+    holes too, and leaves many more nearly tied. Holes of a
     body no larger than the vote's reach (every hole of it is at its edge)
     and holes already ``isolated`` keep their label: lenses are judged by
     :func:`isolated_holes`.
@@ -219,6 +231,9 @@ def contact_votes(
     outvoted = winner != label_codes[voters]
     if outvoted.sum() < MIN_CONTACT_NOISE or outvoted.sum() <= CONTACT_NOISE_SHARE * at_contact.sum():
         return labels
+    near_ties = ~outvoted & (votes[np.arange(len(voters)), label_codes[voters]] < NEAR_TIE_SHARE * votes.sum(axis=1))
+    if outvoted.sum() < OUTVOTED_AGAINST_TIES * (outvoted.sum() + near_ties.sum()):
+        return labels  # a contact wavering between holes, not mislabels
     out = np.asarray(labels).copy()
     out[voters[outvoted]] = codes[winner[outvoted]]
     return out
