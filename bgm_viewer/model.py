@@ -27,6 +27,7 @@ import copy
 import functools
 import os
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -35,6 +36,7 @@ import numpy as np
 import trimesh
 from psygnal import Signal
 
+from core.errors import BGMWarning
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 from core.io.cache import StageCache
@@ -460,7 +462,9 @@ def _hole_attributes(path: str | None, holes: Blastholes):
     if path is None or str(path) == "-":
         return None
     try:
-        table = read_table(path)
+        with warnings.catch_warnings():  # the first reading warned already (its encoding, blank rows)
+            warnings.simplefilter("ignore", BGMWarning)
+            table = read_table(path)
         cols = table_columns(list(table.columns))
     except Exception:  # the reader already accepted the file; a second read failing only loses the extras
         return None

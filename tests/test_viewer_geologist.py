@@ -350,3 +350,28 @@ def test_a_clicked_hole_shows_its_own_grade_from_a_decimal_comma_table(tmp_path,
         x, y = h.frame.to_input(h.xy[i : i + 1])[0]
         want = table.iloc[int(np.argmin(np.hypot(table.x - x, table.y - y)))]
         assert float(model.hole_info(int(i))["cu_pct"].replace(",", ".")) == want.cu_pct  # shown as written
+
+
+def test_a_windows_1252_table_opens_with_a_warning_and_its_accents(tmp_path):
+    """Excel on Windows saves "CSV (Comma delimited)" as Windows-1252: opened, said once, accents kept."""
+    import pandas as pd
+
+    holes = small_holes()
+    table = pd.DataFrame(
+        {
+            "x": holes.xy[:, 0] + 482_000.0,
+            "y": holes.xy[:, 1] + 7_445_000.0,
+            "z": holes.z,
+            "geozone": np.where(holes.geozone == holes.geozones[0], "Pórfido", holes.geozone),
+            "comentario": "buzamiento 10°",
+        }
+    )
+    path = tmp_path / "excel.csv"
+    path.write_bytes(table.to_csv(index=False).encode("cp1252"))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = ViewerModel(str(path))
+        assert model.hole_info(0)["comentario"] == "buzamiento 10°"  # a second reading, not said again
+    said = [str(w.message) for w in caught if "Windows-1252" in str(w.message)]
+    assert len(said) == 1 and "excel.csv" in said[0], said
+    assert "Pórfido" in model.holes.geozones
