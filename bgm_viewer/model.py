@@ -15,6 +15,12 @@ computed again; the viewer adds only what is drawn and nothing else needs:
 the fields of the selected bench's contours (edge map, GVF, snake history)
 and the fronts of the selected morph instance.
 
+Overrides name components by number, and a parameter that changes extraction
+renumbers them: each run moves its overrides to their components in its new
+contours before any correspondence uses them, or drops those whose component
+no single one is now, saying so (:mod:`bgm_viewer.alignment`); the model takes
+them back (:class:`Relocation`).
+
 Steps a change re-runs from (:data:`STEPS`): core's stages, with ``snake`` for a
 change of the edge map, GVF or snake alone, whose selected component can be
 previewed before its bench is extracted again.
@@ -27,6 +33,7 @@ import copy
 import functools
 import os
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -35,6 +42,7 @@ import numpy as np
 import trimesh
 from psygnal import Signal
 
+from core.errors import BGMWarning
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 from core.io.cache import StageCache
@@ -116,6 +124,8 @@ class PipelineResult:
     timings: dict[str, float] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
     complete: bool = False
+    #: The run's overrides as they follow renumbered components, and what moved or was dropped.
+    relocated: Relocation | None = None
 
     @property
     def correspondence(self):
@@ -146,6 +156,21 @@ class PipelineInputs:
     #: Bodies of a surface below this volume, or holding fewer of the geozone's holes, are not shown.
     min_body_volume_m3: float = 0.0
     min_body_holes: int = 0
+    #: How many times the user had changed the overrides when the run began (see :class:`Relocation`).
+    override_edits: int = 0
+
+
+@dataclass
+class Relocation:
+    """The overrides of a run moved to their components in its contours (see :mod:`bgm_viewer.alignment`).
+
+    ``edits`` is :attr:`PipelineInputs.override_edits` of the run: the viewer takes
+    ``overrides`` only if the user has not changed them since.
+    """
+
+    edits: int
+    overrides: list
+    notes: list[str] = field(default_factory=list)
 
 
 Progress = tuple[str, float, PipelineResult]
@@ -235,6 +260,7 @@ def compute(
     n = run.session.holes.n_benches
     pair_benches = [b for b in (run.sel.bench, run.sel.bench + 1) if b < n]
     yield from _bench_pair(run, pair_benches)
+    _relocate(run, set(pair_benches))
     if last >= STEPS.index("correspondence"):
         yield from _pair_steps(run, pair_benches, last)
     yield from _selected_fields(run)
@@ -246,10 +272,42 @@ def compute(
         yield f"contours of bench {b}", 0.5 + 0.3 * i / len(others), run.snapshot()
         run.check()
     run.res.timings["extraction (all)"] = time.perf_counter() - t0 + run.res.timings["extraction (pair)"]
+    _relocate(run, set(range(n)))
     if last >= STEPS.index("prediction"):
         yield from _geozone_steps(run, last)
     run.res.complete = True
     yield "done", 1.0, run.snapshot()
+
+
+def _relocate(run: _Run, fresh: set[int]) -> None:
+    """Move the run's overrides to their components in the contours of the ``fresh`` benches (this run's).
+
+    Before any correspondence uses them: an override whose component was renumbered names
+    it by its new number, and one whose component cannot be found again is dropped, never
+    applied to another component. What moved is in ``run.res.relocated`` and its errors.
+    """
+    from core.io.project import _same_z
+
+    from .alignment import relocate_overrides
+
+    session, res = run.session, run.res
+    if session.project is None or not session.project.overrides:
+        return
+    holes = session.holes
+
+    def outlines(geozone: str, source_z: float):
+        k = next((k for k in range(holes.n_benches - 1) if _same_z(holes.bench_z_input(k), source_z)), None)
+        if k is None or k not in fresh or k + 1 not in fresh:
+            return None
+        m = res.min_component_holes
+        return tuple([c.polygon for c in modelled_contours(res.contours.get(b, []), geozone, b, m)] for b in (k, k + 1))
+
+    overrides, notes = relocate_overrides(session.project.overrides, outlines)
+    run.session = session.updated(project=replace(session.project, overrides=overrides))
+    before = res.relocated.notes if res.relocated is not None else []
+    res.relocated = Relocation(run.inputs.override_edits, overrides, before + notes)
+    if res.relocated.notes:
+        res.errors["alignment overrides"] = "; ".join(res.relocated.notes)
 
 
 def _snake_preview(run: _Run, previous: PipelineResult) -> Iterator[Progress]:
@@ -460,7 +518,9 @@ def _hole_attributes(path: str | None, holes: Blastholes):
     if path is None or str(path) == "-":
         return None
     try:
-        table = read_table(path)
+        with warnings.catch_warnings():  # the first reading warned already (its encoding, blank rows)
+            warnings.simplefilter("ignore", BGMWarning)
+            table = read_table(path)
         cols = table_columns(list(table.columns))
     except Exception:  # the reader already accepted the file; a second read failing only loses the extras
         return None
@@ -532,8 +592,11 @@ class ViewerModel:
         self.surface_geozones: list[str] | None = bodies(self.holes)
         self.min_body_volume_m3 = 0.0
         self.min_body_holes = 0
-        self.overrides: list = []  # core.io.project.AlignmentOverride
+        self.overrides: list = []  # bgm_viewer.alignment.PlacedOverride
         self._undo: list[list] = []
+        self._override_edits = 0  # changes the user made to the overrides (see Relocation)
+        #: What the last runs said of overrides whose components were renumbered (moved or dropped).
+        self.override_notes: list[str] = []
         self.result: PipelineResult = PipelineResult()
         self._dirty = False
         self.project_path: str | None = None
@@ -558,7 +621,12 @@ class ViewerModel:
     def inputs(self) -> PipelineInputs:
         zones = self.holes.geozones if self.surface_geozones is None else self.surface_geozones
         return PipelineInputs(
-            self.session(), self.selection, tuple(zones), float(self.min_body_volume_m3), int(self.min_body_holes)
+            self.session(),
+            self.selection,
+            tuple(zones),
+            float(self.min_body_volume_m3),
+            int(self.min_body_holes),
+            self._override_edits,
         )
 
     def source_z_input(self) -> float:
@@ -579,8 +647,26 @@ class ViewerModel:
         return self.result
 
     def set_result(self, result: PipelineResult) -> None:
+        self._take_relocated(result.relocated)
         self.result = result
         self.result_changed.emit(result)
+
+    def _take_relocated(self, relocated: Relocation | None) -> None:
+        """Take a run's overrides as they followed renumbered components (unless the user changed them since).
+
+        Moved or dropped overrides are a change Undo reverts, said in :attr:`override_notes`
+        (and in the result's errors, which the window's status bar shows).
+        """
+        if relocated is None or relocated.edits != self._override_edits:
+            return
+        changed = relocated.overrides != self.overrides  # numbers changed or overrides dropped
+        if changed:
+            self._push_undo()
+        self.overrides = copy.deepcopy(relocated.overrides)  # with the outlines the run placed them at
+        if changed:
+            self.override_notes = list(relocated.notes)
+            self.dirty = True
+            self.overrides_changed.emit()
 
     # -- what a picked hole reports ------------------------------------------------
     def hole_info(self, i: int) -> dict[str, object]:
@@ -643,7 +729,9 @@ class ViewerModel:
     # -- manual alignment ------------------------------------------------------------
     def override_here(self, create: bool = False):
         """The override of the selected source (``None`` if it has none and ``create`` is false)."""
-        from core.io.project import AlignmentOverride, _same_z
+        from core.io.project import _same_z
+
+        from .alignment import PlacedOverride
 
         sel, z = self.selection, self.source_z_input()
         for o in self.overrides:
@@ -651,7 +739,7 @@ class ViewerModel:
                 return o
         if not create:
             return None
-        o = AlignmentOverride(sel.geozone, z, sel.component)
+        o = PlacedOverride(sel.geozone, z, sel.component)
         self.overrides.append(o)
         return o
 
@@ -704,7 +792,7 @@ class ViewerModel:
         """
         from core.io.project import input_extent, translation_fits
 
-        self._selected_pair()
+        pair = self._selected_pair()
         mpu = self.holes.frame.metres_per_unit
         t = (float(dx_m) / mpu, float(dy_m) / mpu)
         extent = input_extent(self.holes)
@@ -715,7 +803,9 @@ class ViewerModel:
                 f" which spans {extent:.6g} {unit}"
             )
         self._push_undo()
-        self.override_here(create=True).translation = t
+        o = self.override_here(create=True)
+        o.translation = t
+        self._place(o, pair)
         self._changed_overrides()
         return "correspondence"
 
@@ -752,6 +842,7 @@ class ViewerModel:
             o.associate.pop(int(target), None)
         else:
             o.associate[int(target)] = bool(flag)
+        self._place(o, pair)
         self._changed_overrides()
         return "correspondence"
 
@@ -763,8 +854,15 @@ class ViewerModel:
             self._changed_overrides()
         return "correspondence"
 
+    @staticmethod
+    def _place(o, pair: BenchPair) -> None:
+        """Remember where the components ``o`` names are, so it follows them when they are renumbered."""
+        o.place([c.polygon for c in pair.sources], [c.polygon for c in pair.targets])
+
     def _changed_overrides(self) -> None:
         self.overrides = [o for o in self.overrides if o.translation is not None or o.associate]
+        self._override_edits += 1
+        self.override_notes = []
         self.dirty = True
         self.overrides_changed.emit()
 
@@ -777,6 +875,7 @@ class ViewerModel:
         if not self._undo:
             return None
         self.overrides = self._undo.pop()
+        self._override_edits += 1
         self.dirty = True
         self.overrides_changed.emit()
         return "correspondence"
@@ -823,7 +922,10 @@ class ViewerModel:
             ve = viewer.get("vertical_exaggeration")
             if isinstance(ve, (int, float)) and ve > 0:
                 self.vertical_exaggeration = float(ve)
-        self.overrides = list(proj.overrides)
+        from .alignment import PlacedOverride
+
+        self.overrides = [PlacedOverride.of(o) for o in proj.overrides]
+        self._override_edits += 1
         self._undo.clear()
         self.project_path = str(path)
         self.overrides_changed.emit()

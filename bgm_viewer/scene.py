@@ -28,6 +28,10 @@ CAMERAS = ("iso", "top", "front", "side")
 DATA_RECT_WITH_LEGEND = (0.03, 0.06, 0.76, 0.94)
 DATA_RECT = (0.05, 0.06, 0.95, 0.94)
 LEGEND_WIDTH = 0.2
+#: Room (pixels at 72 dpi) kept between the data's box and the window's edges for the axes' labels and
+#: titles: their text keeps its size in pixels, and a title ends 91 px from its edge of the box. Looking
+#: along an axis (top, front, side) the axes are drawn on the box's left and bottom edges only.
+AXES_MARGIN_PX = 100
 #: Surfaces with more triangles are drawn coarse while the camera moves (:meth:`SceneRenderer.set_interacting`).
 COARSE_ABOVE_FACES = 5000
 #: Polylines with more points are drawn decimated while the camera moves.
@@ -481,7 +485,13 @@ class SceneRenderer:
         if bounds is None:
             return
         legend = self.show_legend and bool(self._legend_shown)
-        rect = np.array(DATA_RECT_WITH_LEGEND if legend else DATA_RECT) * 2 - 1  # view coordinates
+        rect = np.array(DATA_RECT_WITH_LEGEND if legend else DATA_RECT)
+        if self.show_bearings:  # the axes are labelled outside the box: their titles must stay in the window
+            margin = AXES_MARGIN_PX * p.render_window.GetDPI() / 72.0
+            along_an_axis = np.abs(p.camera.GetDirectionOfProjection()).max() > 0.999
+            margins = (margin, margin, 0.0, 0.0) if along_an_axis else (margin,) * 4
+            rect = inset_rect(rect, tuple(p.renderer.GetSize()), margins)
+        rect = rect * 2 - 1  # view coordinates
         corners = np.array(np.meshgrid(*np.reshape(bounds, (3, 2)), indexing="ij")).reshape(3, -1).T
         for _ in range(3):  # perspective: each zoom moves the corners a little differently
             v = _view_points(p.renderer, corners)
@@ -497,6 +507,32 @@ class SceneRenderer:
         # the window centre moves the picture, not the camera: rotation stays about the data
         p.camera.SetWindowCenter(*(centre - target))
         p.renderer.ResetCameraClippingRange()
+
+
+def inset_rect(rect, size_px: tuple[int, int], margins_px, max_fraction: float = 0.25) -> np.ndarray:
+    """``rect`` (left, bottom, right, top; fractions of the viewport) kept ``margins_px`` from its edges.
+
+    Parameters
+    ----------
+    rect : sequence of 4 float
+        Left, bottom, right, top, as fractions (0-1) of the viewport.
+    size_px : (int, int)
+        The viewport's width and height in pixels.
+    margins_px : sequence of 4 float
+        Least distance, in pixels, from the left, bottom, right and top sides of ``rect`` to the
+        viewport's edges.
+    max_fraction : float, optional
+        A margin is at most this fraction of the viewport's width (height), in a small viewport.
+
+    Returns
+    -------
+    ndarray
+        The rectangle, its sides that were nearer the edges than their margins moved in.
+    """
+    w, h = (max(float(v), 1.0) for v in size_px)
+    ml, mb, mr, mt = (min(m / d, max_fraction) for m, d in zip(margins_px, (w, h, w, h)))
+    left, bottom, right, top = (float(v) for v in rect)
+    return np.array([max(left, ml), max(bottom, mb), min(right, 1.0 - mr), min(top, 1.0 - mt)])
 
 
 def _interior_labels(axes, n_labels: int) -> None:

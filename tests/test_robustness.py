@@ -8,6 +8,7 @@ Click error) or exit 3 (``bgm: internal error``).
 
 from __future__ import annotations
 
+import codecs
 import json
 import subprocess
 import sys
@@ -23,6 +24,7 @@ from shapely.geometry import shape
 
 from core.errors import BGMInputError
 from core.io.blastholes import BGMWarning, blastholes_from_table, read_blastholes
+from core.io.tables import read_table
 from core.synthetic.blobs import make_mine, sample_blastholes
 
 ORIGIN = (650_000.0, 7_400_000.0)
@@ -168,15 +170,6 @@ def _write_bytes(data: bytes):
     return make
 
 
-def _latin1(table: pd.DataFrame):
-    def make(path: Path) -> Path:
-        text = table.assign(geozone=table.geozone.str.replace("g1", "gé")).to_csv(index=False)
-        path.write_bytes(text.encode("latin-1"))
-        return path
-
-    return make
-
-
 BAD_FILES = {
     "missing file": (lambda p: p.parent / "nope.csv", ("does not exist",)),
     "empty file": (_write_bytes(b""), ("is empty",)),
@@ -207,9 +200,80 @@ def test_unreadable_files_fail_with_one_line(tmp_path, case):
         read_blastholes(path)
 
 
-def test_non_utf8_text_names_the_encoding_problem(table, tmp_path):
-    path = _latin1(table)(tmp_path / "latin1.csv")
-    fails_cleanly(bgm("contours", path, "--out", tmp_path / "o.geojson"), "not UTF-8", "CSV UTF-8", str(path))
+def _windows_1252(table: pd.DataFrame):
+    """The table with an accented label and a degree sign, as Excel on Windows saves "CSV (Comma delimited)"."""
+
+    def make(path: Path) -> Path:
+        text = table.assign(geozone=table.geozone.replace({"g1": "Pórfido"}), comment="buzamiento 10°")
+        path.write_bytes(text.to_csv(index=False).encode("cp1252"))
+        return path
+
+    return make
+
+
+def test_windows_1252_text_is_read_with_a_warning(table, tmp_path):
+    path = _windows_1252(table)(tmp_path / "excel.csv")
+    with pytest.raises(UnicodeDecodeError):
+        path.read_bytes().decode("utf-8")
+    out = tmp_path / "o.geojson"
+    proc = succeeds(bgm("contours", path, "--out", out))
+    warning = [line for line in proc.stderr.splitlines() if line.startswith("bgm: warning:")]
+    assert len(warning) == 1 and str(path) in warning[0] and "read as Windows-1252" in warning[0], proc.stderr
+    utf8 = tmp_path / "utf8.csv"
+    utf8.write_bytes(path.read_bytes().decode("cp1252").encode("utf-8"))
+    succeeds(bgm("contours", utf8, "--out", tmp_path / "utf8.geojson"))
+    assert comparable(features(out)) == comparable(features(tmp_path / "utf8.geojson"))
+    assert "Pórfido" in {f["properties"]["geozone"] for f in features(out)}
+    # The engine: the labels and the other columns as written, and the same warning.
+    with pytest.warns(BGMWarning, match="read as Windows-1252"):
+        holes = read_blastholes(path)
+    assert "Pórfido" in holes.geozones
+    with pytest.warns(BGMWarning, match="excel.csv"):
+        assert set(read_table(path).comment) == {"buzamiento 10°"}
+
+
+def test_utf8_with_a_byte_order_mark_is_read_without_warning(table, tmp_path):
+    path = tmp_path / "utf8.csv"
+    path.write_bytes(
+        table.assign(geozone=table.geozone.replace({"g1": "Pórfido"})).to_csv(index=False).encode("utf-8-sig")
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)
+        assert "Pórfido" in read_blastholes(path).geozones
+        assert list(read_table(path).columns) == list(table.columns)
+
+
+@pytest.mark.parametrize(
+    "where, phrases",
+    [
+        ("header", ("neither UTF-8 nor Windows-1252", "byte 0x81 on line 1", "CSV UTF-8")),
+        ("label", ("neither UTF-8 nor Windows-1252", "byte 0x9D on line 5", "CSV UTF-8")),
+        ("late", ("neither UTF-8 nor Windows-1252", "byte 0x8F on line", "CSV UTF-8")),
+        ("byte order mark", ("starts as UTF-8", "not UTF-8", "byte 0xB0 on line 2")),
+    ],
+)
+def test_text_in_no_known_encoding_fails_with_one_line(table, tmp_path, where, phrases):
+    """Windows-1252 leaves 0x81, 0x8D, 0x8F, 0x90 and 0x9D undefined: such a file is no text BGM can read."""
+    text = table.assign(geozone=table.geozone.replace({"g1": "Pórfido"}), comment="°" * 40)
+    text = text.to_csv(index=False).encode("cp1252")
+    assert len(text) > 64 * 1024
+    if where == "header":
+        text = text.replace(b"geozone", b"geozone\x81", 1)
+    elif where == "label":
+        lines = text.split(b"\n")
+        lines[4] = lines[4] + b"\x9d"
+        text = b"\n".join(lines)
+    elif where == "late":  # past the first 64 KiB the reader looks at before choosing an encoding
+        text = text + b"650000,7400000,685,g\x8f\n"
+    else:
+        text = codecs.BOM_UTF8 + text
+    path = tmp_path / "holes.csv"
+    path.write_bytes(text)
+    out = tmp_path / "o.geojson"
+    fails_cleanly(bgm("contours", path, "--out", out), str(path), *phrases)
+    assert not out.exists()
+    with pytest.raises(BGMInputError, match=phrases[0]):
+        read_blastholes(path)
 
 
 @pytest.mark.parametrize(

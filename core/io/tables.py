@@ -5,8 +5,11 @@ named ``.csv`` is read as Parquet, a gzip, bz2, xz or single-file zip archive
 is decompressed on the fly, and ``-`` (or ``/dev/stdin``, a named pipe) is read
 from the stream. CSV delimiters (comma, semicolon, tab, pipe) are found from
 the header line, or from a ``sep=;`` line before it (as Excel writes and reads);
-comment lines before the header (``#``, ``//``, ``%``) are skipped. Only the columns a caller asks for are parsed, so a header of 100,000
-columns costs no more than the bytes it takes.
+comment lines before the header (``#``, ``//``, ``%``) are skipped. Text is
+UTF-8 (with or without a byte order mark), or else Windows-1252, the code page
+Excel on Windows saves "CSV (Comma delimited)" in, read with a warning. Only
+the columns a caller asks for are parsed, so a header of 100,000 columns costs
+no more than the bytes it takes.
 
 Every file that cannot be read raises :class:`core.errors.BGMInputError` with
 one sentence naming the cause (Excel workbooks, UTF-16 text, binary junk...).
@@ -15,6 +18,7 @@ one sentence naming the cause (Excel workbooks, UTF-16 text, binary junk...).
 from __future__ import annotations
 
 import bz2
+import codecs
 import csv
 import gzip
 import io
@@ -54,8 +58,22 @@ STDIN_NAMES = ("-",)
 ColumnChooser = Callable[[list[str]], list[int] | None]
 
 
-#: Excel on Windows saves "CSV (Comma delimited)" in the system code page: the fix is one menu away.
-NOT_UTF8 = "cannot read {name}: it is not UTF-8 text (Excel: save it as 'CSV UTF-8'); BGM reads CSV and Parquet tables"
+#: Excel on Windows saves "CSV (Comma delimited)" in the system code page, Windows-1252 in the
+#: Americas and Western Europe: text that is not UTF-8 is read in it, with :data:`READ_AS_CP1252`.
+FALLBACK_ENCODING = "cp1252"
+READ_AS_CP1252 = (
+    "{name} is not UTF-8 text: it was read as Windows-1252, as Excel on Windows saves 'CSV (Comma delimited)'; "
+    "if accented labels look wrong, save it as 'CSV UTF-8'"
+)
+#: Neither UTF-8 nor Windows-1252 (which leaves bytes 0x81, 0x8D, 0x8F, 0x90 and 0x9D undefined).
+NOT_TEXT = (
+    "cannot read {name}: it is neither UTF-8 nor Windows-1252 text (byte {byte} on line {line}); "
+    "save it as 'CSV UTF-8' (Excel: Save As, 'CSV UTF-8'); BGM reads CSV and Parquet tables"
+)
+#: A UTF-8 byte order mark (Excel's 'CSV UTF-8') on text that is not UTF-8: damaged, not another encoding.
+NOT_UTF8 = (
+    "cannot read {name}: it starts as UTF-8 text (a byte order mark) but is not UTF-8 (byte {byte} on line {line})"
+)
 
 
 def read_table(path: str | Path, choose: ColumnChooser | None = None) -> pd.DataFrame:
@@ -221,13 +239,56 @@ def _read_parquet(name: str, data: Path | bytes, choose: ColumnChooser | None) -
 
 
 def _read_csv(name: str, opener, choose: ColumnChooser | None) -> pd.DataFrame:
+    """The CSV table: UTF-8 text, else Windows-1252 text (with a warning), else an error naming the byte."""
     with opener() as fh:
         head = _decompressed(name, fh.read, HEAD_BYTES)
     if head.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise BGMInputError(f"cannot read {name}: it is UTF-16 text, not UTF-8; save it as UTF-8 CSV")
     if b"\x00" in head:
         raise BGMInputError(f"cannot read {name}: it looks binary; BGM reads CSV and Parquet (.parquet) tables")
-    skip, header_line, given_sep = _header_line(name, opener)
+    if _is_utf8(head, final=len(head) < HEAD_BYTES):  # else no need to parse the file as UTF-8 to find out
+        try:
+            return _parse_csv(name, opener, choose, "utf-8-sig")
+        except UnicodeDecodeError:
+            pass
+    if head.startswith(codecs.BOM_UTF8):
+        raise BGMInputError(NOT_UTF8.format(name=name, **_bad_byte(opener, "utf-8-sig")))
+    try:
+        frame = _parse_csv(name, opener, choose, FALLBACK_ENCODING)
+    except UnicodeDecodeError:
+        raise BGMInputError(NOT_TEXT.format(name=name, **_bad_byte(opener, FALLBACK_ENCODING))) from None
+    warnings.warn(READ_AS_CP1252.format(name=name), BGMWarning, stacklevel=4)
+    frame.attrs["encoding"] = FALLBACK_ENCODING
+    return frame
+
+
+def _is_utf8(data: bytes, final: bool) -> bool:
+    """Whether ``data`` is UTF-8 (a sequence cut at its end is fine unless ``final``)."""
+    try:
+        codecs.getincrementaldecoder("utf-8")().decode(data, final=final)
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+def _bad_byte(opener, encoding: str) -> dict[str, str | int]:
+    """The first byte ``encoding`` cannot decode (``0x81``) and its file line (1-based), for messages."""
+    decoder = codecs.getincrementaldecoder(encoding)()
+    line, chunk = 1, b""
+    with opener() as fh:
+        while chunk := fh.read(1 << 20):
+            try:
+                line += decoder.decode(chunk).count("\n")
+            except UnicodeDecodeError as exc:
+                # The decoder holds back at most the few bytes of a cut UTF-8 sequence: count the chunk's own.
+                start = max(exc.start - len(exc.object) + len(chunk), 0)
+                return {"byte": f"0x{chunk[start]:02X}", "line": line + chunk[:start].count(b"\n")}
+    return {"byte": "?", "line": line}
+
+
+def _parse_csv(name: str, opener, choose: ColumnChooser | None, encoding: str) -> pd.DataFrame:
+    """The CSV table as ``encoding`` text; raises ``UnicodeDecodeError`` when the bytes are not."""
+    skip, header_line, given_sep = _header_line(name, opener, encoding)
     sep = given_sep or _delimiter(header_line)
     try:
         header = next(csv.reader([header_line.rstrip("\r\n")], delimiter=sep))
@@ -241,17 +302,17 @@ def _read_csv(name: str, opener, choose: ColumnChooser | None) -> pd.DataFrame:
                 sep=sep,
                 dtype=str,
                 keep_default_na=False,
-                encoding="utf-8-sig",
+                encoding=encoding,
                 skiprows=skip,
                 usecols=None if wanted is None else sorted(wanted),
                 index_col=False,
             )
     except UnicodeDecodeError:
-        raise BGMInputError(NOT_UTF8.format(name=name)) from None
+        raise
     except Exception as exc:  # pandas raises many types for unreadable files
         raise BGMInputError(f"cannot read {name} as CSV: {_parser_message(exc, skip)}") from None
     # usecols makes pandas drop a row's fields beyond the header without a word: refuse such rows then.
-    lines, empty = _scan_rows(name, opener, sep, skip, len(header) if wanted is not None else None)
+    lines, empty = _scan_rows(name, opener, sep, skip, len(header) if wanted is not None else None, encoding)
     frame.columns = [header[i] for i in sorted(wanted)] if wanted is not None else header[: frame.shape[1]]
     if len(lines) == len(frame):  # else the csv module split records unlike pandas: number rows as before
         frame = _without_empty_rows(name, frame, lines, empty)
@@ -267,14 +328,16 @@ def _without_empty_rows(name: str, frame: pd.DataFrame, lines: np.ndarray, empty
             f"{name}: {int(empty.sum())} empty row(s) (every field blank) were skipped, on line(s) "
             f"{', '.join(map(str, lines[empty][:10]))}{' ...' if empty.sum() > 10 else ''}",
             BGMWarning,
-            stacklevel=5,
+            stacklevel=6,
         )
         frame = frame[~empty].reset_index(drop=True)
     frame.attrs["lines"] = lines[~empty]
     return frame
 
 
-def _scan_rows(name: str, opener, sep: str, skip: int, n_fields: int | None) -> tuple[np.ndarray, np.ndarray]:
+def _scan_rows(
+    name: str, opener, sep: str, skip: int, n_fields: int | None, encoding: str = "utf-8-sig"
+) -> tuple[np.ndarray, np.ndarray]:
     """Each data row's first file line and whether its every field is blank, as pandas sees the rows.
 
     Python's C ``csv`` reader, one more pass (about a second per million
@@ -288,7 +351,7 @@ def _scan_rows(name: str, opener, sep: str, skip: int, n_fields: int | None) -> 
     empty: list[bool] = []
     try:
         with opener() as fh:
-            text = io.TextIOWrapper(fh, encoding="utf-8-sig", newline="")
+            text = io.TextIOWrapper(fh, encoding=encoding, newline="")
             rows = csv.reader(text, delimiter=sep)
             end = 0  # the last line of the previous record
             for row in rows:
@@ -319,21 +382,19 @@ def _delimiter(header_line: str) -> str:
     return max(DELIMITERS, key=header_line.count) if any(d in header_line for d in DELIMITERS) else ","
 
 
-def _header_line(name: str, opener) -> tuple[int, str, str | None]:
+def _header_line(name: str, opener, encoding: str = "utf-8-sig") -> tuple[int, str, str | None]:
     """Number of comment, blank or ``sep=`` lines before the header, the header line, and the delimiter a
-    ``sep=`` line names (None without one)."""
+    ``sep=`` line names (None without one). Raises ``UnicodeDecodeError`` when they are not ``encoding`` text."""
     sep = None
     try:
         with opener() as fh:
-            text = io.TextIOWrapper(fh, encoding="utf-8-sig", errors="strict", newline="")
+            text = io.TextIOWrapper(fh, encoding=encoding, errors="strict", newline="")
             for skip, line in enumerate(text):
                 given = SEP_LINE.fullmatch(line.strip("\r\n")) if sep is None else None
                 if given:
                     sep = given.group(1)
                 elif line.strip() and not line.lstrip().startswith(COMMENT_PREFIXES):
                     return skip, line, sep
-    except UnicodeDecodeError:
-        raise BGMInputError(NOT_UTF8.format(name=name)) from None
     except (OSError, EOFError, lzma.LZMAError) as exc:
         raise BGMInputError(f"cannot read {name}: the compressed data is damaged ({_one_line(exc)})") from None
     raise BGMInputError(f"cannot read {name}: it holds no table, only blank or comment lines")

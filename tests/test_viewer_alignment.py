@@ -1,0 +1,129 @@
+"""Manual alignment overrides follow their components when a parameter renumbers them (no screen, no Qt).
+
+An override names its source component by number. A slider that changes
+extraction renumbers components: the override must then move to the
+component at its place, or be dropped with a note naming it, never be
+applied to whichever component now has its number.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from shapely.geometry import Point, box
+
+from bgm_viewer.alignment import PlacedOverride, relocate_overrides, same_place
+from core.io.project import AlignmentOverride
+
+Z = 685.0
+
+
+def _blob(x: float, y: float, r: float = 5.0):
+    return Point(x, y).buffer(r)
+
+
+def _placed(source: int, sources, targets, translation=(1.0, 2.0), associate=None) -> PlacedOverride:
+    o = PlacedOverride("ore", Z, source, translation, dict(associate or {}))
+    o.place(sources, targets)
+    return o
+
+
+def _pair(sources, targets):
+    return lambda geozone, z: (sources, targets) if geozone == "ore" and z == Z else None
+
+
+def test_an_override_follows_its_renumbered_source_and_targets():
+    west, east = _blob(0, 0), _blob(50, 0)
+    low_west, low_east = _blob(1, 0), _blob(51, 0)
+    o = _placed(1, [west, east], [low_west, low_east], associate={1: True, 0: False})  # the east one
+    # east grew and is now number 0; the targets swapped too
+    out, notes = relocate_overrides([o], _pair([_blob(50, 0, 9.0), west], [low_east, low_west]))
+    assert [(p.source, p.associate, p.translation) for p in out] == [(0, {0: True, 1: False}, (1.0, 2.0))]
+    assert len(notes) == 1 and "geozone ore source 1 on bench 685" in notes[0] and "source 1 is 0" in notes[0]
+    assert o.source == 1  # the input is not modified
+
+
+def test_an_override_whose_component_went_is_dropped_with_a_note():
+    west, east = _blob(0, 0), _blob(50, 0)
+    o = _placed(1, [west, east], [west])
+    # the east component is gone: number 1 is now another component, which must not take the override
+    out, notes = relocate_overrides([o], _pair([west, _blob(0, 40)], [west]))
+    assert out == []
+    assert len(notes) == 1 and "source 1 on bench 685 was dropped" in notes[0]
+
+
+def test_an_override_of_a_split_or_merged_component_is_dropped():
+    whole = box(0, 0, 40, 10)
+    halves = [box(0, 0, 18, 10), box(22, 0, 40, 10)]
+    out, notes = relocate_overrides([_placed(0, [whole], [whole])], _pair(halves, [whole]))
+    assert out == [] and "was dropped" in notes[0]
+    # two overrides whose sources merged into one component: neither can be told from the other
+    a, b = _placed(0, halves, [whole]), _placed(1, halves, [whole], translation=(3.0, 4.0))
+    out, notes = relocate_overrides([a, b], _pair([whole], [whole]))
+    assert out == [] and "2 alignment overrides of geozone ore on bench 685 were dropped" in notes[-1]
+
+
+def test_a_lost_target_is_forgotten_and_the_rest_kept():
+    src, t0, t1 = _blob(0, 0), _blob(0, 1), _blob(60, 0)
+    o = _placed(0, [src], [t0, t1], translation=None, associate={0: True, 1: False})
+    out, notes = relocate_overrides([o], _pair([src], [t0]))
+    assert [(p.source, p.associate) for p in out] == [(0, {0: True})]
+    assert len(notes) == 1 and "no longer names target 1" in notes[0]
+
+
+def test_unchanged_unplaced_and_elsewhere_overrides_are_kept_silently():
+    west, east = _blob(0, 0), _blob(50, 0)
+    placed = _placed(1, [west, east], [west])
+    from_file = AlignmentOverride("ore", Z, 0, (1.0, 1.0))  # a project's: placed where its number says
+    other_bench = AlignmentOverride("ore", 675.0, 3, (1.0, 1.0))  # its pair is not at hand
+    out, notes = relocate_overrides([placed, from_file, other_bench], _pair([west, east], [west]))
+    assert notes == []
+    assert [(o.source_z, o.source) for o in out] == [(Z, 1), (Z, 0), (675.0, 3)]
+    assert out[1].source_outline is west and out[2].source_outline is None
+    assert same_place(east, [west, east]) == 1 and same_place(box(100, 100, 101, 101), [west, east]) is None
+
+
+# ---------------------------------------------------------------------------- through the viewer's model
+
+
+@pytest.fixture
+def model():
+    from bgm_viewer.testing import small_model
+
+    return small_model(until="correspondence")
+
+
+def _run(model, step):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(step, until="correspondence")
+
+
+def test_a_slider_that_removes_the_overridden_component_drops_the_override_and_says_so(model):
+    """g2 has one component of 14 holes on the top bench: raising min_component_holes to 20 takes it away."""
+    model.select("g2", 0, 0)
+    _run(model, "contours")
+    assert [len(c.holes) for c in model.result.pair.sources] == [14]
+    model.set_translation(2.0, -1.0)
+    _run(model, "correspondence")
+    assert len(model.overrides) == 1
+    step = model.set_param("min_component_holes", 20)
+    _run(model, step)
+    assert model.overrides == [], "the override still names a component that is gone"
+    assert any("geozone g2 source 0" in n and "dropped" in n for n in model.override_notes), model.override_notes
+    assert "g2 source 0" in model.result.errors.get("alignment overrides", "")  # the window's status bar shows these
+    assert model.can_undo and model.dirty
+
+
+def test_an_override_whose_number_went_stale_is_applied_to_its_own_component(model):
+    """The run finds the component at the override's place before any correspondence uses it."""
+    model.set_translation(4.0, 3.0)
+    model.overrides[0].source = 7  # as if extraction had renumbered the components under it
+    _run(model, "correspondence")
+    assert [x.source for x in model.overrides] == [0]
+    assert any("source 7 is 0" in n for n in model.override_notes), model.override_notes
+    assert not model.result.errors.get("correspondence")
+    t = model.result.correspondence.translations[0]
+    np.testing.assert_allclose(t, (4.0, 3.0), atol=1e-9)  # the locked translation, on component 0
