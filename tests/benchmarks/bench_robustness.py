@@ -60,6 +60,8 @@ DRILLING: dict[str, tuple[dict, dict]] = {
     "pattern 9-12 m": ({}, {"spacing_range_m": (9.0, 12.0)}),
     "pattern 3-4 m": ({}, {"spacing_range_m": (3.0, 4.0)}),
     "label noise 6-10%": ({}, {"label_noise_range": (0.06, 0.10)}),
+    # Heavy: groups of mislabelled holes as large as small lenses are common.
+    "label noise 12-18%": ({}, {"label_noise_range": (0.12, 0.18)}),
     # Mislabels where samples mix two geozones: 10-25% of the holes at a contact take the neighbour's label.
     "label noise at the contacts 10-25%": ({}, {"contact_noise_range": (0.10, 0.25)}),
     "15 m benches, feet": ({"bench_height_m": 15.0, "units": "ft"}, {}),
