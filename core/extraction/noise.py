@@ -65,8 +65,8 @@ NEAR_TIE_SHARE = 0.6
 #: Mislabels at a contact are outvoted outright; a real contact that wavers by a fraction of a spacing
 #: leaves near ties beside each hole it outvotes. The outvoted holes are noise only where they are at
 #: least this share of the outvoted holes and near ties together: with 10-25% of the contact holes
-#: mislabelled 0.26-0.47 (10th-90th percentile of the benches, development seeds 0-2), contacts
-#: wavering half a spacing every five 0.05-0.27, Kennecott's benches 0.20-0.36.
+#: mislabelled 0.25-0.50 (10th-90th percentile of the benches, development seeds 0-2), contacts
+#: wavering half a spacing every five 0.05-0.27, clean contacts 0.00-0.20, Kennecott's benches 0.24-0.40.
 OUTVOTED_AGAINST_TIES = 0.3
 
 
