@@ -168,3 +168,29 @@ def test_a_truth_file_of_another_table_is_refused(small_mine_csv, tmp_path):
     proc = bgm("evaluate", moved, "--geozone", "g1", "--out", tmp_path / "e", check=False)
     assert proc.returncode == 2, proc.stderr
     assert "does not describe" in proc.stderr and "moved.truth.json" in proc.stderr
+
+
+def test_two_labels_made_alike_for_dxf_keep_one_layer_each_in_every_dxf_of_a_build(small_mine_csv, tmp_path):
+    """Labels "ox/sul" and "ox_sul" are both ox_sul in R12: contours.dxf told them apart, the surfaces did not."""
+    _, table = small_mine_csv
+    labels = {"g1": "ox/sul", "g2": "ox_sul"}
+    csv = tmp_path / "relabelled.csv"
+    table.assign(geozone=table["geozone"].replace(labels)).to_csv(csv, index=False)
+    out = tmp_path / "model"
+    bgm("build", csv, "--out", out, "--geozone", "ox/sul,ox_sul")
+    summary = json.loads((out / "summary.json").read_text())
+
+    def layers(path):
+        return {e.dxf.layer for e in ezdxf.readfile(path).modelspace()}
+
+    lines = iter(ezdxf.readfile(out / "contours.dxf").modelspace().query("POLYLINE"))
+    by_geozone: dict[str, set] = {g: set() for g in labels.values()}
+    for f in json.loads((out / "contours.geojson").read_text())["features"]:  # the DXF's rings, in order
+        polygons = getattr(shape(f["geometry"]), "geoms", [shape(f["geometry"])])
+        for _ in range(sum(1 + len(p.interiors) for p in polygons)):
+            by_geozone[f["properties"]["geozone"]].add(next(lines).dxf.layer)
+    assert all(len(v) == 1 for v in by_geozone.values()) and len(set.union(*by_geozone.values())) == 2
+    for g in summary["geozones"]:
+        folder = out / g["folder"]
+        assert layers(folder / "surface.dxf") == by_geozone[g["geozone"]], g["geozone"]
+        assert layers(folder / "prediction.dxf") == by_geozone[g["geozone"]], g["geozone"]

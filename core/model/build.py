@@ -222,7 +222,7 @@ def build(
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
-    from core.io.export import DEFAULT_FORMATS
+    from core.io.export import DEFAULT_FORMATS, dxf_layer_names
 
     params = (params or ModelParameters()).validate()
     out_dir = check_output(out_dir, [holes.source], folder=True)
@@ -237,12 +237,16 @@ def build(
             tuple(formats or DEFAULT_FORMATS),
             evaluate,
             geozone_folders(wanted),
+            dxf_layer_names(holes.geozones),  # a geozone's layer whichever geozones are built
         )
         return _build_into(ctx, wanted, progress, workers, scheduler)
 
 
-def write_section_dxf(features: list[dict], z_key: str, path: Path) -> None:
-    """Write the rings of GeoJSON-like section features as 3D polylines at their elevation ``z_key``."""
+def write_section_dxf(features: list[dict], z_key: str, path: Path, layers: dict | None = None) -> None:
+    """Write the rings of GeoJSON-like section features as 3D polylines at their elevation ``z_key``.
+
+    ``layers`` maps geozones to their DXF layers (see :func:`core.io.export.write_polylines_dxf`).
+    """
     from core.io.export import polygon_rings, write_polylines_dxf
 
     rings = [
@@ -250,7 +254,7 @@ def write_section_dxf(features: list[dict], z_key: str, path: Path) -> None:
         for f in features
         for ring in polygon_rings(shape(f["geometry"]) if isinstance(f["geometry"], dict) else f["geometry"])
     ]
-    write_polylines_dxf(rings, path)
+    write_polylines_dxf(rings, path, layers)
 
 
 def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, scheduler) -> dict:
@@ -264,7 +268,7 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
     mine = [c for c in ctx.contours if c.geozone in wanted]
     features = [contour_feature(c, holes) for c in mine]
     write_geojson(features, out_dir / "contours.geojson")
-    write_section_dxf(features, "bench", out_dir / "contours.dxf")
+    write_section_dxf(features, "bench", out_dir / "contours.dxf", ctx.layers)
     containment = containment_summary(mine, holes)
     t_contours = time.perf_counter() - t0
 
@@ -412,6 +416,8 @@ class BuildContext:
     formats: tuple
     evaluate: bool
     folders: dict = field(default_factory=dict)  #: geozone label -> its folder (see :func:`geozone_folders`)
+    #: Geozone label -> its layer in every DXF of the build (:func:`core.io.export.dxf_layer_names` of the input's).
+    layers: dict = field(default_factory=dict)
 
 
 #: Set once per worker process by _init_worker: a build's context, or the session whose benches are extracted.
@@ -621,7 +627,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         if not region.is_empty
     ]
     write_geojson(features, gdir / "prediction.geojson")
-    write_section_dxf(features, "z", gdir / "prediction.dxf")
+    write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
     _write_surface(summary, model, ctx, gdir)
     if ctx.evaluate and holes.n_benches >= 3:
@@ -703,7 +709,9 @@ def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildConte
         mesh = ctx.session.surface(model.geozone, model)
         info = mesh_summary(mesh)
         surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
-        exported = export_all(surface, gdir, "surface", ctx.formats, name=model.geozone)
+        exported = export_all(
+            surface, gdir, "surface", ctx.formats, name=model.geozone, layer=ctx.layers.get(model.geozone)
+        )
         summary.volume = info["volume_m3"] / mpu**3
         if info["watertight"]:  # a volume only a closed surface has
             summary.volume_drilled = volume_above(mesh, float(holes.bench_levels_m[-1])) / mpu**3
