@@ -194,3 +194,28 @@ def test_two_labels_made_alike_for_dxf_keep_one_layer_each_in_every_dxf_of_a_bui
         folder = out / g["folder"]
         assert layers(folder / "surface.dxf") == by_geozone[g["geozone"]], g["geozone"]
         assert layers(folder / "prediction.dxf") == by_geozone[g["geozone"]], g["geozone"]
+
+
+def test_a_build_writes_omf_surfaces_in_input_coordinates_where_omf_is_installed(built):
+    """The README promises `surface.omf` "too with pip install omf"; the build wrote none."""
+    from core.io.export import omf_available
+
+    if not omf_available():
+        pytest.skip("optional 'omf' package not installed")
+    import warnings
+
+    import omf
+
+    summary = json.loads((built / "summary.json").read_text())
+    assert "omf" in summary["formats"]
+    for g in summary["geozones"]:
+        if not g["files"]:
+            continue
+        assert g["files"]["omf"] == f"{g['folder']}/surface.omf"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            element = omf.OMFReader(str(built / g["files"]["omf"])).get_project().elements[0]
+        ply = trimesh.load(built / g["files"]["ply"], force="mesh", process=False)
+        assert element.name == g["geozone"]
+        assert np.array_equal(np.asarray(element.geometry.vertices.array), ply.vertices)  # mine grid, float64
+        assert np.array_equal(np.asarray(element.geometry.triangles.array), ply.faces)

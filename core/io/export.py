@@ -78,6 +78,7 @@ _ALIASES = {"vtkpolydata": "vtp", "vtk-polydata": "vtp"}
 __all__ = [
     "DEFAULT_FORMATS",
     "SURFACE_FORMATS",
+    "build_formats",
     "export_all",
     "export_surface",
     "json_default",
@@ -242,6 +243,11 @@ def write_geojson(
     with atomic_path(path) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
     return path
+
+
+def build_formats() -> tuple[str, ...]:
+    """The formats ``bgm build`` writes: :data:`DEFAULT_FORMATS`, and OMF where the ``omf`` package is installed."""
+    return (*DEFAULT_FORMATS, "omf") if omf_available() else DEFAULT_FORMATS
 
 
 def omf_available() -> bool:

@@ -218,11 +218,12 @@ def build(
     gives its address, with identical results. Every stage runs through a
     :class:`~core.model.session.ModelSession`, the viewer's pipeline; with a
     :class:`~core.io.cache.StageCache` as ``cache`` its results are kept on
-    disk for the next run.
+    disk for the next run. Surfaces are written in ``formats``
+    (:func:`core.io.export.build_formats` by default: OMF too where its package is installed).
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
-    from core.io.export import DEFAULT_FORMATS, dxf_layer_names
+    from core.io.export import build_formats, dxf_layer_names
 
     params = (params or ModelParameters()).validate()
     out_dir = check_output(out_dir, [holes.source], folder=True)
@@ -234,7 +235,7 @@ def build(
             [],
             truth,
             staging,
-            tuple(formats or DEFAULT_FORMATS),
+            tuple(formats or build_formats()),
             evaluate,
             geozone_folders(wanted),
             dxf_layer_names(holes.geozones),  # a geozone's layer whichever geozones are built
