@@ -219,3 +219,12 @@ def test_a_build_writes_omf_surfaces_in_input_coordinates_where_omf_is_installed
         assert element.name == g["geozone"]
         assert np.array_equal(np.asarray(element.geometry.vertices.array), ply.vertices)  # mine grid, float64
         assert np.array_equal(np.asarray(element.geometry.triangles.array), ply.faces)
+
+
+def test_evaluate_rows_name_their_geozone_as_a_builds_do(small_mine_csv, tmp_path):
+    """Evaluated one geozone after another into one folder, nothing in the rows said whose they were."""
+    path, _ = small_mine_csv
+    for g in ("g1", "g2"):
+        bgm("evaluate", path, "--geozone", g, "--out", tmp_path / "e")
+        rows = pd.read_csv(tmp_path / "e" / "evaluation_rows.csv")
+        assert rows.columns[0] == "geozone" and set(rows["geozone"]) == {g}
