@@ -228,3 +228,20 @@ def test_evaluate_rows_name_their_geozone_as_a_builds_do(small_mine_csv, tmp_pat
         bgm("evaluate", path, "--geozone", g, "--out", tmp_path / "e")
         rows = pd.read_csv(tmp_path / "e" / "evaluation_rows.csv")
         assert rows.columns[0] == "geozone" and set(rows["geozone"]) == {g}
+
+
+def test_a_build_in_feet_gives_its_evaluation_depths_in_feet_in_the_report_and_summary(small_mine_csv, tmp_path):
+    """evaluation.csv and `bgm evaluate` gave the depths in feet; report.md and summary.json in metres only."""
+    _, table = small_mine_csv
+    feet = table.assign(x=table.x / 0.3048, y=table.y / 0.3048, z=table.z / 0.3048)
+    path = tmp_path / "feet.csv"
+    feet.to_csv(path, index=False)
+    out = tmp_path / "model"
+    bgm("build", path, "--out", out, "--geozone", "g1")
+    depth_ft = pd.read_csv(out / "evaluation.csv")["depth_ft"].tolist()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["units"] == "ft"
+    assert [r["depth_ft"] for r in summary["evaluation"]] == pytest.approx(depth_ft)
+    report = (out / "report.md").read_text()
+    assert "| depth_m | depth_ft | precision_model |" in report
+    assert all(f"| {d:.2f} |" in report for d in depth_ft)

@@ -289,8 +289,8 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
     if evaluations:
         results = pd.concat(evaluations, ignore_index=True)
         _write_csv(rows_as_written(results, holes), out_dir / "evaluation_rows.csv")
-        table = summary_table(results)
-        _write_csv(summary_as_written(table, holes), out_dir / "evaluation.csv")
+        table = summary_as_written(summary_table(results), holes)  # depths in the input's units too (depth_ft)
+        _write_csv(table, out_dir / "evaluation.csv")
         plot_precision_recall(table, out_dir / "precision_recall.png", title=f"{holes.source}: all geozones")
 
     summary = {
@@ -883,7 +883,9 @@ def _pct(v) -> str:
 
 
 def _markdown_table(table: pd.DataFrame) -> str:
-    cols = [c for c in table.columns if c.startswith(("depth", "precision", "recall", "f1_"))]
+    """The evaluation in percent, its depths first: in metres, and in the input's units as well (``depth_ft``)."""
+    cols = [c for c in table.columns if c.startswith("depth")]
+    cols += [c for c in table.columns if c.startswith(("precision", "recall", "f1_"))]
     head = "| " + " | ".join(cols) + " |"
     rule = "|" + "---|" * len(cols)
     rows = []
