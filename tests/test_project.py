@@ -150,3 +150,10 @@ def test_an_override_of_a_component_the_bench_pair_lacks_is_refused_naming_it():
         check_override_components(({5: (1.0, 0.0)}, set(), set()), 2, 3, where)
     with pytest.raises(BGMInputError, match=r"target component 7, but the lower bench has 3 components \(0 to 2\)"):
         check_override_components(({}, set(), {(0, 7)}), 2, 3, where)
+
+
+def test_a_project_saved_with_a_byte_order_mark_is_read(tmp_path: Path):
+    """Windows PowerShell 5 (`Out-File -Encoding utf8`) writes UTF-8 with a BOM: it was "corrupt"."""
+    p = tmp_path / "p.json"
+    p.write_bytes(b"\xef\xbb\xbf" + json.dumps(sample_project().to_dict()).encode())
+    assert load_project(p) == sample_project()

@@ -119,7 +119,7 @@ def load_project(path: str | os.PathLike) -> Project:
     if not path.is_file():
         raise BGMInputError(f"project file {path} does not exist.")
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte order mark (Windows PowerShell 5) is no error
     except (OSError, UnicodeDecodeError) as exc:
         raise BGMInputError(f"project file {path} cannot be read: {exc}.") from None
     try:
