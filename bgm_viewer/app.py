@@ -1029,7 +1029,7 @@ class MainWindow(QtWidgets.QMainWindow):
         Each is the surface ``bgm build`` writes: the bodies the body filter hides from
         the view are kept (label-noise bodies are the geologist's call in the mine software).
         """
-        from core.io.export import export_all
+        from core.io.export import build_formats, dxf_layer_names, export_all
         from core.model.build import geozone_folders
         from core.model.surfaces import to_input_frame
 
@@ -1039,12 +1039,13 @@ class MainWindow(QtWidgets.QMainWindow):
             raise ValueError("no surface is shown: build or tick some first")
         f = self.model.holes.frame
         names = geozone_folders(sorted(surfaces))
+        layers = dxf_layer_names(self.model.holes.geozones)  # as bgm build names them
         out = {}
         for g, mesh in surfaces.items():
             gdir = Path(folder) / names[g]
             gdir.mkdir(parents=True, exist_ok=True)
             moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
-            out[g] = export_all(moved, gdir, "surface", name=g)
+            out[g] = export_all(moved, gdir, "surface", build_formats(), name=g, layer=layers[g])
         return out
 
     def _check_up_to_date(self) -> None:

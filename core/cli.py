@@ -589,6 +589,7 @@ def evaluate(
     if rows.empty:
         raise BGMInputError(f"geozone {geozone} has no bench with two known benches above it and holes below")
     _refuse_empty_scores(rows, holes, geozone)
+    rows.insert(0, "geozone", geozone)  # as a build's rows say it: the folder may hold another geozone's before
     summary = summary_as_written(summary_table(rows), holes)
     atomic_write_text(out / names[0], rows_as_written(rows, holes).to_csv(index=False))
     atomic_write_text(out / names[1], summary.to_csv(index=False))

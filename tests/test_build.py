@@ -168,3 +168,80 @@ def test_a_truth_file_of_another_table_is_refused(small_mine_csv, tmp_path):
     proc = bgm("evaluate", moved, "--geozone", "g1", "--out", tmp_path / "e", check=False)
     assert proc.returncode == 2, proc.stderr
     assert "does not describe" in proc.stderr and "moved.truth.json" in proc.stderr
+
+
+def test_two_labels_made_alike_for_dxf_keep_one_layer_each_in_every_dxf_of_a_build(small_mine_csv, tmp_path):
+    """Labels "ox/sul" and "ox_sul" are both ox_sul in R12: contours.dxf told them apart, the surfaces did not."""
+    _, table = small_mine_csv
+    labels = {"g1": "ox/sul", "g2": "ox_sul"}
+    csv = tmp_path / "relabelled.csv"
+    table.assign(geozone=table["geozone"].replace(labels)).to_csv(csv, index=False)
+    out = tmp_path / "model"
+    bgm("build", csv, "--out", out, "--geozone", "ox/sul,ox_sul")
+    summary = json.loads((out / "summary.json").read_text())
+
+    def layers(path):
+        return {e.dxf.layer for e in ezdxf.readfile(path).modelspace()}
+
+    lines = iter(ezdxf.readfile(out / "contours.dxf").modelspace().query("POLYLINE"))
+    by_geozone: dict[str, set] = {g: set() for g in labels.values()}
+    for f in json.loads((out / "contours.geojson").read_text())["features"]:  # the DXF's rings, in order
+        polygons = getattr(shape(f["geometry"]), "geoms", [shape(f["geometry"])])
+        for _ in range(sum(1 + len(p.interiors) for p in polygons)):
+            by_geozone[f["properties"]["geozone"]].add(next(lines).dxf.layer)
+    assert all(len(v) == 1 for v in by_geozone.values()) and len(set.union(*by_geozone.values())) == 2
+    for g in summary["geozones"]:
+        folder = out / g["folder"]
+        assert layers(folder / "surface.dxf") == by_geozone[g["geozone"]], g["geozone"]
+        assert layers(folder / "prediction.dxf") == by_geozone[g["geozone"]], g["geozone"]
+
+
+def test_a_build_writes_omf_surfaces_in_input_coordinates_where_omf_is_installed(built):
+    """The README promises `surface.omf` "too with pip install omf"; the build wrote none."""
+    from core.io.export import omf_available
+
+    if not omf_available():
+        pytest.skip("optional 'omf' package not installed")
+    import warnings
+
+    import omf
+
+    summary = json.loads((built / "summary.json").read_text())
+    assert "omf" in summary["formats"]
+    for g in summary["geozones"]:
+        if not g["files"]:
+            continue
+        assert g["files"]["omf"] == f"{g['folder']}/surface.omf"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            element = omf.OMFReader(str(built / g["files"]["omf"])).get_project().elements[0]
+        ply = trimesh.load(built / g["files"]["ply"], force="mesh", process=False)
+        assert element.name == g["geozone"]
+        assert np.array_equal(np.asarray(element.geometry.vertices.array), ply.vertices)  # mine grid, float64
+        assert np.array_equal(np.asarray(element.geometry.triangles.array), ply.faces)
+
+
+def test_evaluate_rows_name_their_geozone_as_a_builds_do(small_mine_csv, tmp_path):
+    """Evaluated one geozone after another into one folder, nothing in the rows said whose they were."""
+    path, _ = small_mine_csv
+    for g in ("g1", "g2"):
+        bgm("evaluate", path, "--geozone", g, "--out", tmp_path / "e")
+        rows = pd.read_csv(tmp_path / "e" / "evaluation_rows.csv")
+        assert rows.columns[0] == "geozone" and set(rows["geozone"]) == {g}
+
+
+def test_a_build_in_feet_gives_its_evaluation_depths_in_feet_in_the_report_and_summary(small_mine_csv, tmp_path):
+    """evaluation.csv and `bgm evaluate` gave the depths in feet; report.md and summary.json in metres only."""
+    _, table = small_mine_csv
+    feet = table.assign(x=table.x / 0.3048, y=table.y / 0.3048, z=table.z / 0.3048)
+    path = tmp_path / "feet.csv"
+    feet.to_csv(path, index=False)
+    out = tmp_path / "model"
+    bgm("build", path, "--out", out, "--geozone", "g1")
+    depth_ft = pd.read_csv(out / "evaluation.csv")["depth_ft"].tolist()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["units"] == "ft"
+    assert [r["depth_ft"] for r in summary["evaluation"]] == pytest.approx(depth_ft)
+    report = (out / "report.md").read_text()
+    assert "| depth_m | depth_ft | precision_model |" in report
+    assert all(f"| {d:.2f} |" in report for d in depth_ft)

@@ -139,3 +139,21 @@ def test_failed_write_leaves_old_file(tmp_path: Path, monkeypatch):
     assert p.read_text() == before
     assert load_project(p) == sample_project()
     assert [f.name for f in tmp_path.iterdir()] == ["proj.json"]  # temp file cleaned up
+
+
+def test_an_override_of_a_component_the_bench_pair_lacks_is_refused_naming_it():
+    from core.io.project import check_override_components
+
+    where = "geozone 'ore', benches 1210 and 1195 m"
+    check_override_components(({1: (1.0, 0.0)}, {(1, 2)}, set()), 2, 3, where)  # all there: nothing said
+    with pytest.raises(BGMInputError, match=r"geozone 'ore', benches 1210 .* source component 5, .* 2 components"):
+        check_override_components(({5: (1.0, 0.0)}, set(), set()), 2, 3, where)
+    with pytest.raises(BGMInputError, match=r"target component 7, but the lower bench has 3 components \(0 to 2\)"):
+        check_override_components(({}, set(), {(0, 7)}), 2, 3, where)
+
+
+def test_a_project_saved_with_a_byte_order_mark_is_read(tmp_path: Path):
+    """Windows PowerShell 5 (`Out-File -Encoding utf8`) writes UTF-8 with a BOM: it was "corrupt"."""
+    p = tmp_path / "p.json"
+    p.write_bytes(b"\xef\xbb\xbf" + json.dumps(sample_project().to_dict()).encode())
+    assert load_project(p) == sample_project()

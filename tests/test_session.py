@@ -317,3 +317,15 @@ def test_a_geozones_fields_on_a_traced_bench_trace_that_geozone_alone(holes, tmp
         assert [c.polygon.wkb for c in with_fields] == [c.polygon.wkb for c in stored]
         assert {c.geozone for c in with_fields if c.fields is not None} == {g}
     assert traced == [["g1"], ["g2"]]
+
+
+def test_a_project_override_of_a_missing_component_names_the_geozone_and_the_benches(holes, tmp_path):
+    from core.io.project import AlignmentOverride, Project
+
+    session = _session(holes, tmp_path / "cache")
+    g = next(g for g in holes.geozones if session.pairs(g))
+    upper = holes.bench_z_input(session.pairs(g)[0].upper)
+    project = Project(overrides=[AlignmentOverride(g, upper, 99, translation=(1.0, 0.0))])
+    session = ModelSession(holes, session.params, project, StageStore(StageCache(tmp_path / "cache")))
+    with pytest.raises(BGMInputError, match=rf"override of geozone '{g}', benches {upper:g} .* source component 99"):
+        session.geozone_model(g)

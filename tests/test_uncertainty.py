@@ -433,3 +433,17 @@ def test_a_pattern_spanning_two_benches_is_refused(strip_csv, tmp_path):
     assert run.returncode == 2, run.stderr
     assert "collars from 925 to 935 m" in run.stderr and "one bench's pattern" in run.stderr
     assert not out.exists()
+
+
+def test_a_hole_listed_twice_in_a_planned_pattern_is_suggested_once(strip_csv, tmp_path):
+    planned = pd.DataFrame(pattern_holes((1.0, 1.0)) + [400_000.0, 7_000_000.0], columns=["x", "y"])
+    planned.insert(0, "hole_id", [f"p{i}" for i in range(len(planned))])
+    path = tmp_path / "planned.csv"
+    pd.concat([planned, planned.iloc[:20]]).to_csv(path, index=False)  # 20 holes pasted again
+    out = tmp_path / "s.csv"
+    run = bgm("suggest", strip_csv, "--geozone", "ore", "--budget", "100000", "--pattern", path, "--out", out)
+    assert run.returncode == 0, run.stderr
+    assert "20 hole(s) at the position of an earlier one" in run.stderr
+    table = pd.read_csv(out)
+    assert json.loads(run.stdout)["candidates"] == len(planned) == len(table)
+    assert not table.duplicated(["x", "y"]).any() and not table["pattern_hole"].duplicated().any()

@@ -78,6 +78,7 @@ _ALIASES = {"vtkpolydata": "vtp", "vtk-polydata": "vtp"}
 __all__ = [
     "DEFAULT_FORMATS",
     "SURFACE_FORMATS",
+    "build_formats",
     "export_all",
     "export_surface",
     "json_default",
@@ -93,6 +94,7 @@ def export_surface(
     fmt: str | None = None,
     *,
     name: str | None = None,
+    layer: str | None = None,
 ) -> Path:
     """Write ``mesh`` to ``path`` atomically and return the path.
 
@@ -108,6 +110,10 @@ def export_surface(
     name : str, optional
         Geozone name: the DXF layer, the OMF element and the VTP/PLY comment.
         Defaults to the file stem.
+    layer : str, optional
+        The DXF layer, when the caller gives every geozone of a model its own
+        (:func:`dxf_layer_names`, as the contours' DXF does); else ``name``
+        made R12-safe.
 
     Raises
     ------
@@ -129,7 +135,8 @@ def export_surface(
         _require_omf()
 
     with atomic_path(path) as tmp:
-        _WRITERS[fmt](tmp, vertices, faces, name, mesh)
+        # The DXF writer names its layer after ``name``; a layer already R12-safe keeps its name.
+        _WRITERS[fmt](tmp, vertices, faces, layer if fmt == "dxf" and layer else name, mesh)
     if fmt == "stl":
         _record_stl_offset(path, stl_offset(vertices))
     return path
@@ -172,17 +179,19 @@ def export_all(
     stem: str,
     formats: Iterable[str] = DEFAULT_FORMATS,
     name: str | None = None,
+    layer: str | None = None,
 ) -> dict[str, Path]:
     """Write ``mesh`` as ``out_dir/stem.<fmt>`` for every format; returns ``{fmt: path}``.
 
     ``name`` is the geozone's name (DXF layer, OMF element; ``stem`` if not
-    given). All formats are validated before anything is written.
+    given), ``layer`` its DXF layer if not ``name``'s (see :func:`export_surface`).
+    All formats are validated before anything is written.
     """
     fmts = [_canonical(f) for f in formats]
     if "omf" in fmts:
         _require_omf()
     out_dir = Path(out_dir)
-    return {f: export_surface(mesh, out_dir / f"{stem}.{f}", f, name=name or stem) for f in fmts}
+    return {f: export_surface(mesh, out_dir / f"{stem}.{f}", f, name=name or stem, layer=layer) for f in fmts}
 
 
 def write_geojson(
@@ -234,6 +243,11 @@ def write_geojson(
     with atomic_path(path) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
     return path
+
+
+def build_formats() -> tuple[str, ...]:
+    """The formats ``bgm build`` writes: :data:`DEFAULT_FORMATS`, and OMF where the ``omf`` package is installed."""
+    return (*DEFAULT_FORMATS, "omf") if omf_available() else DEFAULT_FORMATS
 
 
 def omf_available() -> bool:
@@ -397,16 +411,21 @@ def _dxf_head(layers: list[str], lo: np.ndarray, hi: np.ndarray) -> list[str]:
     return head + ["0", "ENDTAB", "0", "ENDSEC", "0", "SECTION", "2", "ENTITIES"]
 
 
-def write_polylines_dxf(rings: Iterable[tuple[str, float, np.ndarray]], path: str | Path) -> Path:
+def write_polylines_dxf(
+    rings: Iterable[tuple[str, float, np.ndarray]], path: str | Path, layers: Mapping[str, str] | None = None
+) -> Path:
     """Write closed 3D polylines as an R12 DXF, atomically: contours and predicted sections for mine software.
 
     Each ring is ``(geozone, z, xy)``: its vertices ``xy`` (n, 2) at
     elevation ``z``, on the geozone's layer. Vulcan, Surpac, Datamine,
     Leapfrog and Deswik all read R12 POLYLINEs as strings or polylines, the
-    usual way to bring digitised bench contours in.
+    usual way to bring digitised bench contours in. ``layers`` maps geozones
+    to their layers when the caller names those of a whole model (every DXF
+    of a build puts a geozone on one layer); by default :func:`dxf_layer_names`
+    of the rings' geozones.
     """
     rings = list(rings)
-    layer = dxf_layer_names(g for g, _, _ in rings)
+    layer = dxf_layer_names(g for g, _, _ in rings) | dict(layers or {})
     rings = [(layer[g], float(z), np.asarray(xy, float)) for g, z, xy in rings]
     xyz = [np.column_stack([xy, np.full(len(xy), z)]) for _, z, xy in rings if len(xy)]
     pts = np.vstack(xyz) if xyz else np.zeros((1, 3))

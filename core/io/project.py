@@ -119,7 +119,7 @@ def load_project(path: str | os.PathLike) -> Project:
     if not path.is_file():
         raise BGMInputError(f"project file {path} does not exist.")
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte order mark (Windows PowerShell 5) is no error
     except (OSError, UnicodeDecodeError) as exc:
         raise BGMInputError(f"project file {path} cannot be read: {exc}.") from None
     try:
@@ -327,6 +327,55 @@ def _is_number(x) -> bool:
 
 def _same_z(a: float, b: float) -> bool:
     return abs(a - b) <= Z_RELATIVE_TOLERANCE * max(1.0, abs(a), abs(b))
+
+
+def check_override_components(
+    overrides: tuple[dict[int, tuple[float, float]], set[tuple[int, int]], set[tuple[int, int]]],
+    n_sources: int,
+    n_targets: int,
+    where: str,
+) -> None:
+    """Refuse overrides of a bench pair that name a source or target component the pair does not have.
+
+    Parameters
+    ----------
+    overrides : (locked_translations, forced, forbidden)
+        One bench pair's overrides, as :func:`overrides_for` returns them.
+    n_sources, n_targets : int
+        Components of the upper (source) and lower (target) bench the pair links.
+    where : str
+        Names the geozone and the bench pair in the message
+        (``"geozone 'ore', benches 1210 and 1195 m"``).
+
+    Raises
+    ------
+    BGMInputError
+        Naming the override's component and what the bench has: a project
+        written for other data or other parameters (``min_component_holes``
+        changes which components a bench pair links) would otherwise fail deep
+        in the correspondence with a message naming no project.
+    """
+    locked, forced, forbidden = overrides
+    pairs = sorted(forced | forbidden)
+    for s in sorted({*locked, *(s for s, _ in pairs)}):
+        if not 0 <= s < n_sources:
+            raise BGMInputError(
+                f"project override of {where} names source component {s}, but the upper bench has "
+                f"{_components(n_sources)}; fix or remove the override"
+            )
+    for _, t in pairs:
+        if not 0 <= t < n_targets:
+            raise BGMInputError(
+                f"project override of {where} associates target component {t}, but the lower bench has "
+                f"{_components(n_targets)}; fix or remove the override"
+            )
+
+
+def _components(n: int) -> str:
+    """``"2 components (0 to 1)"``: what a bench pair's side has, as overrides index it."""
+    if n == 0:
+        return "no component"
+    return f"{n} component{'s' if n > 1 else ''} ({'0' if n == 1 else f'0 to {n - 1}'})"
 
 
 def overrides_for(

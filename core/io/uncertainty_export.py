@@ -160,6 +160,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     columns, found by the same names (``x/east/easting/mid_x``, ``y/north/northing/mid_y``,
     any case); a ``z`` column gives the bench's elevation (input units, the
     median), a ``hole_id`` column the identifiers (else the data line numbers).
+    A hole listed again at the same position is kept once, with a warning.
 
     Raises
     ------
@@ -202,7 +203,32 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     ids = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES), None)
     labels = table[ids].astype(str).tolist() if ids is not None else [str(n) for n in data_lines(table)]
     z = _pattern_level(path, values["z"], holes) if "z" in values else None
-    return xy, labels, z
+    keep = _distinct_positions(path, values["x"], values["y"], data_lines(table))
+    return xy[keep], [labels[i] for i in keep], z
+
+
+def _distinct_positions(path, x: np.ndarray, y: np.ndarray, lines) -> np.ndarray:
+    """Indices of a pattern's holes, the first of each position only; a warning names the repeats.
+
+    A hole listed twice (a pattern exported twice into one file, or pasted
+    again) is one place to drill: kept twice, it was suggested twice.
+    """
+    import warnings
+
+    from core.errors import BGMWarning
+
+    _, first = np.unique(np.column_stack([x, y]), axis=0, return_index=True)
+    keep = np.sort(first)
+    if len(keep) < len(x):
+        repeated = np.setdiff1d(np.arange(len(x)), keep)
+        shown = ", ".join(str(lines[i]) for i in repeated[:5]) + (", ..." if len(repeated) > 5 else "")
+        warnings.warn(
+            f"pattern {str(path)!r} lists {len(repeated)} hole(s) at the position of an earlier one (data line(s) "
+            f"{shown}); each position is a candidate once (first row kept)",
+            BGMWarning,
+            stacklevel=3,
+        )
+    return keep
 
 
 #: A pattern's collars may scatter this fraction of a bench height; more is holes of several benches.

@@ -218,11 +218,12 @@ def build(
     gives its address, with identical results. Every stage runs through a
     :class:`~core.model.session.ModelSession`, the viewer's pipeline; with a
     :class:`~core.io.cache.StageCache` as ``cache`` its results are kept on
-    disk for the next run.
+    disk for the next run. Surfaces are written in ``formats``
+    (:func:`core.io.export.build_formats` by default: OMF too where its package is installed).
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
-    from core.io.export import DEFAULT_FORMATS
+    from core.io.export import build_formats, dxf_layer_names
 
     params = (params or ModelParameters()).validate()
     out_dir = check_output(out_dir, [holes.source], folder=True)
@@ -234,15 +235,19 @@ def build(
             [],
             truth,
             staging,
-            tuple(formats or DEFAULT_FORMATS),
+            tuple(formats or build_formats()),
             evaluate,
             geozone_folders(wanted),
+            dxf_layer_names(holes.geozones),  # a geozone's layer whichever geozones are built
         )
         return _build_into(ctx, wanted, progress, workers, scheduler)
 
 
-def write_section_dxf(features: list[dict], z_key: str, path: Path) -> None:
-    """Write the rings of GeoJSON-like section features as 3D polylines at their elevation ``z_key``."""
+def write_section_dxf(features: list[dict], z_key: str, path: Path, layers: dict | None = None) -> None:
+    """Write the rings of GeoJSON-like section features as 3D polylines at their elevation ``z_key``.
+
+    ``layers`` maps geozones to their DXF layers (see :func:`core.io.export.write_polylines_dxf`).
+    """
     from core.io.export import polygon_rings, write_polylines_dxf
 
     rings = [
@@ -250,7 +255,7 @@ def write_section_dxf(features: list[dict], z_key: str, path: Path) -> None:
         for f in features
         for ring in polygon_rings(shape(f["geometry"]) if isinstance(f["geometry"], dict) else f["geometry"])
     ]
-    write_polylines_dxf(rings, path)
+    write_polylines_dxf(rings, path, layers)
 
 
 def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, scheduler) -> dict:
@@ -264,7 +269,7 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
     mine = [c for c in ctx.contours if c.geozone in wanted]
     features = [contour_feature(c, holes) for c in mine]
     write_geojson(features, out_dir / "contours.geojson")
-    write_section_dxf(features, "bench", out_dir / "contours.dxf")
+    write_section_dxf(features, "bench", out_dir / "contours.dxf", ctx.layers)
     containment = containment_summary(mine, holes)
     t_contours = time.perf_counter() - t0
 
@@ -284,8 +289,8 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
     if evaluations:
         results = pd.concat(evaluations, ignore_index=True)
         _write_csv(rows_as_written(results, holes), out_dir / "evaluation_rows.csv")
-        table = summary_table(results)
-        _write_csv(summary_as_written(table, holes), out_dir / "evaluation.csv")
+        table = summary_as_written(summary_table(results), holes)  # depths in the input's units too (depth_ft)
+        _write_csv(table, out_dir / "evaluation.csv")
         plot_precision_recall(table, out_dir / "precision_recall.png", title=f"{holes.source}: all geozones")
 
     summary = {
@@ -412,6 +417,8 @@ class BuildContext:
     formats: tuple
     evaluate: bool
     folders: dict = field(default_factory=dict)  #: geozone label -> its folder (see :func:`geozone_folders`)
+    #: Geozone label -> its layer in every DXF of the build (:func:`core.io.export.dxf_layer_names` of the input's).
+    layers: dict = field(default_factory=dict)
 
 
 #: Set once per worker process by _init_worker: a build's context, or the session whose benches are extracted.
@@ -621,7 +628,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         if not region.is_empty
     ]
     write_geojson(features, gdir / "prediction.geojson")
-    write_section_dxf(features, "z", gdir / "prediction.dxf")
+    write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
     _write_surface(summary, model, ctx, gdir)
     if ctx.evaluate and holes.n_benches >= 3:
@@ -703,7 +710,9 @@ def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildConte
         mesh = ctx.session.surface(model.geozone, model)
         info = mesh_summary(mesh)
         surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
-        exported = export_all(surface, gdir, "surface", ctx.formats, name=model.geozone)
+        exported = export_all(
+            surface, gdir, "surface", ctx.formats, name=model.geozone, layer=ctx.layers.get(model.geozone)
+        )
         summary.volume = info["volume_m3"] / mpu**3
         if info["watertight"]:  # a volume only a closed surface has
             summary.volume_drilled = volume_above(mesh, float(holes.bench_levels_m[-1])) / mpu**3
@@ -874,7 +883,9 @@ def _pct(v) -> str:
 
 
 def _markdown_table(table: pd.DataFrame) -> str:
-    cols = [c for c in table.columns if c.startswith(("depth", "precision", "recall", "f1_"))]
+    """The evaluation in percent, its depths first: in metres, and in the input's units as well (``depth_ft``)."""
+    cols = [c for c in table.columns if c.startswith("depth")]
+    cols += [c for c in table.columns if c.startswith(("precision", "recall", "f1_"))]
     head = "| " + " | ".join(cols) + " |"
     rule = "|" + "---|" * len(cols)
     rows = []

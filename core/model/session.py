@@ -30,11 +30,12 @@ from typing import cast
 import numpy as np
 import shapely
 
+from core.errors import quoted
 from core.extraction.contours import Contour, extract_bench, traced_benches
 from core.geometry.grid import as_multipolygon
 from core.io.blastholes import Blastholes
 from core.io.cache import MISSING, StageCache, content_key, engine_fingerprint
-from core.io.project import Project, overrides_for
+from core.io.project import Project, check_override_components, overrides_for
 from core.model.fields import BenchFields
 from core.model.parameters import ModelParameters, stage_values
 from core.model.pipeline import (
@@ -340,7 +341,14 @@ class ModelSession:
         """The project's overrides of one bench pair (input units), as :func:`correspond` takes them."""
         if self.project is None:
             return {}, set(), set()
-        return overrides_for(self.project, pair.geozone, self.holes.bench_z_input(pair.upper))
+        upper = self.holes.bench_z_input(pair.upper)
+        found = overrides_for(self.project, pair.geozone, upper)
+        where = (
+            f"geozone {quoted(pair.geozone)}, benches {upper:g} and {self.holes.bench_z_input(pair.lower):g} "
+            f"{self.holes.frame.length_unit}"
+        )
+        check_override_components(found, len(pair.sources), len(pair.targets), where)
+        return found
 
     def correspond(self, pair: BenchPair, keep_fields: bool = False):
         """The pair's correspondence (set on ``pair``); with ``keep_fields`` computed afresh with its fields."""
