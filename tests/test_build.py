@@ -49,6 +49,24 @@ def test_build_writes_every_output(built):
             assert (built / g / name).exists(), (g, name)
 
 
+def test_the_next_bench_the_report_samples_has_its_band_in_the_uncertainty_file(small_mine_csv, tmp_path):
+    """Benches of uneven height: the deepest pair's height (the predictions' step) is not the median one
+    (the next bench's level). The band at the level the report's suggestions are for is written, and
+    its width is the report's."""
+    path, table = small_mine_csv
+    table = table.copy()
+    deepest = table["z"] < table["z"].min() + 4.0  # the deepest bench (10 m benches)
+    table.loc[deepest, "z"] += 2.0  # the last pair 2 m shorter than the others
+    uneven = tmp_path / "uneven.csv"
+    table.to_csv(uneven, index=False)
+    bgm("build", uneven, "--out", tmp_path / "out", "--geozone", "g1")
+    sampling = next(g for g in json.loads((tmp_path / "out" / "summary.json").read_text())["geozones"])["sampling"]
+    bands = json.loads((tmp_path / "out" / "g1" / "uncertainty.geojson").read_text())["features"]
+    at = [f["properties"] for f in bands if np.isclose(f["properties"]["z"], sampling["z"])]
+    assert at, (sampling["z"], sorted({f["properties"]["z"] for f in bands}))
+    assert np.isclose(at[0]["band_width"], sampling["band_width"], rtol=1e-3)
+
+
 def test_contours_and_predictions_open_as_3d_polylines_in_mine_software(built):
     """The DXF strings hold the GeoJSON's rings vertex for vertex, closed, at their bench elevation."""
     features = json.loads((built / "contours.geojson").read_text())["features"]

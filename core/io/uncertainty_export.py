@@ -40,9 +40,12 @@ def band_features(
     Properties: ``geozone``, ``z`` (input units), ``kind``, ``probability``,
     ``band_width`` (median width across the predicted boundary, input units)
     and ``calibration`` (what the scale was calibrated on). ``within``
-    (local polygon) limits the width's boundary points, e.g. to the drilled area.
+    (local polygon) limits the width's boundary points: by default the
+    deepest bench's drilled area, as the build's report measures it.
     """
     frame = holes.frame
+    if within is None:
+        within = holes.drilled_area(holes.n_benches - 1)
     features = []
     for z, section in sections.items():
         if section is None:

@@ -668,18 +668,19 @@ def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict
     from core.model.uncertainty import DEFAULT_PROBABILITY, band_width_m, geozone_uncertainty
 
     holes, g = session.holes, model.geozone
-    sections = geozone_uncertainty(session, g, list(predictions), model, DEFAULT_PROBABILITY)
-    write_geojson(band_features(sections, holes, g), gdir / "uncertainty.geojson")
-    write_probability_grid(gdir / "p_inside.npz", probability_grid(sections, holes, g))
     levels = holes.bench_levels_m
     z_next = float(levels[-1] - np.median(-np.diff(levels)))
+    # The next bench the suggestions are for has its band in the files too, predicted level or not.
+    at = [z for z in predictions if np.isclose(z, z_next)]
+    z_next = at[0] if at else z_next
+    sections = geozone_uncertainty(session, g, sorted({*predictions, z_next}, reverse=True), model, DEFAULT_PROBABILITY)
+    write_geojson(band_features(sections, holes, g), gdir / "uncertainty.geojson")
+    write_probability_grid(gdir / "p_inside.npz", probability_grid(sections, holes, g))
     try:
         candidates = next_bench_candidates(holes)
     except ValueError as exc:
         return {"note": f"no suggestions: {exc}"}
-    # One bench below is one of the predicted levels: its uncertainty is already there.
-    at = [z for z in sections if np.isclose(z, z_next)]
-    section = sections[at[0]] if at else geozone_uncertainty(session, g, [z_next], model)[z_next]
+    section = sections[z_next]
     if section is None:
         return {"note": "no suggestions: no predicted boundary on the next bench"}
     in_band = int(section.in_band(candidates).sum()) if len(candidates) else 0
