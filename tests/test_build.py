@@ -263,3 +263,23 @@ def test_a_build_in_feet_gives_its_evaluation_depths_in_feet_in_the_report_and_s
     report = (out / "report.md").read_text()
     assert "| depth_m | depth_ft | precision_model |" in report
     assert all(f"| {d:.2f} |" in report for d in depth_ft)
+
+
+def test_a_file_browsers_metadata_does_not_stop_a_rebuild(tmp_path):
+    """Finder and Explorer leave .DS_Store or Thumbs.db in a model folder a geologist looked at; anything
+    else the build did not write still stops it."""
+    from core.errors import BGMInputError
+    from core.model.build import check_model_folder
+
+    model = tmp_path / "model"
+    model.mkdir()
+    (model / "summary.json").write_text(json.dumps({"input": "x.csv", "geozones": []}))
+    (model / ".DS_Store").write_bytes(b"\x00\x00\x00\x01Bud1")
+    check_model_folder(model)
+    browsed = tmp_path / "browsed"
+    browsed.mkdir()
+    (browsed / "Thumbs.db").write_bytes(b"\xd0\xcf")
+    check_model_folder(browsed)
+    (model / "notes.txt").write_text("keep me")
+    with pytest.raises(BGMInputError, match="notes.txt"):
+        check_model_folder(model)

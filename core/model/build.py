@@ -313,16 +313,21 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
     return summary
 
 
+#: Files a file browser leaves in any folder it shows (macOS Finder, Windows Explorer): nothing to lose.
+FOLDER_METADATA = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
+
+
 def check_model_folder(out_dir: Path) -> None:
     """Refuse an output folder that holds anything ``bgm build`` did not write.
 
     The build replaces its folder whole; a folder that is new, empty, or a
-    previous model (with nothing added) can be replaced without loss.
+    previous model (with nothing added but a file browser's
+    :data:`FOLDER_METADATA`) can be replaced without loss.
     """
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         return
-    entries = sorted(e.name for e in out_dir.iterdir())
+    entries = sorted(e.name for e in out_dir.iterdir() if e.name not in FOLDER_METADATA)
     if not entries:
         return
     known = _model_entries(out_dir)
