@@ -153,6 +153,10 @@ def view_command(
     check_view_options(layers, camera, vertical_exaggeration)
     if input is None and project is not None:
         input = project_input(project)
+    elif project is not None and isinstance(input, str | Path):
+        from core.io.project import check_project_input, load_project
+
+        check_project_input(load_project(project), project, input)
     if screenshot:
         holes = _checked_holes(input, geozone, bench)
         render_screenshot(

@@ -481,15 +481,10 @@ def load_holes(source=None) -> Blastholes:
 
 def project_input(project_path) -> str | None:
     """The input a project file names, resolved against the project's folder (``None`` if it names none)."""
-    from core.io.project import load_project
+    from core.io.project import load_project, saved_input
 
-    p = load_project(project_path).input_path
-    if not p:
-        return None
-    path = Path(p)
-    if not path.is_absolute():
-        path = Path(project_path).resolve().parent / path
-    return str(path)
+    path = saved_input(load_project(project_path), project_path)
+    return None if path is None else str(path)
 
 
 def input_relative_to(input_path: str | None, project_path) -> str | None:

@@ -260,12 +260,13 @@ def _wanted(holes, given: list[str] | None) -> list[str]:
 
 
 def _load_project(project: Path | None, holes, geozones: list[str], command: str):
-    from core.io.project import check_project, load_project
+    from core.io.project import check_project, check_project_input, load_project
 
     if project is None:
         return None
     proj = load_project(project)
     check_project(proj, holes, geozones, command=f"bgm {command}", uses_parameters=True)
+    check_project_input(proj, project, holes.source)
     return proj
 
 

@@ -157,3 +157,23 @@ def test_a_project_saved_with_a_byte_order_mark_is_read(tmp_path: Path):
     p = tmp_path / "p.json"
     p.write_bytes(b"\xef\xbb\xbf" + json.dumps(sample_project().to_dict()).encode())
     assert load_project(p) == sample_project()
+
+
+def test_a_project_with_overrides_applied_to_another_input_is_warned_about(tmp_path: Path, recwarn):
+    """Overrides name components by number: applied to another table they may move other bodies."""
+    import warnings
+
+    from core.errors import BGMWarning
+    from core.io.project import check_project_input
+
+    (tmp_path / "data").mkdir()
+    saved, other = tmp_path / "data" / "blastholes.csv", tmp_path / "other.csv"
+    saved.write_text("x,y,z,geozone\n")
+    other.write_text("x,y,z,geozone\n")
+    project, path = sample_project(), tmp_path / "p.json"  # input_path "data/blastholes.csv", beside it
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)
+        check_project_input(project, path, saved)  # its own input: nothing to say
+        check_project_input(Project(parameters={}, input_path="other.csv"), path, saved)  # no overrides
+    with pytest.warns(BGMWarning, match=r"saved for data/blastholes.csv, not .*other.csv: its 3 alignment"):
+        check_project_input(project, path, other)

@@ -152,6 +152,39 @@ def load_project(path: str | os.PathLike) -> Project:
     return Project(parameters=parameters, overrides=overrides, input_path=input_path)
 
 
+def saved_input(project: Project, project_path: str | os.PathLike) -> Path | None:
+    """The input file the project was saved for, resolved against the project's folder (None if it names none)."""
+    if not project.input_path:
+        return None
+    path = Path(project.input_path)
+    return path if path.is_absolute() else Path(project_path).resolve().parent / path
+
+
+def check_project_input(project: Project, project_path: str | os.PathLike, input_file: str | os.PathLike) -> None:
+    """Warn when a project with alignment overrides is applied to another input file than it was saved for.
+
+    Overrides name components by number (:class:`AlignmentOverride`): in another
+    table the same numbers may be other bodies, and nothing else would say so.
+    """
+    from core.errors import BGMWarning
+
+    saved, given = saved_input(project, project_path), Path(input_file)
+    if not project.overrides or saved is None or not given.is_file():
+        return
+    try:
+        same = saved.samefile(given)
+    except OSError:  # the file it was saved for is gone or unreadable
+        same = False
+    if not same:
+        warnings.warn(
+            f"project file {project_path} was saved for {project.input_path}, not {input_file}: its "
+            f"{len(project.overrides)} alignment override(s) name components by number, which in this input "
+            "may be other bodies; check them (bgm correspond lists the components)",
+            BGMWarning,
+            stacklevel=2,
+        )
+
+
 def _parse_override(path: Path, i: int, o) -> AlignmentOverride:
     where = f"project file {path}, override {i}"
     if not isinstance(o, dict):
