@@ -280,6 +280,16 @@ def test_predict_writes_bands_and_probability_grid_beside_its_output(strip_csv, 
     assert grid["p_inside"][1, row, col(83.0)] > 0.9 > 0.1 > grid["p_inside"][1, row, col(30.0)]
 
 
+def test_a_prediction_only_at_benches_still_writes_every_array_of_the_probability_grid(strip_csv, tmp_path):
+    """At a bench level the section is the bench's contours, with no uncertainty: the grid has no level,
+    and a reader still finds ``p_inside`` (it found no array at all)."""
+    out = tmp_path / "p.geojson"
+    run = bgm("predict", strip_csv, "--geozone", "ore", "--elevations", "990", "--out", out)
+    assert run.returncode == 0, run.stderr
+    grid = np.load(tmp_path / "p.p_inside.npz")
+    assert grid["p_inside"].shape == (0, 0, 0) and len(grid["z"]) == 0 and str(grid["geozone"]) == "ore"
+
+
 def test_predict_starts_without_the_surface_library(strip_csv, tmp_path):
     # trimesh takes most of a second to import: only commands that write surfaces load it.
     probe = "import atexit, sys; atexit.register(lambda: print('trimesh loaded:', 'trimesh' in sys.modules)); "

@@ -66,11 +66,24 @@ def band_features(
 
 
 def probability_grid(sections: Mapping[float, SectionUncertainty | None], holes: Blastholes, geozone: str) -> dict:
-    """The arrays of a P(inside) grid (see the module docstring); levels without uncertainty are left out."""
+    """The arrays of a P(inside) grid (see the module docstring); levels without uncertainty are left out.
+
+    With none left, every array is still there, with no level (a reader's ``p_inside`` has shape ``(0, 0, 0)``).
+    """
     kept = {z: s for z, s in sections.items() if s is not None}
     frame = holes.frame
     if not kept:
-        return {}
+        empty = np.zeros(0)
+        none = np.zeros((0, 0, 0), np.float32)
+        return {
+            "geozone": np.array(geozone),
+            "probability": np.array(np.nan),
+            "x": empty,
+            "y": empty,
+            "z": empty,
+            "p_inside": none,
+            "sigma": none,
+        }
     first = next(iter(kept.values()))
     rows, cols = first.grid.shape
     xs = first.grid.rc_to_xy(np.column_stack([np.zeros(cols), np.arange(cols)]))[:, 0]
