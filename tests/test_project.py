@@ -177,3 +177,22 @@ def test_a_project_with_overrides_applied_to_another_input_is_warned_about(tmp_p
         check_project_input(Project(parameters={}, input_path="other.csv"), path, saved)  # no overrides
     with pytest.warns(BGMWarning, match=r"saved for data/blastholes.csv, not .*other.csv: its 3 alignment"):
         check_project_input(project, path, other)
+
+
+def test_a_length_far_outside_its_range_in_hole_spacings_is_warned_about(recwarn):
+    """Lengths are metres whatever the input's unit: 30 meant as feet is 5 spacings of a 6 m pattern."""
+    import warnings
+
+    import numpy as np
+    from conftest import constructed_bench, hex_grid
+
+    from core.errors import BGMWarning
+    from core.io.project import check_project
+
+    xy = hex_grid(12, 12)
+    holes = constructed_bench(xy, np.where(xy[:, 0] > 30, "a", "b"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)
+        check_project(Project(parameters={"search_radius_m": 10.0}), holes, uses_parameters=True)
+    with pytest.warns(BGMWarning, match=r"search_radius_m = 30 m is 5 hole spacings .* metres, whatever"):
+        check_project(Project(parameters={"search_radius_m": 30.0}), holes, uses_parameters=True)

@@ -335,6 +335,28 @@ def check_project(
             BGMWarning,
             stacklevel=2,
         )
+    if uses_parameters:
+        for note in _lengths_out_of_range(project.parameters, holes.hole_spacing_m):
+            warnings.warn(note, BGMWarning, stacklevel=2)
+
+
+def _lengths_out_of_range(parameters: dict, hole_spacing_m: float) -> list[str]:
+    """A sentence per length parameter outside its typical range in hole spacings (a length in feet, say)."""
+    from core.model.parameters import PARAMETER
+
+    notes = []
+    for name, value in parameters.items():
+        spec = PARAMETER.get(name)
+        if spec is None or spec.kind != "length" or not isinstance(value, int | float) or isinstance(value, bool):
+            continue
+        lo, hi = spec.limits(hole_spacing_m)
+        if not lo <= value <= hi:
+            notes.append(
+                f"project parameter {name} = {value:g} m is {value / hole_spacing_m:.3g} hole spacings "
+                f"({hole_spacing_m:.3g} m); its typical range is {spec.minimum:g}-{spec.maximum:g} spacings "
+                f"({lo:.3g}-{hi:.3g} m). Lengths are in metres, whatever the input's unit"
+            )
+    return notes
 
 
 def input_extent(holes) -> float:
