@@ -475,6 +475,7 @@ def predict(
     being inside the geozone on a grid).
     """
     from core.io.export import write_geojson
+    from core.io.uncertainty_export import write_probability_grid
 
     levels = _elevations(elevations)
     _band_probability(band_probability)
@@ -494,8 +495,11 @@ def predict(
     with progress_bar(f"morph {geozone[:40]}") as update:
         model = session.geozone_model(geozone, stages=("correspond", "morph"), progress=update)
     features = _prediction_features(session, geozone, levels, model)
+    bands, grid = _uncertainty(session, geozone, levels, model, band_probability)
+    # Written together once all is computed: an interrupt during the work leaves the three as they were.
     write_geojson([f for f in features if not f["geometry"].is_empty], out)
-    _write_uncertainty(session, geozone, levels, model, band_probability, sidecars)
+    write_geojson(bands, sidecars[0])
+    write_probability_grid(sidecars[1], grid)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty:
         _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
@@ -515,19 +519,17 @@ def _band_probability(value: float) -> None:
         raise BGMInputError(f"--band-probability must lie in [0.5, 1), got {value}")
 
 
-def _write_uncertainty(session, geozone: str, levels: list[float], model, probability: float, paths) -> None:
-    """The bands and P(inside) grid of the predicted sections (see :mod:`core.io.uncertainty_export`)."""
-    from core.io.export import write_geojson
-    from core.io.uncertainty_export import band_features, probability_grid, write_probability_grid
+def _uncertainty(session, geozone: str, levels: list[float], model, probability: float) -> tuple[list, dict]:
+    """The band features and P(inside) grid arrays of the predicted sections (see :mod:`core.io.uncertainty_export`)."""
+    from core.io.uncertainty_export import band_features, probability_grid
     from core.model.uncertainty import geozone_uncertainty
 
     z_m = [float(session.holes.frame.z_to_local(v)) for v in levels]
     sections = geozone_uncertainty(session, geozone, z_m, model, probability)
-    write_geojson(band_features(sections, session.holes, geozone), paths[0])
-    write_probability_grid(paths[1], probability_grid(sections, session.holes, geozone))
     at_benches = [v for v, z in zip(levels, z_m) if sections[z] is None]
     if at_benches:
         _say(f"bgm: note: no uncertainty at bench levels {', '.join(map(str, at_benches))} (the bench's own contours)")
+    return band_features(sections, session.holes, geozone), probability_grid(sections, session.holes, geozone)
 
 
 def _prediction_features(session, geozone: str, levels: list[float], model) -> list[dict]:

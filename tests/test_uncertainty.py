@@ -290,6 +290,31 @@ def test_a_prediction_only_at_benches_still_writes_every_array_of_the_probabilit
     assert grid["p_inside"].shape == (0, 0, 0) and len(grid["z"]) == 0 and str(grid["geozone"]) == "ore"
 
 
+def test_predict_interrupted_while_computing_the_bands_leaves_its_three_files_as_they_were(
+    strip_csv, tmp_path, monkeypatch
+):
+    """The prediction was written before the bands were computed (seconds of backtests): an interrupt
+    then left a new prediction beside the old bands. Nothing is written until all three are computed."""
+    from typer.testing import CliRunner
+
+    import core.model.uncertainty as uncertainty
+    from core.cli import app
+
+    out = tmp_path / "p.geojson"
+    args = ["predict", str(strip_csv), "--geozone", "ore", "--elevations", "945", "--out", str(out), "--no-cache"]
+    assert CliRunner().invoke(app, args).exit_code == 0
+    files = [out, tmp_path / "p.uncertainty.geojson", tmp_path / "p.p_inside.npz"]
+    before = [f.read_bytes() for f in files]
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(uncertainty, "geozone_uncertainty", interrupted)
+    args[args.index("945")] = "940"
+    assert CliRunner().invoke(app, args).exit_code != 0
+    assert [f.read_bytes() for f in files] == before
+
+
 def test_predict_starts_without_the_surface_library(strip_csv, tmp_path):
     # trimesh takes most of a second to import: only commands that write surfaces load it.
     probe = "import atexit, sys; atexit.register(lambda: print('trimesh loaded:', 'trimesh' in sys.modules)); "
