@@ -30,6 +30,26 @@ def _on_ctrl_c(signum, frame):
     raise KeyboardInterrupt
 
 
+def _interrupt_again(unraisable) -> None:
+    """``sys.unraisablehook`` while a command runs: an interrupt raised where Python can only print it.
+
+    A signal lands between any two bytecodes, also in a fork hook or a finalizer
+    (logging's lock release as a build forks its workers), where the interrupt
+    cannot propagate: Python printed "Exception ignored" and a traceback, and
+    the command went on. It is raised again in the main thread a moment later,
+    from a timer: raised from here, it would land in this hook, as unraisable.
+    """
+    import _thread
+    import threading
+
+    if isinstance(unraisable.exc_value, KeyboardInterrupt) and _INTERRUPTS:
+        timer = threading.Timer(0.01, _thread.interrupt_main, (signal.SIGINT,))
+        timer.daemon = True
+        timer.start()
+        return
+    sys.__unraisablehook__(unraisable)
+
+
 @contextlib.contextmanager
 def _ctrl_c_held():
     """Ctrl-C inside is remembered, not raised (imports that must not be cut in half)."""
@@ -1010,7 +1030,11 @@ def main() -> None:
     with contextlib.suppress(ValueError):  # not the main thread: Python's default handling
         signal.signal(signal.SIGINT, _on_ctrl_c)
         _stop_on_sigterm(sys.argv[1:])
-    code, line = _stopped_status(_run())
+    sys.unraisablehook = _interrupt_again
+    try:
+        code, line = _stopped_status(_run())
+    finally:
+        sys.unraisablehook = sys.__unraisablehook__
     if line is not None:
         _say(line)
     # The work is done (or abandoned): a Ctrl-C while the interpreter shuts down changes

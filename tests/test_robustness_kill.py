@@ -222,3 +222,29 @@ def test_a_build_stopped_by_kill_leaves_no_worker_running(small_csv, tmp_path, s
         lines = [line for line in err.splitlines() if line.startswith("bgm:") or "Traceback" in line]
         assert lines == ["bgm: terminated; files being written were left as they were"], err
         assert not [p.name for p in tmp_path.iterdir() if ".bgm-" in p.name]
+
+
+def test_an_interrupt_python_can_only_print_is_raised_again_without_a_traceback(capsys, monkeypatch):
+    """SIGTERM landing in a fork hook or a finalizer (logging's lock release as a build forks its workers)
+    printed "Exception ignored" and a traceback, and the interrupt was lost there: it is raised again,
+    quietly. Anything else Python can only print is printed as before."""
+    import sys
+
+    import core.cli as cli
+
+    class Finalizer:
+        def __init__(self, exc):
+            self.exc = exc
+
+        def __del__(self):
+            raise self.exc
+
+    monkeypatch.setattr(cli, "_INTERRUPTS", [signal.SIGTERM])  # a termination under way
+    monkeypatch.setattr(sys, "unraisablehook", cli._interrupt_again)
+    with pytest.raises(KeyboardInterrupt):
+        Finalizer(KeyboardInterrupt())  # dropped at once: its __del__ raises where nothing can catch it
+        for _ in range(1000):  # raised again at the main thread's next check, well within this
+            time.sleep(0.001)
+    assert capsys.readouterr().err == ""
+    Finalizer(ValueError("boom"))
+    assert "boom" in capsys.readouterr().err
