@@ -1122,11 +1122,18 @@ class MainWindow(QtWidgets.QMainWindow):
             event.ignore()
             return
         self._cancel()  # let a running worker stop
+        # and wait for it (it stops at its next step): a worker still running when Python exits
+        # finds its signals deleted and prints a traceback.
+        QtCore.QThreadPool.globalInstance().waitForDone(CLOSE_WAIT_MS)
         self._play.stop()
         if not getattr(self, "_closed", False):
             self._closed = True
             self.plotter.close()
         event.accept()
+
+
+#: How long closing the window waits for a cancelled run to reach its next step.
+CLOSE_WAIT_MS = 10_000
 
 
 SHORTCUTS_HTML = """<table>

@@ -479,6 +479,8 @@ class SceneRenderer:
     def fit(self) -> None:
         """Zoom and centre the camera (keeping its direction) so the visible data fill the data rectangle."""
         p = self.plotter
+        if p.render_window is None:  # closed: a fit queued before the window closed has nothing to fit
+            return
         bounds = self.data_bounds()
         p.camera.SetWindowCenter(0.0, 0.0)
         p.reset_camera(bounds=bounds) if bounds is not None else p.reset_camera()

@@ -24,7 +24,7 @@ if os.environ.get("QT_QPA_PLATFORM") == "offscreen":
 pytest.importorskip("pytestqt")
 pytest.importorskip("pyvistaqt")
 
-from qtpy import QtWidgets  # noqa: E402
+from qtpy import QtCore, QtWidgets  # noqa: E402
 
 from bgm_viewer.app import MainWindow  # noqa: E402
 from bgm_viewer.model import ViewerModel  # noqa: E402
@@ -540,3 +540,15 @@ def test_a_click_reports_what_is_shown_not_what_a_section_hides(window):
     col, row = world_to_pixels(window.plotter, np.array([[x, y, window.scene.view.z(z_m)]]))[0]
     info = window.pick(int(round(col)), int(round(window.plotter.window_size[1] - 1 - row)))
     assert info is not None and info["geozone"] == g
+
+
+def test_closing_the_window_during_a_run_waits_for_its_worker(qtbot):
+    """A worker still running when Python exits finds its signals deleted and prints a traceback."""
+    model = ViewerModel(small_holes())
+    model.select("g1", 0, 0)
+    win = MainWindow(model, debounce_ms=10)
+    win.show()
+    qtbot.waitUntil(lambda: win.busy, timeout=10_000)  # the first run has started
+    win.model.dirty = False
+    win.close()
+    assert QtCore.QThreadPool.globalInstance().activeThreadCount() == 0
