@@ -614,9 +614,10 @@ def evaluate(
     _refuse_empty_scores(rows, holes, geozone)
     rows.insert(0, "geozone", geozone)  # as a build's rows say it: the folder may hold another geozone's before
     summary = summary_as_written(summary_table(rows), holes)
+    # The plot first (it takes the time): an interrupt while it is drawn leaves the tables as they were.
+    plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references")
     atomic_write_text(out / names[0], rows_as_written(rows, holes).to_csv(index=False))
     atomic_write_text(out / names[1], summary.to_csv(index=False))
-    plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references")
     _say(
         f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s"
     )

@@ -315,6 +315,29 @@ def test_predict_interrupted_while_computing_the_bands_leaves_its_three_files_as
     assert [f.read_bytes() for f in files] == before
 
 
+def test_evaluate_interrupted_while_plotting_leaves_its_tables_as_they_were(strip_csv, tmp_path, monkeypatch):
+    """The tables were written, then the plot drawn: an interrupt while drawing left new tables beside an
+    old plot. The plot is drawn first."""
+    from typer.testing import CliRunner
+
+    import core.model.evaluation as evaluation
+    from core.cli import app
+
+    out = tmp_path / "eval"
+    args = ["evaluate", str(strip_csv), "--geozone", "ore", "--out", str(out)]
+    assert CliRunner().invoke(app, args).exit_code == 0
+    tables = [out / "evaluation_rows.csv", out / "evaluation.csv"]
+    for t in tables:
+        t.write_text("an earlier evaluation")
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(evaluation, "plot_precision_recall", interrupted)
+    assert CliRunner().invoke(app, args).exit_code != 0
+    assert [t.read_text() for t in tables] == ["an earlier evaluation"] * 2
+
+
 def test_predict_starts_without_the_surface_library(strip_csv, tmp_path):
     # trimesh takes most of a second to import: only commands that write surfaces load it.
     probe = "import atexit, sys; atexit.register(lambda: print('trimesh loaded:', 'trimesh' in sys.modules)); "
