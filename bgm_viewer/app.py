@@ -197,6 +197,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._stop = threading.Event()
         self._pending_step: str | None = None
         self._queued_step: str | None = None
+        #: What the last Undo did, said when its run is done (the run's progress would hide it before).
+        self._undo_note = ""
         self._request_time = 0.0
         self._started = 0.0
         self.last_run_seconds = float("nan")
@@ -773,11 +775,23 @@ class MainWindow(QtWidgets.QMainWindow):
     def undo(self) -> None:
         stage = self.model.undo()
         if stage:
+            self._undo_note = "; ".join(self.model.override_notes)
             self.request(stage, immediate=True)
 
     def _connect_model(self) -> None:
         self.model.dirty_changed.connect(self._update_title)
         self.model.overrides_changed.connect(self._on_overrides)
+        self.model.params_changed.connect(self._show_params)
+
+    def _show_params(self) -> None:
+        """Show the model's parameters on the sliders (Undo can set them back).
+
+        A slider that shows its value already is left alone: the user may be dragging it.
+        """
+        for name, ctl in self.param_controls.items():
+            value = self.model.param(name)
+            if ctl.value() != value:
+                ctl.set_value(value)
 
     def _on_overrides(self) -> None:
         self.undo_action.setEnabled(self.model.can_undo)
@@ -873,7 +887,9 @@ class MainWindow(QtWidgets.QMainWindow):
         errors = "; ".join(f"{k}: {v}" for k, v in self.model.result.errors.items())
         empty = self.empty_layers()
         errors += (" - " if errors and empty else "") + "; ".join(f"{k} is empty: {v}" for k, v in empty.items())
-        self.statusBar().showMessage(f"done in {self.last_run_seconds:.2f} s" + (f" - {errors}" if errors else ""))
+        note, self._undo_note = self._undo_note, ""
+        said = " - ".join(x for x in (errors, note) if x)
+        self.statusBar().showMessage(f"done in {self.last_run_seconds:.2f} s" + (f" - {said}" if said else ""))
         self.progress_bar.setValue(100)
 
     def _on_failed(self, job: int, exc: Exception) -> None:

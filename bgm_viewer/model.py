@@ -19,7 +19,8 @@ Overrides name components by number, and a parameter that changes extraction
 renumbers them: each run moves its overrides to their components in its new
 contours before any correspondence uses them, or drops those whose component
 no single one is now, saying so (:mod:`bgm_viewer.alignment`); the model takes
-them back (:class:`Relocation`).
+them back (:class:`Relocation`). Undo of such a change brings back the parameters
+the overrides were placed under as well (:class:`UndoStep`).
 
 Steps a change re-runs from (:data:`STEPS`): core's stages, with ``snake`` for a
 change of the edge map, GVF or snake alone, whose selected component can be
@@ -48,6 +49,7 @@ from core.io.blastholes import Blastholes, blastholes_from_table, read_blasthole
 from core.io.cache import StageCache
 from core.model.parameters import (
     PARAMETER,
+    PARAMETERS,
     ModelParameters,
     parameter_value,
     parameters_from_dict,
@@ -126,6 +128,8 @@ class PipelineResult:
     complete: bool = False
     #: The run's overrides as they follow renumbered components, and what moved or was dropped.
     relocated: Relocation | None = None
+    #: The parameters ``pair`` was computed with: an override made on it is placed under them.
+    pair_params: ModelParameters | None = None
 
     @property
     def correspondence(self):
@@ -165,12 +169,32 @@ class Relocation:
     """The overrides of a run moved to their components in its contours (see :mod:`bgm_viewer.alignment`).
 
     ``edits`` is :attr:`PipelineInputs.override_edits` of the run: the viewer takes
-    ``overrides`` only if the user has not changed them since.
+    ``overrides`` only if the user has not changed them since. ``params`` are the
+    run's parameters once every bench's overrides are placed under them (``None``
+    before: the other benches' are still placed under an earlier run's).
     """
 
     edits: int
     overrides: list
     notes: list[str] = field(default_factory=list)
+    params: ModelParameters | None = None
+
+
+@dataclass
+class UndoStep:
+    """What Undo brings back: the overrides before a change, and the parameters before a run's change.
+
+    A run moves or drops overrides because a parameter changed. The overrides
+    alone would not do: under the new parameters the next run would drop them
+    again, so Undo of a run's change brings back the parameters they were
+    placed under too.
+    """
+
+    overrides: list
+    #: The parameters the overrides were placed under before a run changed them; ``None``: the user's edit.
+    params: ModelParameters | None = None
+    #: The user's edits count when a run changed the overrides (see :meth:`ViewerModel._push_run_undo`).
+    edits: int = -1
 
 
 Progress = tuple[str, float, PipelineResult]
@@ -190,6 +214,7 @@ class _Run:
         self.res = PipelineResult(
             contours=dict(prev.contours),
             pair=prev.pair if same else None,
+            pair_params=prev.pair_params if same else None,
             morph=prev.morph if same else None,
             model=prev.model if same else None,
             surface=prev.surface if same else None,
@@ -305,7 +330,8 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
     overrides, notes = relocate_overrides(session.project.overrides, outlines)
     run.session = session.updated(project=replace(session.project, overrides=overrides))
     before = res.relocated.notes if res.relocated is not None else []
-    res.relocated = Relocation(run.inputs.override_edits, overrides, before + notes)
+    placed = session.params if fresh >= set(range(holes.n_benches)) else None
+    res.relocated = Relocation(run.inputs.override_edits, overrides, before + notes, placed)
     if res.relocated.notes:
         res.errors["alignment overrides"] = "; ".join(res.relocated.notes)
 
@@ -354,6 +380,7 @@ def _pair_steps(run: _Run, benches: list[int], last: int) -> Iterator[Progress]:
     session, sel, res = run.session, run.sel, run.res
     contours = [c for b in benches for c in res.contours[b]]
     pair = res.pair = next((p for p in session.pairs(sel.geozone, contours) if p.upper == sel.bench), None)
+    res.pair_params = session.params
     if pair is None:
         res.morph = None
         return
@@ -570,6 +597,7 @@ class ViewerModel:
     result_changed = Signal(object)  #: a new :class:`PipelineResult`
     selection_changed = Signal(object)  #: a new :class:`Selection`
     overrides_changed = Signal()
+    params_changed = Signal()  #: :attr:`params` changed (the sliders show them)
     dirty_changed = Signal(bool)
 
     def __init__(
@@ -588,8 +616,10 @@ class ViewerModel:
         self.min_body_volume_m3 = 0.0
         self.min_body_holes = 0
         self.overrides: list = []  # bgm_viewer.alignment.PlacedOverride
-        self._undo: list[list] = []
+        self._undo: list[UndoStep] = []
         self._override_edits = 0  # changes the user made to the overrides (see Relocation)
+        #: The parameters the overrides were placed under (by the last run taken, or an edit).
+        self._placed_params = self.params
         #: What the last runs said of overrides whose components were renumbered (moved or dropped).
         self.override_notes: list[str] = []
         self.result: PipelineResult = PipelineResult()
@@ -649,15 +679,17 @@ class ViewerModel:
     def _take_relocated(self, relocated: Relocation | None) -> None:
         """Take a run's overrides as they followed renumbered components (unless the user changed them since).
 
-        Moved or dropped overrides are a change Undo reverts, said in :attr:`override_notes`
-        (and in the result's errors, which the window's status bar shows).
+        Moved or dropped overrides are a change Undo reverts, with the parameters before it,
+        said in :attr:`override_notes` (and in the result's errors, which the window's status bar shows).
         """
         if relocated is None or relocated.edits != self._override_edits:
             return
         changed = relocated.overrides != self.overrides  # numbers changed or overrides dropped
         if changed:
-            self._push_undo()
+            self._push_run_undo(relocated.edits)
         self.overrides = copy.deepcopy(relocated.overrides)  # with the outlines the run placed them at
+        if relocated.params is not None:
+            self._placed_params = relocated.params
         if changed:
             self.override_notes = list(relocated.notes)
             self.dirty = True
@@ -699,6 +731,7 @@ class ViewerModel:
         if params != self.params:
             self.params = params
             self.dirty = True
+            self.params_changed.emit()
         return step_of(name)
 
     def select(self, geozone: str | None = None, bench: int | None = None, component: int | None = None) -> str | None:
@@ -738,9 +771,21 @@ class ViewerModel:
         self.overrides.append(o)
         return o
 
-    def _push_undo(self) -> None:
-        self._undo.append(copy.deepcopy(self.overrides))
+    def _push_undo(self, params: ModelParameters | None = None, edits: int = -1) -> None:
+        """Keep the overrides as they are for Undo (and ``params``, before a run's change; see :class:`UndoStep`)."""
+        self._undo.append(UndoStep(copy.deepcopy(self.overrides), params, edits))
         del self._undo[:-50]
+
+    def _push_run_undo(self, edits: int) -> None:
+        """Keep the overrides and the parameters they were placed under, before a run moves or drops overrides.
+
+        A run's changes with no edit between them are one step: a run takes its bench
+        pair's overrides before the other benches', and a slider moved meanwhile cancels
+        it half way. Undo goes back to before the first, where the overrides were placed.
+        """
+        top = self._undo[-1] if self._undo else None
+        if top is None or top.params is None or top.edits != edits:
+            self._push_undo(self._placed_params, edits)
 
     def current_translation_m(self) -> tuple[float, float] | None:
         """The selected source's translation (metres), ``None`` until its bench pair is corresponded."""
@@ -849,10 +894,11 @@ class ViewerModel:
             self._changed_overrides()
         return "correspondence"
 
-    @staticmethod
-    def _place(o, pair: BenchPair) -> None:
+    def _place(self, o, pair: BenchPair) -> None:
         """Remember where the components ``o`` names are, so it follows them when they are renumbered."""
         o.place([c.polygon for c in pair.sources], [c.polygon for c in pair.targets])
+        if self.result.pair_params is not None:
+            self._placed_params = self.result.pair_params
 
     def _changed_overrides(self) -> None:
         self.overrides = [o for o in self.overrides if o.translation is not None or o.associate]
@@ -866,14 +912,48 @@ class ViewerModel:
         return bool(self._undo)
 
     def undo(self) -> str | None:
-        """Restore the overrides before the last change; returns the step to re-run."""
+        """Restore the overrides before the last change; returns the step to re-run.
+
+        A change a run made (overrides moved or dropped when a parameter changed)
+        is undone with that parameter change: the parameters the overrides were
+        placed under come back too, and the step returned is the earliest they
+        affect, so the next run applies the overrides to their own components.
+        """
         if not self._undo:
             return None
-        self.overrides = self._undo.pop()
+        undone = self._undo.pop()
+        self.overrides = undone.overrides
         self._override_edits += 1
+        step = "correspondence"
+        if undone.params is None:
+            self.override_notes = []  # an edit undone: no run's note holds any more, as after an edit
+        elif undone.params != self.params:
+            step = min(step, self._restore_params(undone.params), key=STEPS.index)
+        else:
+            self.override_notes = ["Undo brought back the alignment overrides a run had moved or dropped"]
         self.dirty = True
         self.overrides_changed.emit()
-        return "correspondence"
+        return step
+
+    def _restore_params(self, params: ModelParameters) -> str:
+        """Set the parameters back to ``params``, saying so in :attr:`override_notes`; returns the step to re-run."""
+        names = [p.name for p in PARAMETERS if parameter_value(params, p.name) != parameter_value(self.params, p.name)]
+        values = ", ".join(self._shown_value(params, n) for n in names)
+        self.override_notes = [
+            f"Undo brought back the alignment overrides and the parameters they were placed under: {values}"
+        ]
+        self.params = self._placed_params = params
+        self.params_changed.emit()
+        return min((step_of(n) for n in names), key=STEPS.index, default="contours")  # every field has a spec
+
+    def _shown_value(self, params: ModelParameters, name: str) -> str:
+        """Parameter ``name`` of ``params`` as the sliders show it: its label and value in the input's units."""
+        spec, value = PARAMETER[name], parameter_value(params, name)
+        if value is None:
+            return f"{spec.label} auto"
+        factor, unit = display_unit(spec, self.holes)
+        shown = value if isinstance(value, bool) else f"{value * factor:g}"
+        return f"{spec.label} {shown}{f' {unit}' if unit else ''}"
 
     # -- project file ------------------------------------------------------------------
     def to_project(self):
@@ -909,7 +989,8 @@ class ViewerModel:
 
         proj = load_project(path)
         check_project(proj, self.holes, command="the viewer", uses_parameters=True)
-        self.params = parameters_from_dict(proj.parameters)
+        self.params = self._placed_params = parameters_from_dict(proj.parameters)
+        self.params_changed.emit()
         viewer = proj.parameters.get("viewer", {}) or {}
         if isinstance(viewer, dict):
             with contextlib.suppress(ValueError, TypeError):

@@ -15,6 +15,7 @@ import pytest
 from shapely.geometry import Point, box
 
 from bgm_viewer.alignment import PlacedOverride, relocate_overrides, same_place
+from bgm_viewer.model import STEPS
 from core.io.project import AlignmentOverride
 
 Z = 685.0
@@ -127,3 +128,47 @@ def test_an_override_whose_number_went_stale_is_applied_to_its_own_component(mod
     assert not model.result.errors.get("correspondence")
     t = model.result.correspondence.translations[0]
     np.testing.assert_allclose(t, (4.0, 3.0), atol=1e-9)  # the locked translation, on component 0
+
+
+def test_undo_of_an_override_a_slider_dropped_brings_back_the_parameters_too(model):
+    """Undo brought the dropped override back under the slider values that drop it: the next run dropped it again.
+
+    Undo now also brings back the parameters it was placed under (two sliders moved before the
+    run here), and re-runs from the earliest step they affect, so the override is applied again.
+    """
+    model.select("g2", 0, 0)
+    _run(model, "contours")
+    model.set_translation(2.0, -1.0)
+    _run(model, "correspondence")
+    before = model.params
+    model.set_param("snake_max_iterations", 10)
+    step = min(model.set_param("min_component_holes", 20), "snake", key=STEPS.index)
+    _run(model, step)
+    assert model.overrides == []  # dropped: g2's one component has 14 holes
+
+    _run(model, model.undo())
+    assert [(o.geozone, o.source, o.translation) for o in model.overrides] == [("g2", 0, (2.0, -1.0))]
+    assert model.params == before
+    assert "alignment overrides" not in model.result.errors
+    np.testing.assert_allclose(model.result.correspondence.translations[0], (2.0, -1.0), atol=1e-9)
+    assert any("Undo" in n and "smallest modelled component 3" in n for n in model.override_notes), model.override_notes
+    project = model.to_project()  # what Save writes
+    assert len(project.overrides) == 1 and "min_component_holes" not in project.parameters
+
+
+def test_undo_returns_the_earliest_step_of_the_parameters_it_brings_back(model):
+    """The sliders follow (``params_changed``); an edit's undo leaves the parameters alone, as before."""
+    model.select("g2", 0, 0)
+    _run(model, "contours")
+    model.set_translation(2.0, -1.0)
+    _run(model, "correspondence")
+    before = model.params
+    model.set_param("snake_max_iterations", 10)
+    _run(model, min(model.set_param("min_component_holes", 20), "snake", key=STEPS.index))
+    shown = []
+    model.params_changed.connect(lambda: shown.append(model.param("min_component_holes")))
+    assert model.undo() == "snake"  # snake_max_iterations's step, before min_component_holes's
+    assert shown == [before.min_component_holes]
+    _run(model, "snake")
+    model.nudge(1.0, 0.0)
+    assert model.undo() == "correspondence" and model.params == before and shown == [3]

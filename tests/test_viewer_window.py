@@ -117,6 +117,23 @@ def test_manual_alignment_save_reload_and_undo(window, qtbot, tmp_path):
     np.testing.assert_allclose(window.model.current_translation_m(), want, atol=1e-6)
 
 
+def test_undo_of_an_override_a_slider_dropped_sets_the_slider_back(window, qtbot):
+    """Undo brings back the slider value the override was made under, shown on the slider, and says so."""
+    window._select(geozone="g2", bench=0, component=0)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window._align(window.model.set_translation, 2.0, -1.0)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    ctl = window.param_controls["min_component_holes"]
+    ctl.slider.setValue(20)  # g2's one component on the top bench has 14 holes: its override is dropped
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert window.model.overrides == []
+    window.undo()
+    assert ctl.value() == 3 and ctl.slider.value() == 3
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert [o.source for o in window.model.overrides] == [0]
+    assert "Undo brought back" in window.statusBar().currentMessage()
+
+
 def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
     """A Shift + left drag in the 3D view moves the selected source by the dragged distance."""
     from bgm_viewer.scene import world_to_pixels
