@@ -117,6 +117,23 @@ def test_no_hole_is_suggested_where_no_candidate_lies_in_a_band():
     assert len(chosen) == 5 and chosen[0].candidate == len(away)
 
 
+def test_suggestions_tell_the_band_and_probability_the_files_hold():
+    """A hole said to lie in the 90% band lies in the band of uncertainty.geojson and the map, its P(inside) p_inside's.
+
+    Holes are chosen on the wider observed scale: those in its band but outside the written one were told "boundary band".
+    """
+    section = next_section(REVERSING)
+    candidates = pattern_holes()
+    observed = section.as_observed().in_band(candidates)
+    assert observed.sum() > section.in_band(candidates).sum()  # the two bands differ here: the test means something
+    chosen = suggest_holes({"strip": section}, candidates, int(observed.sum()), SPACING_M)
+    xy = np.array([c.xy_m for c in chosen])
+    assert [c.in_band for c in chosen] == section.in_band(xy).tolist()
+    np.testing.assert_allclose([c.probability_inside for c in chosen], section.at(xy)[2])
+    # Still chosen on the observed scale: every hole of its band first.
+    assert section.as_observed().in_band(xy).all()
+
+
 def test_several_geozones_share_one_budget():
     # Two equally unsure geozones in different places: the budget is split between them.
     sections = {"west": next_section(REVERSING), "east": next_section([60.0 + dx for dx in REVERSING])}
