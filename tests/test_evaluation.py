@@ -278,6 +278,28 @@ def test_summary_gives_each_methods_f1_and_the_models_margin_over_the_best_refer
     assert "best reference nil" in line and "(-" in line
 
 
+def test_the_plot_gives_the_depths_the_table_beside_it_gives(tmp_path, monkeypatch):
+    """On a table in feet, bgm evaluate prints 49.38 ft below: its plot showed 15.05 m."""
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    summary = pd.DataFrame(
+        {"fraction": [0.5, 1.0], "depth_m": [7.62, 15.24], "n": [3, 3]}
+        | {f"{what}_{m}": [0.9, 0.8] for what in ("precision", "recall", "f1") for m in ("model", "nil")}
+        | {"depth_ft": [25.0, 50.0]}
+    )
+    drawn = []
+    save = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (drawn.append(fig), save(fig, *a, **k))[1])
+    ev.plot_precision_recall(summary, tmp_path / "pr.png", unit="ft")
+    (fig,) = drawn
+    for ax in fig.axes:
+        assert ax.get_xlabel() == "prediction depth (ft)"
+        for line in ax.get_lines():
+            np.testing.assert_allclose(line.get_xdata(), [25.0, 50.0])
+    assert "ft below" in ev.margin_lines(summary.assign(f1_margin=0.1, best_reference="nil"), "ft")[0]
+
+
 def test_evaluate_geozone_real_data_mode(small_mine):
     """Without truth only the next bench is scored, against its extracted region."""
     _, holes, _, contours = small_mine

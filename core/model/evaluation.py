@@ -593,11 +593,13 @@ _STYLE = {
 }
 
 
-def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | None = None) -> Path:
+def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | None = None, unit: str = "m") -> Path:
     """Precision, recall and F1 (percent) vs prediction depth, one line per method, saved as PNG.
 
     Like the paper's Figure (gray: model, black: nil), with the other
-    references dashed. The file is written atomically.
+    references dashed. The depths are in ``unit``, from the summary's
+    ``depth_<unit>`` column (:func:`summary_as_written`), as :func:`format_table`
+    and :func:`margin_lines` give them. The file is written atomically.
     """
     # A bare Figure renders with the Agg canvas without touching pyplot's global backend.
     from matplotlib.figure import Figure
@@ -606,10 +608,12 @@ def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | 
     shown = ("precision", "recall", "f1") if all(f"f1_{m}" in summary for m in methods) else ("precision", "recall")
     fig = Figure(figsize=(5 * len(shown), 4), dpi=120)
     axes = fig.subplots(1, len(shown), sharex=True)
+    # The table printed beside it gives feet for a table in feet: a plot in metres showed other depths.
+    depth = summary[f"depth_{unit}"]
     for ax, what in zip(axes, shown):
         for m in methods:
-            ax.plot(summary["depth_m"], 100 * summary[f"{what}_{m}"], label=m, **_STYLE.get(m, {}))
-        ax.set_xlabel("prediction depth (m)")
+            ax.plot(depth, 100 * summary[f"{what}_{m}"], label=m, **_STYLE.get(m, {}))
+        ax.set_xlabel(f"prediction depth ({unit})")
         name = {"precision": "Precision", "recall": "Recall", "f1": "F1"}[what]
         ax.set_ylabel(f"{name} (%)")
         ax.set_title(name)
