@@ -421,10 +421,20 @@ def rows_as_written(rows: pd.DataFrame, holes: Blastholes) -> pd.DataFrame:
     """:func:`evaluate_geozone`'s rows as files give them: ``bench_z`` in the input's units and elevations.
 
     The engine's columns named in metres (``z_m``, ``depth_m``; areas in m2) stay in metres; an input in
-    other units gets them in its own as well (``z_ft``, ``depth_ft``).
+    other units gets them in its own as well (``z_ft``, ``depth_ft``; ``p_area_ft2``, ``g_area_ft2``,
+    ``i_area_ft2``).
     """
     rows = rows.assign(bench_z=[holes.bench_z_input(int(k)) for k in rows["bench"]])
-    return summary_as_written(rows, holes).assign(**_in_input_units(rows, holes, "z", holes.frame.z_to_input))
+    rows = summary_as_written(rows, holes).assign(**_in_input_units(rows, holes, "z", holes.frame.z_to_input))
+    unit, mpu = holes.frame.length_unit, holes.frame.metres_per_unit
+    if unit == "m":
+        return rows
+    # The areas' names say no unit: beside z_ft and depth_ft, a table in feet read them as square feet.
+    return rows.assign(**{f"{c}_{unit}2": np.round(rows[c].to_numpy() / mpu**2, 6) for c in _AREA_COLUMNS})
+
+
+#: The area columns of :func:`evaluate_geozone` (square metres).
+_AREA_COLUMNS = ("p_area", "g_area", "i_area")
 
 
 def summary_as_written(summary: pd.DataFrame, holes: Blastholes) -> pd.DataFrame:
