@@ -615,13 +615,13 @@ def evaluate(
     rows.insert(0, "geozone", geozone)  # as a build's rows say it: the folder may hold another geozone's before
     summary = summary_as_written(summary_table(rows), holes)
     # The plot first (it takes the time): an interrupt while it is drawn leaves the tables as they were.
-    plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references")
+    unit = holes.frame.length_unit
+    plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references", unit=unit)
     atomic_write_text(out / names[0], rows_as_written(rows, holes).to_csv(index=False))
     atomic_write_text(out / names[1], summary.to_csv(index=False))
     _say(
         f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s"
     )
-    unit = holes.frame.length_unit
     typer.echo(format_table(summary, unit))
     for line in margin_lines(summary, unit):
         typer.echo(line)

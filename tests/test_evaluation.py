@@ -278,6 +278,51 @@ def test_summary_gives_each_methods_f1_and_the_models_margin_over_the_best_refer
     assert "best reference nil" in line and "(-" in line
 
 
+def test_the_plot_gives_the_depths_the_table_beside_it_gives(tmp_path, monkeypatch):
+    """On a table in feet, bgm evaluate prints 49.38 ft below: its plot showed 15.05 m."""
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    summary = pd.DataFrame(
+        {"fraction": [0.5, 1.0], "depth_m": [7.62, 15.24], "n": [3, 3]}
+        | {f"{what}_{m}": [0.9, 0.8] for what in ("precision", "recall", "f1") for m in ("model", "nil")}
+        | {"depth_ft": [25.0, 50.0]}
+    )
+    drawn = []
+    save = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (drawn.append(fig), save(fig, *a, **k))[1])
+    ev.plot_precision_recall(summary, tmp_path / "pr.png", unit="ft")
+    (fig,) = drawn
+    for ax in fig.axes:
+        assert ax.get_xlabel() == "prediction depth (ft)"
+        for line in ax.get_lines():
+            np.testing.assert_allclose(line.get_xdata(), [25.0, 50.0])
+    assert "ft below" in ev.margin_lines(summary.assign(f1_margin=0.1, best_reference="nil"), "ft")[0]
+
+
+def test_the_rows_of_a_table_in_feet_give_the_areas_in_square_feet_too():
+    """evaluation_rows.csv gave a table in feet z_ft and depth_ft beside areas in m2 named p_area: read as ft2."""
+    import pandas as pd
+
+    xy = np.array(
+        [(x + 3.0 * (i % 2), y) for i, y in enumerate(np.arange(0.0, 200.0, 17.0)) for x in range(0, 240, 20)]
+    )
+    inside = np.hypot(xy[:, 0] - 120, xy[:, 1] - 100) < 60
+    table = pd.concat(
+        [
+            pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": 1000.0 - 40 * k, "geozone": np.where(inside, "a", "b")})
+            for k in range(4)
+        ]
+    )
+    holes = blastholes_from_table(table, length_unit="ft")
+    rows = ev.rows_as_written(ev.evaluate_geozone(holes, "a", None, references=("nil",)), holes)
+    assert (rows["g_area"] > 0).all()
+    for area in ("p_area", "g_area", "i_area"):
+        np.testing.assert_allclose(rows[f"{area}_ft2"], rows[area] / 0.3048**2, rtol=1e-6)
+    # A circle of 60 ft radius, its holes on a 20 ft pattern: about its area, in square feet.
+    assert rows["g_area_ft2"].iloc[0] == pytest.approx(np.pi * 60**2, rel=0.2)
+
+
 def test_evaluate_geozone_real_data_mode(small_mine):
     """Without truth only the next bench is scored, against its extracted region."""
     _, holes, _, contours = small_mine

@@ -117,6 +117,23 @@ def test_no_hole_is_suggested_where_no_candidate_lies_in_a_band():
     assert len(chosen) == 5 and chosen[0].candidate == len(away)
 
 
+def test_suggestions_tell_the_band_and_probability_the_files_hold():
+    """A hole said to lie in the 90% band lies in the band of uncertainty.geojson and the map, its P(inside) p_inside's.
+
+    Holes are chosen on the wider observed scale: those in its band but outside the written one were told "boundary band".
+    """
+    section = next_section(REVERSING)
+    candidates = pattern_holes()
+    observed = section.as_observed().in_band(candidates)
+    assert observed.sum() > section.in_band(candidates).sum()  # the two bands differ here: the test means something
+    chosen = suggest_holes({"strip": section}, candidates, int(observed.sum()), SPACING_M)
+    xy = np.array([c.xy_m for c in chosen])
+    assert [c.in_band for c in chosen] == section.in_band(xy).tolist()
+    np.testing.assert_allclose([c.probability_inside for c in chosen], section.at(xy)[2])
+    # Still chosen on the observed scale: every hole of its band first.
+    assert section.as_observed().in_band(xy).all()
+
+
 def test_several_geozones_share_one_budget():
     # Two equally unsure geozones in different places: the budget is split between them.
     sections = {"west": next_section(REVERSING), "east": next_section([60.0 + dx for dx in REVERSING])}
@@ -408,6 +425,30 @@ def test_half_way_between_benches_the_band_holds_the_boundary_narrower_than_from
     # Two benches' placement errors partly cancel half-way: less than a one-sided band's floor.
     assert band_width_m(between) < 0.8 * band_width_m(below)
     assert band_width_m(between) < 2 * z_score(0.9) * PLACEMENT_SPACINGS * SPACING_M
+
+
+def test_the_band_width_between_upper_benches_is_measured_where_they_were_drilled():
+    """In a pit narrowing with depth, a section between upper benches has no boundary in the deepest bench's
+    drilled area: ``bgm predict`` wrote its band width as null (Kennecott's 3310 at 540 and 490 ft)."""
+    from types import SimpleNamespace
+
+    from core.io.blastholes import LocalFrame
+    from core.io.uncertainty_export import band_features
+
+    fields = strip_fields(STEADY)
+    z = 1000.0 - 0.5 * HEIGHT_M  # between benches 0 and 1: the west edge at 51.5 m
+    section = section_uncertainty(fields, z, SPACING_M, 0.9, region=box(51.5, -50.0, 81.5, SIDE_M + 50.0))
+    pit = box(0.0, 0.0, SIDE_M, SIDE_M)
+    areas = dict.fromkeys(range(BENCHES), pit) | {BENCHES - 1: box(90.0, 0.0, SIDE_M, SIDE_M)}  # east of its west edge
+    holes = SimpleNamespace(
+        frame=LocalFrame(0.0, 0.0), bench_levels_m=fields.z_m, n_benches=BENCHES, drilled_area=areas.__getitem__
+    )
+    (width,) = {f["properties"]["band_width"] for f in band_features({z: section}, holes, "strip")}
+    assert width == pytest.approx(band_width_m(section, pit), rel=1e-3)
+    # Below the benches it is still measured in the deepest bench's area, as the build's report measures it.
+    below = next_section(STEADY)
+    (width,) = {f["properties"]["band_width"] for f in band_features({below.z_m: below}, holes, "strip")}
+    assert width == pytest.approx(band_width_m(below, areas[BENCHES - 1]), rel=1e-3)
 
 
 def test_the_map_shades_a_band_inside_the_hole_of_another():

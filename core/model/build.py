@@ -291,7 +291,9 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
         _write_csv(rows_as_written(results, holes), out_dir / "evaluation_rows.csv")
         table = summary_as_written(summary_table(results), holes)  # depths in the input's units too (depth_ft)
         _write_csv(table, out_dir / "evaluation.csv")
-        plot_precision_recall(table, out_dir / "precision_recall.png", title=f"{holes.source}: all geozones")
+        plot_precision_recall(
+            table, out_dir / "precision_recall.png", title=f"{holes.source}: all geozones", unit=holes.frame.length_unit
+        )
 
     summary = {
         "input": holes.source,

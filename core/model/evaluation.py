@@ -421,10 +421,20 @@ def rows_as_written(rows: pd.DataFrame, holes: Blastholes) -> pd.DataFrame:
     """:func:`evaluate_geozone`'s rows as files give them: ``bench_z`` in the input's units and elevations.
 
     The engine's columns named in metres (``z_m``, ``depth_m``; areas in m2) stay in metres; an input in
-    other units gets them in its own as well (``z_ft``, ``depth_ft``).
+    other units gets them in its own as well (``z_ft``, ``depth_ft``; ``p_area_ft2``, ``g_area_ft2``,
+    ``i_area_ft2``).
     """
     rows = rows.assign(bench_z=[holes.bench_z_input(int(k)) for k in rows["bench"]])
-    return summary_as_written(rows, holes).assign(**_in_input_units(rows, holes, "z", holes.frame.z_to_input))
+    rows = summary_as_written(rows, holes).assign(**_in_input_units(rows, holes, "z", holes.frame.z_to_input))
+    unit, mpu = holes.frame.length_unit, holes.frame.metres_per_unit
+    if unit == "m":
+        return rows
+    # The areas' names say no unit: beside z_ft and depth_ft, a table in feet read them as square feet.
+    return rows.assign(**{f"{c}_{unit}2": np.round(rows[c].to_numpy() / mpu**2, 6) for c in _AREA_COLUMNS})
+
+
+#: The area columns of :func:`evaluate_geozone` (square metres).
+_AREA_COLUMNS = ("p_area", "g_area", "i_area")
 
 
 def summary_as_written(summary: pd.DataFrame, holes: Blastholes) -> pd.DataFrame:
@@ -593,11 +603,13 @@ _STYLE = {
 }
 
 
-def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | None = None) -> Path:
+def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | None = None, unit: str = "m") -> Path:
     """Precision, recall and F1 (percent) vs prediction depth, one line per method, saved as PNG.
 
     Like the paper's Figure (gray: model, black: nil), with the other
-    references dashed. The file is written atomically.
+    references dashed. The depths are in ``unit``, from the summary's
+    ``depth_<unit>`` column (:func:`summary_as_written`), as :func:`format_table`
+    and :func:`margin_lines` give them. The file is written atomically.
     """
     # A bare Figure renders with the Agg canvas without touching pyplot's global backend.
     from matplotlib.figure import Figure
@@ -606,10 +618,12 @@ def plot_precision_recall(summary: pd.DataFrame, path: str | Path, title: str | 
     shown = ("precision", "recall", "f1") if all(f"f1_{m}" in summary for m in methods) else ("precision", "recall")
     fig = Figure(figsize=(5 * len(shown), 4), dpi=120)
     axes = fig.subplots(1, len(shown), sharex=True)
+    # The table printed beside it gives feet for a table in feet: a plot in metres showed other depths.
+    depth = summary[f"depth_{unit}"]
     for ax, what in zip(axes, shown):
         for m in methods:
-            ax.plot(summary["depth_m"], 100 * summary[f"{what}_{m}"], label=m, **_STYLE.get(m, {}))
-        ax.set_xlabel("prediction depth (m)")
+            ax.plot(depth, 100 * summary[f"{what}_{m}"], label=m, **_STYLE.get(m, {}))
+        ax.set_xlabel(f"prediction depth ({unit})")
         name = {"precision": "Precision", "recall": "Recall", "f1": "F1"}[what]
         ax.set_ylabel(f"{name} (%)")
         ax.set_title(name)

@@ -38,7 +38,7 @@ from scipy import ndimage, sparse, special
 from scipy.spatial import cKDTree
 
 from core.io.blastholes import median_hole_spacing
-from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty, z_score
+from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty
 from core.threads import on_threads
 
 #: Reach of a revealed label's correction of the predicted section (:func:`revealed_field`), in hole
@@ -176,6 +176,11 @@ class Suggestion:
     (positive inside); ``in_band`` whether it lies in that geozone's band;
     ``information`` what it was expected to settle: its neighbourhood's
     :func:`misclassification`, summed with the kernel's weights.
+
+    ``probability_inside`` and ``in_band`` are those of the section as given
+    (its P(inside) and band, what ``p_inside.npz``, ``uncertainty.geojson``
+    and the sampling map show), although holes are chosen on its observed
+    scale (:meth:`~core.model.uncertainty.SectionUncertainty.as_observed`).
     """
 
     candidate: int
@@ -215,6 +220,8 @@ def suggest_holes(
     names = list(sections)
     if not len(xy) or not names or budget <= 0:
         return []
+    # Chosen on the observed scale; told as the section given is written (its band and P(inside) in the files).
+    written = {g: sections[g] for g in names}
     sections = {g: sections[g].as_observed() for g in names}
     at = {g: sections[g].at(xy) for g in names}
     info = np.stack([misclassification(at[g][2]) for g in names])  # (geozones, candidates)
@@ -229,7 +236,7 @@ def suggest_holes(
     for _ in range(min(int(budget), len(xy))):
         first = np.where(in_band, score, -np.inf)
         c = int(np.argmax(first if np.isfinite(first).any() else score))
-        chosen.append(_suggestion(c, xy, names, at, info, sections, float(score[c])))
+        chosen.append(_suggestion(c, xy, names, at, info, written, float(score[c])))
         row = weights.getrow(c)
         near, w = row.indices, row.data
         before = info[:, near].sum(axis=0)
@@ -249,16 +256,22 @@ def influence_matrix(xy: np.ndarray, influence_m: float):
     return weights + sparse.identity(len(xy), format="csr")  # the zero distances left out above
 
 
-def _suggestion(c, xy, names, at, info, sections, information) -> Suggestion:
-    """The suggestion of candidate ``c``, told for the geozone it informs most (else the nearest boundary)."""
+def _suggestion(c, xy, names, at, info, written, information) -> Suggestion:
+    """The suggestion of candidate ``c``, told for the geozone it informs most (else the nearest boundary).
+
+    Its P(inside) and band are those of ``written`` (the sections as the files hold them, not
+    the observed scale they were chosen on): a hole said to lie in the 90% band lies in the band
+    of ``uncertainty.geojson`` and the sampling map, which it did not always (12 of the demo's 62).
+    """
     if info[:, c].max() > 0:
         k = int(np.argmax(info[:, c]))
     else:
         k = int(np.argmin([abs(at[g][0][c]) for g in names]))
     g = names[k]
-    f, s, p = (float(v[c]) for v in at[g])
-    band = abs(f) <= z_score(sections[g].probability) * s
-    return Suggestion(c, (float(xy[c, 0]), float(xy[c, 1])), g, p, f, bool(band), information)
+    point = xy[c : c + 1]
+    f, _, p = (float(v[0]) for v in written[g].at(point))
+    band = bool(written[g].in_band(point)[0])
+    return Suggestion(c, (float(xy[c, 0]), float(xy[c, 1])), g, p, f, band, information)
 
 
 def reason(suggestion: Suggestion, probability: float, unit: str, metres_per_unit: float) -> str:
