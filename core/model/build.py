@@ -620,9 +620,12 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         )
         summary.seconds = time.perf_counter() - tg
         return summary, rows
-    deepest = model.pairs[-1]
-    height = deepest.source_z_m - deepest.target_z_m
-    zs = [deepest.target_z_m - f * height for f in PREDICTION_FRACTIONS]
+    # Below the table's deepest bench, by its deepest pair's height, whichever bench the geozone's pairs end on:
+    # a geozone whose pairs end higher up was predicted between two known benches, where no pair of it is and
+    # so always absent, while the depth trend may carry it on below the deepest (`bgm predict` there).
+    levels = holes.bench_levels_m
+    height = float(levels[-2] - levels[-1])
+    zs = [float(levels[-1]) - f * height for f in PREDICTION_FRACTIONS]
     predictions = session.predict(g, zs, model)
     features = [
         {
