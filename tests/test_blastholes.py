@@ -253,3 +253,19 @@ def test_decimal_commas_with_dots_grouping_thousands(tmp_path):
     holes = read_blastholes(write(tmp_path, styled, name="european.csv", sep=";"))
     np.testing.assert_allclose(holes.frame.to_input(holes.xy)[1:], expected.frame.to_input(expected.xy)[1:], atol=0.006)
     assert holes.frame.to_input(holes.xy)[0, 0] == round(table.loc[0, "EAST"])
+
+
+def test_one_label_in_two_unicode_forms_is_one_geozone(tmp_path):
+    """ "minério" with "é" as one character on one bench and as "e" and an accent on the next looked the same
+    everywhere but were two geozones, each on one bench, without a word."""
+    import unicodedata
+
+    table = small_table()
+    composed, decomposed = unicodedata.normalize("NFC", "minério"), unicodedata.normalize("NFD", "minério")
+    ore = table["lookup_domain"] == "3310"
+    table.loc[ore, "lookup_domain"] = np.where(table.loc[ore, "RL"] > 95, composed, decomposed)
+    with pytest.warns(BGMWarning, match="two Unicode forms"):
+        holes = read_blastholes(write(tmp_path, table))
+    assert holes.geozones == ["2210", composed]
+    assert sorted(set(holes.bench[holes.geozone == composed].tolist())) == [0, 1, 2]
+    assert holes.check_geozones([decomposed]) == [composed]

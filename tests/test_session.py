@@ -329,3 +329,42 @@ def test_a_project_override_of_a_missing_component_names_the_geozone_and_the_ben
     session = ModelSession(holes, session.params, project, StageStore(StageCache(tmp_path / "cache")))
     with pytest.raises(BGMInputError, match=rf"override of geozone '{g}', benches {upper:g} .* source component 99"):
         session.geozone_model(g)
+
+
+def _disc_benches(on_benches, n_benches=5, spacing=6.0, radius_m=120.0, disc=(50.0, 20.0, 28.0)):
+    """Holes on a staggered pattern, 10 m benches: geozone ``a`` in a disc on ``on_benches``, ``host`` elsewhere."""
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    rows = np.arange(-radius_m, radius_m, spacing * np.sqrt(3) / 2)
+    xy = np.array(
+        [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(-radius_m, radius_m, spacing)]
+    )
+    xy = xy[np.hypot(*xy.T) < radius_m]
+    inside = np.hypot(xy[:, 0] - disc[0], xy[:, 1] - disc[1]) < disc[2]
+    frames = [
+        pd.DataFrame(
+            {
+                "x": xy[:, 0] + 650_000,
+                "y": xy[:, 1] + 7_400_000,
+                "z": 500.0 - 10 * k,
+                "geozone": np.where(inside & (k in on_benches), "a", "host"),
+            }
+        )
+        for k in range(n_benches)
+    ]
+    return blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
+
+
+def test_a_geozone_gone_for_benches_and_back_has_no_surface_through_the_benches_drilled_without_it():
+    """On the top and the deepest bench only: the upper body closed towards the next pair's upper bench, past
+    the next bench, where every hole is the host's (here 0.3 m past it; 7.8 m for a 30 m disc on 6 m holes)."""
+    holes = _disc_benches(on_benches={0, 4})
+    session = ModelSession(holes)
+    model = session.geozone_model("a")
+    assert [(p.upper, p.lower) for p in model.pairs] == [(0, 1), (3, 4)]
+    z = session.surface("a", model).vertices[:, 2]
+    levels = holes.bench_levels_m
+    assert z.max() == pytest.approx(levels[0], abs=0.01) and (z < levels[3]).any()  # both bodies are there
+    assert not ((z < levels[1]) & (z > levels[3])).any(), np.sort(z[(z < levels[1]) & (z > levels[3])])[-3:]

@@ -237,6 +237,19 @@ def test_every_format_reopens_with_the_same_faces(small_mesh, tmp_path):
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(f"g1.{f}" for f in DEFAULT_FORMATS)
 
 
+def test_a_geozone_named_in_another_script_is_written_in_every_format(small_mesh, tmp_path):
+    """PLY's header is ASCII: a geozone "minério óxido" made the whole build end in an internal error."""
+    formats = (*DEFAULT_FORMATS, "omf") if omf_available() else DEFAULT_FORMATS
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        paths = export_all(small_mesh, tmp_path, "surface", formats=formats, name="minério óxido 矿")
+    for fmt, path in paths.items():
+        _, n_faces = read_back(path)
+        assert n_faces == len(small_mesh.faces), fmt
+    header = paths["ply"].read_bytes().split(b"end_header\n")[0]
+    assert header.isascii() and b"comment BGM geozone surface min\\xe9rio" in header
+
+
 def test_omf_export(small_mesh, tmp_path):
     if not omf_available():
         with pytest.raises(BGMInputError, match="omf"):

@@ -25,6 +25,7 @@ Bad input raises :class:`core.errors.BGMInputError` with one clear sentence.
 from __future__ import annotations
 
 import re
+import unicodedata
 import warnings
 from dataclasses import dataclass, field
 from decimal import Decimal
@@ -221,7 +222,8 @@ class Blastholes:
         if not requested:
             return present
         by_number = {label_number(g): g for g in present if label_number(g) is not None}
-        found = [g if g in present else by_number.get(label_number(str(g))) for g in requested]
+        requested = [unicodedata.normalize("NFC", str(g)) for g in requested]  # as labels are read
+        found = [g if g in present else by_number.get(label_number(g)) for g in requested]
         missing = [g for g, f in zip(requested, found) if f is None]
         if missing:
             raise BGMInputError(
@@ -534,6 +536,7 @@ def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[
         raise BGMInputError(
             f"column {quoted(column)} (geozone) is empty on {len(blank)} row(s): data line(s) {_rows(blank, lines)}"
         )
+    labels = _merge_unicode_forms(labels, column, notes)
     labels, renamed = merge_number_spellings(labels)
     if renamed:
         msg = (
@@ -545,6 +548,31 @@ def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[
     _warn_missing_labels(labels, column, lines, notes)
     _warn_identifier_labels(labels, column, notes)
     return labels
+
+
+def _merge_unicode_forms(labels: np.ndarray, column: str, notes: list[str]) -> np.ndarray:
+    """Labels in Unicode's composed form (NFC): one text written in two forms is one geozone, said in a note.
+
+    ``minério`` typed with ``é`` as one character and pasted from elsewhere
+    as ``e`` and a combining accent looks the same everywhere and is the same
+    text (canonically equivalent), but compares unequal: read as written,
+    the two were two geozones, each on the benches of its own rows, without
+    a word; and a label in the decomposed form alone was not found by a
+    ``--geozone`` typed in the usual composed one.
+    """
+    forms = {str(g): unicodedata.normalize("NFC", str(g)) for g in pd.unique(labels)}
+    renamed = {g: nfc for g, nfc in forms.items() if g != nfc}
+    if not renamed:
+        return labels
+    merged = pd.Series(labels, dtype=object).replace(renamed).to_numpy(dtype=object)
+    twins = sorted({nfc for nfc in renamed.values() if nfc in forms})
+    if twins:
+        msg = (
+            f"geozone labels {listing(map(quoted, twins), 5)} in column {quoted(column)} are written in two "
+            "Unicode forms (an accent as part of its letter, or as a character of its own): each is one geozone"
+        )
+        _note(notes, msg, stacklevel=5)
+    return merged
 
 
 def _warn_identifier_labels(labels: np.ndarray, column: str, notes: list[str]) -> None:

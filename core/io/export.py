@@ -305,10 +305,14 @@ def _write_stl(tmp: Path, vertices, faces, name, mesh) -> None:
 
 
 def _write_ply(tmp: Path, vertices, faces, name, mesh) -> None:
-    """Binary little-endian PLY with double vertices and int32 triangle indices."""
+    """Binary little-endian PLY with double vertices and int32 triangle indices.
+
+    The header is ASCII (the PLY format's): a geozone named in another script
+    (``minério``) is written in its comment with escapes (``min\\xe9rio``).
+    """
     header = (
         "ply\nformat binary_little_endian 1.0\n"
-        f"comment BGM geozone surface {_one_line(name)}\n"
+        f"comment BGM geozone surface {_ascii_line(name)}\n"
         f"element vertex {len(vertices)}\n"
         "property double x\nproperty double y\nproperty double z\n"
         f"element face {len(faces)}\n"
@@ -526,6 +530,11 @@ def dxf_layer_names(names: Iterable[str]) -> dict[str, str]:
 
 def _one_line(text) -> str:
     return " ".join(str(text).split())
+
+
+def _ascii_line(text) -> str:
+    """:func:`_one_line` in ASCII, other characters as Python escapes: for headers a format keeps ASCII."""
+    return _one_line(text).encode("ascii", "backslashreplace").decode("ascii")
 
 
 def _xml_escape(text: str) -> str:

@@ -38,6 +38,7 @@ from core.model.pipeline import (
     correspondence_json,
     morph_json,
     pair_coverage,
+    undrilled_note,
 )
 from core.model.prediction import predict_geozone
 from core.model.session import (  # noqa: F401 - the surface build's steps, long imported from here
@@ -622,9 +623,12 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         )
         summary.seconds = time.perf_counter() - tg
         return summary, rows
-    deepest = model.pairs[-1]
-    height = deepest.source_z_m - deepest.target_z_m
-    zs = [deepest.target_z_m - f * height for f in PREDICTION_FRACTIONS]
+    # Below the table's deepest bench, by its deepest pair's height, whichever bench the geozone's pairs end on:
+    # a geozone whose pairs end higher up was predicted between two known benches, where no pair of it is and
+    # so always absent, while the depth trend may carry it on below the deepest (`bgm predict` there).
+    levels = holes.bench_levels_m
+    height = float(levels[-2] - levels[-1])
+    zs = [float(levels[-1]) - f * height for f in PREDICTION_FRACTIONS]
     predictions = session.predict(g, zs, model)
     features = [
         {
@@ -638,6 +642,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
     _write_surface(summary, model, ctx, gdir)
+    summary.note = "; ".join(n for n in (summary.note, undrilled_note(model, holes)) if n)
     if ctx.evaluate and holes.n_benches >= 3:
         rows = evaluate_geozone(
             holes, g, predictor_from_model(model, holes, params), truth=ctx.truth, contours=ctx.contours

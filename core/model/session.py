@@ -481,9 +481,17 @@ class ModelSession:
 
 
 def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParameters, below_fraction: float = 1.0):
-    """Stacked regions (z metres, region) from the top bench to one bench below the deepest."""
+    """Stacked regions (z metres, region) from the top bench to one bench below the deepest.
+
+    A pair's lower bench is a section of its own where the next pair does not
+    start from it: the geozone is on neither of the benches between (it
+    disappears for two benches or more and comes back), and its empty
+    section there ends the body above it. Without it the body reached on to
+    about halfway to the next pair's upper bench, through benches drilled
+    without it.
+    """
     sections = []
-    for p in model.pairs:
+    for i, p in enumerate(model.pairs):
         if p.correspondence is None:
             continue
         fractions = [s / SURFACE_STEPS_PER_BENCH for s in range(SURFACE_STEPS_PER_BENCH)]
@@ -492,6 +500,8 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
             z = p.source_z_m + f * (p.target_z_m - p.source_z_m)
             region = model.region_at_bench(p.upper) if s == 0 else between[s - 1]
             sections.append((z, as_multipolygon(region)))
+        if i + 1 < len(model.pairs) and model.pairs[i + 1].upper != p.lower:
+            sections.append((p.target_z_m, as_multipolygon(model.region_at_bench(p.lower))))
     if model.pairs:
         last = model.pairs[-1]
         sections.append((last.target_z_m, as_multipolygon(model.region_at_bench(last.lower))))
