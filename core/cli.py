@@ -496,7 +496,6 @@ def predict(
     """
     from core.io.export import write_geojson
     from core.io.uncertainty_export import write_probability_grid
-    from core.model.pipeline import undrilled_note
 
     levels = _elevations(elevations)
     _band_probability(band_probability)
@@ -522,9 +521,6 @@ def predict(
     write_geojson(bands, sidecars[0])
     write_probability_grid(sidecars[1], grid)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
-    cut = undrilled_note(model, holes)
-    if cut:
-        _say(f"bgm: note: {geozone}: {cut}")
     if empty:
         _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
     typer.echo(

@@ -321,32 +321,3 @@ def test_a_geozone_the_deepest_benches_never_drilled_is_predicted_below_the_deep
     assert written and set(written) <= set(expected), (sorted(written), sorted(expected))
     for z, area in written.items():
         assert area == pytest.approx(expected[z], rel=1e-6)
-
-
-def test_a_body_cut_only_where_a_bench_did_not_drill_it_is_named_in_the_geozones_note(tmp_path):
-    """A bench drilled on a fifth of the pit: the body it never reached was modelled as ending above it and
-    starting again below (its surface in two, nothing at 470 m) without a word; one that ends in drilled
-    ground is not named."""
-    from core.io.blastholes import blastholes_from_table
-    from core.model.build import build
-
-    spacing, frames = 6.0, []
-    rows = np.arange(-120.0, 120.0, spacing * np.sqrt(3) / 2)
-    grid = np.array(
-        [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(-120.0, 120.0, spacing)]
-    )
-    grid = grid[np.hypot(*grid.T) < 120.0]
-    for k in range(5):
-        xy = grid[grid[:, 0] > 50.0] if k == 3 else grid  # bench 3 drilled east of x = 50 m only
-        label = np.where(np.hypot(xy[:, 0] + 20.0, xy[:, 1]) < 40.0, "a", "host")
-        label = np.where((k < 2) & (np.hypot(xy[:, 0] - 60.0, xy[:, 1] + 60.0) < 20.0), "b", label)
-        frames.append(
-            pd.DataFrame({"x": xy[:, 0] + 650_000, "y": xy[:, 1] + 7_400_000, "z": 500.0 - 10 * k, "geozone": label})
-        )
-    holes = blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
-
-    summary = build(holes, tmp_path / "out", geozones=["a", "b"], formats=("obj",), evaluate=False, workers=1)
-    notes = {g["geozone"]: g["note"] for g in summary["geozones"]}
-    assert "end at the bench at 470 m, which drilled under half of its part" in notes["a"], notes
-    assert "470" in (tmp_path / "out" / "report.md").read_text(encoding="utf-8")
-    assert notes["b"] == "", notes  # it ends between benches that drilled where it was

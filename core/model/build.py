@@ -38,7 +38,6 @@ from core.model.pipeline import (
     correspondence_json,
     morph_json,
     pair_coverage,
-    undrilled_note,
 )
 from core.model.prediction import predict_geozone
 from core.model.session import (  # noqa: F401 - the surface build's steps, long imported from here
@@ -642,7 +641,6 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
     _write_surface(summary, model, ctx, gdir)
-    summary.note = "; ".join(n for n in (summary.note, undrilled_note(model, holes)) if n)
     if ctx.evaluate and holes.n_benches >= 3:
         rows = evaluate_geozone(
             holes, g, predictor_from_model(model, holes, params), truth=ctx.truth, contours=ctx.contours

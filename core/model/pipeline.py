@@ -39,8 +39,6 @@ __all__ = [
     "morph_instance",
     "morph_json",
     "pair_coverage",
-    "undrilled_cuts",
-    "undrilled_note",
 ]
 
 
@@ -128,52 +126,6 @@ def bench_pairs(
             )
         )
     return pairs
-
-
-#: A component with no counterpart on the other bench of its pair, and less than this share of its
-#: area inside that bench's drilled area, is cut by drilling, not by geology (see :func:`undrilled_cuts`).
-UNDRILLED_SHARE = 0.5
-
-
-def undrilled_cuts(model: GeozoneModel, holes: Blastholes) -> list[int]:
-    """Benches on which the model ends or starts a body of the geozone only because they did not drill it.
-
-    A component of a corresponded pair associated with nothing on the other
-    bench vanishes (a source) or appears (a target) between the two. Where
-    that bench drilled under :data:`UNDRILLED_SHARE` of the component's area,
-    its absence there says nothing, yet the morph ends the body before it
-    (a bench drilled on a tenth of the pit cuts every body outside that tenth,
-    the surface too). Returns those benches' indices, top first.
-    """
-    cut = set()
-    for p in model.pairs:
-        corr = p.correspondence
-        if corr is None:
-            continue
-        linked = np.asarray(corr.association, bool).reshape(len(p.sources), len(p.targets))
-        for comps, alone, other in (
-            (p.sources, np.flatnonzero(~linked.any(axis=1)), p.lower),
-            (p.targets, np.flatnonzero(~linked.any(axis=0)), p.upper),
-        ):
-            drilled = holes.drilled_area(other)
-            for c in (comps[i] for i in alone if comps[i].polygon.area > 0):
-                if c.polygon.intersection(drilled).area < UNDRILLED_SHARE * c.polygon.area:
-                    cut.add(other)
-    return sorted(cut)
-
-
-def undrilled_note(model: GeozoneModel, holes: Blastholes) -> str:
-    """One sentence naming the benches of :func:`undrilled_cuts`, or ``""`` when there are none."""
-    cut = undrilled_cuts(model, holes)
-    if not cut:
-        return ""
-    unit = holes.frame.length_unit
-    at = ", ".join(f"{holes.bench_z_input(k):g}" for k in cut)
-    benches, them = ("benches", "them") if len(cut) > 1 else ("bench", "it")
-    return (
-        f"its surface and sections end at the {benches} at {at} {unit}, which drilled under half of its part on "
-        f"the bench next to {them}: unknown ground there, not absent ground"
-    )
 
 
 def correspond(
