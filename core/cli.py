@@ -830,12 +830,10 @@ def suggest(
     plan = plan_sampling(session, wanted, budget, level, candidates, band_probability)
     if not plan.sections:
         raise BGMInputError(f"no geozone of {', '.join(wanted)} has a predicted boundary to sample at that elevation")
-    if not plan.suggestions:
-        _say(
-            f"bgm: note: no candidate hole lies in the {band_probability:.0%} band of {', '.join(wanted)}'s "
-            "predicted boundary (predicted absent there, or certain): nothing to pin down, none suggested"
-        )
-    elif budget > len(candidates):
+    in_band = int(sum(s.in_band for s in plan.suggestions))
+    if not in_band:
+        _say(_outside_band_note(plan, wanted))
+    if plan.suggestions and budget > len(candidates):
         _say(f"bgm: note: only {len(candidates)} candidate holes; all of them are suggested")
     data = suggestions_table(plan.suggestions, holes, level, band_probability, labels)
     write_suggestions(out, data)
@@ -846,11 +844,33 @@ def suggest(
                 "z": round(float(holes.frame.z_to_input(level)), 3),
                 "candidates": int(len(candidates)),
                 "suggested": int(len(data)),
-                "in_band": int(sum(s.in_band for s in plan.suggestions)),
+                "in_band": in_band,
                 "out": str(out),
             }
         )
     )
+
+
+def _outside_band_note(plan, wanted: list[str]) -> str:
+    """The note of a suggestion with no hole in the band: why, judged on the band each row's ``in_band`` reports.
+
+    Holes are chosen on the wider band of the boundary their labels will show
+    (:meth:`~core.model.uncertainty.SectionUncertainty.as_observed`), but a
+    suggestion's ``in_band`` and the count printed are the written band's
+    (``uncertainty.geojson``): judged on the wider one, holes all beyond the
+    written band were suggested with ``"in_band": 0`` and no word.
+    """
+    band = f"the {plan.probability:.0%} band of {', '.join(wanted)}'s predicted boundary"
+    if not plan.suggestions:
+        return (
+            f"bgm: note: no candidate hole lies in {band} (predicted absent there, or certain): nothing to pin "
+            "down, none suggested"
+        )
+    n = len(plan.suggestions)
+    beyond = "beyond it, where the boundary the holes' labels will show is still unsure (their reason says so)"
+    if not any(section.in_band(plan.candidates_m).any() for section in plan.sections.values()):
+        return f"bgm: note: no candidate hole lies in {band}; the {n} suggested lie {beyond}"
+    return f"bgm: note: none of the {n} suggested holes lies in {band}; they lie {beyond}"
 
 
 def _next_level(holes, elevation: float | None) -> float:

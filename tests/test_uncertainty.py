@@ -546,3 +546,27 @@ def test_a_hole_listed_twice_in_a_planned_pattern_is_suggested_once(strip_csv, t
     table = pd.read_csv(out)
     assert json.loads(run.stdout)["candidates"] == len(planned) == len(table)
     assert not table.duplicated(["x", "y"]).any() and not table["pattern_hole"].duplicated().any()
+
+
+def test_suggest_says_so_when_no_hole_suggested_lies_in_the_band_it_reports(strip_csv, tmp_path):
+    """Planned holes all in the wider band holes are chosen on, none in the written band each row's in_band is:
+    holes are suggested with "in_band": 0, and the note says none lies in the 90% band (it said nothing)."""
+    from core.io.blastholes import read_blastholes
+    from core.model.sampling import plan_sampling
+    from core.model.session import ModelSession
+
+    holes = read_blastholes(strip_csv)
+    xy = holes.frame.to_local(*(pattern_holes() + [400_000.0, 7_000_000.0]).T)
+    z = float(holes.frame.z_to_local(940.0))
+    section = plan_sampling(ModelSession.open(holes), ["ore"], 1, z, xy).sections["ore"]
+    beyond = section.as_observed().in_band(xy) & ~section.in_band(xy)
+    assert beyond.sum() >= 3  # the two bands differ here: the test means something
+    path = tmp_path / "planned.csv"
+    pd.DataFrame(holes.frame.to_input(xy[beyond]), columns=["x", "y"]).to_csv(path, index=False)
+    out = tmp_path / "s.csv"
+    run = bgm("suggest", strip_csv, "--geozone", "ore", "--budget", "3", "--pattern", path, "--out", out)
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["suggested"] == 3 and summary["in_band"] == 0
+    assert "no candidate hole lies in the 90% band of ore's predicted boundary" in run.stderr
+    assert pd.read_csv(out)["reason"].str.startswith("beyond the 90% band").all()
