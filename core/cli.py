@@ -437,13 +437,34 @@ def morph(
     )
 
 
+#: Elevations given closer than this (input units) are one level: the files give z to three decimals.
+SAME_LEVEL = 5e-4
+
+
 def _elevations(text: str) -> list[float]:
+    """The distinct elevations of ``--elevations`` (input units), in the order given.
+
+    An elevation given again (``615,615``, or ``615,615.0000001``: within
+    :data:`SAME_LEVEL`) is one level, the first as given, with a note: kept
+    twice, the prediction had two identical features where the uncertainty
+    file and ``p_inside.npz`` had one level, or two the files could not tell apart.
+    """
     try:
-        levels = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
+        given = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
     except ValueError:
         raise BGMInputError(f"--elevations must be numbers separated by commas, got {quoted(text)}") from None
-    if not levels or not all(np.isfinite(levels)):
+    if not given or not all(np.isfinite(given)):
         raise BGMInputError(f"--elevations needs at least one finite number, got {quoted(text)}")
+    levels: list[float] = []
+    for v in given:
+        if all(abs(v - kept) > SAME_LEVEL for kept in levels):
+            levels.append(v)
+    if len(levels) < len(given):
+        again = [f"{kept:g}" for kept in levels if sum(abs(v - kept) <= SAME_LEVEL for v in given) > 1]
+        _say(
+            f"bgm: note: --elevations gives {', '.join(again)} more than once (to within {SAME_LEVEL:g}); "
+            "each level is predicted once"
+        )
     return levels
 
 

@@ -570,3 +570,16 @@ def test_suggest_says_so_when_no_hole_suggested_lies_in_the_band_it_reports(stri
     assert summary["suggested"] == 3 and summary["in_band"] == 0
     assert "no candidate hole lies in the 90% band of ore's predicted boundary" in run.stderr
     assert pd.read_csv(out)["reason"].str.startswith("beyond the 90% band").all()
+
+
+def test_an_elevation_given_twice_is_one_level_in_every_file(strip_csv, tmp_path):
+    """615,615 (or 615 and 615.0000001) wrote two identical predicted features beside one band and one grid level."""
+    out = tmp_path / "p.geojson"
+    run = bgm("predict", strip_csv, "--geozone", "ore", "--elevations", "945,940,945,940.0000001", "--out", out)
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["elevations"] == [945.0, 940.0]
+    assert "945, 940 more than once" in run.stderr
+    assert [f["properties"]["z"] for f in json.loads(out.read_text())["features"]] == [945.0, 940.0]
+    bands = json.loads((tmp_path / "p.uncertainty.geojson").read_text())["features"]
+    assert sorted(f["properties"]["z"] for f in bands if f["properties"]["kind"] == "band") == [940.0, 945.0]
+    assert list(np.load(tmp_path / "p.p_inside.npz")["z"]) == [945.0, 940.0]
