@@ -905,12 +905,23 @@ def _next_level(holes, elevation: float | None) -> float:
         return float(levels[-1] - height)
     if not math.isfinite(elevation):
         raise BGMInputError(f"--elevation must be a finite number, got {elevation}")
+    from core.model.prediction import bench_at
+
     z = float(holes.frame.z_to_local(elevation))
     bottom = holes.bench_z_input(holes.n_benches - 1)
+    unit = holes.frame.length_unit
     if z >= levels[-1] - 1e-6:
         raise BGMInputError(
-            f"elevation {elevation:g} is not below the deepest bench ({bottom:g} {holes.frame.length_unit}); "
+            f"elevation {elevation:g} is not below the deepest bench ({bottom:g} {unit}); "
             "suggestions are for the next bench down"
+        )
+    # Just below it (624.99999 under 625 m) the model takes the elevation as the bench's level, whose section
+    # is its own contours with no band: accepted here, it failed later saying no geozone had a boundary there.
+    if bench_at(levels, z) is not None:
+        raise BGMInputError(
+            f"elevation {elevation:.10g} is the deepest bench's level ({bottom:g} {unit}) to the model's precision, "
+            "where the section is the bench's own contours with no uncertainty to sample; suggestions are for "
+            "the next bench down: give an elevation further below it"
         )
     if z < levels[-1] - MAX_PREDICTION_BENCHES * height:
         raise BGMInputError(

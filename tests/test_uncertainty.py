@@ -255,6 +255,7 @@ def test_suggest_picks_from_a_planned_pattern(strip_csv, tmp_path):
     [
         (["--budget", "0"], "--budget must be 1 or more"),
         (["--budget", "3", "--elevation", "1000"], "not below the deepest bench"),
+        (["--budget", "3", "--elevation", "949.99999"], "elevation 949.99999 is the deepest bench's level (950 m)"),
         (["--budget", "3", "--elevation", "500"], "bench heights below the deepest bench"),
         (["--budget", "3", "--band-probability", "1.5"], "--band-probability"),
         (["--budget", "3", "--geozone", "nope"], "nope"),
