@@ -618,7 +618,6 @@ def evaluate(
     check_output(out, folder=True)
     for name in names:
         _outputs(out / name, input)
-    make_folder(out)  # now, not after minutes of work
     holes = table.read(input)
     geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 3:
@@ -635,6 +634,9 @@ def evaluate(
     _refuse_empty_scores(rows, holes, geozone)
     rows.insert(0, "geozone", geozone)  # as a build's rows say it: the folder may hold another geozone's before
     summary = summary_as_written(summary_table(rows), holes)
+    # Made only now: an input refused (unreadable, too few benches, nothing to score) left an empty folder.
+    # A folder that cannot be made was refused before any work (_outputs above tries a file in it).
+    make_folder(out)
     # The plot first (it takes the time): an interrupt while it is drawn leaves the tables as they were.
     unit = holes.frame.length_unit
     plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references", unit=unit)

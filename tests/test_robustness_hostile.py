@@ -1082,3 +1082,24 @@ def test_main_leaves_sigterm_as_it_found_it(tmp_path):
         assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+@pytest.mark.parametrize(
+    "case, phrase",
+    [("no x column", "no x column"), ("two benches", "at least three"), ("nothing to score", "nothing to evaluate")],
+)
+def test_an_evaluation_refused_leaves_no_output_folder(table, tmp_path, case, phrase):
+    """bgm evaluate made its --out folder before reading the input: a refused input left it behind, empty."""
+    path = tmp_path / "holes.csv"
+    if case == "no x column":
+        table.rename(columns={"x": "u"}).to_csv(path, index=False)
+    elif case == "two benches":
+        table[table["z"] > table["z"].min() + 1.0].to_csv(path, index=False)
+    else:  # two holes far apart on the deepest bench: label noise, no contour to score
+        deepest = table.loc[table["z"] <= table["z"].min() + 1.0, "x"].sort_values().index
+        noise = table.index.isin(deepest[[0, -1]])
+        table.assign(geozone=table["geozone"].where(~noise, "late")).to_csv(path, index=False)
+    out = tmp_path / "new" / "evaluation"
+    geozone = "late" if case == "nothing to score" else "g1"
+    error_line(bgm("evaluate", path, "--geozone", geozone, "--out", out), phrase)
+    assert not (tmp_path / "new").exists()
