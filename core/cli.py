@@ -840,16 +840,17 @@ def suggest(
     wanted = _wanted(holes, geozone)
     if holes.n_benches < 2:
         raise BGMInputError(f"{input} has a single bench; predicting the next one needs two or more benches")
+    session = _session(holes, project, wanted, "suggest", no_cache)
     labels, z_pattern, candidates = None, None, None
     if pattern is not None:
-        candidates, labels, z_pattern = read_pattern(pattern, holes)
+        # How far the predictions reach past the drilling is the project's if it sets it, not the default.
+        candidates, labels, z_pattern = read_pattern(pattern, holes, session.params.frontier_reach_spacings)
     level = _next_level(holes, elevation if elevation is not None else z_pattern)
     if candidates is None:
         try:
             candidates = next_bench_candidates(holes)
         except ValueError as exc:
             raise BGMInputError(f"{exc}; give the holes with --pattern") from None
-    session = _session(holes, project, wanted, "suggest", no_cache)
     plan = plan_sampling(session, wanted, budget, level, candidates, band_probability)
     if not plan.sections:
         raise BGMInputError(f"no geozone of {', '.join(wanted)} has a predicted boundary to sample at that elevation")

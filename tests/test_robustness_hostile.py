@@ -1047,6 +1047,28 @@ def test_a_planned_pattern_in_other_coordinates_is_refused(csv, table, tmp_path,
         assert "4,9" in line or "5,0" in line, line  # how far, in the input's units
 
 
+@pytest.mark.parametrize("reach, shift_m", [(5.0, 100.0), (20.0, 150.0)])
+def test_a_planned_pattern_is_judged_far_on_the_projects_reach(csv, table, tmp_path, reach, shift_m):
+    """The far-pattern check used the default frontier_reach_spacings (10) whatever the project set.
+
+    100 m off, the pattern's nearest hole is 7.8 hole spacings from a blasthole, 150 m off 16.5: beyond a
+    project's reach of 5 the first is refused, within its reach of 20 the second is sampled.
+    """
+    deepest = table[table["z"] <= table["z"].min() + 1.0]
+    pattern = tmp_path / "planned.csv"
+    deepest.assign(x=deepest["x"] + shift_m)[["x", "y"]].to_csv(pattern, index=False)
+    project = tmp_path / "p.json"
+    project.write_text(
+        json.dumps({"format": "bgm-project", "version": 1, "parameters": {"frontier_reach_spacings": reach}})
+    )
+    args = ("--geozone", "g1", "--budget", "3", "--pattern", pattern, "--project", project)
+    run = bgm("suggest", csv, *args, "--out", tmp_path / "s.csv")
+    if reach < 10:
+        error_line(run, "from the nearest blasthole", "coordinates")
+    else:
+        assert run.returncode == 0, run.stderr
+
+
 def test_geozones_given_with_commas_as_suggest_takes_them_and_a_label_holding_a_comma_whole(table, tmp_path):
     path = tmp_path / "holes.csv"
     table.assign(geozone=table["geozone"].replace({"g3": "ore, oxide"})).to_csv(path, index=False)  # quoted
