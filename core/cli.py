@@ -437,13 +437,34 @@ def morph(
     )
 
 
+#: Elevations given closer than this (input units) are one level: the files give z to three decimals.
+SAME_LEVEL = 5e-4
+
+
 def _elevations(text: str) -> list[float]:
+    """The distinct elevations of ``--elevations`` (input units), in the order given.
+
+    An elevation given again (``615,615``, or ``615,615.0000001``: within
+    :data:`SAME_LEVEL`) is one level, the first as given, with a note: kept
+    twice, the prediction had two identical features where the uncertainty
+    file and ``p_inside.npz`` had one level, or two the files could not tell apart.
+    """
     try:
-        levels = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
+        given = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
     except ValueError:
         raise BGMInputError(f"--elevations must be numbers separated by commas, got {quoted(text)}") from None
-    if not levels or not all(np.isfinite(levels)):
+    if not given or not all(np.isfinite(given)):
         raise BGMInputError(f"--elevations needs at least one finite number, got {quoted(text)}")
+    levels: list[float] = []
+    for v in given:
+        if all(abs(v - kept) > SAME_LEVEL for kept in levels):
+            levels.append(v)
+    if len(levels) < len(given):
+        again = [f"{kept:g}" for kept in levels if sum(abs(v - kept) <= SAME_LEVEL for v in given) > 1]
+        _say(
+            f"bgm: note: --elevations gives {', '.join(again)} more than once (to within {SAME_LEVEL:g}); "
+            "each level is predicted once"
+        )
     return levels
 
 
@@ -597,7 +618,6 @@ def evaluate(
     check_output(out, folder=True)
     for name in names:
         _outputs(out / name, input)
-    make_folder(out)  # now, not after minutes of work
     holes = table.read(input)
     geozone = holes.check_geozones([geozone])[0]
     if holes.n_benches < 3:
@@ -614,6 +634,9 @@ def evaluate(
     _refuse_empty_scores(rows, holes, geozone)
     rows.insert(0, "geozone", geozone)  # as a build's rows say it: the folder may hold another geozone's before
     summary = summary_as_written(summary_table(rows), holes)
+    # Made only now: an input refused (unreadable, too few benches, nothing to score) left an empty folder.
+    # A folder that cannot be made was refused before any work (_outputs above tries a file in it).
+    make_folder(out)
     # The plot first (it takes the time): an interrupt while it is drawn leaves the tables as they were.
     unit = holes.frame.length_unit
     plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references", unit=unit)
@@ -817,25 +840,24 @@ def suggest(
     wanted = _wanted(holes, geozone)
     if holes.n_benches < 2:
         raise BGMInputError(f"{input} has a single bench; predicting the next one needs two or more benches")
+    session = _session(holes, project, wanted, "suggest", no_cache)
     labels, z_pattern, candidates = None, None, None
     if pattern is not None:
-        candidates, labels, z_pattern = read_pattern(pattern, holes)
+        # How far the predictions reach past the drilling is the project's if it sets it, not the default.
+        candidates, labels, z_pattern = read_pattern(pattern, holes, session.params.frontier_reach_spacings)
     level = _next_level(holes, elevation if elevation is not None else z_pattern)
     if candidates is None:
         try:
             candidates = next_bench_candidates(holes)
         except ValueError as exc:
             raise BGMInputError(f"{exc}; give the holes with --pattern") from None
-    session = _session(holes, project, wanted, "suggest", no_cache)
     plan = plan_sampling(session, wanted, budget, level, candidates, band_probability)
     if not plan.sections:
         raise BGMInputError(f"no geozone of {', '.join(wanted)} has a predicted boundary to sample at that elevation")
-    if not plan.suggestions:
-        _say(
-            f"bgm: note: no candidate hole lies in the {band_probability:.0%} band of {', '.join(wanted)}'s "
-            "predicted boundary (predicted absent there, or certain): nothing to pin down, none suggested"
-        )
-    elif budget > len(candidates):
+    in_band = int(sum(s.in_band for s in plan.suggestions))
+    if not in_band:
+        _say(_outside_band_note(plan, wanted))
+    if plan.suggestions and budget > len(candidates):
         _say(f"bgm: note: only {len(candidates)} candidate holes; all of them are suggested")
     data = suggestions_table(plan.suggestions, holes, level, band_probability, labels)
     write_suggestions(out, data)
@@ -846,11 +868,33 @@ def suggest(
                 "z": round(float(holes.frame.z_to_input(level)), 3),
                 "candidates": int(len(candidates)),
                 "suggested": int(len(data)),
-                "in_band": int(sum(s.in_band for s in plan.suggestions)),
+                "in_band": in_band,
                 "out": str(out),
             }
         )
     )
+
+
+def _outside_band_note(plan, wanted: list[str]) -> str:
+    """The note of a suggestion with no hole in the band: why, judged on the band each row's ``in_band`` reports.
+
+    Holes are chosen on the wider band of the boundary their labels will show
+    (:meth:`~core.model.uncertainty.SectionUncertainty.as_observed`), but a
+    suggestion's ``in_band`` and the count printed are the written band's
+    (``uncertainty.geojson``): judged on the wider one, holes all beyond the
+    written band were suggested with ``"in_band": 0`` and no word.
+    """
+    band = f"the {plan.probability:.0%} band of {', '.join(wanted)}'s predicted boundary"
+    if not plan.suggestions:
+        return (
+            f"bgm: note: no candidate hole lies in {band} (predicted absent there, or certain): nothing to pin "
+            "down, none suggested"
+        )
+    n = len(plan.suggestions)
+    beyond = "beyond it, where the boundary the holes' labels will show is still unsure (their reason says so)"
+    if not any(section.in_band(plan.candidates_m).any() for section in plan.sections.values()):
+        return f"bgm: note: no candidate hole lies in {band}; the {n} suggested lie {beyond}"
+    return f"bgm: note: none of the {n} suggested holes lies in {band}; they lie {beyond}"
 
 
 def _next_level(holes, elevation: float | None) -> float:
@@ -864,12 +908,23 @@ def _next_level(holes, elevation: float | None) -> float:
         return float(levels[-1] - height)
     if not math.isfinite(elevation):
         raise BGMInputError(f"--elevation must be a finite number, got {elevation}")
+    from core.model.prediction import bench_at
+
     z = float(holes.frame.z_to_local(elevation))
     bottom = holes.bench_z_input(holes.n_benches - 1)
+    unit = holes.frame.length_unit
     if z >= levels[-1] - 1e-6:
         raise BGMInputError(
-            f"elevation {elevation:g} is not below the deepest bench ({bottom:g} {holes.frame.length_unit}); "
+            f"elevation {elevation:g} is not below the deepest bench ({bottom:g} {unit}); "
             "suggestions are for the next bench down"
+        )
+    # Just below it (624.99999 under 625 m) the model takes the elevation as the bench's level, whose section
+    # is its own contours with no band: accepted here, it failed later saying no geozone had a boundary there.
+    if bench_at(levels, z) is not None:
+        raise BGMInputError(
+            f"elevation {elevation:.10g} is the deepest bench's level ({bottom:g} {unit}) to the model's precision, "
+            "where the section is the bench's own contours with no uncertainty to sample; suggestions are for "
+            "the next bench down: give an elevation further below it"
         )
     if z < levels[-1] - MAX_PREDICTION_BENCHES * height:
         raise BGMInputError(

@@ -278,6 +278,28 @@ def test_summary_gives_each_methods_f1_and_the_models_margin_over_the_best_refer
     assert "best reference nil" in line and "(-" in line
 
 
+def test_n_counts_the_benches_scored_not_those_where_the_geozone_was_neither_predicted_nor_there():
+    """``n`` is the benches scored: one where no method predicted the geozone and it was absent scored nothing.
+
+    The demo's g3 is on neither side on two of its five benches, and ``n`` said 5.
+    """
+    import pandas as pd
+
+    def row(k, method, i, pa, ga):
+        return {"bench": k, "fraction": 1.0, "depth_m": 10.0, "method": method, "i_area": i, "p_area": pa, "g_area": ga}
+
+    rows = [row(1, m, 40, 50, 60) for m in ("model", "nil")]  # scored
+    rows += [row(2, "model", 0, 30, 0), row(2, "nil", 0, 0, 0)]  # predicted where it is not: scored
+    rows += [row(3, "model", 0, 0, 20), row(3, "nil", 0, 0, 20)]  # there, predicted by none: scored
+    rows += [row(4, m, 0, 0, 0) for m in ("model", "nil")]  # neither: nothing scored
+    summary = ev.summary_table(pd.DataFrame(rows)).iloc[0]
+    assert summary["n"] == 3
+    assert summary["precision_model"] == pytest.approx(40 / 80) and summary["recall_model"] == pytest.approx(40 / 80)
+    # On real data a bench whose only sign of the geozone is a few holes (no contour) is scored on them.
+    holes = [{**r, "holes_in": 0, "holes_in_geozone": 0, "holes_geozone": 2 if r["bench"] == 4 else 0} for r in rows]
+    assert ev.summary_table(pd.DataFrame(holes)).iloc[0]["n"] == 4
+
+
 def test_the_plot_gives_the_depths_the_table_beside_it_gives(tmp_path, monkeypatch):
     """On a table in feet, bgm evaluate prints 49.38 ft below: its plot showed 15.05 m."""
     import pandas as pd

@@ -1047,6 +1047,28 @@ def test_a_planned_pattern_in_other_coordinates_is_refused(csv, table, tmp_path,
         assert "4,9" in line or "5,0" in line, line  # how far, in the input's units
 
 
+@pytest.mark.parametrize("reach, shift_m", [(5.0, 100.0), (20.0, 150.0)])
+def test_a_planned_pattern_is_judged_far_on_the_projects_reach(csv, table, tmp_path, reach, shift_m):
+    """The far-pattern check used the default frontier_reach_spacings (10) whatever the project set.
+
+    100 m off, the pattern's nearest hole is 7.8 hole spacings from a blasthole, 150 m off 16.5: beyond a
+    project's reach of 5 the first is refused, within its reach of 20 the second is sampled.
+    """
+    deepest = table[table["z"] <= table["z"].min() + 1.0]
+    pattern = tmp_path / "planned.csv"
+    deepest.assign(x=deepest["x"] + shift_m)[["x", "y"]].to_csv(pattern, index=False)
+    project = tmp_path / "p.json"
+    project.write_text(
+        json.dumps({"format": "bgm-project", "version": 1, "parameters": {"frontier_reach_spacings": reach}})
+    )
+    args = ("--geozone", "g1", "--budget", "3", "--pattern", pattern, "--project", project)
+    run = bgm("suggest", csv, *args, "--out", tmp_path / "s.csv")
+    if reach < 10:
+        error_line(run, "from the nearest blasthole", "coordinates")
+    else:
+        assert run.returncode == 0, run.stderr
+
+
 def test_geozones_given_with_commas_as_suggest_takes_them_and_a_label_holding_a_comma_whole(table, tmp_path):
     path = tmp_path / "holes.csv"
     table.assign(geozone=table["geozone"].replace({"g3": "ore, oxide"})).to_csv(path, index=False)  # quoted
@@ -1082,3 +1104,24 @@ def test_main_leaves_sigterm_as_it_found_it(tmp_path):
         assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+@pytest.mark.parametrize(
+    "case, phrase",
+    [("no x column", "no x column"), ("two benches", "at least three"), ("nothing to score", "nothing to evaluate")],
+)
+def test_an_evaluation_refused_leaves_no_output_folder(table, tmp_path, case, phrase):
+    """bgm evaluate made its --out folder before reading the input: a refused input left it behind, empty."""
+    path = tmp_path / "holes.csv"
+    if case == "no x column":
+        table.rename(columns={"x": "u"}).to_csv(path, index=False)
+    elif case == "two benches":
+        table[table["z"] > table["z"].min() + 1.0].to_csv(path, index=False)
+    else:  # two holes far apart on the deepest bench: label noise, no contour to score
+        deepest = table.loc[table["z"] <= table["z"].min() + 1.0, "x"].sort_values().index
+        noise = table.index.isin(deepest[[0, -1]])
+        table.assign(geozone=table["geozone"].where(~noise, "late")).to_csv(path, index=False)
+    out = tmp_path / "new" / "evaluation"
+    geozone = "late" if case == "nothing to score" else "g1"
+    error_line(bgm("evaluate", path, "--geozone", geozone, "--out", out), phrase)
+    assert not (tmp_path / "new").exists()

@@ -255,6 +255,7 @@ def test_suggest_picks_from_a_planned_pattern(strip_csv, tmp_path):
     [
         (["--budget", "0"], "--budget must be 1 or more"),
         (["--budget", "3", "--elevation", "1000"], "not below the deepest bench"),
+        (["--budget", "3", "--elevation", "949.99999"], "elevation 949.99999 is the deepest bench's level (950 m)"),
         (["--budget", "3", "--elevation", "500"], "bench heights below the deepest bench"),
         (["--budget", "3", "--band-probability", "1.5"], "--band-probability"),
         (["--budget", "3", "--geozone", "nope"], "nope"),
@@ -546,3 +547,40 @@ def test_a_hole_listed_twice_in_a_planned_pattern_is_suggested_once(strip_csv, t
     table = pd.read_csv(out)
     assert json.loads(run.stdout)["candidates"] == len(planned) == len(table)
     assert not table.duplicated(["x", "y"]).any() and not table["pattern_hole"].duplicated().any()
+
+
+def test_suggest_says_so_when_no_hole_suggested_lies_in_the_band_it_reports(strip_csv, tmp_path):
+    """Planned holes all in the wider band holes are chosen on, none in the written band each row's in_band is:
+    holes are suggested with "in_band": 0, and the note says none lies in the 90% band (it said nothing)."""
+    from core.io.blastholes import read_blastholes
+    from core.model.sampling import plan_sampling
+    from core.model.session import ModelSession
+
+    holes = read_blastholes(strip_csv)
+    xy = holes.frame.to_local(*(pattern_holes() + [400_000.0, 7_000_000.0]).T)
+    z = float(holes.frame.z_to_local(940.0))
+    section = plan_sampling(ModelSession.open(holes), ["ore"], 1, z, xy).sections["ore"]
+    beyond = section.as_observed().in_band(xy) & ~section.in_band(xy)
+    assert beyond.sum() >= 3  # the two bands differ here: the test means something
+    path = tmp_path / "planned.csv"
+    pd.DataFrame(holes.frame.to_input(xy[beyond]), columns=["x", "y"]).to_csv(path, index=False)
+    out = tmp_path / "s.csv"
+    run = bgm("suggest", strip_csv, "--geozone", "ore", "--budget", "3", "--pattern", path, "--out", out)
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["suggested"] == 3 and summary["in_band"] == 0
+    assert "no candidate hole lies in the 90% band of ore's predicted boundary" in run.stderr
+    assert pd.read_csv(out)["reason"].str.startswith("beyond the 90% band").all()
+
+
+def test_an_elevation_given_twice_is_one_level_in_every_file(strip_csv, tmp_path):
+    """615,615 (or 615 and 615.0000001) wrote two identical predicted features beside one band and one grid level."""
+    out = tmp_path / "p.geojson"
+    run = bgm("predict", strip_csv, "--geozone", "ore", "--elevations", "945,940,945,940.0000001", "--out", out)
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["elevations"] == [945.0, 940.0]
+    assert "945, 940 more than once" in run.stderr
+    assert [f["properties"]["z"] for f in json.loads(out.read_text())["features"]] == [945.0, 940.0]
+    bands = json.loads((tmp_path / "p.uncertainty.geojson").read_text())["features"]
+    assert sorted(f["properties"]["z"] for f in bands if f["properties"]["kind"] == "band") == [940.0, 945.0]
+    assert list(np.load(tmp_path / "p.p_inside.npz")["z"]) == [945.0, 940.0]

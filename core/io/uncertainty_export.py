@@ -163,19 +163,24 @@ def write_suggestions(path: str | Path, table: pd.DataFrame) -> Path:
     return Path(path)
 
 
-def _refuse_far_pattern(path, xy: np.ndarray, holes: Blastholes) -> None:
+def _refuse_far_pattern(path, xy: np.ndarray, holes: Blastholes, reach_spacings: float | None = None) -> None:
     """Refuse a pattern whose nearest hole lies further from every blasthole than the predictions reach.
 
-    They reach as far past the drilling as a bench's evidence does (the model's default
-    ``frontier_reach_spacings``); a pattern beyond that is in other coordinates.
+    They reach as far past the drilling as a bench's evidence does: ``reach_spacings``
+    hole spacings, the ``frontier_reach_spacings`` in effect (a project may set it; the
+    model's default if None), and at least one spacing (a planned hole among the
+    blastholes is within about one of them, whatever the reach); a pattern beyond that
+    is in other coordinates.
     """
     from scipy.spatial import cKDTree
 
     from core.errors import BGMInputError
     from core.model.parameters import ModelParameters
 
+    if reach_spacings is None:
+        reach_spacings = ModelParameters().frontier_reach_spacings
     gap_m = float(cKDTree(holes.xy).query(xy)[0].min())
-    reach_m = ModelParameters().frontier_reach_spacings * holes.hole_spacing_m
+    reach_m = max(float(reach_spacings), 1.0) * holes.hole_spacing_m
     if gap_m > reach_m:
         unit = holes.frame.length_unit
         gap, centre = holes.frame.length_to_input(gap_m), holes.frame.to_input(xy.mean(axis=0, keepdims=True))[0]
@@ -187,7 +192,9 @@ def _refuse_far_pattern(path, xy: np.ndarray, holes: Blastholes) -> None:
         )
 
 
-def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list, float | None]:
+def read_pattern(
+    path: str | Path, holes: Blastholes, reach_spacings: float | None = None
+) -> tuple[np.ndarray, list, float | None]:
     """A planned blast pattern: hole positions (local metres), their identifiers, and their elevation if given.
 
     The table (CSV or Parquet, read as the blasthole table is) needs x and y
@@ -195,6 +202,8 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
     any case); a ``z`` column gives the bench's elevation (input units, the
     median), a ``hole_id`` column the identifiers (else the data line numbers).
     A hole listed again at the same position is kept once, with a warning.
+    ``reach_spacings`` is the ``frontier_reach_spacings`` in effect (the
+    model's default if None): how far from the blastholes a pattern may lie.
 
     Raises
     ------
@@ -233,7 +242,7 @@ def read_pattern(path: str | Path, holes: Blastholes) -> tuple[np.ndarray, list,
             )
         values[role] = number
     xy = holes.frame.to_local(values["x"], values["y"])
-    _refuse_far_pattern(path, xy, holes)
+    _refuse_far_pattern(path, xy, holes, reach_spacings)
     ids = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES), None)
     labels = table[ids].astype(str).tolist() if ids is not None else [str(n) for n in data_lines(table)]
     z = _pattern_level(path, values["z"], holes) if "z" in values else None

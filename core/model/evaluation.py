@@ -510,7 +510,8 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
     -------
     DataFrame
         One row per fraction: ``fraction``, ``depth_m`` (mean), ``n`` (benches
-        scored), then ``precision_<method>`` and ``recall_<method>`` for each
+        scored: where some method predicted the geozone or it was there; a bench
+        with neither adds nothing to any rate and is not counted), then ``precision_<method>`` and ``recall_<method>`` for each
         method present (in :data:`METHODS` order), and, when both ``model`` and
         ``nil`` are present, ``precision_gain`` and ``recall_gain`` (model minus
         nil); ``f1_<method>`` for each method and, with the model and a
@@ -526,7 +527,7 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
     present = [m for m in METHODS if m in set(df["method"])] + sorted(set(df["method"]) - set(METHODS))
     out = []
     for f, part in df.groupby("fraction", sort=True):
-        row = {"fraction": float(f), "depth_m": float(part["depth_m"].mean()), "n": int(part["bench"].nunique())}
+        row = {"fraction": float(f), "depth_m": float(part["depth_m"].mean()), "n": _benches_scored(part)}
         for m in present:
             sub = part[part["method"] == m]
             i, pa, ga = sub["i_area"].sum(), sub["p_area"].sum(), sub["g_area"].sum()
@@ -545,6 +546,20 @@ def summary_table(df: pd.DataFrame) -> pd.DataFrame:
     order += [f"recall_{m}" for m in present] + (["recall_gain"] if "recall_gain" in table else [])
     order += [c for c in table.columns if c.startswith(("f1_", "best_"))]
     return table[order]
+
+
+def _benches_scored(rows: pd.DataFrame) -> int:
+    """The benches of ``rows`` where something was scored: a method predicted the geozone, or it was there.
+
+    On the others every rate is 0 / 0 (no area predicted, none true; on real data
+    no hole inside either): counted, a geozone absent from benches (the demo's g3 on
+    two of five) had ``n`` say they were scored.
+    """
+    scored = (rows["p_area"] > 0) | (rows["g_area"] > 0)
+    for column in ("holes_in", "holes_geozone"):
+        if column in rows:
+            scored |= rows[column] > 0
+    return int(rows.loc[scored, "bench"].nunique())
 
 
 def _f1_columns(f1: dict[str, float], kind: str) -> dict:

@@ -141,6 +141,17 @@ def regions_between(pair: BenchPair, fractions: list[float]) -> list[MultiPolygo
     return out
 
 
+def bench_at(levels, z_m: float) -> int | None:
+    """The index of the bench whose level ``z_m`` is (metres), or None: where a section is that bench's contours.
+
+    ``np.isclose`` with its relative tolerance (1e-5 of ``z_m``: 6 mm at 625 m), as
+    :func:`core.model.uncertainty.directions` tells a bench level from a predicted one
+    (no uncertainty there); callers refusing bench levels must match the same way.
+    """
+    at = np.flatnonzero(np.isclose(np.asarray(levels, float), z_m, atol=1e-6))
+    return int(at[0]) if len(at) else None
+
+
 def predict_geozone(
     model: GeozoneModel, z_m: list[float], hole_spacing_m: float, params=None
 ) -> dict[float, MultiPolygon]:
@@ -164,9 +175,9 @@ def predict_geozone(
     height = fields.bench_height_m
     beyond: dict[bool, BenchFields] = {}  # the fields extrapolated down (True) or up, one view each
     for z in z_m:
-        at = np.flatnonzero(np.isclose(levels, z, atol=1e-6))
-        if len(at):
-            out[z] = as_multipolygon(model.region_at_bench(int(at[0])))
+        at = bench_at(levels, z)
+        if at is not None:
+            out[z] = as_multipolygon(model.region_at_bench(at))
         elif z < levels[-1] or z > levels[0]:
             down = bool(z < levels[-1])
             if down not in beyond:
