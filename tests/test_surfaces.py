@@ -142,6 +142,28 @@ def test_empty_sections_end_the_body_between_benches():
     assert len(mesh.split(only_watertight=False)) == 2
 
 
+def test_specks_and_slivers_narrower_than_a_cell_make_no_lenses_or_voids():
+    # Between two benches where a body appears, the morph leaves specks and slivers (most under a square metre,
+    # some metres long and under one wide): each became a flat lens of no volume, watertight but meaningless.
+    body = disc(0, 0, 30)
+    sliver = affinity.rotate(box(40.0, 10.0, 60.0, 10.8), 7.0)  # tilted: some node of the grid falls inside it
+    specks = [box(50.0, 0.0, 50.6, 0.6), sliver, box(45.0, -20.0, 46.2, -18.8)]
+    # On one fraction, a part a little over a cell wide around one node of the grid (nodes at even coordinates
+    # here): a lens around that node alone, a fraction of a voxel.
+    one_node = box(48.9, -11.1, 51.1, -8.9)
+    narrow_hole = body.difference(box(-4.0, -0.4, 4.0, 0.4))
+    secs = [(0.0, body), (-10.0, body)]
+    secs += [(z, MultiPolygon([narrow_hole, *specks, *([one_node] if z == -5.0 else [])])) for z in (-2.5, -5.0, -7.5)]
+    mesh = surface_from_sections(secs, cell_size_m=2.0)
+    s = assert_closed(mesh)
+    bodies = mesh.split(only_watertight=False)
+    assert len(bodies) == 1, sorted(round(b.volume, 3) for b in bodies)
+    assert s["volume_m3"] == pytest.approx(body.area * 10.0, rel=0.03)
+    # A part or hole a cell wide somewhere is kept: a one-bench pod between the benches is its own body.
+    kept = [(z, MultiPolygon([body, disc(50, 0, 3)])) for z in (-2.5, -5.0, -7.5)]
+    assert len(surface_from_sections([*secs[:2], *kept], cell_size_m=2.0).split(only_watertight=False)) == 2
+
+
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     st.lists(

@@ -117,6 +117,24 @@ def test_no_hole_is_suggested_where_no_candidate_lies_in_a_band():
     assert len(chosen) == 5 and chosen[0].candidate == len(away)
 
 
+def test_a_geozone_predicted_absent_gets_no_holes_said_to_be_near_its_contact():
+    """Its scale at the distance cap, a band covered the whole bench: every hole was "in the band, 41 m from
+    predicted contact" (the cap), of a contact that is not there."""
+    import dataclasses
+
+    section = next_section(REVERSING)
+    cap = float(np.abs(section.field).max())
+    absent = dataclasses.replace(section, field=np.full_like(section.field, -cap), sigma=section.sigma + cap)
+    absent = dataclasses.replace(absent, observed_sigma=absent.sigma)
+    candidates = pattern_holes()
+    assert absent.in_band(candidates).all()  # the band itself still holds everywhere a body may appear
+    assert suggest_holes({"pod": absent}, candidates, 10, SPACING_M) == []
+    # Beside a geozone with a contact, all the budget goes to that one.
+    chosen = suggest_holes({"pod": absent, "strip": section}, candidates, 10, SPACING_M)
+    assert len(chosen) == 10 and {c.geozone for c in chosen} == {"strip"}
+    assert section.has_contact and not absent.has_contact
+
+
 def test_suggestions_tell_the_band_and_probability_the_files_hold():
     """A hole said to lie in the 90% band lies in the band of uncertainty.geojson and the map, its P(inside) p_inside's.
 

@@ -693,7 +693,8 @@ def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict
     section = sections[z_next]
     if section is None:
         return {"note": "no suggestions: no predicted boundary on the next bench"}
-    in_band = int(section.in_band(candidates).sum()) if len(candidates) else 0
+    # Predicted absent, the geozone has no contact for its band's holes to be near (see suggest_holes).
+    in_band = int(section.in_band(candidates).sum()) if len(candidates) and section.has_contact else 0
     budget = max(int(round(SUGGESTION_SHARE * in_band)), 1) if in_band else 0
     plan = plan_sampling(session, [g], budget, z_next, candidates, sections={g: section})
     write_suggestions(gdir / "suggestions.csv", suggestions_table(plan.suggestions, holes, z_next, plan.probability))

@@ -203,7 +203,8 @@ def suggest_holes(
     Parameters
     ----------
     sections : mapping of geozone -> SectionUncertainty
-        The predicted sections on the bench to sample (one budget for all).
+        The predicted sections on the bench to sample (one budget for all);
+        those without a predicted contact (:attr:`SectionUncertainty.has_contact`) take no part.
     candidates_m : (n, 2) float
         Where holes can go (local metres): a planned pattern, or :func:`lay_out`.
     budget : int
@@ -217,7 +218,9 @@ def suggest_holes(
         In the order chosen (most informative first); none where no candidate lies in a band.
     """
     xy = np.asarray(candidates_m, float).reshape(-1, 2)
-    names = list(sections)
+    # A geozone predicted absent has no contact to pin down: with a scale at the distance cap its band covered
+    # the whole bench, and its holes were told "in the band, 41 m from predicted contact" (the cap).
+    names = [g for g in sections if sections[g].has_contact]
     if not len(xy) or not names or budget <= 0:
         return []
     # Chosen on the observed scale; told as the section given is written (its band and P(inside) in the files).
@@ -228,7 +231,7 @@ def suggest_holes(
     weights = influence_matrix(xy, REDUNDANCY_SPACINGS * hole_spacing_m)
     score = weights @ info.sum(axis=0)
     # A hole outside every band would tell what the prediction already knows there: holes in a band go first,
-    # and where no candidate lies in one (a geozone predicted absent, or sure) there is nothing to pin down.
+    # and where no candidate lies in one (a geozone sure of its contact) there is nothing to pin down.
     in_band = np.any([sections[g].in_band(xy) for g in names], axis=0)
     if not in_band.any():
         return []

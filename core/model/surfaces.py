@@ -22,6 +22,11 @@ module uses an implicit route that handles all of those the same way:
 5. the mesh is oriented outward (positive volume) and checked to be
    watertight and consistently wound.
 
+What the grid cannot hold is left out rather than meshed as a meaningless
+piece: parts and holes of a section narrower than a cell everywhere
+(:func:`_resolved`), and bodies or voids of less than a voxel
+(:func:`_without_specks`).
+
 A region that is empty at some elevation ends between that section and its
 neighbour: the empty section is given a uniform SDF of minus the largest
 inside depth of its neighbours, so the thickest part of the body reaches about
@@ -86,6 +91,8 @@ def surface_from_sections(
         Polygon or MultiPolygon (holes allowed; empty allowed) in a local
         metric frame. Any order; at least two distinct elevations; at least
         one non-empty region. Regions given twice at one elevation are united.
+        Parts and holes narrower than a cell everywhere are left out (filled):
+        the grid cannot hold them, and they made flat lenses and voids of no volume.
     cell_size_m : float, optional
         Horizontal cell size of the working grid. Default: the longer side of
         the sections' bounding box divided by about
@@ -113,8 +120,10 @@ def surface_from_sections(
     """
     levels = _normalise_sections(sections)
     zs = np.array([z for z, _ in levels], dtype=float)
-    regions = [r for _, r in levels]
-    grid = _section_grid(regions, cell_size_m)
+    grid = _section_grid([r for _, r in levels], cell_size_m)
+    regions = [_resolved(r, grid.cell_size_m) for _, r in levels]
+    if all(r.is_empty for r in regions):
+        raise BGMInputError("the sections enclose no volume at this cell size")
     z_levels, src = _z_slices(zs, z_spacing_m if z_spacing_m is not None else grid.cell_size_m)
     n_vox = (len(z_levels) + 2) * (grid.shape[0] + 2) * (grid.shape[1] + 2)
     if n_vox > MAX_VOXELS:
@@ -122,7 +131,30 @@ def surface_from_sections(
             f"the surface grid would have {n_vox:,} voxels (more than {MAX_VOXELS:,}); "
             f"use a larger cell size than {grid.cell_size_m:g} m or a larger z spacing"
         )
-    return _closed_mesh(_sdf_volume(regions, grid, src), grid, z_levels)
+    mesh = _closed_mesh(_sdf_volume(regions, grid, src), grid, z_levels)
+    voxel_m3 = grid.cell_size_m**2 * float(np.median(np.diff(z_levels)))
+    return _without_specks(mesh, voxel_m3)
+
+
+def _without_specks(mesh: trimesh.Trimesh, voxel_m3: float) -> trimesh.Trimesh:
+    """The mesh without its bodies (or voids) of less than a voxel, when a larger one is left.
+
+    A part of a section a little over a cell wide (see :func:`_resolved`) can
+    still hold a single node of the grid, barely inside: marching cubes closes
+    a lens of eight faces around it, a tenth of a metre thick and of a cubic
+    metre or less (Kennecott: 14 of them over its geozones), which no grid
+    of this size can tell from nothing. Each body is closed on its own, so
+    the rest stays watertight.
+    """
+    bodies = mesh.split(only_watertight=False)
+    kept = [b for b in bodies if abs(b.volume) >= voxel_m3]
+    if len(kept) == len(bodies) or not kept:
+        return mesh
+    joined = kept[0] if len(kept) == 1 else trimesh.util.concatenate(kept)
+    if not isinstance(joined, trimesh.Trimesh):  # concatenate's declared type is any geometry
+        return mesh
+    _check(joined)
+    return joined
 
 
 def _section_grid(regions: list[MultiPolygon], cell_size_m: float | None) -> Grid:
@@ -371,6 +403,44 @@ def _z_slices(zs: np.ndarray, dz_target: float) -> tuple[np.ndarray, list[tuple[
     levels.append(float(zs[-1]))
     src.append((len(zs) - 1, 0.0))
     return np.array(levels, dtype=float), src
+
+
+def _resolved(region: MultiPolygon, cell_size_m: float) -> MultiPolygon:
+    """The region without the parts and holes narrower than a cell of the grid everywhere.
+
+    The grid samples each section's signed distance at its nodes, a cell
+    apart: a part narrower than a cell holds a node or none, barely inside,
+    and became a flat lens of its own a fraction of a slice thick (0.02-0.2 m:
+    watertight, of no volume) wherever a node fell in it; a hole that narrow,
+    a void as meaningless. Such specks and slivers are what the morph leaves
+    between two benches where a body appears or comes back (dozens at each
+    fraction, most under a square metre, some a few metres long and under one
+    wide), not anything the holes showed: a hole's own contour is a spacing,
+    two cells, across. Parts and holes wider somewhere are kept whole, so a
+    body's own pinch-out is unchanged.
+
+    Parameters
+    ----------
+    region : MultiPolygon
+    cell_size_m : float
+        The grid's cell: a part (hole) is dropped (filled) when no disc of
+        half a cell's radius fits inside it.
+
+    Returns
+    -------
+    MultiPolygon
+    """
+    half = 0.5 * cell_size_m
+
+    def narrow(polygon: Polygon) -> bool:
+        return bool(polygon.buffer(-half).is_empty)
+
+    kept = []
+    for part in region.geoms:
+        if narrow(part):
+            continue
+        kept.append(Polygon(part.exterior, [ring for ring in part.interiors if not narrow(Polygon(ring))]))
+    return MultiPolygon(kept)
 
 
 def _section_sdf(grid: Grid, region: MultiPolygon) -> np.ndarray | None:

@@ -475,6 +475,17 @@ class SectionUncertainty:
         return z_score(self.probability) * self.sigma
 
     @property
+    def has_contact(self) -> bool:
+        """Whether the predicted section has a boundary on the grid: ``F_pred`` takes both signs.
+
+        A geozone predicted absent (or everywhere) has none. Its band, where its
+        scale reaches the distance cap, still holds everywhere a body may appear
+        (what the calibration measures), but it lies around no predicted contact:
+        no hole in it is near one, and none can pin one down (:mod:`core.model.sampling`).
+        """
+        return bool((self.field > 0).any() and (self.field <= 0).any())
+
+    @property
     def inside_probability(self) -> np.ndarray:
         """``P(inside) = Phi(F / sigma)`` on the grid."""
         return special.ndtr(self.field / np.maximum(self.sigma, 1e-9))
