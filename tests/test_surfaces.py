@@ -164,6 +164,20 @@ def test_specks_and_slivers_narrower_than_a_cell_make_no_lenses_or_voids():
     assert len(surface_from_sections([*secs[:2], *kept], cell_size_m=2.0).split(only_watertight=False)) == 2
 
 
+def test_a_dyke_narrower_than_a_coarse_cell_keeps_its_surface_when_the_holes_showed_it():
+    # A geozone across a wide pit coarsens the grid past half a hole spacing: a dyke one hole wide (5 m holes,
+    # 6 m cells) is then narrower than a cell, yet it is what the holes showed, not a morph's speck.
+    dyke = affinity.rotate(box(-150.0, -2.0, 150.0, 2.0), 20.0)
+    secs = [(z, MultiPolygon([dyke])) for z in (0.0, -10.0, -20.0)]
+    mesh = surface_from_sections(secs, cell_size_m=6.0, min_width_m=2.5)
+    assert_closed(mesh)
+    # Left out, the geozone had no surface at all; kept, the coarse grid draws it all along its length (as
+    # beads: a finer grid would join them).
+    (x0, y0, _), (x1, y1, _) = mesh.bounds
+    d = dyke.bounds
+    assert x1 - x0 > 0.9 * (d[2] - d[0]) and y1 - y0 > 0.9 * (d[3] - d[1])
+
+
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     st.lists(

@@ -475,7 +475,9 @@ class ModelSession:
         def compute():
             sections = surface_sections(model, self.holes, self.params)
             cell = surface_cell_size(model, self.holes, self.params.surface_max_cells)
-            return surface_from_sections(sections, cell_size_m=cell)
+            # What the holes showed is at least about a spacing wide: on a grid coarsened past half a spacing
+            # (a geozone across a wide pit) a dyke one hole wide is narrower than a cell, and no morph speck.
+            return surface_from_sections(sections, cell_size_m=cell, min_width_m=0.5 * self.holes.hole_spacing_m)
 
         return self.store.get("surface", key, compute)
 

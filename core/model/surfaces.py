@@ -81,6 +81,7 @@ def surface_from_sections(
     *,
     cell_size_m: float | None = None,
     z_spacing_m: float | None = None,
+    min_width_m: float | None = None,
 ) -> trimesh.Trimesh:
     """Closed, outward-oriented triangle mesh of the solid stacked from ``sections``.
 
@@ -91,8 +92,9 @@ def surface_from_sections(
         Polygon or MultiPolygon (holes allowed; empty allowed) in a local
         metric frame. Any order; at least two distinct elevations; at least
         one non-empty region. Regions given twice at one elevation are united.
-        Parts and holes narrower than a cell everywhere are left out (filled):
-        the grid cannot hold them, and they made flat lenses and voids of no volume.
+        Parts and holes narrower than ``min_width_m`` everywhere are left out
+        (filled): the grid cannot hold them, and they made flat lenses and
+        voids of no volume.
     cell_size_m : float, optional
         Horizontal cell size of the working grid. Default: the longer side of
         the sections' bounding box divided by about
@@ -104,6 +106,11 @@ def surface_from_sections(
         ``cell_size_m`` (near-cubic voxels), coarsened so that no more than
         :data:`MAX_Z_SLICES` slices are used. Section elevations are always
         slices themselves.
+    min_width_m : float, optional
+        Narrower parts and holes are left out (:func:`_resolved`). Default: a
+        cell. On a grid coarsened past half a hole spacing, give half a
+        spacing: a geozone one hole wide (a dyke across a wide pit) is
+        narrower than a cell there, but it is what the holes showed.
 
     Returns
     -------
@@ -121,7 +128,8 @@ def surface_from_sections(
     levels = _normalise_sections(sections)
     zs = np.array([z for z, _ in levels], dtype=float)
     grid = _section_grid([r for _, r in levels], cell_size_m)
-    regions = [_resolved(r, grid.cell_size_m) for _, r in levels]
+    width_m = grid.cell_size_m if min_width_m is None else min(float(min_width_m), grid.cell_size_m)
+    regions = [_resolved(r, width_m) for _, r in levels]
     if all(r.is_empty for r in regions):
         raise BGMInputError("the sections enclose no volume at this cell size")
     z_levels, src = _z_slices(zs, z_spacing_m if z_spacing_m is not None else grid.cell_size_m)
@@ -405,8 +413,8 @@ def _z_slices(zs: np.ndarray, dz_target: float) -> tuple[np.ndarray, list[tuple[
     return np.array(levels, dtype=float), src
 
 
-def _resolved(region: MultiPolygon, cell_size_m: float) -> MultiPolygon:
-    """The region without the parts and holes narrower than a cell of the grid everywhere.
+def _resolved(region: MultiPolygon, width_m: float) -> MultiPolygon:
+    """The region without the parts and holes narrower than ``width_m`` everywhere (a cell of the grid, or less).
 
     The grid samples each section's signed distance at its nodes, a cell
     apart: a part narrower than a cell holds a node or none, barely inside,
@@ -422,15 +430,15 @@ def _resolved(region: MultiPolygon, cell_size_m: float) -> MultiPolygon:
     Parameters
     ----------
     region : MultiPolygon
-    cell_size_m : float
-        The grid's cell: a part (hole) is dropped (filled) when no disc of
-        half a cell's radius fits inside it.
+    width_m : float
+        A part (hole) is dropped (filled) when no disc of this diameter fits
+        inside it.
 
     Returns
     -------
     MultiPolygon
     """
-    half = 0.5 * cell_size_m
+    half = 0.5 * width_m
 
     def narrow(polygon: Polygon) -> bool:
         return bool(polygon.buffer(-half).is_empty)
