@@ -130,20 +130,25 @@ def test_an_override_whose_number_went_stale_is_applied_to_its_own_component(mod
     np.testing.assert_allclose(t, (4.0, 3.0), atol=1e-9)  # the locked translation, on component 0
 
 
-def test_undo_of_an_override_a_slider_dropped_brings_back_the_parameters_too(model):
-    """Undo brought the dropped override back under the slider values that drop it: the next run dropped it again.
-
-    Undo now also brings back the parameters it was placed under (two sliders moved before the
-    run here), and re-runs from the earliest step they affect, so the override is applied again.
-    """
+def _override_dropped_by_two_sliders(model):
+    """An override on g2, then two sliders moved before one run, which drops it; the parameters before."""
     model.select("g2", 0, 0)
     _run(model, "contours")
     model.set_translation(2.0, -1.0)
     _run(model, "correspondence")
     before = model.params
     model.set_param("snake_max_iterations", 10)
-    step = min(model.set_param("min_component_holes", 20), "snake", key=STEPS.index)
-    _run(model, step)
+    _run(model, min(model.set_param("min_component_holes", 20), "snake", key=STEPS.index))
+    return before
+
+
+def test_undo_of_an_override_a_slider_dropped_brings_back_the_parameters_too(model):
+    """Undo brought the dropped override back under the slider values that drop it: the next run dropped it again.
+
+    Undo now also brings back the parameters it was placed under (two sliders moved before the
+    run here), and re-runs from the earliest step they affect, so the override is applied again.
+    """
+    before = _override_dropped_by_two_sliders(model)
     assert model.overrides == []  # dropped: g2's one component has 14 holes
 
     _run(model, model.undo())
@@ -158,13 +163,7 @@ def test_undo_of_an_override_a_slider_dropped_brings_back_the_parameters_too(mod
 
 def test_undo_returns_the_earliest_step_of_the_parameters_it_brings_back(model):
     """The sliders follow (``params_changed``); an edit's undo leaves the parameters alone, as before."""
-    model.select("g2", 0, 0)
-    _run(model, "contours")
-    model.set_translation(2.0, -1.0)
-    _run(model, "correspondence")
-    before = model.params
-    model.set_param("snake_max_iterations", 10)
-    _run(model, min(model.set_param("min_component_holes", 20), "snake", key=STEPS.index))
+    before = _override_dropped_by_two_sliders(model)
     shown = []
     model.params_changed.connect(lambda: shown.append(model.param("min_component_holes")))
     assert model.undo() == "snake"  # snake_max_iterations's step, before min_component_holes's
