@@ -884,7 +884,9 @@ def _outside_band_note(plan, wanted: list[str]) -> str:
     (``uncertainty.geojson``): judged on the wider one, holes all beyond the
     written band were suggested with ``"in_band": 0`` and no word.
     """
-    band = f"the {plan.probability:.0%} band of {', '.join(wanted)}'s predicted boundary"
+    # A geozone predicted absent has a band but no contact in it: it takes no part in suggestions.
+    contacts = [g for g in wanted if g in plan.sections and plan.sections[g].has_contact]
+    band = f"the {plan.probability:.0%} band of {', '.join(contacts or wanted)}'s predicted boundary"
     if not plan.suggestions:
         return (
             f"bgm: note: no candidate hole lies in {band} (predicted absent there, or certain): nothing to pin "
@@ -892,7 +894,7 @@ def _outside_band_note(plan, wanted: list[str]) -> str:
         )
     n = len(plan.suggestions)
     beyond = "beyond it, where the boundary the holes' labels will show is still unsure (their reason says so)"
-    if not any(section.in_band(plan.candidates_m).any() for section in plan.sections.values()):
+    if not any(plan.sections[g].in_band(plan.candidates_m).any() for g in contacts):
         return f"bgm: note: no candidate hole lies in {band}; the {n} suggested lie {beyond}"
     return f"bgm: note: none of the {n} suggested holes lies in {band}; they lie {beyond}"
 

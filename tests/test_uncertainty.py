@@ -602,3 +602,23 @@ def test_an_elevation_given_twice_is_one_level_in_every_file(strip_csv, tmp_path
     bands = json.loads((tmp_path / "p.uncertainty.geojson").read_text())["features"]
     assert sorted(f["properties"]["z"] for f in bands if f["properties"]["kind"] == "band") == [940.0, 945.0]
     assert list(np.load(tmp_path / "p.p_inside.npz")["z"]) == [945.0, 940.0]
+
+
+def test_the_suggest_note_leaves_out_the_band_of_a_geozone_predicted_absent():
+    """Its band covers the bench, so every candidate lay "in the band": holes all beyond the strip's band were
+    said to be "none of the suggested" rather than that no candidate lies in a band around a contact."""
+    import dataclasses
+
+    from core.cli import _outside_band_note
+    from core.model.sampling import SamplingPlan
+
+    section = next_section(REVERSING)
+    cap = float(np.abs(section.field).max())
+    absent = dataclasses.replace(section, field=np.full_like(section.field, -cap), sigma=section.sigma + cap)
+    candidates = pattern_holes()
+    away = candidates[~section.in_band(candidates) & section.as_observed().in_band(candidates)]
+    assert len(away) >= 3 and absent.in_band(away).all()
+    chosen = suggest_holes({"pod": absent, "strip": section}, away, 3, SPACING_M)
+    plan = SamplingPlan(section.z_m, section.probability, away, {"pod": absent, "strip": section}, chosen)
+    note = _outside_band_note(plan, ["pod", "strip"])
+    assert len(chosen) == 3 and note.startswith("bgm: note: no candidate hole lies in the 90% band of strip's"), note
