@@ -29,6 +29,7 @@ from typing import cast
 
 import numpy as np
 import shapely
+from shapely.geometry import MultiPolygon
 
 from core.errors import quoted
 from core.extraction.contours import Contour, extract_bench, traced_benches
@@ -48,7 +49,7 @@ from core.model.pipeline import (
     morph,
     morph_instance,
 )
-from core.model.prediction import predict_geozone, regions_between
+from core.model.prediction import predict_geozone, regions_between, undrilled_extension
 from core.threads import on_threads
 
 #: Iso-contours per bench interval used to build surfaces.
@@ -483,7 +484,7 @@ class ModelSession:
 
 
 def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParameters, below_fraction: float = 1.0):
-    """Stacked regions (z metres, region) from the top bench to one bench below the deepest.
+    """Stacked regions (z metres, region) from the top bench to one bench below the table's deepest.
 
     A pair's lower bench is a section of its own where the next pair does not
     start from it: the geozone is on neither of the benches between (it
@@ -491,6 +492,17 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
     section there ends the body above it. Without it the body reached on to
     about halfway to the next pair's upper bench, through benches drilled
     without it.
+
+    Past a bench's drilling edge, in ground the benches above drilled and no
+    bench at or below the section did (a pit narrowing with depth), a section
+    holds the geozone's depth trend as well, as :func:`predict_geozone` does at
+    every elevation (:func:`core.model.prediction.undrilled_extension`): a
+    bench's contour ends at its drilling edge, which is no boundary, and a body
+    cut there ended on the slope to that edge, or pinched out under its last
+    bench where the predictions below the deepest bench carried it on. Where
+    the geozone's pairs end above the deepest bench, the sections run on below
+    the deepest as every other geozone's do, empty but for that trend: a body
+    absent from benches that drilled its ground closes above them.
     """
     sections = []
     for i, p in enumerate(model.pairs):
@@ -504,13 +516,18 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
             sections.append((z, as_multipolygon(region)))
         if i + 1 < len(model.pairs) and model.pairs[i + 1].upper != p.lower:
             sections.append((p.target_z_m, as_multipolygon(model.region_at_bench(p.lower))))
-    if model.pairs:
-        last = model.pairs[-1]
-        sections.append((last.target_z_m, as_multipolygon(model.region_at_bench(last.lower))))
-        height = last.source_z_m - last.target_z_m
-        zs = [float(last.target_z_m - f * height) for f in np.linspace(0.25, below_fraction, 4)]
-        sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
-    return sections
+    if not model.pairs:
+        return sections
+    last = model.pairs[-1]
+    sections.append((last.target_z_m, as_multipolygon(model.region_at_bench(last.lower))))
+    levels = np.asarray(holes.bench_levels_m, float)
+    # On down to the table's deepest bench where the geozone's pairs end above it: empty but for the trend.
+    for upper, lower in zip(levels[last.lower : -1], levels[last.lower + 1 :]):
+        sections.extend((float(upper + f * (lower - upper)), MultiPolygon()) for f in np.linspace(0.25, 1.0, 4))
+    height = float(levels[-2] - levels[-1]) if len(levels) > 1 else last.source_z_m - last.target_z_m
+    zs = [float(levels[-1] - f * height) for f in np.linspace(0.25, below_fraction, 4)]
+    sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
+    return [(z, as_multipolygon(r.union(undrilled_extension(model, z, holes.hole_spacing_m)))) for z, r in sections]
 
 
 def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 300) -> float:
