@@ -450,3 +450,26 @@ def test_a_body_absent_from_the_benches_that_drilled_its_ground_closes_above_the
     assert levels[3] < z.min() < levels[2]
     below = [float(levels[-1]) - 2.5 * k for k in range(1, 5)]
     assert all(region.is_empty for region in session.predict("gone", below, model).values())
+
+
+def test_a_dyke_one_hole_wide_across_a_wide_pit_is_one_body_not_a_string_of_beads():
+    """A dyke 5 m wide (one 5 m hole spacing) and 2 km long: the grid of a geozone that wide was coarsened to
+    6.7 m (300 cells across), and its surface was 109 beads."""
+    from types import SimpleNamespace
+
+    from shapely import affinity
+    from shapely.geometry import MultiPolygon, box
+
+    from core.model.pipeline import GeozoneModel
+    from core.model.session import surface_cell_size
+    from core.model.surfaces import surface_from_sections
+
+    dyke = affinity.rotate(box(-1000.0, -2.5, 1000.0, 2.5), 20.0)
+    contours = [SimpleNamespace(polygon=dyke, bench=k) for k in range(4)]
+    model = GeozoneModel("dyke", contours, [], [], None)  # type: ignore[arg-type]  # only the contours are read
+    cell = surface_cell_size(model, SimpleNamespace(hole_spacing_m=5.0), max_cells=300)  # type: ignore[arg-type]
+    sections = [(-10.0 * k, MultiPolygon([dyke])) for k in range(4)]
+    mesh = surface_from_sections(sections, cell_size_m=cell, min_width_m=2.5)
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    assert len(mesh.split(only_watertight=False)) == 1
+    assert mesh.volume == pytest.approx(dyke.area * 30.0, rel=0.02)

@@ -21,6 +21,7 @@ sessions: treat them as read-only.
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import Counter, OrderedDict
 from collections.abc import Callable, Iterable, Iterator
@@ -531,12 +532,27 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
 
 
 def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 300) -> float:
-    """Half a hole spacing, coarsened so the surface grid stays under ``max_cells`` across.
+    """Half a hole spacing, coarsened so the surface grid stays under ``max_cells`` across; less for a thin geozone.
 
     Half a hole spacing resolves all the data can tell; finer only adds faces.
+    The grid covers the geozone's own sections only. Where it is coarsened
+    (a geozone across a wide pit), a geozone whose parts are typically
+    narrower than two cells (twice its contours' area over their perimeter:
+    a dyke one hole wide) has the grid's nodes inside it here and not there,
+    and was drawn as a string of beads (a constructed dyke 5 m wide and 2 km
+    long on 6.7 m cells: 102 bodies, 41% of its volume). Its cell is then half
+    that width, no finer than half a spacing nor than ``2 max_cells`` across
+    (the same dyke on 3.3 m cells: one body, 99.6%).
     """
     polys = [c.polygon for c in model.contours if not c.polygon.is_empty]
+    half_spacing_m = 0.5 * holes.hole_spacing_m
     if not polys:
-        return 0.5 * holes.hole_spacing_m
+        return half_spacing_m
     xmin, ymin, xmax, ymax = shapely.union_all(polys).bounds
-    return max(0.5 * holes.hole_spacing_m, max(xmax - xmin, ymax - ymin) / max_cells)
+    span_m = max(xmax - xmin, ymax - ymin)
+    cell_m = max(half_spacing_m, span_m / max_cells)
+    perimeter_m = sum(p.length for p in polys)
+    width_m = 2.0 * sum(p.area for p in polys) / perimeter_m if perimeter_m > 0 else math.inf
+    if width_m < 2.0 * cell_m:
+        cell_m = max(half_spacing_m, 0.5 * width_m, span_m / (2 * max_cells))
+    return cell_m
