@@ -321,3 +321,26 @@ def test_a_geozone_the_deepest_benches_never_drilled_is_predicted_below_the_deep
     assert written and set(written) <= set(expected), (sorted(written), sorted(expected))
     for z, area in written.items():
         assert area == pytest.approx(expected[z], rel=1e-6)
+
+
+def test_the_report_says_which_geozone_ends_for_want_of_drilling_and_its_surface_reaches_its_predictions(tmp_path):
+    """``wall`` ends above the deepest bench because the benches below did not drill its ground: the report
+    says so, and its surface runs down to the sections predicted below the deepest bench. ``gone`` ends where
+    the benches below drilled its ground and found the host: no note, nothing predicted below."""
+    import trimesh
+    from test_session import _narrowing_pit
+
+    from core.model.build import build
+
+    holes = _narrowing_pit()
+    summary = build(holes, tmp_path / "out", geozones=["wall", "gone"], formats=("ply",), evaluate=False, workers=1)
+    by_name = {g["geozone"]: g for g in summary["geozones"]}
+    assert "bench below drilled 0%" in by_name["wall"]["note"] and "depth trend" in by_name["wall"]["note"]
+    assert by_name["gone"]["note"] == ""
+    wall = trimesh.load(tmp_path / "out" / by_name["wall"]["folder"] / "surface.ply")
+    features = json.loads((tmp_path / "out" / by_name["wall"]["folder"] / "prediction.geojson").read_text())
+    assert features["features"]  # predicted below the deepest bench, and the surface gets there
+    assert wall.bounds[0][2] <= min(f["properties"]["z"] for f in features["features"]) + 0.01
+    gone = json.loads((tmp_path / "out" / by_name["gone"]["folder"] / "prediction.geojson").read_text())
+    assert gone["features"] == []
+    assert "depth trend" in (tmp_path / "out" / "report.md").read_text()

@@ -368,3 +368,108 @@ def test_a_geozone_gone_for_benches_and_back_has_no_surface_through_the_benches_
     levels = holes.bench_levels_m
     assert z.max() == pytest.approx(levels[0], abs=0.01) and (z < levels[3]).any()  # both bodies are there
     assert not ((z < levels[1]) & (z > levels[3])).any(), np.sort(z[(z < levels[1]) & (z > levels[3])])[-3:]
+
+
+def _narrowing_pit(n_benches=5, spacing=6.0):
+    """A pit narrowing 22 m a bench (radius 120 m at the top, 10 m benches), holes on a staggered pattern.
+
+    ``wall`` is a vertical cylinder (22 m radius) at its edge, x = 58-102 m: the top two benches drilled all of
+    it, the third part of it, the lower two none. ``gone`` is a cylinder (18 m radius) in the middle on the top
+    three benches only: the two below drilled its ground and found the host.
+    """
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    frames = []
+    for k in range(n_benches):
+        radius = 120.0 - 22.0 * k
+        rows = np.arange(-radius, radius, spacing * np.sqrt(3) / 2)
+        xy = np.array(
+            [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(-radius, radius, spacing)]
+        )
+        xy = xy[np.hypot(*xy.T) < radius]
+        label = np.where(np.hypot(xy[:, 0] - 80.0, xy[:, 1]) < 22.0, "wall", "host")
+        label = np.where((np.hypot(xy[:, 0] + 10.0, xy[:, 1] - 10.0) < 18.0) & (k <= 2), "gone", label)
+        frames.append(
+            pd.DataFrame({"x": xy[:, 0] + 650_000, "y": xy[:, 1] + 7_400_000, "z": 500.0 - 10 * k, "geozone": label})
+        )
+    return blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
+
+
+def _section_area_m2(mesh, z_m: float) -> float:
+    """The area of the closed mesh's section at ``z_m``."""
+    section = mesh.section(plane_origin=[0.0, 0.0, z_m], plane_normal=[0.0, 0.0, 1.0])
+    if section is None:
+        return 0.0
+    planar, _ = section.to_2D()
+    return float(sum(p.area for p in planar.polygons_full))
+
+
+def test_a_body_the_lower_benches_did_not_drill_runs_on_down_to_its_predictions_below_the_deepest_bench():
+    """``wall``'s pairs end above the deepest bench because the benches below did not drill its ground: its
+    surface pinched out under its last bench (471.4 m, 11 m above the deepest) while its predictions below the
+    deepest bench carried it on (2400 m² at 457.5 m). Now it is one closed body down to those predictions."""
+    from core.model.build import PREDICTION_FRACTIONS
+
+    holes = _narrowing_pit()
+    session = ModelSession(holes)
+    model = session.geozone_model("wall")
+    levels = holes.bench_levels_m
+    assert model.pairs[-1].lower < holes.n_benches - 1  # its pairs end above the deepest bench
+    mesh = session.surface("wall", model)
+    assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
+    assert len(mesh.split(only_watertight=False)) == 1
+    z = float(levels[-1]) - 10.0 * PREDICTION_FRACTIONS[1]  # a quarter of a bench below the deepest
+    predicted = session.predict("wall", [z], model)[z].area
+    assert predicted > 0
+    assert _section_area_m2(mesh, z) == pytest.approx(predicted, rel=0.1)
+    between = float(levels[2] + levels[3]) / 2  # under its last bench, where `bgm predict` gives the same
+    assert _section_area_m2(mesh, between) == pytest.approx(session.predict("wall", [between])[between].area, rel=0.1)
+
+
+def test_a_body_cut_by_the_lower_benchs_drilling_edge_does_not_end_at_that_edge():
+    """The third bench drilled 576 m² of ``wall``'s 1520 (a cylinder): its section there was the drilled part
+    alone, ending at the drilling edge. Past that edge the section now holds the depth trend, as below the
+    deepest bench, which carries the cylinder on."""
+    holes = _narrowing_pit()
+    session = ModelSession(holes)
+    mesh = session.surface("wall")
+    z = float(holes.bench_levels_m[2]) + 0.01
+    assert _section_area_m2(mesh, z) > 0.9 * np.pi * 22.0**2
+
+
+def test_a_body_absent_from_the_benches_that_drilled_its_ground_closes_above_them_and_is_not_predicted_below():
+    """``gone`` is on the top three benches; the fourth and fifth drilled its ground and found the host: its
+    surface closes between its last bench and the next, and nothing of it is predicted below the deepest."""
+    holes = _narrowing_pit()
+    session = ModelSession(holes)
+    model = session.geozone_model("gone")
+    levels = holes.bench_levels_m
+    z = session.surface("gone", model).vertices[:, 2]
+    assert levels[3] < z.min() < levels[2]
+    below = [float(levels[-1]) - 2.5 * k for k in range(1, 5)]
+    assert all(region.is_empty for region in session.predict("gone", below, model).values())
+
+
+def test_a_dyke_one_hole_wide_across_a_wide_pit_is_one_body_not_a_string_of_beads():
+    """A dyke 5 m wide (one 5 m hole spacing) and 2 km long: the grid of a geozone that wide was coarsened to
+    6.7 m (300 cells across), and its surface was 109 beads."""
+    from types import SimpleNamespace
+
+    from shapely import affinity
+    from shapely.geometry import MultiPolygon, box
+
+    from core.model.pipeline import GeozoneModel
+    from core.model.session import surface_cell_size
+    from core.model.surfaces import surface_from_sections
+
+    dyke = affinity.rotate(box(-1000.0, -2.5, 1000.0, 2.5), 20.0)
+    contours = [SimpleNamespace(polygon=dyke, bench=k) for k in range(4)]
+    model = GeozoneModel("dyke", contours, [], [], None)  # type: ignore[arg-type]  # only the contours are read
+    cell = surface_cell_size(model, SimpleNamespace(hole_spacing_m=5.0), max_cells=300)  # type: ignore[arg-type]
+    sections = [(-10.0 * k, MultiPolygon([dyke])) for k in range(4)]
+    mesh = surface_from_sections(sections, cell_size_m=cell, min_width_m=2.5)
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    assert len(mesh.split(only_watertight=False)) == 1
+    assert mesh.volume == pytest.approx(dyke.area * 30.0, rel=0.02)

@@ -29,6 +29,7 @@ from shapely.geometry import shape
 
 from core.errors import BGMInputError, listing, quoted
 from core.extraction.contours import Contour
+from core.geometry.grid import as_multipolygon
 from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
 from core.io.reporting import containment_summary, contour_feature, to_input_geometry
@@ -640,6 +641,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     write_geojson(features, gdir / "prediction.geojson")
     write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
+    summary.note = undrilled_below_note(session, model)
     _write_surface(summary, model, ctx, gdir)
     if ctx.evaluate and holes.n_benches >= 3:
         rows = evaluate_geozone(
@@ -735,7 +737,31 @@ def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildConte
     except (BGMInputError, RuntimeError) as exc:
         # e.g. every section empty, or a mesh that would not close even after repair: the
         # geozone's other outputs stand, and the report says why it has no surface.
-        summary.note = f"no surface: {exc}"
+        summary.note = "; ".join(n for n in (summary.note, f"no surface: {exc}") if n)
+
+
+def undrilled_below_note(session: ModelSession, model: GeozoneModel) -> str:
+    """What the report says of a geozone whose last bench is above the deepest and the bench below it drilled
+    less than half of it there: its body ends for want of drilling, not of the geozone, and below that bench
+    its surface and predictions are its depth trend (:func:`core.model.session.undrilled_extension`).
+
+    Empty otherwise: a geozone the bench below drilled and did not find closes above it
+    (a pit narrowing with depth leaves parts of most bodies undrilled below; only where the whole end is
+    undrilled is it said).
+    """
+    holes = session.holes
+    on = [c.bench for c in model.contours if not c.polygon.is_empty]
+    last = max(on, default=holes.n_benches - 1)
+    if last >= holes.n_benches - 1:
+        return ""
+    body = as_multipolygon(model.region_at_bench(last))
+    drilled = body.intersection(session.drilled_area(last + 1)).area / body.area if body.area > 0 else 1.0
+    if drilled >= 0.5:
+        return ""
+    return (
+        f"last on bench {holes.bench_z_input(last):g} {holes.frame.length_unit}, of which the bench below drilled "
+        f"{100 * drilled:.0f}%: below it the surface and predictions are the depth trend, not drilled ground"
+    )
 
 
 def written_formats(exported: dict, surface, watertight: bool) -> dict:
@@ -809,7 +835,9 @@ def _geozone_table(summary: dict) -> list[str]:
         "## Geozones",
         "",
         "Each surface runs from the top bench to one bench below the deepest, that last bench predicted; its "
-        "volume down to the deepest bench is the drilled part's.",
+        "volume down to the deepest bench is the known benches' part. Where a bench did not drill ground that "
+        "the benches above it did (a pit narrowing with depth), the surface holds the depth trend there, as "
+        "below the deepest bench, until that evidence has likely run out; it does not end at the drilling edge.",
         "",
         f"| geozone | components | bench pairs | coverage before / after backtracking | volume ({unit}³) "
         f"| of it down to the deepest bench ({unit}³) | area ({unit}²) | watertight | time (s) | note | folder |",

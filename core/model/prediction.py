@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
+from scipy import ndimage
 from shapely.geometry import LinearRing, MultiPolygon, Polygon
 
 from core.geometry.grid import as_multipolygon
 from core.geometry.sdf import boundary_distance
-from core.model.extrapolation import depth_trend_region
-from core.model.fields import BenchFields
+from core.model.extrapolation import depth_trend, depth_trend_region
+from core.model.fields import BenchFields, memoised
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.morph.trajectories import normalised_arc_length
 
@@ -152,6 +153,43 @@ def bench_at(levels, z_m: float) -> int | None:
     return int(at[0]) if len(at) else None
 
 
+def undrilled_extension(model: GeozoneModel, z_m: float, hole_spacing_m: float) -> MultiPolygon:
+    """The geozone's depth trend at ``z_m`` where benches above drilled and no bench at or below ``z_m`` did.
+
+    There a known bench's contour ends at its drilling edge, no boundary. The
+    trend is the one :func:`predict_geozone` extrapolates below the deepest
+    bench (:func:`core.model.extrapolation.depth_trend` of the geozone's
+    fields): it carries each cell on from the deepest bench that drilled it,
+    and ends it where that evidence has likely run out. The ground drilled below is
+    taken half a spacing in from its edge (a contour ends about that short of
+    it, and the trend closes the seam) and bounded by signed distances, so the
+    extension's edge there is smooth, not the raster's steps. Empty at and
+    below the deepest bench.
+    """
+    fields = model.fields
+    if fields is None or not len(fields.z_m):
+        return MultiPolygon()
+    at_or_below = fields.z_m <= z_m + 1e-6 + 1e-5 * abs(z_m)  # a bench level matched as bench_at does
+    if at_or_below.all() or not at_or_below.any():
+        return MultiPolygon()
+    below = fields.drilled[at_or_below].any(axis=0)
+    above = fields.drilled[~at_or_below].any(axis=0)
+    if not (above & ~below).any():
+        return MultiPolygon()
+
+    def compute() -> MultiPolygon:
+        field = depth_trend(fields, fields.bench_height_m, hole_spacing_m).field(z_m)
+        h = fields.grid.cell_size_m
+        outside_below = (ndimage.distance_transform_edt(~below) - ndimage.distance_transform_edt(below)) * h
+        inside_above = (ndimage.distance_transform_edt(above) - ndimage.distance_transform_edt(~above)) * h
+        field = np.minimum(field, np.minimum(outside_below + 0.5 * hole_spacing_m, inside_above))
+        return as_multipolygon(fields.grid.polygons_from_distance(field)) if (field > 0).any() else MultiPolygon()
+
+    # The surface and a prediction at the same elevation ask for the same extension.
+    key = ("undrilled extension", len(fields.z_m), fields.bench_height_m, hole_spacing_m, float(z_m))
+    return memoised(fields, key, compute)
+
+
 def predict_geozone(
     model: GeozoneModel, z_m: list[float], hole_spacing_m: float, params=None
 ) -> dict[float, MultiPolygon]:
@@ -159,7 +197,9 @@ def predict_geozone(
 
     At a bench level the bench's own contours are returned; between two
     benches of a modelled pair :func:`region_between` (empty between benches
-    where the geozone is on neither); below the deepest bench of the table
+    where the geozone is on neither); at and between benches, with the depth
+    trend in ground the bench(es) below did not drill (:func:`undrilled_extension`,
+    what the surface holds there); below the deepest bench of the table
     (above the top one) the depth trend of :mod:`core.model.extrapolation`
     over every bench, so a geozone that pinched out above the deepest bench is
     predicted absent below it. ``hole_spacing_m`` sets the trend's
@@ -177,7 +217,7 @@ def predict_geozone(
     for z in z_m:
         at = bench_at(levels, z)
         if at is not None:
-            out[z] = as_multipolygon(model.region_at_bench(at))
+            out[z] = as_multipolygon(model.region_at_bench(at).union(undrilled_extension(model, z, hole_spacing_m)))
         elif z < levels[-1] or z > levels[0]:
             down = bool(z < levels[-1])
             if down not in beyond:
@@ -185,8 +225,8 @@ def predict_geozone(
             out[z] = depth_trend_region(beyond[down], height, hole_spacing_m, z)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
-            if pair is None:
-                out[z] = MultiPolygon()
-            else:
-                out[z] = region_between(pair, (pair.source_z_m - z) / (pair.source_z_m - pair.target_z_m))
+            region = MultiPolygon()
+            if pair is not None:
+                region = region_between(pair, (pair.source_z_m - z) / (pair.source_z_m - pair.target_z_m))
+            out[z] = as_multipolygon(region.union(undrilled_extension(model, z, hole_spacing_m)))
     return out
