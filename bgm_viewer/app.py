@@ -353,7 +353,8 @@ class MainWindow(QtWidgets.QMainWindow):
         elif scope == "all geozones":
             zones = None
         else:
-            zones = self.legend.shown() if scope == "ticked geozones" else [self.model.selection.geozone]
+            # the selected geozone's surface is always built: naming it here kept it after another was selected
+            zones = self.legend.shown() if scope == "ticked geozones" else []
         if zones != self.model.surface_geozones:
             self.model.surface_geozones = zones
             self.request("surface", immediate=True)

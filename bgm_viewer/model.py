@@ -613,7 +613,8 @@ class ViewerModel:
         self.store = StageStore(StageCache() if cache else None)
         self.selection = selection or Selection(*richest_pair(self.holes), 0)
         self.vertical_exaggeration = 2.0
-        #: Geozones whose surfaces are shown (``None``: all); bodies below the body filter are not shown.
+        #: Geozones whose surfaces are shown besides the selected one's (``None``: all); bodies below the body
+        #: filter are not shown.
         #: By default all but a host rock holding over half the holes: its surface wraps the others.
         self.surface_geozones: list[str] | None = bodies(self.holes)
         self.min_body_volume_m3 = 0.0

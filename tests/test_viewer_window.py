@@ -427,6 +427,19 @@ def test_a_surface_is_not_exported_before_the_last_change_is_in_it(window, qtbot
     assert (tmp_path / "surface.obj").stat().st_size > 0
 
 
+def test_surfaces_of_the_selected_geozone_follow_the_selection(window, qtbot, tmp_path):
+    """With "surfaces of: selected geozone", the geozone selected when it was chosen kept its surface on
+    screen (and in Export shown surfaces) beside every geozone selected after it."""
+    window.surface_scope.setCurrentText("selected geozone")
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert set(window.model.result.surfaces) == {"g1"}
+    window.geozone_combo.setCurrentText("g2")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.model.selection.geozone == "g2"
+    assert set(window.model.result.surfaces) == {"g2"}
+    assert set(window.export_surfaces(tmp_path)) == {"g2"}
+
+
 def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp_path):
     """After File > Open, the Surfaces dock still said m³, showed the old body filter (which no
     longer applied) and named the old input's host rock."""
