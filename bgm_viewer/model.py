@@ -854,8 +854,17 @@ class ViewerModel:
         return "correspondence"
 
     def nudge(self, ddx_m: float, ddy_m: float) -> str:
-        """Move the selected source by ``(ddx_m, ddy_m)`` from its current translation."""
-        cur = self.current_translation_m() or (0.0, 0.0)
+        """Move the selected source by ``(ddx_m, ddy_m)`` from its current translation.
+
+        From its locked translation when it has one: the result's is the one before the last nudge
+        until that nudge's run is done, and a second Ctrl+arrow or drag before then undid the first.
+        """
+        o = self.override_here()
+        if o is not None and o.translation is not None:
+            mpu = self.holes.frame.metres_per_unit
+            cur = (o.translation[0] * mpu, o.translation[1] * mpu)
+        else:
+            cur = self.current_translation_m() or (0.0, 0.0)
         return self.set_translation(cur[0] + ddx_m, cur[1] + ddy_m)
 
     def lock_current(self) -> str:
