@@ -445,8 +445,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.geozone_combo.setCurrentText(sel.geozone)
         self.bench_combo.clear()
         for k in range(max(h.n_benches - 1, 1)):
-            lo = h.bench_z_input(k + 1) if k + 1 < h.n_benches else float("nan")
-            self.bench_combo.addItem(f"{h.bench_z_input(k):g} -> {lo:g} {h.frame.length_unit}")
+            # one bench: no bench below it (the label read "685 -> nan m")
+            below = f" -> {h.bench_z_input(k + 1):g}" if k + 1 < h.n_benches else ""
+            self.bench_combo.addItem(f"{h.bench_z_input(k):g}{below} {h.frame.length_unit}")
         self.bench_combo.setCurrentIndex(sel.bench)
         self.component_spin.setValue(sel.component)
         for wid in (self.geozone_combo, self.bench_combo, self.component_spin):

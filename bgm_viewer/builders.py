@@ -169,9 +169,15 @@ def _why_no_contour(holes, result: PipelineResult, sel: Selection) -> str:
     return f"the fields of source component {sel.component} of {where} are not computed yet"
 
 
+#: Why nothing between benches is drawn for an input of one bench (it never will be: no bench below).
+ONE_BENCH = "the input has one bench: there is no bench below it to model"
+
+
 def _why_no_morph(holes, result: PipelineResult, sel: Selection) -> str:
     if result.selected_contour(sel) is None:
         return _why_no_contour(holes, result, sel)
+    if holes.n_benches < 2:
+        return ONE_BENCH
     if "correspondence" in result.errors or "morph" in result.errors:
         return result.errors.get("morph") or result.errors["correspondence"]
     if result.pair is None or result.correspondence is None:
@@ -184,6 +190,8 @@ def _why_no_model_output(stage: str):
     def why(holes, result: PipelineResult, sel: Selection) -> str:
         if stage in result.errors or "model" in result.errors:
             return result.errors.get(stage) or result.errors["model"]
+        if holes.n_benches < 2:
+            return ONE_BENCH
         if not result.complete:
             return f"the {stage} is not computed yet"
         if result.model is None or not result.model.pairs:

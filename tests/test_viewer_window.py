@@ -440,6 +440,28 @@ def test_surfaces_of_the_selected_geozone_follow_the_selection(window, qtbot, tm
     assert set(window.export_surfaces(tmp_path)) == {"g2"}
 
 
+def test_a_single_bench_says_there_is_no_bench_below(qtbot, tmp_path):
+    """One bench drilled: the bench pair read "684.98 -> nan m", and once the run was done the status bar
+    still said the trajectories were empty because the pair was "not corresponded yet"."""
+    h = small_holes()
+    top = h.bench == 0
+    table = pd.DataFrame(
+        {"x": h.xy[top, 0] + 650_000, "y": h.xy[top, 1] + 7_400_000, "z": h.z[top], "geozone": h.geozone[top]}
+    )
+    table.to_csv(tmp_path / "one.csv", index=False)
+    win = MainWindow(ViewerModel(tmp_path / "one.csv", cache=False), debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        labels = [win.bench_combo.itemText(i) for i in range(win.bench_combo.count())]
+        assert labels == [f"{win.model.holes.bench_z_input(0):g} m"]
+        said = win.statusBar().currentMessage()
+        assert said.startswith("done") and "trajectories is empty: the input has one bench" in said, said
+        assert "not corresponded yet" not in said and "not computed yet" not in said
+    finally:
+        win.close()
+
+
 def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp_path):
     """After File > Open, the Surfaces dock still said m³, showed the old body filter (which no
     longer applied) and named the old input's host rock."""
