@@ -983,9 +983,23 @@ class ViewerModel:
         return Project(parameters=params, overrides=copy.deepcopy(self.overrides), input_path=self.input_path)
 
     def save_project(self, path: str | Path) -> None:
-        """Write the project to ``path``, naming the input relative to the project's folder (as it is read)."""
+        """Write the project to ``path``, naming the input relative to the project's folder (as it is read).
+
+        Raises
+        ------
+        ValueError
+            If the alignment overrides are placed under other parameters than the current ones: a
+            parameter changed and no run has moved them to their components yet. Saved then, they
+            would name components by their numbers before the change, under the parameters after it
+            (``bgm build --project`` refuses such a project, or applies them to other components).
+        """
         from core.io.project import save_project
 
+        if self.overrides and self._placed_params != self.params:
+            raise ValueError(
+                "the alignment overrides are being moved to the components of the changed parameters:"
+                " save once the run is done"
+            )
         project = self.to_project()
         project.input_path = input_relative_to(self.input_path, path)
         save_project(project, path)
