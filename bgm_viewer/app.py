@@ -111,7 +111,12 @@ class ParamControl(QtWidgets.QWidget):
             self.slider.setChecked(bool(shown))
         elif shown is not None:
             v = shown * self._factor
-            self.slider.setValue(int(round(v)) if self.spec.integer else v)
+            v = int(round(v)) if self.spec.integer else v
+            # a value past the typical range (a project's) is shown as it is, not clamped to the range's end
+            lo, hi = self.slider.minimum(), self.slider.maximum()
+            if not lo <= v <= hi:
+                self.slider.setRange(min(lo, v), max(hi, v))
+            self.slider.setValue(v)
         if self.auto is not None:
             self.auto.setChecked(value is None)
             self.slider.setEnabled(value is not None)

@@ -216,6 +216,26 @@ def test_panels_speak_the_inputs_units_and_sliders_keep_values(qtbot):
         win.close()
 
 
+def test_a_slider_shows_a_projects_value_past_its_typical_range(qtbot):
+    """A project's search radius of 200 ft (slider 21.5-86 ft) showed 86 on the slider, and 3000 snake
+    iterations showed 1500, while the model used 200 and 3000."""
+    model = ViewerModel(small_holes(unit="ft"), cache=False)
+    model.set_param("search_radius_m", 200 * 0.3048)
+    model.set_param("snake_max_iterations", 3000)
+    model.set_param("gvf_mu", 0.001)
+    win = MainWindow(model, auto_run=False)
+    win.show()
+    try:
+        assert win.param_controls["search_radius_m"].slider.value() == pytest.approx(200.0)
+        assert win.param_controls["snake_max_iterations"].slider.value() == 3000
+        assert win.param_controls["gvf_mu"].slider.value() == pytest.approx(0.001)
+        for name in ("search_radius_m", "snake_max_iterations", "gvf_mu"):
+            assert win.param_controls[name].value() == model.param(name)
+    finally:
+        win.model.dirty = False
+        win.close()
+
+
 def test_clicking_a_hole_reports_its_id_and_grade(qtbot, tmp_path):
     """A click (press and release in place) on a known hole reports its id, geozone, bench and grade."""
     from bgm_viewer.scene import world_to_pixels
