@@ -781,6 +781,8 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def undo(self) -> None:
         stage = self.model.undo()
+        if stage is None:  # the panel's Undo button is always enabled: say why it did nothing
+            self.statusBar().showMessage("nothing to undo", 5000)
         if stage:
             self._undo_note = "; ".join(self.model.override_notes)
             self.request(stage, immediate=True)
@@ -789,6 +791,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model.dirty_changed.connect(self._update_title)
         self.model.overrides_changed.connect(self._on_overrides)
         self.model.params_changed.connect(self._show_params)
+        self._on_overrides()  # a new model has nothing to undo: Edit > Undo was left enabled, doing nothing
 
     def _show_params(self) -> None:
         """Show the model's parameters on the sliders (Undo can set them back).

@@ -134,6 +134,22 @@ def test_undo_of_an_override_a_slider_dropped_sets_the_slider_back(window, qtbot
     assert "Undo brought back" in window.statusBar().currentMessage()
 
 
+def test_undo_is_offered_only_when_there_is_something_to_undo(window, qtbot, tmp_path):
+    """Edit > Undo (Ctrl+Z) was enabled when the window opened and after another project was opened,
+    with nothing to undo, and did nothing without a word."""
+    assert not window.undo_action.isEnabled()
+    window.undo()  # the panel's Undo button
+    assert window.statusBar().currentMessage() == "nothing to undo"
+    window.nudge(1.0, 0.0)
+    assert window.undo_action.isEnabled()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    path = tmp_path / "p.json"
+    window.model.save_project(path)
+    window.open_project(path)
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert not window.model.can_undo and not window.undo_action.isEnabled()
+
+
 def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
     """A Shift + left drag in the 3D view moves the selected source by the dragged distance."""
     from bgm_viewer.scene import world_to_pixels
