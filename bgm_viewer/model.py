@@ -421,19 +421,24 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
     res.model = run.step("geozone model", lambda: session.geozone_model(g), "model")
     yield "model of the geozone", 0.85, run.snapshot()
     model = res.model
-    if model is None or not model.pairs:
+    paired = model is not None and bool(model.pairs)
+    if not paired:
         res.predicted, res.surface = [], None
-        return
-    # Below the input's deepest bench, as bgm build predicts (core.model.build.build_geozone), not below the
-    # geozone's deepest pair: a geozone whose pairs end higher up was drawn between known benches, where
-    # it is absent, while the build carries it on below the deepest bench.
-    levels = run.session.holes.bench_levels_m
-    height = float(levels[-2] - levels[-1])
-    zs = [float(levels[-1]) - f * height for f in PREDICTED_FRACTIONS]
-    regions = run.step("prediction", lambda: session.predict(g, zs, model), "prediction") or {}
-    res.predicted = [(g, z, poly) for z, region in regions.items() for poly in region.geoms]
+    else:
+        # Below the input's deepest bench, as bgm build predicts (core.model.build.build_geozone), not below
+        # the geozone's deepest pair: a geozone whose pairs end higher up was drawn between known benches,
+        # where it is absent, while the build carries it on below the deepest bench.
+        levels = run.session.holes.bench_levels_m
+        height = float(levels[-2] - levels[-1])
+        zs = [float(levels[-1]) - f * height for f in PREDICTED_FRACTIONS]
+        regions = run.step("prediction", lambda: session.predict(g, zs, model), "prediction") or {}
+        res.predicted = [(g, z, poly) for z, region in regions.items() for poly in region.geoms]
     if last >= STEPS.index("surface"):
-        res.surface = run.step("surface", lambda: session.surface(g, model), "surface")
+        # A selected geozone with no bench pair (a geozone of one bench, or one a parameter left without)
+        # has no surface, and the other geozones' are still redone: returning here left its surface from
+        # before and every other geozone's from the last parameters on screen, and exported.
+        if paired:
+            res.surface = run.step("surface", lambda: session.surface(g, model), "surface")
         _show_surface(run, g, res.surface)
         yield "surface", 0.9, run.snapshot()
         yield from _other_surfaces(run)

@@ -399,6 +399,23 @@ def test_shown_surfaces_are_the_exported_ones(tmp_path):
         np.testing.assert_allclose(np.sort(local, axis=0), np.sort(mesh.vertices, axis=0), atol=1e-6)
 
 
+def test_surfaces_are_redone_when_the_selected_geozone_has_no_bench_pair():
+    """g3 has 0, 1 and 11 holes on the three benches. Selected, with a smallest modelled component of 12 it
+    has no bench pair: the run stopped there, and its surface from before stayed on screen (and in the
+    exports), as did every other geozone's from before each later slider move."""
+    model = _quiet_model(small_holes(), geozone="g3")
+    assert model.selection.geozone == "g3" and "g3" in model.result.surfaces
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(model.set_param("min_component_holes", 12))
+        assert not model.result.model.pairs
+        assert "g3" not in model.result.surfaces and "g3" not in model.result.built
+        model.run(model.set_param("surface_max_cells", 5))  # a coarse grid: fewer faces
+        session = model.session()
+        for g in ("g1", "g2"):  # redone after the slider move
+            assert len(model.result.built[g].faces) == len(session.surface(g).faces), g
+
+
 def test_the_body_filter_drops_label_noise_bodies():
     model = _quiet_model(small_holes())
     g = max(model.result.surfaces, key=lambda k: len(model.result.surfaces[k].split(only_watertight=False)))
