@@ -140,7 +140,8 @@ def refresh_scene(
         if layer.name not in changed and scene.get(layer.name) is not None:
             continue
         old = scene.get(layer.name)
-        if old is not None and old.n_frames == layer.n_frames and old.n_frames > 1:
+        # a hidden layer's frames are not counted: the suggested holes' are core's suggestions, computed to count
+        if old is not None and old.visible and old.n_frames == layer.n_frames and old.n_frames > 1:
             layer.frame = old.frame
         scene.replace(layer)
 
