@@ -57,7 +57,8 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
     layers.append(ContoursLayer(predicted, colours, name="predicted contours", predicted=True, line_width=2.0))
     layers.append(SurfaceLayer.from_trimesh(sorted(result.surfaces.items()), colours))
     layers.append(selected_components_layer(result))
-    next_bench = NextBench(holes, result.model)  # computed by core when one of its layers is first drawn
+    # computed by core when one of its layers is first drawn
+    next_bench = NextBench(holes, result.model, session=result.session)
     layers += [UncertaintyLayer(next_bench), SuggestedHolesLayer(next_bench)]
     return layers
 

@@ -130,6 +130,8 @@ class PipelineResult:
     relocated: Relocation | None = None
     #: The parameters ``pair`` was computed with: an override made on it is placed under them.
     pair_params: ModelParameters | None = None
+    #: The session ``model`` was computed with: the next bench's band is calibrated on it, as ``bgm build``'s is.
+    session: ModelSession | None = None
 
     @property
     def correspondence(self):
@@ -217,6 +219,7 @@ class _Run:
             pair_params=prev.pair_params if same else None,
             morph=prev.morph if same else None,
             model=prev.model if same else None,
+            session=prev.session if same else None,
             surface=prev.surface if same else None,
             predicted=prev.predicted if same else [],
             # other geozones' surfaces stay on screen until redone; those no longer asked for go
@@ -419,6 +422,7 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
     """The selected geozone's whole model, its predictions below the deepest bench, and its surface."""
     session, g, res = run.session, run.sel.geozone, run.res
     res.model = run.step("geozone model", lambda: session.geozone_model(g), "model")
+    res.session = session
     yield "model of the geozone", 0.85, run.snapshot()
     model = res.model
     paired = model is not None and bool(model.pairs)

@@ -57,6 +57,29 @@ def test_budget_slider_shows_the_first_n_suggestions_in_the_band(viewer_model):
     assert layer.budget == total
 
 
+def test_the_band_drawn_is_the_band_bgm_build_writes(viewer_model, tmp_path):
+    """Three benches: g1's own backtest is too short, and bgm build calibrates its band on the other geozones'
+    backtests too; the viewer calibrated on g1's alone and drew a band of 1261 m² where the build wrote 11111."""
+    import json
+
+    from shapely.geometry import shape
+
+    from core.model.build import build
+
+    scene = build_scene(viewer_model.holes, viewer_model.result, viewer_model.selection, visible="band")
+    section = scene["uncertainty"].next_bench.section
+    g, holes = viewer_model.selection.geozone, viewer_model.holes
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        build(holes, tmp_path / "out", geozones=[g], formats=("obj",), evaluate=False, workers=1)
+    features = json.loads((tmp_path / "out" / g / "uncertainty.geojson").read_text())["features"]
+    z = round(float(holes.frame.z_to_input(section.z_m)), 3)
+    written = [f["properties"] | {"area": shape(f["geometry"]).area} for f in features]
+    band = next(f for f in written if f["z"] == z and f["kind"] == "band")
+    assert section.scale.source == band["calibration"] == "pooled backtest"
+    assert section.band.area == pytest.approx(band["area"], rel=1e-6)
+
+
 def test_hidden_next_bench_layers_are_computed_only_once_shown(viewer_model):
     """Hidden by default, the next bench's uncertainty and suggestions were computed by core whenever a
     run changed the model, on the window's thread: 1-3.5 s with the window frozen on Kennecott."""
