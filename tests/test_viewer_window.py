@@ -498,6 +498,22 @@ def test_a_single_bench_says_there_is_no_bench_below(qtbot, tmp_path):
         win.close()
 
 
+def test_the_bench_panel_says_which_benches_are_hidden_after_a_project_is_opened(window, qtbot, tmp_path):
+    """A bench unticked, then File > Open project (the same input): the panel ticked every bench again
+    while the view still hid that one's holes and contours."""
+    window.sections.benches.item(0).setCheckState(QtCore.Qt.CheckState.Unchecked)
+    z0 = float(window.model.holes.bench_levels_m[0])
+    assert window.scene.hidden_benches_m == {z0}
+    path = tmp_path / "p.json"
+    window.model.save_project(path)
+    window.open_project(path)
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    items = [window.sections.benches.item(i) for i in range(window.sections.benches.count())]
+    ticked = [it.checkState() == QtCore.Qt.CheckState.Checked for it in items]
+    drawn = [window.scene.view.shows("g1", float(it.data(QtCore.Qt.ItemDataRole.UserRole))) for it in items]
+    assert ticked == drawn == [False, True, True]
+
+
 def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp_path):
     """After File > Open, the Surfaces dock still said m³, showed the old body filter (which no
     longer applied) and named the old input's host rock."""
