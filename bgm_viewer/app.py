@@ -1095,17 +1095,17 @@ class MainWindow(QtWidgets.QMainWindow):
         QtWidgets.QMessageBox.information(self, "Shortcuts", SHORTCUTS_HTML)
 
     def export_surface(self, path) -> None:
-        from core.io.export import export_surface
+        from core.io.export import dxf_layer_names, export_surface
         from core.model.surfaces import to_input_frame
 
         self._check_up_to_date()
         mesh = self.model.result.surface
         if mesh is None:
             raise ValueError("no surface has been computed yet")
-        f = self.model.holes.frame
-        export_surface(
-            to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit), path, name=self.model.selection.geozone
-        )
+        f, g = self.model.holes.frame, self.model.selection.geozone
+        # its DXF layer as bgm build names it: two labels alike once made R12-safe ("ore 1", "ore_1") had one
+        layer = dxf_layer_names(self.model.holes.geozones)[g]
+        export_surface(to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit), path, name=g, layer=layer)
 
     def export_surface_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(

@@ -514,6 +514,35 @@ def test_the_bench_panel_says_which_benches_are_hidden_after_a_project_is_opened
     assert ticked == drawn == [False, True, True]
 
 
+def test_an_exported_surface_is_on_the_dxf_layer_bgm_build_puts_it_on(qtbot, tmp_path):
+    """Geozones "ore 1" and "ore_1" are both ore_1 once made R12-safe: bgm build puts the second on ore_1_2,
+    File > Export surface put it on ore_1, the other geozone's layer (mine software merges the two)."""
+    import ezdxf
+
+    from core.io.blastholes import blastholes_from_table
+    from core.model.build import build
+
+    h = small_holes()
+    labels = pd.Series(h.geozone).replace({"g1": "ore 1", "g2": "ore_1"}).to_numpy()
+    table = pd.DataFrame({"x": h.xy[:, 0], "y": h.xy[:, 1], "z": h.z, "geozone": labels})
+    holes = blastholes_from_table(table, source="relabelled")
+    model = ViewerModel(holes, cache=False)
+    model.select("ore_1", 0, 0)
+    win = MainWindow(model, debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        win.export_surface(tmp_path / "ore_1.dxf")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            build(holes, tmp_path / "out", geozones=["ore_1"], formats=("dxf",), evaluate=False, workers=1)
+        built = next((tmp_path / "out").glob("ore_1*/surface.dxf"))
+        layers = [{e.dxf.layer for e in ezdxf.readfile(p).modelspace()} for p in (tmp_path / "ore_1.dxf", built)]
+        assert layers[0] == layers[1] == {"ore_1_2"}
+    finally:
+        win.close()
+
+
 def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp_path):
     """After File > Open, the Surfaces dock still said m³, showed the old body filter (which no
     longer applied) and named the old input's host rock."""
