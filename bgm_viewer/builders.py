@@ -219,6 +219,11 @@ EMPTY_REASONS = {
 }
 
 
+#: Layers that leave out the geozones and benches the Geozones and Benches panels hide.
+HIDEABLE = ("blastholes", "contours", "predicted contours", "surfaces", "selected components")
+HIDDEN = "what it would draw is hidden: tick its geozones (Geozones) or benches (Benches and section)"
+
+
 def empty_layer_reasons(
     scene: Scene, holes, result: PipelineResult, selection: Selection, is_empty=None
 ) -> dict[str, str]:
@@ -226,10 +231,17 @@ def empty_layer_reasons(
 
     ``is_empty(layer)`` says whether a layer draws nothing (default: build it and see).
     """
+    from dataclasses import replace
+
     is_empty = is_empty or (lambda layer: layer.is_empty)
+    unhidden = replace(scene.view, hidden_geozones=frozenset(), hidden_benches_m=frozenset())
     out = {}
     for layer in scene.layers:
         if layer.visible and is_empty(layer):
+            # with every geozone unticked the status bar said "no contours are extracted yet"
+            if layer.name in HIDEABLE and unhidden != scene.view and layer.build(unhidden):
+                out[layer.name] = HIDDEN
+                continue
             why = EMPTY_REASONS.get(layer.name)
             out[layer.name] = why(holes, result, selection) if why else "nothing to draw for this selection"
     return out

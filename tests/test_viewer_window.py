@@ -543,6 +543,18 @@ def test_an_exported_surface_is_on_the_dxf_layer_bgm_build_puts_it_on(qtbot, tmp
         win.close()
 
 
+def test_a_layer_emptied_by_hiding_every_geozone_says_so(window, qtbot):
+    """Every geozone unticked in the legend: the status bar said "contours is empty: no contours are extracted
+    yet" and "blastholes is empty: nothing to draw for this selection" after each run."""
+    window.legend.hide_all()
+    window.request("surface", immediate=True)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    said = window.statusBar().currentMessage()
+    for name in ("blastholes", "contours", "surfaces"):
+        assert f"{name} is empty: what it would draw is hidden" in said, said
+    assert "not extracted yet" not in said and "nothing to draw for this selection" not in said
+
+
 def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp_path):
     """After File > Open, the Surfaces dock still said m³, showed the old body filter (which no
     longer applied) and named the old input's host rock."""
