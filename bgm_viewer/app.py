@@ -119,7 +119,7 @@ class ParamControl(QtWidgets.QWidget):
             self.slider.setValue(v)
         if self.auto is not None:
             self.auto.setChecked(value is None)
-            self.slider.setEnabled(value is not None)
+            self._show_auto()
         for w in (self.slider, self.auto):
             if w is not None:
                 w.blockSignals(False)
@@ -145,8 +145,18 @@ class ParamControl(QtWidgets.QWidget):
     def _changed(self, *_) -> None:
         self._shown = None  # the user moved it: read the slider
         if self.auto is not None:
-            self.slider.setEnabled(not self.auto.isChecked())
+            self._show_auto()
         self.valueChanged.emit(self.spec.name, self.value())
+
+    def _show_auto(self) -> None:
+        """Grey the slider out while ``auto`` is ticked, and hide it when the default is not known ahead.
+
+        A default derived per geozone (the alignment cell, the morph speed clamp) has no value
+        before a run: the slider showed its range's lower end, which the model does not use.
+        """
+        auto = self.auto is not None and self.auto.isChecked()
+        self.slider.setEnabled(not auto)
+        self.slider.setVisible(not (auto and self._derived is None))
 
 
 def _single_render(interactor):

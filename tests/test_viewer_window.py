@@ -252,6 +252,24 @@ def test_a_slider_shows_a_projects_value_past_its_typical_range(qtbot):
         win.close()
 
 
+def test_an_auto_parameter_shows_no_value_the_model_does_not_use(window):
+    """The alignment cell size and morph speed clamp are derived per geozone when auto: their greyed sliders
+    read the range's lower end (2.248 ft on Kennecott, a tenth of a spacing), which the model does not use."""
+    spacing = window.model.holes.hole_spacing_m
+    for name in ("correspondence_cell_size_m", "speed_clamp_m"):
+        ctl = window.param_controls[name]
+        assert ctl.auto.isChecked() and not ctl.slider.isVisibleTo(ctl), name
+    radius = window.param_controls["search_radius_m"]  # 1.6 spacings: known ahead, shown
+    assert radius.auto.isChecked() and radius.slider.isVisibleTo(radius)
+    assert radius.slider.value() == pytest.approx(1.6 * spacing, abs=1e-3)
+    ctl = window.param_controls["speed_clamp_m"]
+    ctl.auto.setChecked(False)  # a value of the user's: the slider is back, and what it reads is used
+    assert ctl.slider.isVisibleTo(ctl) and ctl.slider.isEnabled()
+    assert window.model.param("speed_clamp_m") == pytest.approx(ctl.slider.value(), abs=1e-3)
+    ctl.auto.setChecked(True)
+    assert window.model.param("speed_clamp_m") is None and not ctl.slider.isVisibleTo(ctl)
+
+
 def test_clicking_a_hole_reports_its_id_and_grade(qtbot, tmp_path):
     """A click (press and release in place) on a known hole reports its id, geozone, bench and grade."""
     from bgm_viewer.scene import world_to_pixels
