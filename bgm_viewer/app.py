@@ -111,10 +111,15 @@ class ParamControl(QtWidgets.QWidget):
             self.slider.setChecked(bool(shown))
         elif shown is not None:
             v = shown * self._factor
-            self.slider.setValue(int(round(v)) if self.spec.integer else v)
+            v = int(round(v)) if self.spec.integer else v
+            # a value past the typical range (a project's) is shown as it is, not clamped to the range's end
+            lo, hi = self.slider.minimum(), self.slider.maximum()
+            if not lo <= v <= hi:
+                self.slider.setRange(min(lo, v), max(hi, v))
+            self.slider.setValue(v)
         if self.auto is not None:
             self.auto.setChecked(value is None)
-            self.slider.setEnabled(value is not None)
+            self._show_auto()
         for w in (self.slider, self.auto):
             if w is not None:
                 w.blockSignals(False)
@@ -140,8 +145,18 @@ class ParamControl(QtWidgets.QWidget):
     def _changed(self, *_) -> None:
         self._shown = None  # the user moved it: read the slider
         if self.auto is not None:
-            self.slider.setEnabled(not self.auto.isChecked())
+            self._show_auto()
         self.valueChanged.emit(self.spec.name, self.value())
+
+    def _show_auto(self) -> None:
+        """Grey the slider out while ``auto`` is ticked, and hide it when the default is not known ahead.
+
+        A default derived per geozone (the alignment cell, the morph speed clamp) has no value
+        before a run: the slider showed its range's lower end, which the model does not use.
+        """
+        auto = self.auto is not None and self.auto.isChecked()
+        self.slider.setEnabled(not auto)
+        self.slider.setVisible(not (auto and self._derived is None))
 
 
 def _single_render(interactor):
@@ -353,7 +368,8 @@ class MainWindow(QtWidgets.QMainWindow):
         elif scope == "all geozones":
             zones = None
         else:
-            zones = self.legend.shown() if scope == "ticked geozones" else [self.model.selection.geozone]
+            # the selected geozone's surface is always built: naming it here kept it after another was selected
+            zones = self.legend.shown() if scope == "ticked geozones" else []
         if zones != self.model.surface_geozones:
             self.model.surface_geozones = zones
             self.request("surface", immediate=True)
@@ -444,8 +460,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.geozone_combo.setCurrentText(sel.geozone)
         self.bench_combo.clear()
         for k in range(max(h.n_benches - 1, 1)):
-            lo = h.bench_z_input(k + 1) if k + 1 < h.n_benches else float("nan")
-            self.bench_combo.addItem(f"{h.bench_z_input(k):g} -> {lo:g} {h.frame.length_unit}")
+            # one bench: no bench below it (the label read "685 -> nan m")
+            below = f" -> {h.bench_z_input(k + 1):g}" if k + 1 < h.n_benches else ""
+            self.bench_combo.addItem(f"{h.bench_z_input(k):g}{below} {h.frame.length_unit}")
         self.bench_combo.setCurrentIndex(sel.bench)
         self.component_spin.setValue(sel.component)
         for wid in (self.geozone_combo, self.bench_combo, self.component_spin):
@@ -774,6 +791,8 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def undo(self) -> None:
         stage = self.model.undo()
+        if stage is None:  # the panel's Undo button is always enabled: say why it did nothing
+            self.statusBar().showMessage("nothing to undo", 5000)
         if stage:
             self._undo_note = "; ".join(self.model.override_notes)
             self.request(stage, immediate=True)
@@ -782,6 +801,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model.dirty_changed.connect(self._update_title)
         self.model.overrides_changed.connect(self._on_overrides)
         self.model.params_changed.connect(self._show_params)
+        self._on_overrides()  # a new model has nothing to undo: Edit > Undo was left enabled, doing nothing
 
     def _show_params(self) -> None:
         """Show the model's parameters on the sliders (Undo can set them back).
@@ -1085,17 +1105,17 @@ class MainWindow(QtWidgets.QMainWindow):
         QtWidgets.QMessageBox.information(self, "Shortcuts", SHORTCUTS_HTML)
 
     def export_surface(self, path) -> None:
-        from core.io.export import export_surface
+        from core.io.export import dxf_layer_names, export_surface
         from core.model.surfaces import to_input_frame
 
         self._check_up_to_date()
         mesh = self.model.result.surface
         if mesh is None:
             raise ValueError("no surface has been computed yet")
-        f = self.model.holes.frame
-        export_surface(
-            to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit), path, name=self.model.selection.geozone
-        )
+        f, g = self.model.holes.frame, self.model.selection.geozone
+        # its DXF layer as bgm build names it: two labels alike once made R12-safe ("ore 1", "ore_1") had one
+        layer = dxf_layer_names(self.model.holes.geozones)[g]
+        export_surface(to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit), path, name=g, layer=layer)
 
     def export_surface_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(

@@ -57,7 +57,8 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
     layers.append(ContoursLayer(predicted, colours, name="predicted contours", predicted=True, line_width=2.0))
     layers.append(SurfaceLayer.from_trimesh(sorted(result.surfaces.items()), colours))
     layers.append(selected_components_layer(result))
-    next_bench = NextBench(holes, result.model)  # computed by core when one of its layers is first drawn
+    # computed by core when one of its layers is first drawn
+    next_bench = NextBench(holes, result.model, session=result.session)
     layers += [UncertaintyLayer(next_bench), SuggestedHolesLayer(next_bench)]
     return layers
 
@@ -140,7 +141,8 @@ def refresh_scene(
         if layer.name not in changed and scene.get(layer.name) is not None:
             continue
         old = scene.get(layer.name)
-        if old is not None and old.n_frames == layer.n_frames and old.n_frames > 1:
+        # a hidden layer's frames are not counted: the suggested holes' are core's suggestions, computed to count
+        if old is not None and old.visible and old.n_frames == layer.n_frames and old.n_frames > 1:
             layer.frame = old.frame
         scene.replace(layer)
 
@@ -169,9 +171,15 @@ def _why_no_contour(holes, result: PipelineResult, sel: Selection) -> str:
     return f"the fields of source component {sel.component} of {where} are not computed yet"
 
 
+#: Why nothing between benches is drawn for an input of one bench (it never will be: no bench below).
+ONE_BENCH = "the input has one bench: there is no bench below it to model"
+
+
 def _why_no_morph(holes, result: PipelineResult, sel: Selection) -> str:
     if result.selected_contour(sel) is None:
         return _why_no_contour(holes, result, sel)
+    if holes.n_benches < 2:
+        return ONE_BENCH
     if "correspondence" in result.errors or "morph" in result.errors:
         return result.errors.get("morph") or result.errors["correspondence"]
     if result.pair is None or result.correspondence is None:
@@ -184,6 +192,8 @@ def _why_no_model_output(stage: str):
     def why(holes, result: PipelineResult, sel: Selection) -> str:
         if stage in result.errors or "model" in result.errors:
             return result.errors.get(stage) or result.errors["model"]
+        if holes.n_benches < 2:
+            return ONE_BENCH
         if not result.complete:
             return f"the {stage} is not computed yet"
         if result.model is None or not result.model.pairs:
@@ -209,6 +219,11 @@ EMPTY_REASONS = {
 }
 
 
+#: Layers that leave out the geozones and benches the Geozones and Benches panels hide.
+HIDEABLE = ("blastholes", "contours", "predicted contours", "surfaces", "selected components")
+HIDDEN = "what it would draw is hidden: tick its geozones (Geozones) or benches (Benches and section)"
+
+
 def empty_layer_reasons(
     scene: Scene, holes, result: PipelineResult, selection: Selection, is_empty=None
 ) -> dict[str, str]:
@@ -216,10 +231,17 @@ def empty_layer_reasons(
 
     ``is_empty(layer)`` says whether a layer draws nothing (default: build it and see).
     """
+    from dataclasses import replace
+
     is_empty = is_empty or (lambda layer: layer.is_empty)
+    unhidden = replace(scene.view, hidden_geozones=frozenset(), hidden_benches_m=frozenset())
     out = {}
     for layer in scene.layers:
         if layer.visible and is_empty(layer):
+            # with every geozone unticked the status bar said "no contours are extracted yet"
+            if layer.name in HIDEABLE and unhidden != scene.view and layer.build(unhidden):
+                out[layer.name] = HIDDEN
+                continue
             why = EMPTY_REASONS.get(layer.name)
             out[layer.name] = why(holes, result, selection) if why else "nothing to draw for this selection"
     return out

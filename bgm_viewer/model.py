@@ -130,6 +130,8 @@ class PipelineResult:
     relocated: Relocation | None = None
     #: The parameters ``pair`` was computed with: an override made on it is placed under them.
     pair_params: ModelParameters | None = None
+    #: The session ``model`` was computed with: the next bench's band is calibrated on it, as ``bgm build``'s is.
+    session: ModelSession | None = None
 
     @property
     def correspondence(self):
@@ -217,6 +219,7 @@ class _Run:
             pair_params=prev.pair_params if same else None,
             morph=prev.morph if same else None,
             model=prev.model if same else None,
+            session=prev.session if same else None,
             surface=prev.surface if same else None,
             predicted=prev.predicted if same else [],
             # other geozones' surfaces stay on screen until redone; those no longer asked for go
@@ -419,18 +422,27 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
     """The selected geozone's whole model, its predictions below the deepest bench, and its surface."""
     session, g, res = run.session, run.sel.geozone, run.res
     res.model = run.step("geozone model", lambda: session.geozone_model(g), "model")
+    res.session = session
     yield "model of the geozone", 0.85, run.snapshot()
     model = res.model
-    if model is None or not model.pairs:
+    paired = model is not None and bool(model.pairs)
+    if not paired:
         res.predicted, res.surface = [], None
-        return
-    deepest = model.pairs[-1]
-    height = deepest.source_z_m - deepest.target_z_m
-    zs = [deepest.target_z_m - f * height for f in PREDICTED_FRACTIONS]
-    regions = run.step("prediction", lambda: session.predict(g, zs, model), "prediction") or {}
-    res.predicted = [(g, z, poly) for z, region in regions.items() for poly in region.geoms]
+    else:
+        # Below the input's deepest bench, as bgm build predicts (core.model.build.build_geozone), not below
+        # the geozone's deepest pair: a geozone whose pairs end higher up was drawn between known benches,
+        # where it is absent, while the build carries it on below the deepest bench.
+        levels = run.session.holes.bench_levels_m
+        height = float(levels[-2] - levels[-1])
+        zs = [float(levels[-1]) - f * height for f in PREDICTED_FRACTIONS]
+        regions = run.step("prediction", lambda: session.predict(g, zs, model), "prediction") or {}
+        res.predicted = [(g, z, poly) for z, region in regions.items() for poly in region.geoms]
     if last >= STEPS.index("surface"):
-        res.surface = run.step("surface", lambda: session.surface(g, model), "surface")
+        # A selected geozone with no bench pair (a geozone of one bench, or one a parameter left without)
+        # has no surface, and the other geozones' are still redone: returning here left its surface from
+        # before and every other geozone's from the last parameters on screen, and exported.
+        if paired:
+            res.surface = run.step("surface", lambda: session.surface(g, model), "surface")
         _show_surface(run, g, res.surface)
         yield "surface", 0.9, run.snapshot()
         yield from _other_surfaces(run)
@@ -610,7 +622,8 @@ class ViewerModel:
         self.store = StageStore(StageCache() if cache else None)
         self.selection = selection or Selection(*richest_pair(self.holes), 0)
         self.vertical_exaggeration = 2.0
-        #: Geozones whose surfaces are shown (``None``: all); bodies below the body filter are not shown.
+        #: Geozones whose surfaces are shown besides the selected one's (``None``: all); bodies below the body
+        #: filter are not shown.
         #: By default all but a host rock holding over half the holes: its surface wraps the others.
         self.surface_geozones: list[str] | None = bodies(self.holes)
         self.min_body_volume_m3 = 0.0
@@ -850,8 +863,17 @@ class ViewerModel:
         return "correspondence"
 
     def nudge(self, ddx_m: float, ddy_m: float) -> str:
-        """Move the selected source by ``(ddx_m, ddy_m)`` from its current translation."""
-        cur = self.current_translation_m() or (0.0, 0.0)
+        """Move the selected source by ``(ddx_m, ddy_m)`` from its current translation.
+
+        From its locked translation when it has one: the result's is the one before the last nudge
+        until that nudge's run is done, and a second Ctrl+arrow or drag before then undid the first.
+        """
+        o = self.override_here()
+        if o is not None and o.translation is not None:
+            mpu = self.holes.frame.metres_per_unit
+            cur = (o.translation[0] * mpu, o.translation[1] * mpu)
+        else:
+            cur = self.current_translation_m() or (0.0, 0.0)
         return self.set_translation(cur[0] + ddx_m, cur[1] + ddy_m)
 
     def lock_current(self) -> str:
@@ -970,9 +992,23 @@ class ViewerModel:
         return Project(parameters=params, overrides=copy.deepcopy(self.overrides), input_path=self.input_path)
 
     def save_project(self, path: str | Path) -> None:
-        """Write the project to ``path``, naming the input relative to the project's folder (as it is read)."""
+        """Write the project to ``path``, naming the input relative to the project's folder (as it is read).
+
+        Raises
+        ------
+        ValueError
+            If the alignment overrides are placed under other parameters than the current ones: a
+            parameter changed and no run has moved them to their components yet. Saved then, they
+            would name components by their numbers before the change, under the parameters after it
+            (``bgm build --project`` refuses such a project, or applies them to other components).
+        """
         from core.io.project import save_project
 
+        if self.overrides and self._placed_params != self.params:
+            raise ValueError(
+                "the alignment overrides are being moved to the components of the changed parameters:"
+                " save once the run is done"
+            )
         project = self.to_project()
         project.input_path = input_relative_to(self.input_path, path)
         save_project(project, path)

@@ -136,13 +136,19 @@ class SectionPanel(QtWidgets.QWidget):
         unit = holes.frame.length_unit
         self.benches.blockSignals(True)
         self.benches.clear()
+        # The view keeps hiding the benches hidden before (another project of the same input): they were
+        # ticked here while not drawn. As the legend does for geozones, they are shown unticked.
+        hidden = self.renderer.scene.hidden_benches_m
         for k in range(holes.n_benches):
+            z = float(holes.bench_levels_m[k])
             item = QtWidgets.QListWidgetItem(f"{holes.bench_z_input(k):g} {unit}")
-            item.setData(Qt.ItemDataRole.UserRole, float(holes.bench_levels_m[k]))
+            item.setData(Qt.ItemDataRole.UserRole, z)
             item.setFlags(item.flags() | Qt.ItemFlag.ItemIsUserCheckable)
-            item.setCheckState(Qt.CheckState.Checked)
+            off = any(abs(z - h) < 1e-6 for h in hidden)
+            item.setCheckState(Qt.CheckState.Unchecked if off else Qt.CheckState.Checked)
             self.benches.addItem(item)
         self.benches.blockSignals(False)
+        self._benches_changed()  # and only those: an elevation the new input has no bench at is forgotten
         self._range_label.setText(f"elevations ({unit})")
         zs = holes.frame.z_to_input(holes.bench_levels_m)
         lo, hi = float(np.min(zs)), float(np.max(zs))

@@ -39,10 +39,15 @@ class NextBench:
     model : core.model.pipeline.GeozoneModel or None
     probability : float
         The band's probability of holding the true boundary.
+    session : core.model.session.ModelSession, optional
+        The session ``model`` was computed with: the band is then calibrated as ``bgm build``
+        calibrates the one it writes, on the other geozones' backtests too where the geozone's
+        own is too short (without it, on the geozone's own only).
     """
 
-    def __init__(self, holes, model, probability: float = 0.9):
+    def __init__(self, holes, model, probability: float = 0.9, session=None):
         self.holes, self.model, self.probability = holes, model, float(probability)
+        self.session = session
 
     @property
     def z_m(self) -> float:
@@ -52,11 +57,15 @@ class NextBench:
     @cached_property
     def section(self):
         """:class:`core.model.uncertainty.SectionUncertainty` on the next bench (None without a model)."""
-        from core.model.uncertainty import section_uncertainty
+        from core.model.uncertainty import geozone_uncertainty, section_uncertainty
 
         fields = getattr(self.model, "fields", None)
         if fields is None or len(fields.z_m) < 2:
             return None
+        if self.session is not None:  # as core.model.build.write_sampling: a band drawn as it is written
+            return geozone_uncertainty(self.session, self.model.geozone, [self.z_m], self.model, self.probability)[
+                self.z_m
+            ]
         return section_uncertainty(fields, self.z_m, self.holes.hole_spacing_m, self.probability)
 
     @cached_property

@@ -3,7 +3,8 @@
 :class:`Scene` owns the layers, the vertical exaggeration and the legend;
 :class:`SceneRenderer` keeps the plotter's actors in step with them: a change
 of visibility or opacity touches only the actor properties, a change of data,
-frame or colour rebuilds that layer's meshes. No Qt here; the Qt window uses
+frame or colour rebuilds that layer's meshes (a hidden layer's once it is
+shown). No Qt here; the Qt window uses
 the same renderer with a ``pyvistaqt.QtInteractor`` as the plotter.
 """
 
@@ -169,6 +170,8 @@ class SceneRenderer:
         self.show_bearings = bearings
         self.auto_render = auto_render
         self.actors: dict[str, list] = {}
+        #: Hidden layers whose data changed since they were last built: built when shown.
+        self._unbuilt: set[str] = set()
         self._legend_shown: list | None = None
         self._batching = 0
         self._legend_stale = False
@@ -208,6 +211,8 @@ class SceneRenderer:
             for lay in self.scene.layers:
                 self._rebuild(lay)
         elif what in ("visible", "opacity"):
+            if layer.visible and layer.name in self._unbuilt:
+                self._rebuild(layer)
             for actor in self.actors.get(layer.name, []):
                 actor.SetVisibility(layer.visible)
                 actor.GetProperty().SetOpacity(layer.opacity)
@@ -250,6 +255,13 @@ class SceneRenderer:
     def _rebuild(self, layer: Layer) -> None:
         for actor in self.actors.pop(layer.name, []):
             self.plotter.remove_actor(actor, render=False)
+        if not layer.visible:
+            # Built when shown: the next bench's uncertainty, hidden by default, was computed by core
+            # (seconds on Kennecott) on the window's thread after every run that changed the model.
+            self._unbuilt.add(layer.name)
+            self.actors[layer.name] = []
+            return
+        self._unbuilt.discard(layer.name)
         actors = []
         planes = self._clipping_planes()
         for k, item in enumerate(layer.build(self.scene.view)):

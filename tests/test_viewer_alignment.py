@@ -118,6 +118,27 @@ def test_a_slider_that_removes_the_overridden_component_drops_the_override_and_s
     assert model.can_undo and model.dirty
 
 
+def test_a_project_is_not_saved_before_a_run_has_moved_the_overrides_to_the_new_parameters(model, tmp_path):
+    """Ctrl+S (or Save when closing) right after a slider move wrote the new parameters with the overrides
+    numbered as before them: here an override of a component the new parameters no longer model, which
+    bgm build --project then refused ("names source component 0, but the upper bench has no component")."""
+    from core.io.project import load_project
+
+    model.select("g2", 0, 0)
+    _run(model, "contours")
+    model.set_translation(2.0, -1.0)
+    _run(model, "correspondence")
+    step = model.set_param("min_component_holes", 20)
+    path = tmp_path / "p.json"
+    with pytest.raises(ValueError, match="save once the run is done"):
+        model.save_project(path)
+    assert not path.exists() and model.dirty
+    _run(model, step)
+    model.save_project(path)
+    saved = load_project(path)
+    assert saved.parameters["min_component_holes"] == 20 and saved.overrides == []
+
+
 def test_an_override_whose_number_went_stale_is_applied_to_its_own_component(model):
     """The run finds the component at the override's place before any correspondence uses it."""
     model.set_translation(4.0, 3.0)

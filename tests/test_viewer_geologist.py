@@ -125,6 +125,50 @@ def test_predicted_contours_are_drawn_on_kennecott(kennecott_predicted):
     assert _predicted_pixels(kennecott_predicted) > 200
 
 
+def test_a_geozone_the_deepest_bench_never_drilled_is_predicted_where_bgm_build_predicts_it(tmp_path):
+    """A body at the edge of a narrowing pit, on the top three of five benches: the viewer predicted it below
+    the last bench its pairs reach, between known benches where it is absent, and drew nothing where
+    bgm build's prediction.geojson has its sections below the deepest bench."""
+    import json
+
+    import pandas as pd
+    from shapely.geometry import shape
+
+    from core.io.blastholes import blastholes_from_table
+    from core.model.build import build
+
+    spacing, frames = 6.0, []
+    for k in range(5):
+        radius = 120.0 - 22.0 * k
+        rows = np.arange(-radius, radius, spacing * np.sqrt(3) / 2)
+        xy = np.array(
+            [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(-radius, radius, spacing)]
+        )
+        xy = xy[np.hypot(*xy.T) < radius]
+        label = np.where(np.hypot(xy[:, 0] - 80.0, xy[:, 1]) < 22.0, "wall", "host")
+        frames.append(
+            pd.DataFrame({"x": xy[:, 0] + 650_000, "y": xy[:, 1] + 7_400_000, "z": 500.0 - 10 * k, "geozone": label})
+        )
+    holes = blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
+    model = ViewerModel(holes, cache=False)
+    model.select("wall", 0, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(until="prediction")
+        build(holes, tmp_path / "out", geozones=["wall"], formats=("obj",), evaluate=False, workers=1)
+    assert model.result.model.pairs[-1].lower < holes.n_benches - 1  # its pairs end above the deepest bench
+    shown: dict[float, float] = {}
+    for _, z, poly in model.result.predicted:
+        z_input = round(float(holes.frame.z_to_input(z)), 3)
+        shown[z_input] = shown.get(z_input, 0.0) + poly.area
+    features = json.loads((tmp_path / "out" / "wall" / "prediction.geojson").read_text())["features"]
+    built = {f["properties"]["z"]: shape(f["geometry"]).area for f in features}
+    assert shown and set(shown) <= set(built), (sorted(shown), sorted(built))
+    assert min(shown) < float(holes.bench_z_input(holes.n_benches - 1))  # below the deepest bench
+    for z, area in shown.items():
+        assert area == pytest.approx(built[z], rel=1e-6)
+
+
 # ---------------------------------------------------------------------------
 # bearings
 
@@ -353,6 +397,23 @@ def test_shown_surfaces_are_the_exported_ones(tmp_path):
         local = local * f.metres_per_unit
         assert len(exported.faces) == len(mesh.faces)
         np.testing.assert_allclose(np.sort(local, axis=0), np.sort(mesh.vertices, axis=0), atol=1e-6)
+
+
+def test_surfaces_are_redone_when_the_selected_geozone_has_no_bench_pair():
+    """g3 has 0, 1 and 11 holes on the three benches. Selected, with a smallest modelled component of 12 it
+    has no bench pair: the run stopped there, and its surface from before stayed on screen (and in the
+    exports), as did every other geozone's from before each later slider move."""
+    model = _quiet_model(small_holes(), geozone="g3")
+    assert model.selection.geozone == "g3" and "g3" in model.result.surfaces
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(model.set_param("min_component_holes", 12))
+        assert not model.result.model.pairs
+        assert "g3" not in model.result.surfaces and "g3" not in model.result.built
+        model.run(model.set_param("surface_max_cells", 5))  # a coarse grid: fewer faces
+        session = model.session()
+        for g in ("g1", "g2"):  # redone after the slider move
+            assert len(model.result.built[g].faces) == len(session.surface(g).faces), g
 
 
 def test_the_body_filter_drops_label_noise_bodies():

@@ -274,6 +274,28 @@ def test_manual_alignment_undo_and_project_roundtrip(model, tmp_path):
     assert model.dirty and not model.overrides
 
 
+@pytest.mark.parametrize("unit", ["m", "ft"])
+def test_nudges_made_before_the_run_of_the_first_is_done_add_up(unit):
+    """Ctrl+Right pressed twice within a run moved the source one step: the second nudge started from the
+    translation of the result on screen, from before the first, and undid it."""
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.testing import small_holes
+
+    model = ViewerModel(small_holes(unit=unit), cache=False)
+    model.select("g1", 0, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(until="correspondence")
+        auto = model.current_translation_m()
+        model.nudge(1.0, 0.0)
+        model.nudge(1.0, 0.5)  # before the first nudge's run
+        model.run("correspondence", until="correspondence")
+    np.testing.assert_allclose(model.current_translation_m(), (auto[0] + 2.0, auto[1] + 0.5), atol=1e-9)
+    model.undo()
+    model.run("correspondence", until="correspondence")
+    np.testing.assert_allclose(model.current_translation_m(), (auto[0] + 1.0, auto[1]), atol=1e-9)
+
+
 def test_an_override_of_a_component_the_pair_lacks_is_refused():
     """Locking source 40 of a bench with one component broke the geozone's every run, and was saved."""
     from bgm_viewer.testing import small_model

@@ -57,6 +57,52 @@ def test_budget_slider_shows_the_first_n_suggestions_in_the_band(viewer_model):
     assert layer.budget == total
 
 
+def test_the_band_drawn_is_the_band_bgm_build_writes(viewer_model, tmp_path):
+    """Three benches: g1's own backtest is too short, and bgm build calibrates its band on the other geozones'
+    backtests too; the viewer calibrated on g1's alone and drew a band of 1261 m² where the build wrote 11111."""
+    import json
+
+    from shapely.geometry import shape
+
+    from core.model.build import build
+
+    scene = build_scene(viewer_model.holes, viewer_model.result, viewer_model.selection, visible="band")
+    section = scene["uncertainty"].next_bench.section
+    g, holes = viewer_model.selection.geozone, viewer_model.holes
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        build(holes, tmp_path / "out", geozones=[g], formats=("obj",), evaluate=False, workers=1)
+    features = json.loads((tmp_path / "out" / g / "uncertainty.geojson").read_text())["features"]
+    z = round(float(holes.frame.z_to_input(section.z_m)), 3)
+    written = [f["properties"] | {"area": shape(f["geometry"]).area} for f in features]
+    band = next(f for f in written if f["z"] == z and f["kind"] == "band")
+    assert section.scale.source == band["calibration"] == "pooled backtest"
+    assert section.band.area == pytest.approx(band["area"], rel=1e-6)
+
+
+def test_hidden_next_bench_layers_are_computed_only_once_shown(viewer_model):
+    """Hidden by default, the next bench's uncertainty and suggestions were computed by core whenever a
+    run changed the model, on the window's thread: 1-3.5 s with the window frozen on Kennecott."""
+    from bgm_viewer.builders import refresh_scene
+    from bgm_viewer.model import PipelineResult
+    from bgm_viewer.screenshot import plotter_for
+
+    res = viewer_model.result
+    scene = build_scene(viewer_model.holes, PipelineResult(), viewer_model.selection)
+    plotter, renderer = plotter_for(scene, window_size=(320, 240), legend=False, bearings=False)
+    try:
+        refresh_scene(scene, viewer_model.holes, res, viewer_model.selection, previous=PipelineResult())
+        next_bench = scene["uncertainty"].next_bench
+        assert next_bench is scene["suggested holes"].next_bench and next_bench.model is res.model
+        assert "section" not in vars(next_bench) and "suggestions_m" not in vars(next_bench)  # not computed
+        scene["uncertainty"].visible = True
+        assert "section" in vars(next_bench) and renderer.actors["uncertainty"]  # drawn once shown
+        scene["suggested holes"].visible = True
+        assert len(renderer.actors["suggested holes"]) == 1
+    finally:
+        plotter.close()
+
+
 def test_without_a_model_the_layers_are_empty(viewer_model):
     nothing = NextBench(viewer_model.holes, None)
     assert UncertaintyLayer(nothing).build() == [] and SuggestedHolesLayer(nothing).build() == []

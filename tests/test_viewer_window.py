@@ -134,6 +134,22 @@ def test_undo_of_an_override_a_slider_dropped_sets_the_slider_back(window, qtbot
     assert "Undo brought back" in window.statusBar().currentMessage()
 
 
+def test_undo_is_offered_only_when_there_is_something_to_undo(window, qtbot, tmp_path):
+    """Edit > Undo (Ctrl+Z) was enabled when the window opened and after another project was opened,
+    with nothing to undo, and did nothing without a word."""
+    assert not window.undo_action.isEnabled()
+    window.undo()  # the panel's Undo button
+    assert window.statusBar().currentMessage() == "nothing to undo"
+    window.nudge(1.0, 0.0)
+    assert window.undo_action.isEnabled()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    path = tmp_path / "p.json"
+    window.model.save_project(path)
+    window.open_project(path)
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert not window.model.can_undo and not window.undo_action.isEnabled()
+
+
 def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
     """A Shift + left drag in the 3D view moves the selected source by the dragged distance."""
     from bgm_viewer.scene import world_to_pixels
@@ -214,6 +230,44 @@ def test_panels_speak_the_inputs_units_and_sliders_keep_values(qtbot):
     finally:
         win.model.dirty = False
         win.close()
+
+
+def test_a_slider_shows_a_projects_value_past_its_typical_range(qtbot):
+    """A project's search radius of 200 ft (slider 21.5-86 ft) showed 86 on the slider, and 3000 snake
+    iterations showed 1500, while the model used 200 and 3000."""
+    model = ViewerModel(small_holes(unit="ft"), cache=False)
+    model.set_param("search_radius_m", 200 * 0.3048)
+    model.set_param("snake_max_iterations", 3000)
+    model.set_param("gvf_mu", 0.001)
+    win = MainWindow(model, auto_run=False)
+    win.show()
+    try:
+        assert win.param_controls["search_radius_m"].slider.value() == pytest.approx(200.0)
+        assert win.param_controls["snake_max_iterations"].slider.value() == 3000
+        assert win.param_controls["gvf_mu"].slider.value() == pytest.approx(0.001)
+        for name in ("search_radius_m", "snake_max_iterations", "gvf_mu"):
+            assert win.param_controls[name].value() == model.param(name)
+    finally:
+        win.model.dirty = False
+        win.close()
+
+
+def test_an_auto_parameter_shows_no_value_the_model_does_not_use(window):
+    """The alignment cell size and morph speed clamp are derived per geozone when auto: their greyed sliders
+    read the range's lower end (2.248 ft on Kennecott, a tenth of a spacing), which the model does not use."""
+    spacing = window.model.holes.hole_spacing_m
+    for name in ("correspondence_cell_size_m", "speed_clamp_m"):
+        ctl = window.param_controls[name]
+        assert ctl.auto.isChecked() and not ctl.slider.isVisibleTo(ctl), name
+    radius = window.param_controls["search_radius_m"]  # 1.6 spacings: known ahead, shown
+    assert radius.auto.isChecked() and radius.slider.isVisibleTo(radius)
+    assert radius.slider.value() == pytest.approx(1.6 * spacing, abs=1e-3)
+    ctl = window.param_controls["speed_clamp_m"]
+    ctl.auto.setChecked(False)  # a value of the user's: the slider is back, and what it reads is used
+    assert ctl.slider.isVisibleTo(ctl) and ctl.slider.isEnabled()
+    assert window.model.param("speed_clamp_m") == pytest.approx(ctl.slider.value(), abs=1e-3)
+    ctl.auto.setChecked(True)
+    assert window.model.param("speed_clamp_m") is None and not ctl.slider.isVisibleTo(ctl)
 
 
 def test_clicking_a_hole_reports_its_id_and_grade(qtbot, tmp_path):
@@ -425,6 +479,98 @@ def test_a_surface_is_not_exported_before_the_last_change_is_in_it(window, qtbot
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
     window.export_surface(tmp_path / "surface.obj")
     assert (tmp_path / "surface.obj").stat().st_size > 0
+
+
+def test_surfaces_of_the_selected_geozone_follow_the_selection(window, qtbot, tmp_path):
+    """With "surfaces of: selected geozone", the geozone selected when it was chosen kept its surface on
+    screen (and in Export shown surfaces) beside every geozone selected after it."""
+    window.surface_scope.setCurrentText("selected geozone")
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert set(window.model.result.surfaces) == {"g1"}
+    window.geozone_combo.setCurrentText("g2")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.model.selection.geozone == "g2"
+    assert set(window.model.result.surfaces) == {"g2"}
+    assert set(window.export_surfaces(tmp_path)) == {"g2"}
+
+
+def test_a_single_bench_says_there_is_no_bench_below(qtbot, tmp_path):
+    """One bench drilled: the bench pair read "684.98 -> nan m", and once the run was done the status bar
+    still said the trajectories were empty because the pair was "not corresponded yet"."""
+    h = small_holes()
+    top = h.bench == 0
+    table = pd.DataFrame(
+        {"x": h.xy[top, 0] + 650_000, "y": h.xy[top, 1] + 7_400_000, "z": h.z[top], "geozone": h.geozone[top]}
+    )
+    table.to_csv(tmp_path / "one.csv", index=False)
+    win = MainWindow(ViewerModel(tmp_path / "one.csv", cache=False), debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        labels = [win.bench_combo.itemText(i) for i in range(win.bench_combo.count())]
+        assert labels == [f"{win.model.holes.bench_z_input(0):g} m"]
+        said = win.statusBar().currentMessage()
+        assert said.startswith("done") and "trajectories is empty: the input has one bench" in said, said
+        assert "not corresponded yet" not in said and "not computed yet" not in said
+    finally:
+        win.close()
+
+
+def test_the_bench_panel_says_which_benches_are_hidden_after_a_project_is_opened(window, qtbot, tmp_path):
+    """A bench unticked, then File > Open project (the same input): the panel ticked every bench again
+    while the view still hid that one's holes and contours."""
+    window.sections.benches.item(0).setCheckState(QtCore.Qt.CheckState.Unchecked)
+    z0 = float(window.model.holes.bench_levels_m[0])
+    assert window.scene.hidden_benches_m == {z0}
+    path = tmp_path / "p.json"
+    window.model.save_project(path)
+    window.open_project(path)
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    items = [window.sections.benches.item(i) for i in range(window.sections.benches.count())]
+    ticked = [it.checkState() == QtCore.Qt.CheckState.Checked for it in items]
+    drawn = [window.scene.view.shows("g1", float(it.data(QtCore.Qt.ItemDataRole.UserRole))) for it in items]
+    assert ticked == drawn == [False, True, True]
+
+
+def test_an_exported_surface_is_on_the_dxf_layer_bgm_build_puts_it_on(qtbot, tmp_path):
+    """Geozones "ore 1" and "ore_1" are both ore_1 once made R12-safe: bgm build puts the second on ore_1_2,
+    File > Export surface put it on ore_1, the other geozone's layer (mine software merges the two)."""
+    import ezdxf
+
+    from core.io.blastholes import blastholes_from_table
+    from core.model.build import build
+
+    h = small_holes()
+    labels = pd.Series(h.geozone).replace({"g1": "ore 1", "g2": "ore_1"}).to_numpy()
+    table = pd.DataFrame({"x": h.xy[:, 0], "y": h.xy[:, 1], "z": h.z, "geozone": labels})
+    holes = blastholes_from_table(table, source="relabelled")
+    model = ViewerModel(holes, cache=False)
+    model.select("ore_1", 0, 0)
+    win = MainWindow(model, debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        win.export_surface(tmp_path / "ore_1.dxf")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            build(holes, tmp_path / "out", geozones=["ore_1"], formats=("dxf",), evaluate=False, workers=1)
+        built = next((tmp_path / "out").glob("ore_1*/surface.dxf"))
+        layers = [{e.dxf.layer for e in ezdxf.readfile(p).modelspace()} for p in (tmp_path / "ore_1.dxf", built)]
+        assert layers[0] == layers[1] == {"ore_1_2"}
+    finally:
+        win.close()
+
+
+def test_a_layer_emptied_by_hiding_every_geozone_says_so(window, qtbot):
+    """Every geozone unticked in the legend: the status bar said "contours is empty: no contours are extracted
+    yet" and "blastholes is empty: nothing to draw for this selection" after each run."""
+    window.legend.hide_all()
+    window.request("surface", immediate=True)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    said = window.statusBar().currentMessage()
+    for name in ("blastholes", "contours", "surfaces"):
+        assert f"{name} is empty: what it would draw is hidden" in said, said
+    assert "not extracted yet" not in said and "nothing to draw for this selection" not in said
 
 
 def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp_path):
