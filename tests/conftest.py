@@ -132,3 +132,30 @@ def constructed_local(holes, geometry):
     """A geometry given in a constructed bench's own (pre-offset) coordinates, in the engine's frame."""
     o = constructed_offset(holes)
     return shapely.affinity.translate(geometry, -o[0], -o[1])
+
+
+def narrowing_pit(n_benches: int = 5, spacing: float = 6.0, gone: bool = True):
+    """A pit narrowing 22 m a bench (radius 120 m at the top, 10 m benches), holes on a staggered pattern.
+
+    ``wall`` is a vertical cylinder (22 m radius) at its edge, x = 58-102 m: the top two benches drilled all of
+    it, the third part of it, the lower two none. ``gone`` is a cylinder (18 m radius) in the middle on the top
+    three benches only: the two below drilled its ground and found the host.
+    """
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    frames = []
+    for k in range(n_benches):
+        radius = 120.0 - 22.0 * k
+        rows = np.arange(-radius, radius, spacing * np.sqrt(3) / 2)
+        xy = np.array(
+            [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(-radius, radius, spacing)]
+        )
+        xy = xy[np.hypot(*xy.T) < radius]
+        label = np.where(np.hypot(xy[:, 0] - 80.0, xy[:, 1]) < 22.0, "wall", "host")
+        label = np.where((np.hypot(xy[:, 0] + 10.0, xy[:, 1] - 10.0) < 18.0) & (k <= 2) & gone, "gone", label)
+        frames.append(
+            pd.DataFrame({"x": xy[:, 0] + 650_000, "y": xy[:, 1] + 7_400_000, "z": 500.0 - 10 * k, "geozone": label})
+        )
+    return blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")

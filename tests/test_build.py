@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import trimesh
+from conftest import narrowing_pit
 from shapely.geometry import shape
 from test_cli import bgm
 
@@ -289,23 +290,10 @@ def test_a_geozone_the_deepest_benches_never_drilled_is_predicted_below_the_deep
     """A body at the edge of a narrowing pit, seen on the top three benches only: its predictions were made
     below the last bench its pairs reach, between two known benches where it is always absent, so its
     prediction.geojson was empty where `bgm predict` carries it on below the deepest bench."""
-    from core.io.blastholes import blastholes_from_table
     from core.model.build import PREDICTION_FRACTIONS, build
     from core.model.session import ModelSession
 
-    spacing, frames = 6.0, []
-    for k in range(5):
-        radius = 120.0 - 22.0 * k
-        rows = np.arange(-radius, radius, spacing * np.sqrt(3) / 2)
-        xy = np.array(
-            [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(-radius, radius, spacing)]
-        )
-        xy = xy[np.hypot(*xy.T) < radius]
-        label = np.where(np.hypot(xy[:, 0] - 80.0, xy[:, 1]) < 22.0, "wall", "host")
-        frames.append(
-            pd.DataFrame({"x": xy[:, 0] + 650_000, "y": xy[:, 1] + 7_400_000, "z": 500.0 - 10 * k, "geozone": label})
-        )
-    holes = blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
+    holes = narrowing_pit(gone=False)
     session = ModelSession(holes)
     model = session.geozone_model("wall")
     assert model.pairs[-1].lower < holes.n_benches - 1  # its pairs end above the deepest bench
@@ -328,11 +316,10 @@ def test_the_report_says_which_geozone_ends_for_want_of_drilling_and_its_surface
     says so, and its surface runs down to the sections predicted below the deepest bench. ``gone`` ends where
     the benches below drilled its ground and found the host: no note, nothing predicted below."""
     import trimesh
-    from test_session import _narrowing_pit
 
     from core.model.build import build
 
-    holes = _narrowing_pit()
+    holes = narrowing_pit()
     summary = build(holes, tmp_path / "out", geozones=["wall", "gone"], formats=("ply",), evaluate=False, workers=1)
     by_name = {g["geozone"]: g for g in summary["geozones"]}
     assert "bench below drilled 0%" in by_name["wall"]["note"] and "depth trend" in by_name["wall"]["note"]

@@ -11,7 +11,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import synthetic
+from conftest import narrowing_pit, synthetic
 from test_cli import bgm
 
 from core.errors import BGMInputError
@@ -370,33 +370,6 @@ def test_a_geozone_gone_for_benches_and_back_has_no_surface_through_the_benches_
     assert not ((z < levels[1]) & (z > levels[3])).any(), np.sort(z[(z < levels[1]) & (z > levels[3])])[-3:]
 
 
-def _narrowing_pit(n_benches=5, spacing=6.0):
-    """A pit narrowing 22 m a bench (radius 120 m at the top, 10 m benches), holes on a staggered pattern.
-
-    ``wall`` is a vertical cylinder (22 m radius) at its edge, x = 58-102 m: the top two benches drilled all of
-    it, the third part of it, the lower two none. ``gone`` is a cylinder (18 m radius) in the middle on the top
-    three benches only: the two below drilled its ground and found the host.
-    """
-    import pandas as pd
-
-    from core.io.blastholes import blastholes_from_table
-
-    frames = []
-    for k in range(n_benches):
-        radius = 120.0 - 22.0 * k
-        rows = np.arange(-radius, radius, spacing * np.sqrt(3) / 2)
-        xy = np.array(
-            [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(-radius, radius, spacing)]
-        )
-        xy = xy[np.hypot(*xy.T) < radius]
-        label = np.where(np.hypot(xy[:, 0] - 80.0, xy[:, 1]) < 22.0, "wall", "host")
-        label = np.where((np.hypot(xy[:, 0] + 10.0, xy[:, 1] - 10.0) < 18.0) & (k <= 2), "gone", label)
-        frames.append(
-            pd.DataFrame({"x": xy[:, 0] + 650_000, "y": xy[:, 1] + 7_400_000, "z": 500.0 - 10 * k, "geozone": label})
-        )
-    return blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
-
-
 def _section_area_m2(mesh, z_m: float) -> float:
     """The area of the closed mesh's section at ``z_m``."""
     section = mesh.section(plane_origin=[0.0, 0.0, z_m], plane_normal=[0.0, 0.0, 1.0])
@@ -412,7 +385,7 @@ def test_a_body_the_lower_benches_did_not_drill_runs_on_down_to_its_predictions_
     deepest bench carried it on (2400 m² at 457.5 m). Now it is one closed body down to those predictions."""
     from core.model.build import PREDICTION_FRACTIONS
 
-    holes = _narrowing_pit()
+    holes = narrowing_pit()
     session = ModelSession(holes)
     model = session.geozone_model("wall")
     levels = holes.bench_levels_m
@@ -432,7 +405,7 @@ def test_a_body_cut_by_the_lower_benchs_drilling_edge_does_not_end_at_that_edge(
     """The third bench drilled 576 m² of ``wall``'s 1520 (a cylinder): its section there was the drilled part
     alone, ending at the drilling edge. Past that edge the section now holds the depth trend, as below the
     deepest bench, which carries the cylinder on."""
-    holes = _narrowing_pit()
+    holes = narrowing_pit()
     session = ModelSession(holes)
     mesh = session.surface("wall")
     z = float(holes.bench_levels_m[2]) + 0.01
@@ -442,7 +415,7 @@ def test_a_body_cut_by_the_lower_benchs_drilling_edge_does_not_end_at_that_edge(
 def test_a_body_absent_from_the_benches_that_drilled_its_ground_closes_above_them_and_is_not_predicted_below():
     """``gone`` is on the top three benches; the fourth and fifth drilled its ground and found the host: its
     surface closes between its last bench and the next, and nothing of it is predicted below the deepest."""
-    holes = _narrowing_pit()
+    holes = narrowing_pit()
     session = ModelSession(holes)
     model = session.geozone_model("gone")
     levels = holes.bench_levels_m

@@ -14,6 +14,8 @@ import pytest
 
 pv = pytest.importorskip("pyvista")
 
+from conftest import narrowing_pit  # noqa: E402
+
 from bgm_viewer.builders import build_scene, empty_layer_reasons  # noqa: E402
 from bgm_viewer.model import Selection, ViewerModel, richest_pair  # noqa: E402
 from bgm_viewer.palette import BACKGROUND  # noqa: E402
@@ -131,25 +133,11 @@ def test_a_geozone_the_deepest_bench_never_drilled_is_predicted_where_bgm_build_
     bgm build's prediction.geojson has its sections below the deepest bench."""
     import json
 
-    import pandas as pd
     from shapely.geometry import shape
 
-    from core.io.blastholes import blastholes_from_table
     from core.model.build import build
 
-    spacing, frames = 6.0, []
-    for k in range(5):
-        radius = 120.0 - 22.0 * k
-        rows = np.arange(-radius, radius, spacing * np.sqrt(3) / 2)
-        xy = np.array(
-            [(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in np.arange(-radius, radius, spacing)]
-        )
-        xy = xy[np.hypot(*xy.T) < radius]
-        label = np.where(np.hypot(xy[:, 0] - 80.0, xy[:, 1]) < 22.0, "wall", "host")
-        frames.append(
-            pd.DataFrame({"x": xy[:, 0] + 650_000, "y": xy[:, 1] + 7_400_000, "z": 500.0 - 10 * k, "geozone": label})
-        )
-    holes = blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
+    holes = narrowing_pit(gone=False)
     model = ViewerModel(holes, cache=False)
     model.select("wall", 0, 0)
     with warnings.catch_warnings():
