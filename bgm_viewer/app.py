@@ -36,7 +36,16 @@ from core.model.parameters import PARAMETERS, ParameterSpec
 from . import _vtkenv  # noqa: F401
 from .builders import build_scene, empty_layer_reasons, refresh_scene
 from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, SCREENSHOT_FORMATS, parse_layers
-from .model import STEPS, Cancelled, ViewerModel, bodies, compute, display_unit, project_input
+from .model import (
+    STEPS,
+    Cancelled,
+    ViewerModel,
+    bodies,
+    compute,
+    display_unit,
+    project_input,
+    project_read_options,
+)
 from .scene import SceneRenderer, drag_on_plane
 
 Qt = QtCore.Qt
@@ -818,8 +827,10 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _update_title(self, *_) -> None:
         name = Path(self.model.project_path).name if self.model.project_path else "untitled project"
+        holes = self.model.holes
+        unit = f"{holes.frame.length_unit}{', guessed' if holes.unit_guess else ''}"  # a guess stays in sight
         self.setWindowTitle(
-            f"BGM viewer - {self.model.holes.source or 'input'} - {name}{' *' if self.model.dirty else ''}"
+            f"BGM viewer - {holes.source or 'input'} ({unit}) - {name}{' *' if self.model.dirty else ''}"
         )
 
     # ------------------------------------------------------------------ worker
@@ -943,10 +954,16 @@ class MainWindow(QtWidgets.QMainWindow):
         return not self.busy
 
     # ------------------------------------------------------------------ files
-    def open_input(self, path) -> list[str]:
-        """Show the blastholes of ``path``; returns what reading them warned of (repairs), also shown by the dialog."""
-        model, notes = _noted(lambda: ViewerModel(path, cache=self.model.store.cache is not None))
+    def open_input(self, path, read_options: dict | None = None) -> list[str]:
+        """Show the blastholes of ``path`` read with ``read_options`` (:func:`read_blastholes`'s keywords: units,
+        columns, bench height); returns what reading them warned of (repairs, a unit guessed), also shown by the dialog.
+        """
+        cache = self.model.store.cache is not None
+        model, notes = _noted(lambda: ViewerModel(path, cache=cache, read_options=read_options))
         self._replace_model(model)
+        if model.holes.unit_guess:  # a unit it had to guess is said, not taken silently
+            guess = model.holes.unit_guess.split(": give --units")[0]
+            notes.append(f"{model.holes.source}: {guess}; if not, open it again and choose its length unit")
         return notes
 
     def _replace_model(self, model: ViewerModel) -> None:
@@ -981,8 +998,14 @@ class MainWindow(QtWidgets.QMainWindow):
         path, _ = QtWidgets.QFileDialog.getOpenFileName(
             self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
         )
-        if path:
-            self._guard(lambda: self._tell(self.open_input(path)))
+        if not path:
+            return
+        from .read_options import ReadOptionsDialog
+
+        # starts from how the current input was read: the next table of the same mine reads the same way
+        dialog = ReadOptionsDialog(self, path, self.model.holes.read_options)
+        if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
+            self._guard(lambda: self._tell(self.open_input(path, dialog.options())))
 
     def open_project(self, path) -> list[str]:
         """Open a project and its input; returns what they warned of (overrides or parameters left unused)."""
@@ -990,7 +1013,12 @@ class MainWindow(QtWidgets.QMainWindow):
         def load() -> ViewerModel:
             inp = project_input(path)
             cache = self.model.store.cache is not None
-            model = ViewerModel(inp, cache=cache) if inp else ViewerModel(self.model.holes, cache=cache)
+            options = project_read_options(path)  # the units and columns it was made with
+            model = (
+                ViewerModel(inp, cache=cache, read_options=options)
+                if inp
+                else ViewerModel(self.model.holes, cache=cache)
+            )
             model.load_project(path)
             return model
 
@@ -1253,9 +1281,11 @@ def viewer_window(
     The geozone and bench pair selected, the layers shown (see :data:`bgm_viewer.layer_names.LAYER_NAMES`),
     the camera and the vertical exaggeration are what a screenshot with the same options shows.
     """
-    if input_path is None and project_path is not None:
-        input_path = project_input(project_path)
-    model = ViewerModel(input_path, cache=cache)
+    options = None
+    if project_path is not None and not isinstance(input_path, Blastholes):
+        input_path = input_path if input_path is not None else project_input(project_path)
+        options = project_read_options(project_path)  # read as the project was made: feet stay feet
+    model = ViewerModel(input_path, cache=cache, read_options=options)
     if isinstance(input_path, Blastholes) and Path(input_path.source).is_file():
         model.input_path = input_path.source  # read with the command line's options: its file, for the extra columns
     if project_path is not None:

@@ -715,3 +715,43 @@ def test_closing_the_window_during_a_run_waits_for_its_worker(qtbot):
     win.model.dirty = False
     win.close()
     assert QtCore.QThreadPool.globalInstance().activeThreadCount() == 0
+
+
+def test_a_table_opened_in_feet_with_its_geozone_column_named_reopens_so_from_its_project(
+    window, qtbot, monkeypatch, tmp_path
+):
+    """A project saved after `bgm view holes.csv --units ft --geozone-column DOMAIN_CODE` reopened without
+    either (File > Open project: "no geozone column", or feet read as metres); and File > Open blastholes
+    offered no units or columns. The project reads it so again, and the dialog sets both."""
+    from pathlib import Path
+
+    from core.io.blastholes import read_blastholes
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    table = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
+    csv = tmp_path / "holes.csv"
+    table.rename(columns={"geozone": "DOMAIN_CODE"}).to_csv(csv, index=False)
+    model = ViewerModel(read_blastholes(csv, geozone="DOMAIN_CODE", length_unit="ft"))  # as bgm view reads it
+    model.input_path = str(csv)
+    model.save_project(tmp_path / "p.json")
+    window.open_project(tmp_path / "p.json")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.model.holes.frame.length_unit == "ft"
+    assert window.model.holes.bench_height_m == pytest.approx(10 * 0.3048)
+
+    from bgm_viewer import read_options
+
+    def choose(dialog):
+        assert dialog.columns["geozone"].findText("DOMAIN_CODE") >= 0  # the table's columns are offered
+        dialog.units.setCurrentText("feet (ft)")
+        dialog.columns["geozone"].setCurrentText("DOMAIN_CODE")
+        return QtWidgets.QDialog.DialogCode.Accepted
+
+    window.open_input(Path(__file__).parents[1] / "assets" / "demo_blastholes.csv")  # another input in between
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (str(csv), ""))
+    monkeypatch.setattr(read_options.ReadOptionsDialog, "exec", choose)
+    window.open_input_dialog()
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.model.holes.frame.length_unit == "ft" and "(ft)" in window.windowTitle()
+    assert window.model.holes.bench_height_m == pytest.approx(10 * 0.3048)
