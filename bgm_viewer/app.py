@@ -207,6 +207,8 @@ class MainWindow(QtWidgets.QMainWindow):
     """BGM viewer main window."""
 
     resultShown = Signal()
+    #: The next bench's band and suggested holes, computed in the worker thread, are drawn.
+    nextBenchShown = Signal()
 
     def __init__(self, model: ViewerModel | None = None, *, debounce_ms: int = 150, auto_run: bool = True):
         super().__init__()
@@ -219,6 +221,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._job = 0
         self._worker = None
         self._stop = threading.Event()
+        #: The next bench being computed in a worker thread (see _start_next_bench), and its worker.
+        self._next_bench = None
+        self._next_bench_worker = None
         self._pending_step: str | None = None
         self._queued_step: str | None = None
         #: What the last Undo did, said when its run is done (the run's progress would hide it before).
@@ -241,6 +246,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self.model.selection,
             visible=DEFAULT_VISIBLE,
             vertical_exaggeration=self.model.vertical_exaggeration,
+            deferred=True,  # the next bench in the worker thread: seconds on Kennecott
         )
         # the legend is a dock (GeozoneLegend): drawn in the view it covered the data
         self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True, legend=False)
@@ -697,6 +703,7 @@ class MainWindow(QtWidgets.QMainWindow):
             why = self.empty_layers().get(layer.name) if layer.visible and not self.busy else None
             if why:
                 self.statusBar().showMessage(f"{layer.name} is empty: {why}", 10000)
+            self._start_next_bench()  # shown for the first time: computed off this thread
 
     def _current_layer(self):
         item = self.layer_list.currentItem()
@@ -867,6 +874,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._first_update = True
         self._started = time.perf_counter()
         self.statusBar().showMessage(f"running from {step}...")
+        self.progress_bar.setRange(0, 100)  # out of the next bench's busy indicator
         self.progress_bar.setValue(0)
         # errored is connected here: connected later, superqt also raised every error again in Qt's thread
         worker = create_worker(
@@ -895,7 +903,7 @@ class MainWindow(QtWidgets.QMainWindow):
         previous = self.model.result
         self.model.set_result(result)
         with self.renderer.batch():
-            refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous)
+            refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous, deferred=True)
         self._on_layer_row(None)
         if not self._fitted and result.complete:
             self._fitted = True  # fit once everything is drawn (the surface can reach below the benches)
@@ -922,6 +930,57 @@ class MainWindow(QtWidgets.QMainWindow):
         said = " - ".join(x for x in (errors, note) if x)
         self.statusBar().showMessage(f"done in {self.last_run_seconds:.2f} s" + (f" - {said}" if said else ""))
         self.progress_bar.setValue(100)
+        self._start_next_bench()
+
+    # The next bench's band and suggested holes take core 1-3.5 s on Kennecott: computed on the
+    # window's thread, they froze it. They are computed in a worker thread once a run is done and
+    # one of their layers is shown, and drawn when done unless a newer result replaced them.
+    def _next_bench_layers(self) -> list:
+        return [layer for name in ("uncertainty", "suggested holes") if (layer := self.scene.get(name)) is not None]
+
+    def _start_next_bench(self) -> None:
+        """Compute the next bench of the shown band or suggestions in a worker thread (if not done or under way)."""
+        shown = [layer for layer in self._next_bench_layers() if layer.visible and layer.next_bench is not None]
+        if not shown or self.busy:  # a run under way replaces them: started again when it is done
+            return
+        nb = shown[0].next_bench
+        if not nb.pending or nb.error or nb is self._next_bench:
+            return
+        self._next_bench, started = nb, time.perf_counter()
+        self.statusBar().showMessage("computing the next bench's uncertainty band and suggested holes...")
+        self.progress_bar.setRange(0, 0)  # busy: core says nothing of its progress
+        worker = create_worker(
+            nb.compute,
+            _start_thread=False,
+            _connect={"errored": lambda exc, nb=nb: self._on_next_bench(nb, started, exc)},
+        )
+        worker.returned.connect(lambda _, nb=nb: self._on_next_bench(nb, started))
+        self._next_bench_worker = worker
+        worker.start()
+
+    def _on_next_bench(self, nb, started: float, exc: Exception | None = None) -> None:
+        """Draw the next bench just computed, unless a newer result replaced it (then start that one's)."""
+        if nb is self._next_bench:
+            self._next_bench = self._next_bench_worker = None
+            if not self.busy:
+                self.progress_bar.setRange(0, 100)
+                self.progress_bar.setValue(100)
+        layers = [layer for layer in self._next_bench_layers() if layer.next_bench is nb]
+        if not layers:  # stale: parameters or the selection changed meanwhile
+            self._start_next_bench()
+            return
+        if exc is not None:
+            nb.error = f"{type(exc).__name__}: {exc}"
+            self.statusBar().showMessage(f"the next bench failed: {nb.error}")
+            return
+        with self.renderer.batch():
+            for layer in layers:
+                layer._emit("data")
+        self._on_layer_row(None)  # the budget slider's range: the suggestions' count
+        if not self.busy:
+            seconds = time.perf_counter() - started
+            self.statusBar().showMessage(f"next bench's band and suggested holes: done in {seconds:.2f} s")
+        self.nextBenchShown.emit()
 
     def _on_failed(self, job: int, exc: Exception) -> None:
         if job != self._job:
@@ -972,7 +1031,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model = model
         self._connect_model()
         with self.renderer.batch():
-            refresh_scene(self.scene, model.holes, model.result, model.selection)
+            refresh_scene(self.scene, model.holes, model.result, model.selection, deferred=True)
         self._fill_selection()
         # the sliders' units and ranges follow the input: build them again
         old = self._param_dock
