@@ -36,7 +36,16 @@ from core.model.parameters import PARAMETERS, ParameterSpec
 from . import _vtkenv  # noqa: F401
 from .builders import build_scene, empty_layer_reasons, refresh_scene
 from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, SCREENSHOT_FORMATS, parse_layers
-from .model import STEPS, Cancelled, ViewerModel, bodies, compute, display_unit, project_input
+from .model import (
+    STEPS,
+    Cancelled,
+    ViewerModel,
+    bodies,
+    compute,
+    display_unit,
+    project_input,
+    project_read_options,
+)
 from .scene import SceneRenderer, drag_on_plane
 
 Qt = QtCore.Qt
@@ -198,6 +207,8 @@ class MainWindow(QtWidgets.QMainWindow):
     """BGM viewer main window."""
 
     resultShown = Signal()
+    #: The next bench's band and suggested holes, computed in the worker thread, are drawn.
+    nextBenchShown = Signal()
 
     def __init__(self, model: ViewerModel | None = None, *, debounce_ms: int = 150, auto_run: bool = True):
         super().__init__()
@@ -210,6 +221,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._job = 0
         self._worker = None
         self._stop = threading.Event()
+        #: The next bench being computed in a worker thread (see _start_next_bench), and its worker.
+        self._next_bench = None
+        self._next_bench_worker = None
         self._pending_step: str | None = None
         self._queued_step: str | None = None
         #: What the last Undo did, said when its run is done (the run's progress would hide it before).
@@ -232,6 +246,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self.model.selection,
             visible=DEFAULT_VISIBLE,
             vertical_exaggeration=self.model.vertical_exaggeration,
+            deferred=True,  # the next bench in the worker thread: seconds on Kennecott
         )
         # the legend is a dock (GeozoneLegend): drawn in the view it covered the data
         self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True, legend=False)
@@ -688,6 +703,7 @@ class MainWindow(QtWidgets.QMainWindow):
             why = self.empty_layers().get(layer.name) if layer.visible and not self.busy else None
             if why:
                 self.statusBar().showMessage(f"{layer.name} is empty: {why}", 10000)
+            self._start_next_bench()  # shown for the first time: computed off this thread
 
     def _current_layer(self):
         item = self.layer_list.currentItem()
@@ -818,8 +834,10 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _update_title(self, *_) -> None:
         name = Path(self.model.project_path).name if self.model.project_path else "untitled project"
+        holes = self.model.holes
+        unit = f"{holes.frame.length_unit}{', guessed' if holes.unit_guess else ''}"  # a guess stays in sight
         self.setWindowTitle(
-            f"BGM viewer - {self.model.holes.source or 'input'} - {name}{' *' if self.model.dirty else ''}"
+            f"BGM viewer - {holes.source or 'input'} ({unit}) - {name}{' *' if self.model.dirty else ''}"
         )
 
     # ------------------------------------------------------------------ worker
@@ -856,6 +874,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._first_update = True
         self._started = time.perf_counter()
         self.statusBar().showMessage(f"running from {step}...")
+        self.progress_bar.setRange(0, 100)  # out of the next bench's busy indicator
         self.progress_bar.setValue(0)
         # errored is connected here: connected later, superqt also raised every error again in Qt's thread
         worker = create_worker(
@@ -884,7 +903,7 @@ class MainWindow(QtWidgets.QMainWindow):
         previous = self.model.result
         self.model.set_result(result)
         with self.renderer.batch():
-            refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous)
+            refresh_scene(self.scene, self.model.holes, result, self.model.selection, previous=previous, deferred=True)
         self._on_layer_row(None)
         if not self._fitted and result.complete:
             self._fitted = True  # fit once everything is drawn (the surface can reach below the benches)
@@ -911,6 +930,57 @@ class MainWindow(QtWidgets.QMainWindow):
         said = " - ".join(x for x in (errors, note) if x)
         self.statusBar().showMessage(f"done in {self.last_run_seconds:.2f} s" + (f" - {said}" if said else ""))
         self.progress_bar.setValue(100)
+        self._start_next_bench()
+
+    # The next bench's band and suggested holes take core 1-3.5 s on Kennecott: computed on the
+    # window's thread, they froze it. They are computed in a worker thread once a run is done and
+    # one of their layers is shown, and drawn when done unless a newer result replaced them.
+    def _next_bench_layers(self) -> list:
+        return [layer for name in ("uncertainty", "suggested holes") if (layer := self.scene.get(name)) is not None]
+
+    def _start_next_bench(self) -> None:
+        """Compute the next bench of the shown band or suggestions in a worker thread (if not done or under way)."""
+        shown = [layer for layer in self._next_bench_layers() if layer.visible and layer.next_bench is not None]
+        if not shown or self.busy:  # a run under way replaces them: started again when it is done
+            return
+        nb = shown[0].next_bench
+        if not nb.pending or nb.error or nb is self._next_bench:
+            return
+        self._next_bench, started = nb, time.perf_counter()
+        self.statusBar().showMessage("computing the next bench's uncertainty band and suggested holes...")
+        self.progress_bar.setRange(0, 0)  # busy: core says nothing of its progress
+        worker = create_worker(
+            nb.compute,
+            _start_thread=False,
+            _connect={"errored": lambda exc, nb=nb: self._on_next_bench(nb, started, exc)},
+        )
+        worker.returned.connect(lambda _, nb=nb: self._on_next_bench(nb, started))
+        self._next_bench_worker = worker
+        worker.start()
+
+    def _on_next_bench(self, nb, started: float, exc: Exception | None = None) -> None:
+        """Draw the next bench just computed, unless a newer result replaced it (then start that one's)."""
+        if nb is self._next_bench:
+            self._next_bench = self._next_bench_worker = None
+            if not self.busy:
+                self.progress_bar.setRange(0, 100)
+                self.progress_bar.setValue(100)
+        layers = [layer for layer in self._next_bench_layers() if layer.next_bench is nb]
+        if not layers:  # stale: parameters or the selection changed meanwhile
+            self._start_next_bench()
+            return
+        if exc is not None:
+            nb.error = f"{type(exc).__name__}: {exc}"
+            self.statusBar().showMessage(f"the next bench failed: {nb.error}")
+            return
+        with self.renderer.batch():
+            for layer in layers:
+                layer._emit("data")
+        self._on_layer_row(None)  # the budget slider's range: the suggestions' count
+        if not self.busy:
+            seconds = time.perf_counter() - started
+            self.statusBar().showMessage(f"next bench's band and suggested holes: done in {seconds:.2f} s")
+        self.nextBenchShown.emit()
 
     def _on_failed(self, job: int, exc: Exception) -> None:
         if job != self._job:
@@ -943,10 +1013,16 @@ class MainWindow(QtWidgets.QMainWindow):
         return not self.busy
 
     # ------------------------------------------------------------------ files
-    def open_input(self, path) -> list[str]:
-        """Show the blastholes of ``path``; returns what reading them warned of (repairs), also shown by the dialog."""
-        model, notes = _noted(lambda: ViewerModel(path, cache=self.model.store.cache is not None))
+    def open_input(self, path, read_options: dict | None = None) -> list[str]:
+        """Show the blastholes of ``path`` read with ``read_options`` (:func:`read_blastholes`'s keywords: units,
+        columns, bench height); returns what reading them warned of (repairs, a unit guessed), also shown by the dialog.
+        """
+        cache = self.model.store.cache is not None
+        model, notes = _noted(lambda: ViewerModel(path, cache=cache, read_options=read_options))
         self._replace_model(model)
+        if model.holes.unit_guess:  # a unit it had to guess is said, not taken silently
+            guess = model.holes.unit_guess.split(": give --units")[0]
+            notes.append(f"{model.holes.source}: {guess}; if not, open it again and choose its length unit")
         return notes
 
     def _replace_model(self, model: ViewerModel) -> None:
@@ -955,7 +1031,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model = model
         self._connect_model()
         with self.renderer.batch():
-            refresh_scene(self.scene, model.holes, model.result, model.selection)
+            refresh_scene(self.scene, model.holes, model.result, model.selection, deferred=True)
         self._fill_selection()
         # the sliders' units and ranges follow the input: build them again
         old = self._param_dock
@@ -981,8 +1057,14 @@ class MainWindow(QtWidgets.QMainWindow):
         path, _ = QtWidgets.QFileDialog.getOpenFileName(
             self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
         )
-        if path:
-            self._guard(lambda: self._tell(self.open_input(path)))
+        if not path:
+            return
+        from .read_options import ReadOptionsDialog
+
+        # starts from how the current input was read: the next table of the same mine reads the same way
+        dialog = ReadOptionsDialog(self, path, self.model.holes.read_options)
+        if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
+            self._guard(lambda: self._tell(self.open_input(path, dialog.options())))
 
     def open_project(self, path) -> list[str]:
         """Open a project and its input; returns what they warned of (overrides or parameters left unused)."""
@@ -990,7 +1072,12 @@ class MainWindow(QtWidgets.QMainWindow):
         def load() -> ViewerModel:
             inp = project_input(path)
             cache = self.model.store.cache is not None
-            model = ViewerModel(inp, cache=cache) if inp else ViewerModel(self.model.holes, cache=cache)
+            options = project_read_options(path)  # the units and columns it was made with
+            model = (
+                ViewerModel(inp, cache=cache, read_options=options)
+                if inp
+                else ViewerModel(self.model.holes, cache=cache)
+            )
             model.load_project(path)
             return model
 
@@ -1253,9 +1340,11 @@ def viewer_window(
     The geozone and bench pair selected, the layers shown (see :data:`bgm_viewer.layer_names.LAYER_NAMES`),
     the camera and the vertical exaggeration are what a screenshot with the same options shows.
     """
-    if input_path is None and project_path is not None:
-        input_path = project_input(project_path)
-    model = ViewerModel(input_path, cache=cache)
+    options = None
+    if project_path is not None and not isinstance(input_path, Blastholes):
+        input_path = input_path if input_path is not None else project_input(project_path)
+        options = project_read_options(project_path)  # read as the project was made: feet stay feet
+    model = ViewerModel(input_path, cache=cache, read_options=options)
     if isinstance(input_path, Blastholes) and Path(input_path.source).is_file():
         model.input_path = input_path.source  # read with the command line's options: its file, for the extra columns
     if project_path is not None:

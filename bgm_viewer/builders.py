@@ -28,11 +28,12 @@ from .sampling_layers import NextBench, SuggestedHolesLayer, UncertaintyLayer
 from .scene import Scene
 
 
-def make_layers(holes, result: PipelineResult, selection: Selection, predicted=()) -> list[Layer]:
+def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(), deferred=False) -> list[Layer]:
     """All standard layers for ``result`` (empty layers where a stage has not run).
 
     ``predicted``: ``(geozone, z_m, polygon)`` of contours predicted below the deepest bench
-    (from a core prediction stage, when there is one).
+    (from a core prediction stage, when there is one). ``deferred``: the next bench's band and
+    suggestions are left for the window's worker thread to compute (see :class:`NextBench`).
     """
     colours = geozone_colours(holes.geozones)
     contours = [c for cs in result.contours.values() for c in cs]
@@ -57,8 +58,8 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
     layers.append(ContoursLayer(predicted, colours, name="predicted contours", predicted=True, line_width=2.0))
     layers.append(SurfaceLayer.from_trimesh(sorted(result.surfaces.items()), colours))
     layers.append(selected_components_layer(result))
-    # computed by core when one of its layers is first drawn
-    next_bench = NextBench(holes, result.model, session=result.session)
+    # computed by core when one of its layers is first drawn, or by the window's worker thread (deferred)
+    next_bench = NextBench(holes, result.model, session=result.session, deferred=deferred)
     layers += [UncertaintyLayer(next_bench), SuggestedHolesLayer(next_bench)]
     return layers
 
@@ -81,10 +82,11 @@ def build_scene(
     visible=None,
     vertical_exaggeration: float = 2.0,
     predicted=(),
+    deferred: bool = False,
 ) -> Scene:
-    """A :class:`Scene` of the standard layers with ``visible`` (names) shown."""
+    """A :class:`Scene` of the standard layers with ``visible`` (names) shown (``deferred``: see :func:`make_layers`)."""
     scene = Scene(
-        make_layers(holes, result, selection, predicted),
+        make_layers(holes, result, selection, predicted, deferred),
         vertical_exaggeration=vertical_exaggeration,
         z_ref=float(np.max(holes.bench_levels_m)),
         frame=holes.frame,
@@ -131,13 +133,15 @@ def refresh_scene(
     selection: Selection,
     predicted=(),
     previous: PipelineResult | None = None,
+    deferred: bool = False,
 ) -> None:
     """Replace the data of the scene's layers, keeping visibility, opacity and frames where possible.
 
     With ``previous`` (the result on screen), only layers whose data changed are rebuilt.
+    ``deferred``: see :func:`make_layers`.
     """
     changed = _changed(result, previous, selection)
-    for layer in make_layers(holes, result, selection, predicted):
+    for layer in make_layers(holes, result, selection, predicted, deferred):
         if layer.name not in changed and scene.get(layer.name) is not None:
             continue
         old = scene.get(layer.name)
@@ -219,6 +223,9 @@ EMPTY_REASONS = {
 }
 
 
+#: Why a next-bench layer draws nothing yet: the worker thread is computing it.
+NEXT_BENCH_PENDING = "the next bench's band and suggested holes are being computed"
+
 #: Layers that leave out the geozones and benches the Geozones and Benches panels hide.
 HIDEABLE = ("blastholes", "contours", "predicted contours", "surfaces", "selected components")
 HIDDEN = "what it would draw is hidden: tick its geozones (Geozones) or benches (Benches and section)"
@@ -241,6 +248,10 @@ def empty_layer_reasons(
             # with every geozone unticked the status bar said "no contours are extracted yet"
             if layer.name in HIDEABLE and unhidden != scene.view and layer.build(unhidden):
                 out[layer.name] = HIDDEN
+                continue
+            nb = getattr(layer, "next_bench", None)
+            if nb is not None and (nb.pending or nb.error):  # not "empty": computing, or failed
+                out[layer.name] = f"the next bench failed: {nb.error}" if nb.error else NEXT_BENCH_PENDING
                 continue
             why = EMPTY_REASONS.get(layer.name)
             out[layer.name] = why(holes, result, selection) if why else "nothing to draw for this selection"

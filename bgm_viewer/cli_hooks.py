@@ -105,6 +105,10 @@ def view(
         check_display()  # before the table is read: Qt would abort the process, not raise
     source = input
     if table is not None and table.given():
+        if input is None and project is not None:
+            from core.io.project import load_project, saved_input
+
+            input = saved_input(load_project(project), project)  # read as the project was made (its options)
         if input is None:
             raise BGMInputError("--x, --y, --z, --geozone-column, --bench-height and --units need an input table")
         source = table.read(input)  # columns, bench height or units named on the command line
@@ -141,7 +145,7 @@ def view_command(
     Errors in the options, input or project are :class:`core.errors.BGMInputError`, for the CLI to report.
     """
     try:
-        from .model import project_input
+        from .model import load_holes, project_input, project_read_options
 
         if screenshot:
             from .screenshot import render_screenshot
@@ -157,6 +161,8 @@ def view_command(
         from core.io.project import check_project_input, load_project
 
         check_project_input(load_project(project), project, input)
+    if project is not None and isinstance(input, str | Path) and project_read_options(project):
+        input = load_holes(input, project_read_options(project))  # read as the project was made: feet stay feet
     if screenshot:
         holes = _checked_holes(input, geozone, bench)
         render_screenshot(

@@ -506,8 +506,9 @@ def _geozone_surface(session: ModelSession, g: str) -> tuple[trimesh.Trimesh | N
 # the model
 
 
-def load_holes(source=None) -> Blastholes:
-    """Blastholes from a path, a ``Blastholes``, or the bundled demo (``None``)."""
+def load_holes(source=None, read_options: dict | None = None) -> Blastholes:
+    """Blastholes from a path (read with ``read_options``, :func:`read_blastholes`'s keywords), a ``Blastholes``,
+    or the bundled demo (``None``)."""
     if isinstance(source, Blastholes):
         return source
     if source is None or str(source) == "demo":
@@ -515,7 +516,7 @@ def load_holes(source=None) -> Blastholes:
 
         _, table = demo_dataset()
         return blastholes_from_table(table, source="demo")
-    return read_blastholes(source)
+    return read_blastholes(source, **(read_options or {}))
 
 
 def project_input(project_path) -> str | None:
@@ -524,6 +525,13 @@ def project_input(project_path) -> str | None:
 
     path = saved_input(load_project(project_path), project_path)
     return None if path is None else str(path)
+
+
+def project_read_options(project_path) -> dict:
+    """The options a project file's input was read with, as :func:`read_blastholes` takes them (``{}``: none saved)."""
+    from core.io.project import load_project
+
+    return load_project(project_path).read_keywords()
 
 
 def input_relative_to(input_path: str | None, project_path) -> str | None:
@@ -555,7 +563,8 @@ def _hole_attributes(path: str | None, holes: Blastholes):
         with warnings.catch_warnings():  # the first reading warned already (its encoding, blank rows)
             warnings.simplefilter("ignore", BGMWarning)
             table = read_table(path)
-        cols = table_columns(list(table.columns))
+        named = {k: v for k, v in holes.read_options.items() if k in ("x", "y", "z", "geozone")}
+        cols = table_columns(list(table.columns), **named)  # the columns the holes were read from
     except Exception:  # the reader already accepted the file; a second read failing only loses the extras
         return None
     extra = [c for c in table.columns if c not in cols.values()]
@@ -613,9 +622,14 @@ class ViewerModel:
     dirty_changed = Signal(bool)
 
     def __init__(
-        self, holes: Blastholes | str | Path | None = None, *, selection: Selection | None = None, cache: bool = True
+        self,
+        holes: Blastholes | str | Path | None = None,
+        *,
+        selection: Selection | None = None,
+        cache: bool = True,
+        read_options: dict | None = None,
     ):
-        self.holes = load_holes(holes)
+        self.holes = load_holes(holes, read_options)
         self.input_path: str | None = None if not isinstance(holes, (str, Path)) else str(holes)
         self.params = ModelParameters()
         # One store for the whole session: every run shares what earlier ones computed.
@@ -979,7 +993,7 @@ class ViewerModel:
 
     # -- project file ------------------------------------------------------------------
     def to_project(self):
-        """Parameters (as ``bgm --project`` reads them), overrides and the view settings."""
+        """Parameters (as ``bgm --project`` reads them), overrides, the view settings and the input's reading options."""
         from core.io.project import Project
 
         params = parameters_to_dict(self.params)
@@ -989,7 +1003,14 @@ class ViewerModel:
             "component": self.selection.component,
             "vertical_exaggeration": self.vertical_exaggeration,
         }
-        return Project(parameters=params, overrides=copy.deepcopy(self.overrides), input_path=self.input_path)
+        from core.io.project import reading_of
+
+        return Project(
+            parameters=params,
+            overrides=copy.deepcopy(self.overrides),
+            input_path=self.input_path,
+            reading=reading_of(self.holes.read_options),  # read again its way: feet stay feet
+        )
 
     def save_project(self, path: str | Path) -> None:
         """Write the project to ``path``, naming the input relative to the project's folder (as it is read).

@@ -2,7 +2,10 @@
 
 Both draw one :class:`NextBench`, computed by ``core`` (:mod:`core.model.uncertainty`,
 :mod:`core.model.sampling`) the first time either layer is drawn, so a
-scene rebuilt without showing them costs nothing:
+scene rebuilt without showing them costs nothing. The window defers it
+(``deferred``): its layers draw nothing until the window's worker thread has
+run :meth:`NextBench.compute` (1-3.5 s on Kennecott, a frozen window on its
+own thread), then are told their data changed:
 
 * :class:`UncertaintyLayer` -- P(inside) as a colour map on the next bench's
   plane where it is uncertain (blue outside, red inside, white at one half),
@@ -43,11 +46,32 @@ class NextBench:
         The session ``model`` was computed with: the band is then calibrated as ``bgm build``
         calibrates the one it writes, on the other geozones' backtests too where the geozone's
         own is too short (without it, on the geozone's own only).
+    deferred : bool
+        Computed by :meth:`compute` (in the window's worker thread), not when first drawn: until then
+        the layers draw nothing (:attr:`pending`).
     """
 
-    def __init__(self, holes, model, probability: float = 0.9, session=None):
+    def __init__(self, holes, model, probability: float = 0.9, session=None, deferred: bool = False):
         self.holes, self.model, self.probability = holes, model, float(probability)
         self.session = session
+        self.deferred = bool(deferred)
+        #: Why :meth:`compute` failed (its layers then stay empty), else ``None``.
+        self.error: str | None = None
+
+    @property
+    def computed(self) -> bool:
+        """Whether the band and the suggestions are computed (the suggestions come last)."""
+        return "suggestions_m" in vars(self)
+
+    @property
+    def pending(self) -> bool:
+        """Deferred and not computed yet: the layers draw nothing (computing would freeze the window)."""
+        return self.deferred and not self.computed
+
+    def compute(self) -> NextBench:
+        """Compute the band and the suggestions (what the window runs off its thread); returns itself."""
+        _ = self.section, self.suggestions_m
+        return self
 
     @property
     def z_m(self) -> float:
@@ -95,7 +119,8 @@ class UncertaintyLayer(Layer):
         self.next_bench = next_bench
 
     def _build(self, view):
-        section = None if self.next_bench is None else self.next_bench.section
+        nb = self.next_bench
+        section = None if nb is None or nb.pending or nb.error else nb.section
         if section is None:
             return []
         g, z = section.grid, float(view.z(section.z_m))
@@ -156,7 +181,8 @@ class SuggestedHolesLayer(Layer):
         self.frame = int(value) - 1
 
     def _holes(self) -> np.ndarray:
-        return np.zeros((0, 2)) if self.next_bench is None else self.next_bench.suggestions_m
+        nb = self.next_bench
+        return np.zeros((0, 2)) if nb is None or nb.pending or nb.error else nb.suggestions_m
 
     def _build(self, view):
         xy = self._holes()[: self.budget]

@@ -76,7 +76,7 @@ import os
 import sys
 import time
 import warnings
-from dataclasses import dataclass, fields
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Annotated
 
@@ -156,6 +156,20 @@ class TableOptions:
         ),
     ] = None
 
+    def with_project(self, project: Path) -> TableOptions:
+        """These options with those the project was made with (its ``reading_options``), said on stderr.
+
+        An option given here that the project records with another value is
+        refused (:func:`core.io.project.merge_reading`): read otherwise, the
+        table is other data than the project's overrides were made on.
+        """
+        from core.io.project import load_project, merge_reading
+
+        options, used = merge_reading(load_project(project), project, asdict(self))
+        if used:
+            _say(f"reading the input as project {project} was made: {', '.join(used)}")
+        return TableOptions(**options)
+
     def given(self) -> bool:
         """Whether any option was given (else the table is read as found)."""
         return any(getattr(self, f.name) is not None for f in fields(self))
@@ -193,7 +207,10 @@ def reads_table(command):
     @functools.wraps(command)
     def run(*args, **kwargs):
         # Called by another command (demo --view) rather than by typer, it is given none of them.
-        return command(*args, table=TableOptions(**{n: kwargs.pop(n, None) for n in names}), **kwargs)
+        table = TableOptions(**{n: kwargs.pop(n, None) for n in names})
+        if kwargs.get("project") is not None:
+            table = table.with_project(kwargs["project"])
+        return command(*args, table=table, **kwargs)
 
     run.__signature__ = signature.replace(parameters=[*own, *added])  # what typer reads
     run.__annotations__ = {p.name: p.annotation for p in [*own, *added]}

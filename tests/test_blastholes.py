@@ -269,3 +269,14 @@ def test_one_label_in_two_unicode_forms_is_one_geozone(tmp_path):
     assert holes.geozones == ["2210", composed]
     assert sorted(set(holes.bench[holes.geozone == composed].tolist())) == [0, 1, 2]
     assert holes.check_geozones([decomposed]) == [composed]
+
+
+@pytest.mark.parametrize("benches", [(100.0,), (100.0, 78.0, 56.0)])
+def test_a_unit_nothing_tells_is_said_to_be_assumed(tmp_path, benches):
+    """A single bench (no bench height), or benches 22 units high (above metric 5-20 m, below imperial
+    30-60 ft), were read as metres with nothing said: a table in feet gave a silently wrong model."""
+    path = write(tmp_path, small_table(benches=benches))
+    holes = read_blastholes(path)
+    assert holes.frame.length_unit == "m" and "metres" in holes.unit_guess and "--units ft" in holes.unit_guess
+    assert read_blastholes(path, length_unit="m").unit_guess == ""
+    assert read_blastholes(path, length_unit="ft").read_options == {"length_unit": "ft"}  # what a project saves

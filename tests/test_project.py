@@ -27,6 +27,7 @@ def sample_project() -> Project:
             AlignmentOverride("waste", 1210.0, 1, translation=(0.0, 2.0)),
         ],
         input_path="data/blastholes.csv",
+        reading={"units": "ft", "geozone_column": "DOMAIN"},
     )
 
 
@@ -196,3 +197,56 @@ def test_a_length_far_outside_its_range_in_hole_spacings_is_warned_about(recwarn
         check_project(Project(parameters={"search_radius_m": 10.0}), holes, uses_parameters=True)
     with pytest.warns(BGMWarning, match=r"search_radius_m = 30 m is 5 hole spacings .* metres, whatever"):
         check_project(Project(parameters={"search_radius_m": 30.0}), holes, uses_parameters=True)
+
+
+def _table_in_feet_with_a_domain_column(tmp_path: Path) -> Path:
+    """The small mine, its geozones in a column no alias finds, its 10-unit benches read as metres unless told."""
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    table = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
+    path = tmp_path / "holes.csv"
+    table.rename(columns={"geozone": "DOMAIN_CODE"}).to_csv(path, index=False)
+    return path
+
+
+def test_a_project_reads_its_input_with_the_options_it_was_made_with(tmp_path: Path):
+    """A project saved after `bgm view holes.csv --units ft --geozone-column DOMAIN_CODE` lost both:
+    `bgm correspond --project` then failed (no geozone column) or, with the column found, read feet as metres.
+    An option given that the project records otherwise is refused; a project without them stays version 1."""
+    from clirun import bgm
+
+    from bgm_viewer.model import ViewerModel
+    from core.io.blastholes import read_blastholes
+
+    csv = _table_in_feet_with_a_domain_column(tmp_path)
+    model = ViewerModel(read_blastholes(csv, geozone="DOMAIN_CODE", length_unit="ft"))
+    model.input_path = str(csv)
+    model.save_project(tmp_path / "p.json")  # as File > Save project does
+
+    out = tmp_path / "c.json"
+    run = bgm("correspond", csv, "--geozone", "g1", "--project", tmp_path / "p.json", "--out", out)
+    assert run.returncode == 0, run.stderr
+    assert "--units ft" in run.stderr and "bench height 10.0 ft" in run.stderr  # said, and read in feet
+    assert load_project(tmp_path / "p.json").reading == {"geozone_column": "DOMAIN_CODE", "units": "ft"}
+
+    run = bgm("correspond", csv, "--geozone", "g1", "--project", tmp_path / "p.json", "--out", out, "--units", "m")
+    assert run.returncode == 2 and "--units m conflicts with project file" in run.stderr
+    run = bgm("correspond", csv, "--geozone", "g1", "--project", tmp_path / "p.json", "--out", out, "--units", "feet")
+    assert run.returncode == 0, run.stderr  # the same unit, spelt otherwise
+
+    save_project(
+        Project(parameters={"cells_across": 240}), tmp_path / "old.json"
+    )  # no reading options: what older BGMs read
+    assert json.loads((tmp_path / "old.json").read_text())["version"] == 1
+    assert "reading_options" not in json.loads((tmp_path / "old.json").read_text())
+    assert load_project(tmp_path / "old.json").reading == {}
+
+
+def test_a_project_with_unknown_reading_options_is_refused(tmp_path: Path):
+    p = tmp_path / "p.json"
+    p.write_text(json.dumps({"format": "bgm-project", "version": 2, "reading_options": {"units": "furlongs"}}))
+    with pytest.raises(BGMInputError, match="unknown length unit"):
+        load_project(p)
+    p.write_text(json.dumps({"format": "bgm-project", "version": 2, "reading_options": {"unit": "ft"}}))
+    with pytest.raises(BGMInputError, match="unknown option"):
+        load_project(p)

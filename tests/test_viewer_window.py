@@ -715,3 +715,86 @@ def test_closing_the_window_during_a_run_waits_for_its_worker(qtbot):
     win.model.dirty = False
     win.close()
     assert QtCore.QThreadPool.globalInstance().activeThreadCount() == 0
+
+
+def test_a_table_opened_in_feet_with_its_geozone_column_named_reopens_so_from_its_project(
+    window, qtbot, monkeypatch, tmp_path
+):
+    """A project saved after `bgm view holes.csv --units ft --geozone-column DOMAIN_CODE` reopened without
+    either (File > Open project: "no geozone column", or feet read as metres); and File > Open blastholes
+    offered no units or columns. The project reads it so again, and the dialog sets both."""
+    from pathlib import Path
+
+    from core.io.blastholes import read_blastholes
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    table = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
+    csv = tmp_path / "holes.csv"
+    table.rename(columns={"geozone": "DOMAIN_CODE"}).to_csv(csv, index=False)
+    model = ViewerModel(read_blastholes(csv, geozone="DOMAIN_CODE", length_unit="ft"))  # as bgm view reads it
+    model.input_path = str(csv)
+    model.save_project(tmp_path / "p.json")
+    window.open_project(tmp_path / "p.json")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.model.holes.frame.length_unit == "ft"
+    assert window.model.holes.bench_height_m == pytest.approx(10 * 0.3048)
+
+    from bgm_viewer import read_options
+
+    def choose(dialog):
+        assert dialog.columns["geozone"].findText("DOMAIN_CODE") >= 0  # the table's columns are offered
+        dialog.units.setCurrentText("feet (ft)")
+        dialog.columns["geozone"].setCurrentText("DOMAIN_CODE")
+        return QtWidgets.QDialog.DialogCode.Accepted
+
+    window.open_input(Path(__file__).parents[1] / "assets" / "demo_blastholes.csv")  # another input in between
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (str(csv), ""))
+    monkeypatch.setattr(read_options.ReadOptionsDialog, "exec", choose)
+    window.open_input_dialog()
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.model.holes.frame.length_unit == "ft" and "(ft)" in window.windowTitle()
+    assert window.model.holes.bench_height_m == pytest.approx(10 * 0.3048)
+
+
+def test_the_next_bench_is_computed_off_the_windows_thread_and_a_stale_one_is_not_drawn(window, qtbot, monkeypatch):
+    """Showing the uncertainty or suggested-holes layer ran core's band of the next bench (1-3.5 s on Kennecott)
+    on the window's thread: the window froze. It runs in a worker thread now, said in the status bar, drawn when
+    done as a synchronous NextBench draws it, and one whose geozone was changed meanwhile is not drawn."""
+    import threading
+    import time
+
+    from bgm_viewer.sampling_layers import NextBench
+    from core.model import uncertainty
+
+    gate, on_main = threading.Event(), []
+    real = uncertainty.geozone_uncertainty
+
+    def slow(*args, **kw):  # core's band, held until the test lets it go
+        on_main.append(threading.current_thread() is threading.main_thread())
+        gate.wait(5)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(uncertainty, "geozone_uncertainty", slow)
+    start = time.perf_counter()
+    window.set_layer_visible("uncertainty", True)
+    assert time.perf_counter() - start < 2.0  # the window is not held by core
+    qtbot.waitUntil(lambda: bool(on_main), timeout=10_000)
+    assert on_main == [False]  # core's band is computed on another thread
+    assert "computing the next bench" in window.statusBar().currentMessage()
+    stale = window.scene["uncertainty"].next_bench
+    assert stale.pending and not window.renderer.actors["uncertainty"]
+
+    window._select(geozone="g2", bench=0, component=0)  # another model while the band is computed
+    gate.set()
+    with qtbot.waitSignal(window.nextBenchShown, timeout=120_000):
+        pass
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    drawn = window.scene["uncertainty"].next_bench
+    assert drawn is not stale and drawn.model is window.model.result.model and drawn.model.geozone == "g2"
+    assert window.renderer.actors["uncertainty"] and "done in" in window.statusBar().currentMessage()
+    m = window.model
+    same = NextBench(m.holes, m.result.model, session=m.result.session)  # as a screenshot (and bgm build) draws it
+    assert drawn.section.band.equals(same.section.band)
+    np.testing.assert_allclose(drawn.section.inside_probability, same.section.inside_probability)
+    np.testing.assert_allclose(drawn.suggestions_m, same.suggestions_m)

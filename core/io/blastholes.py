@@ -61,6 +61,8 @@ MIN_BENCH_GAP = 2.0
 MIN_HOLE_SPACING_M = 2.5
 #: Blasthole spacings (metres, the median across benches) outside this range are a unit mistake (mm, cm, km...).
 PLAUSIBLE_SPACING_M = (0.5, 50.0)
+#: Metric benches are at most this high (input units); up to 25 units a bench is taken to be metres, unsure.
+METRIC_BENCH_MAX = 20.0
 #: Coordinates larger than this (input units) are rejected as not coordinates.
 MAX_COORDINATE = 1e12
 #: More holes than this share between bench levels: z does not form benches.
@@ -175,7 +177,12 @@ class Blastholes:
         Repairs made while reading (deduplication, off-bench holes...).
     unit_guess : str
         How the length unit was guessed when it was not given and is not
-        metres (said in the command line's summary of the input); else empty.
+        metres, or metres are only assumed (a single bench, or benches higher
+        than metric ones and lower than imperial ones); said in the command
+        line's summary of the input and the viewer's title; else empty.
+    read_options : dict
+        The options :func:`read_blastholes` was given (keyword -> value, those
+        not given left out): a project saves them to read the table the same way.
     """
 
     xy: np.ndarray
@@ -190,6 +197,7 @@ class Blastholes:
     source: str = ""
     notes: list[str] = field(default_factory=list)
     unit_guess: str = ""
+    read_options: dict = field(default_factory=dict)
     _drilled: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -256,6 +264,7 @@ class Blastholes:
             source=self.source,
             notes=list(self.notes),
             unit_guess=self.unit_guess,
+            read_options=dict(self.read_options),
         )
 
 
@@ -419,7 +428,7 @@ def read_blastholes(
         return [header.index(c) for c in cols.values()]
 
     table = read_table(path, choose)
-    return blastholes_from_table(
+    holes = blastholes_from_table(
         table,
         x=cols["x"],
         y=cols["y"],
@@ -429,6 +438,9 @@ def read_blastholes(
         length_unit=length_unit,
         source="standard input" if str(path) == "-" else str(path),
     )
+    given = {"x": x, "y": y, "z": z, "geozone": geozone, "bench_height": bench_height, "length_unit": length_unit}
+    holes.read_options = {k: v for k, v in given.items() if v is not None}
+    return holes
 
 
 def blastholes_from_table(
@@ -505,6 +517,13 @@ def blastholes_from_table(
     _check_spacing(holes, given=bool(length_unit))
     if unit == "ft" and not length_unit:
         holes.unit_guess = f"feet guessed from the {height_in:.4g}-unit bench height: give --units m if not"
+    elif not length_unit and not np.isfinite(height_in):  # nothing to tell metres from feet by: say so
+        holes.unit_guess = "metres assumed: a single bench has no bench height to tell feet by: give --units ft if not"
+    elif not length_unit and METRIC_BENCH_MAX < height_in < 25.0:
+        holes.unit_guess = (
+            f"metres guessed from the {height_in:.4g}-unit bench height, above metric benches (5-20 m) "
+            "and below imperial ones (30-60 ft): give --units ft if not"
+        )
     return holes
 
 
@@ -738,6 +757,30 @@ def _check_spacing(holes: Blastholes, given: bool) -> None:
         raise BGMInputError(f"{msg}, or give --units m or ft if it is one")
 
 
+def unit_name(length_unit: str) -> str:
+    """``"m"`` or ``"ft"`` for a length unit as a user writes it (``metres``, ``Feet``...).
+
+    Raises
+    ------
+    BGMInputError
+        For any other unit.
+    """
+    aliases = {
+        "m": "m",
+        "metre": "m",
+        "metres": "m",
+        "meter": "m",
+        "meters": "m",
+        "ft": "ft",
+        "feet": "ft",
+        "foot": "ft",
+    }
+    unit = str(length_unit).strip().lower()
+    if unit not in aliases:
+        raise BGMInputError(f"unknown length unit {length_unit!r}: use m or ft")
+    return aliases[unit]
+
+
 def _guess_unit(bench_height: float, length_unit: str | None, spacing=lambda: float("nan")) -> str:
     """The input's length unit: ``length_unit``, else feet for benches of 25 units or more.
 
@@ -745,20 +788,7 @@ def _guess_unit(bench_height: float, length_unit: str | None, spacing=lambda: fl
     30-unit benches with holes 5.5 units apart are metres (a 9 m bench drilled every 1.7 m is no pattern).
     """
     if length_unit:
-        unit = length_unit.strip().lower()
-        aliases = {
-            "m": "m",
-            "metre": "m",
-            "metres": "m",
-            "meter": "m",
-            "meters": "m",
-            "ft": "ft",
-            "feet": "ft",
-            "foot": "ft",
-        }
-        if unit not in aliases:
-            raise BGMInputError(f"unknown length unit {length_unit!r}: use m or ft")
-        return aliases[unit]
+        return unit_name(length_unit)
     if np.isfinite(bench_height) and bench_height >= 25.0:
         apart_m = spacing() * FEET_TO_METRES
         if apart_m < MIN_HOLE_SPACING_M:

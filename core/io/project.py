@@ -6,6 +6,7 @@ A project file is JSON::
       "format": "bgm-project",
       "version": 1,
       "input_path": "blastholes.csv",
+      "reading_options": {"units": "ft", "geozone_column": "DOMAIN"},
       "parameters": {"search_radius_m": 9.5, "viewer": {"geozone": "ore", "bench": 2}},
       "overrides": [
         {"geozone": "ore", "source_z": 1210.0, "source": 2,
@@ -21,7 +22,13 @@ pair, paper section 3 "source"): ``translation`` locks its translation
 target components by index. ``parameters`` sets the model's parameters by
 name (``bgm parameters`` lists them; every command with ``--project`` and the
 viewer apply them) and, under ``viewer``, the viewer's selection and vertical
-exaggeration. Files are written atomically (core.io.atomic).
+exaggeration. ``reading_options`` (optional) are the options the input was
+read with, by their command-line names without dashes (:data:`READING_OPTIONS`):
+every command with ``--project`` and the viewer read the input with them, so
+a table read in feet is not read in metres again. A project that records
+reading options is written as version 2, which BGMs older than the option
+refuse instead of ignoring them; one without them stays version 1. Files are
+written atomically (core.io.atomic).
 """
 
 from __future__ import annotations
@@ -37,7 +44,18 @@ from core.errors import BGMInputError, Range, listing, quoted
 from core.io.atomic import atomic_write_text
 
 FORMAT = "bgm-project"
-VERSION = 1
+#: Newest version read; a project is written as version 1 unless it records reading options.
+VERSION = 2
+#: Options the input table was read with, by command-line name (``--units`` is ``units``) ->
+#: the keyword of :func:`core.io.blastholes.read_blastholes` taking it.
+READING_OPTIONS = {
+    "x": "x",
+    "y": "y",
+    "z": "z",
+    "geozone_column": "geozone",
+    "bench_height": "bench_height",
+    "units": "length_unit",
+}
 #: Relative tolerance when matching bench elevations (with a floor of 1 unit,
 #: so elevation 0 still matches within 1e-6).
 Z_RELATIVE_TOLERANCE = 1e-6
@@ -78,20 +96,36 @@ class AlignmentOverride:
 
 @dataclass
 class Project:
-    """Parameters, overrides and the input path of one modelling project."""
+    """Parameters, overrides, the input path and the options it was read with, of one modelling project.
+
+    Attributes
+    ----------
+    reading : dict
+        Options the input was read with, by command-line name
+        (:data:`READING_OPTIONS`); those not given are left out.
+    """
 
     parameters: dict = field(default_factory=dict)
     overrides: list[AlignmentOverride] = field(default_factory=list)
     input_path: str | None = None
+    reading: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {
+        out = {
             "format": FORMAT,
-            "version": VERSION,
+            # version 1 when it can be: a BGM without reading options opens it exactly as before
+            "version": VERSION if self.reading else 1,
             "input_path": self.input_path,
             "parameters": self.parameters,
             "overrides": [o.to_dict() for o in self.overrides],
         }
+        if self.reading:
+            out["reading_options"] = dict(self.reading)
+        return out
+
+    def read_keywords(self) -> dict:
+        """The reading options as :func:`core.io.blastholes.read_blastholes` takes them."""
+        return {READING_OPTIONS[k]: v for k, v in self.reading.items()}
 
 
 def save_project(project: Project, path: str | os.PathLike) -> None:
@@ -149,7 +183,88 @@ def load_project(path: str | os.PathLike) -> Project:
     if not isinstance(raw, list):
         raise BGMInputError(f'project file {path}: "overrides" must be a list.')
     overrides = [_parse_override(path, i, o) for i, o in enumerate(raw)]
-    return Project(parameters=parameters, overrides=overrides, input_path=input_path)
+    reading = _parse_reading(path, data.get("reading_options", {}))
+    return Project(parameters=parameters, overrides=overrides, input_path=input_path, reading=reading)
+
+
+def _parse_reading(path: Path, raw) -> dict:
+    """The reading options of a project file, checked: column names and units are strings, the bench height a length."""
+    from core.io.blastholes import unit_name
+
+    where = f'project file {path}: "reading_options"'
+    if not isinstance(raw, dict):
+        raise BGMInputError(f"{where} must be an object.")
+    unknown = sorted(set(raw) - set(READING_OPTIONS))
+    if unknown:
+        raise BGMInputError(
+            f"{where} has unknown option(s) {listing(map(quoted, unknown))}; known: {listing(READING_OPTIONS)}."
+        )
+    reading = {k: v for k, v in raw.items() if v is not None}
+    for name, value in reading.items():
+        if name == "bench_height":
+            if not (_is_number(value) and value > 0):
+                raise BGMInputError(f"{where}: bench_height must be a positive number, got {value!r}.")
+        elif not isinstance(value, str) or not value.strip():
+            raise BGMInputError(f"{where}: {name} must be a non-empty string, got {value!r}.")
+    if "units" in reading:
+        reading["units"] = unit_name(reading["units"])  # refuses a unit that is neither m nor ft
+    return reading
+
+
+def reading_of(read_keywords: dict) -> dict:
+    """Options given to :func:`core.io.blastholes.read_blastholes` (``Blastholes.read_options``) by command-line name."""
+    names = {v: k for k, v in READING_OPTIONS.items()}
+    return {names[k]: v for k, v in read_keywords.items() if k in names and v is not None}
+
+
+def merge_reading(project: Project, project_path, given: dict) -> tuple[dict, list[str]]:
+    """The options to read the input with: the project's, and those given on the command line.
+
+    An option given that the project records with another value is refused: the
+    project's overrides (elevations, translations in input units, geozone labels)
+    and parameters were made on the table read its way, and read another way
+    (feet as metres, another geozone column) it is other data. Options the
+    project does not record are taken as given.
+
+    Parameters
+    ----------
+    project : Project
+    project_path : str or Path
+        Names the project in messages.
+    given : dict
+        Options given on the command line, by command-line name (``None``: not given).
+
+    Returns
+    -------
+    options : dict
+        Every option, by command-line name (``None`` where neither gives it).
+    used : list of str
+        The project's options used (``"--units ft"``), for the command to say.
+
+    Raises
+    ------
+    BGMInputError
+        Naming the option, both values and how to resolve it.
+    """
+    from core.io.blastholes import unit_name
+
+    options = dict(given)
+    used = []
+    for name, saved in project.reading.items():
+        flag = f"--{name.replace('_', '-')}"
+        value = given.get(name)
+        if value is None:
+            options[name] = saved
+            used.append(f"{flag} {saved}")
+            continue
+        same = unit_name(value) == saved if name == "units" else value == saved
+        if not same:
+            raise BGMInputError(
+                f"{flag} {value} conflicts with project file {project_path}, made reading the input with "
+                f"{flag} {saved}: read otherwise it is other data than its overrides and view were made on; "
+                f"leave {flag} out, or save a new project"
+            )
+    return options, used
 
 
 def saved_input(project: Project, project_path: str | os.PathLike) -> Path | None:
