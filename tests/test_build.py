@@ -232,8 +232,10 @@ def test_a_build_writes_omf_surfaces_in_input_coordinates_where_omf_is_installed
         assert g["files"]["omf"] == f"{g['folder']}/surface.omf"
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
-            element = omf.OMFReader(str(built / g["files"]["omf"])).get_project().elements[0]
+            project = omf.OMFReader(str(built / g["files"]["omf"])).get_project()
+        element = project.elements[0]
         ply = trimesh.load(built / g["files"]["ply"], force="mesh", process=False)
+        assert project.units == summary["units"] == "m"  # said in the file: a reader takes feet for metres otherwise
         assert element.name == g["geozone"]
         assert np.array_equal(np.asarray(element.geometry.vertices.array), ply.vertices)  # mine grid, float64
         assert np.array_equal(np.asarray(element.geometry.triangles.array), ply.faces)

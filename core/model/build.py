@@ -725,7 +725,13 @@ def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildConte
         info = mesh_summary(mesh)
         surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
         exported = export_all(
-            surface, gdir, "surface", ctx.formats, name=model.geozone, layer=ctx.layers.get(model.geozone)
+            surface,
+            gdir,
+            "surface",
+            ctx.formats,
+            name=model.geozone,
+            layer=ctx.layers.get(model.geozone),
+            units=holes.frame.length_unit,
         )
         summary.volume = info["volume_m3"] / mpu**3
         if info["watertight"]:  # a volume only a closed surface has
