@@ -170,6 +170,24 @@ def test_a_code_change_changes_every_key(tmp_path):
     assert content_key(before, 1) != content_key(source_fingerprint(tmp_path), 1)
 
 
+def test_another_library_version_changes_every_key(monkeypatch):
+    """The cache folder is the user's, shared by every environment: one with another shapely (another GEOS)
+    was served the contours, morphs and surfaces the other computed, the fingerprint being the source's alone."""
+    from importlib import metadata
+
+    from core.io import cache
+
+    real = metadata.version
+    cache.engine_fingerprint.cache_clear()
+    before = cache.engine_fingerprint()
+    monkeypatch.setattr(metadata, "version", lambda name: "0.0.1" if name == "shapely" else real(name))
+    cache.engine_fingerprint.cache_clear()
+    try:
+        assert cache.engine_fingerprint() != before
+    finally:
+        cache.engine_fingerprint.cache_clear()
+
+
 def test_content_keys_see_values_not_identities():
     a = np.arange(6, dtype=float).reshape(3, 2)
     assert content_key(a, "g1", {"x": 1.0}) == content_key(a.copy(), "g1", {"x": 1.0})

@@ -3,8 +3,8 @@
 A result is stored under a key that hashes everything it depends on: the
 input's content (hole positions, labels, bench levels), the stage's
 parameters and manual overrides, and the engine's own source code
-(:func:`engine_fingerprint`), so a changed file, parameter or program is
-never served a stale result. Entries are pickles written atomically
+(:func:`engine_fingerprint`, with the Python and numerical libraries it runs
+on), so a changed file, parameter or program is never served a stale result. Entries are pickles written atomically
 (:mod:`core.io.atomic`) under ``$BGM_CACHE_DIR`` or the user's cache folder
 (``~/.cache/bgm`` on Linux); an unreadable entry is deleted and recomputed,
 and the least recently used entries are removed beyond a size limit
@@ -20,6 +20,7 @@ import functools
 import hashlib
 import os
 import pickle
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -44,10 +45,35 @@ def default_cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("bgm", appauthor=False))
 
 
+#: Distributions whose versions change what the stages compute (geometry, grids, meshes).
+NUMERICAL_DISTRIBUTIONS = ("numpy", "scipy", "scikit-image", "shapely", "pandas", "trimesh")
+
+
 @functools.cache
 def engine_fingerprint() -> str:
-    """Hash of the engine's source code (every ``core/**/*.py``): a code change invalidates the cache."""
-    return source_fingerprint(Path(__file__).resolve().parents[1])
+    """Hash of the engine's source code (every ``core/**/*.py``) and of what it runs on.
+
+    A code change invalidates the cache; so does another Python, GEOS or
+    version of a :data:`NUMERICAL_DISTRIBUTIONS` package: the cache folder is
+    the user's, shared by every environment that runs bgm, and a contour from
+    another GEOS is not this one's.
+    """
+    return content_key(source_fingerprint(Path(__file__).resolve().parents[1]), runtime_versions())
+
+
+def runtime_versions() -> dict[str, str]:
+    """Versions of Python, GEOS and the :data:`NUMERICAL_DISTRIBUTIONS` (``"-"`` for one not installed)."""
+    from importlib import metadata
+
+    import shapely
+
+    versions = {"python": sys.version, "geos": shapely.geos_version_string}
+    for name in NUMERICAL_DISTRIBUTIONS:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = "-"
+    return versions
 
 
 def source_fingerprint(root: Path) -> str:
