@@ -140,6 +140,19 @@ def test_off_bench_holes_are_reported_and_left_out(tmp_path):
     assert len(holes.xy) == len(t) - 1
 
 
+@pytest.mark.parametrize("typos", [[0.0], [-9999.0], [6849.3], [0.0, 68.49, -9999.0, 6849.3]])
+def test_a_hole_with_its_elevation_mistyped_is_left_out_not_the_table_refused(tmp_path, typos):
+    """One hole with RL 0, -9999 or 6849.3 (for 684.93; one in the demo's 11,211) made the widest gap between elevations,
+    next to which no bench gap was wide: the table was refused, 'z does not form benches: elevations spread
+    continuously over 60.06 units'."""
+    t = small_table()
+    t.loc[: len(typos) - 1, "RL"] = typos
+    with pytest.warns(BGMWarning, match=f"{len(typos)} hole"):
+        holes = read_blastholes(write(tmp_path, t))
+    assert len(holes.xy) == len(t) - len(typos)
+    assert holes.n_benches == read_blastholes(write(tmp_path, small_table())).n_benches
+
+
 def test_single_bench_reads_with_nan_bench_height(tmp_path):
     holes = read_blastholes(write(tmp_path, small_table(benches=(50.0,))))
     assert holes.n_benches == 1 and np.isnan(holes.bench_height_m)

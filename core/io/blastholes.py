@@ -829,6 +829,15 @@ def detect_benches(
     clusters = _elevation_clusters(zs)
     min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
     big = [c for c in clusters if len(c) >= min_count]
+    while len(big) == 1 and len(clusters) > 1:
+        # A few holes far off the rest (a typo: RL 0, -9999, 6849.3 for 684.93) made the widest gap, next to which
+        # no gap between benches was wide: the benches are split apart without them (they stay off-bench holes).
+        i = next(i for i, c in enumerate(clusters) if len(c) >= min_count)
+        inner = _elevation_clusters(clusters[i])
+        if len(inner) == 1:
+            break
+        clusters = [*clusters[:i], *inner, *clusters[i + 1 :]]
+        big = [c for c in clusters if len(c) >= min_count]
     if bench_height is None:
         if len(clusters) >= 2 and max(len(c) for c in clusters) < 3:
             raise BGMInputError(
