@@ -153,6 +153,19 @@ def test_a_hole_with_its_elevation_mistyped_is_left_out_not_the_table_refused(tm
     assert holes.n_benches == read_blastholes(write(tmp_path, small_table())).n_benches
 
 
+def test_a_hole_far_from_every_other_of_its_bench_is_left_out(tmp_path):
+    """A hole with x, y written as 0 (missing) on the mine grid was modelled: the demo's g0 surface grew from
+    4.0e6 to 1.7e12 m³, and the build suggested no hole and evaluated nothing, without a word."""
+    t = small_table()
+    t[["EAST", "NORTH"]] += [482000.0, 7445000.0]
+    t.loc[[0, 1], ["EAST", "NORTH"]] = 0.0  # twice on the first bench, once with the second's on it
+    t.loc[len(t) - 1, ["EAST", "NORTH"]] = 0.0
+    with pytest.warns(BGMWarning, match=r"3 hole\(s\) lie more than 20 hole spacings.*data line\(s\) 2, 3, 121"):
+        holes = read_blastholes(write(tmp_path, t))
+    assert len(holes.xy) == len(t) - 3
+    assert np.ptp(holes.xy, axis=0).max() < 50.0
+
+
 def test_single_bench_reads_with_nan_bench_height(tmp_path):
     holes = read_blastholes(write(tmp_path, small_table(benches=(50.0,))))
     assert holes.n_benches == 1 and np.isnan(holes.bench_height_m)
