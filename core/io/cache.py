@@ -18,6 +18,7 @@ import contextlib
 import dataclasses
 import functools
 import hashlib
+import math
 import os
 import pickle
 import sys
@@ -126,6 +127,29 @@ def _feed(h, obj) -> None:
         raise TypeError(f"cannot make a cache key of a {type(obj).__name__}")
 
 
+def max_bytes_from_env() -> int:
+    """The cache's size limit: ``$BGM_CACHE_MAX_MB`` megabytes (:data:`DEFAULT_MAX_MB` when unset).
+
+    Raises
+    ------
+    BGMInputError
+        A value that is not a number of megabytes, 0 or more (``abc``, ``nan``, ``-5``): it ended
+        every command as an internal error (``abc``), or kept nothing (``-5``), without a word.
+    """
+    from core.errors import BGMInputError
+
+    text = os.environ.get(MAX_MB_ENV, "").strip()
+    if not text:
+        return int(DEFAULT_MAX_MB * 1e6)
+    try:
+        mb = float(text)
+    except ValueError:
+        mb = float("nan")
+    if not (math.isfinite(mb) and mb >= 0):
+        raise BGMInputError(f"${MAX_MB_ENV} must be the cache's size limit in megabytes (0 or more), got {text!r}")
+    return int(mb * 1e6)
+
+
 class StageCache:
     """Pickled stage results in a folder, one file per ``(stage, key)``.
 
@@ -135,9 +159,7 @@ class StageCache:
 
     def __init__(self, directory: str | os.PathLike | None = None, max_bytes: int | None = None):
         self.directory = Path(directory) if directory is not None else default_cache_dir()
-        if max_bytes is None:
-            max_bytes = int(float(os.environ.get(MAX_MB_ENV, DEFAULT_MAX_MB)) * 1e6)
-        self.max_bytes = max_bytes
+        self.max_bytes = max_bytes if max_bytes is not None else max_bytes_from_env()
         self._stores = 0
 
     def path(self, stage: str, key: str) -> Path:
