@@ -166,6 +166,13 @@ def test_a_hole_far_from_every_other_of_its_bench_is_left_out(tmp_path):
     assert np.ptp(holes.xy, axis=0).max() < 50.0
 
 
+def test_a_geozone_asked_for_with_spaces_around_is_the_label(tmp_path):
+    """Labels are read stripped, but bgm predict/evaluate --geozone " 3310" was refused ("not in ..."), where
+    bgm build --geozone " 3310" took it."""
+    holes = read_blastholes(write(tmp_path, small_table()))
+    assert holes.check_geozones([" 3310", "2210 "]) == ["3310", "2210"]
+
+
 def test_single_bench_reads_with_nan_bench_height(tmp_path):
     holes = read_blastholes(write(tmp_path, small_table(benches=(50.0,))))
     assert holes.n_benches == 1 and np.isnan(holes.bench_height_m)

@@ -225,7 +225,8 @@ class Blastholes:
         if not requested:
             return present
         by_number = {label_number(g): g for g in present if label_number(g) is not None}
-        requested = [unicodedata.normalize("NFC", str(g)) for g in requested]  # as labels are read
+        # As labels are read (stripped): bgm predict --geozone " 3310" was refused where bgm build took it.
+        requested = [unicodedata.normalize("NFC", str(g)).strip() for g in requested]
         found = [g if g in present else by_number.get(label_number(g)) for g in requested]
         missing = [g for g, f in zip(requested, found) if f is None]
         if missing:
