@@ -1168,7 +1168,7 @@ class MainWindow(QtWidgets.QMainWindow):
             gdir = Path(folder) / names[g]
             gdir.mkdir(parents=True, exist_ok=True)
             moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
-            out[g] = export_all(moved, gdir, "surface", build_formats(), name=g, layer=layers[g])
+            out[g] = export_all(moved, gdir, "surface", build_formats(), name=g, layer=layers[g], units=f.length_unit)
         return out
 
     def _check_up_to_date(self) -> None:
@@ -1202,7 +1202,8 @@ class MainWindow(QtWidgets.QMainWindow):
         f, g = self.model.holes.frame, self.model.selection.geozone
         # its DXF layer as bgm build names it: two labels alike once made R12-safe ("ore 1", "ore_1") had one
         layer = dxf_layer_names(self.model.holes.geozones)[g]
-        export_surface(to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit), path, name=g, layer=layer)
+        moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
+        export_surface(moved, path, name=g, layer=layer, units=f.length_unit)
 
     def export_surface_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(

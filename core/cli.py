@@ -710,6 +710,8 @@ def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None
             scheduler=scheduler,
             cache=session.store.cache,
         )
+    if summary.get("evaluation_note"):
+        _say(f"bgm: note: {summary['evaluation_note']}")
     _say(f"wrote {out}/report.md ({summary['seconds']:.1f} s)")
     return summary
 

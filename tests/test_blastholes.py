@@ -140,6 +140,39 @@ def test_off_bench_holes_are_reported_and_left_out(tmp_path):
     assert len(holes.xy) == len(t) - 1
 
 
+@pytest.mark.parametrize("typos", [[0.0], [-9999.0], [6849.3], [0.0, 68.49, -9999.0, 6849.3]])
+def test_a_hole_with_its_elevation_mistyped_is_left_out_not_the_table_refused(tmp_path, typos):
+    """One hole with RL 0, -9999 or 6849.3 (for 684.93; one in the demo's 11,211) made the widest gap between elevations,
+    next to which no bench gap was wide: the table was refused, 'z does not form benches: elevations spread
+    continuously over 60.06 units'."""
+    t = small_table()
+    t.loc[: len(typos) - 1, "RL"] = typos
+    with pytest.warns(BGMWarning, match=f"{len(typos)} hole"):
+        holes = read_blastholes(write(tmp_path, t))
+    assert len(holes.xy) == len(t) - len(typos)
+    assert holes.n_benches == read_blastholes(write(tmp_path, small_table())).n_benches
+
+
+def test_a_hole_far_from_every_other_of_its_bench_is_left_out(tmp_path):
+    """A hole with x, y written as 0 (missing) on the mine grid was modelled: the demo's g0 surface grew from
+    4.0e6 to 1.7e12 m³, and the build suggested no hole and evaluated nothing, without a word."""
+    t = small_table()
+    t[["EAST", "NORTH"]] += [482000.0, 7445000.0]
+    t.loc[[0, 1], ["EAST", "NORTH"]] = 0.0  # twice on the first bench, once with the second's on it
+    t.loc[len(t) - 1, ["EAST", "NORTH"]] = 0.0
+    with pytest.warns(BGMWarning, match=r"3 hole\(s\) lie more than 20 hole spacings.*data line\(s\) 2, 3, 121"):
+        holes = read_blastholes(write(tmp_path, t))
+    assert len(holes.xy) == len(t) - 3
+    assert np.ptp(holes.xy, axis=0).max() < 50.0
+
+
+def test_a_geozone_asked_for_with_spaces_around_is_the_label(tmp_path):
+    """Labels are read stripped, but bgm predict/evaluate --geozone " 3310" was refused ("not in ..."), where
+    bgm build --geozone " 3310" took it."""
+    holes = read_blastholes(write(tmp_path, small_table()))
+    assert holes.check_geozones([" 3310", "2210 "]) == ["3310", "2210"]
+
+
 def test_single_bench_reads_with_nan_bench_height(tmp_path):
     holes = read_blastholes(write(tmp_path, small_table(benches=(50.0,))))
     assert holes.n_benches == 1 and np.isnan(holes.bench_height_m)

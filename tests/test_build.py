@@ -233,8 +233,10 @@ def test_a_build_writes_omf_surfaces_in_input_coordinates_where_omf_is_installed
         assert g["files"]["omf"] == f"{g['folder']}/surface.omf"
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
-            element = omf.OMFReader(str(built / g["files"]["omf"])).get_project().elements[0]
+            project = omf.OMFReader(str(built / g["files"]["omf"])).get_project()
+        element = project.elements[0]
         ply = trimesh.load(built / g["files"]["ply"], force="mesh", process=False)
+        assert project.units == summary["units"] == "m"  # said in the file: a reader takes feet for metres otherwise
         assert element.name == g["geozone"]
         assert np.array_equal(np.asarray(element.geometry.vertices.array), ply.vertices)  # mine grid, float64
         assert np.array_equal(np.asarray(element.geometry.triangles.array), ply.faces)
@@ -331,3 +333,17 @@ def test_the_report_says_which_geozone_ends_for_want_of_drilling_and_its_surface
     gone = json.loads((tmp_path / "out" / by_name["gone"]["folder"] / "prediction.geojson").read_text())
     assert gone["features"] == []
     assert "depth trend" in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_a_build_without_an_evaluation_says_why(small_mine_csv, tmp_path):
+    """On two benches the build wrote no evaluation.csv and report.md no 'Predictive value', without a word of why."""
+    _, table = small_mine_csv
+    path = tmp_path / "two.csv"
+    table[table["z"] > table["z"].max() - 16.0].to_csv(path, index=False)  # the top two of its 10 m benches
+    run = bgm("build", path, "--out", tmp_path / "out")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert len(summary["benches"]) == 2 and summary["evaluation"] is None
+    assert "three or more benches; this input has 2" in summary["evaluation_note"]
+    assert summary["evaluation_note"] in run.stderr
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "## Predictive value" in report and "needs three or more benches" in report

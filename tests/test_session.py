@@ -170,6 +170,34 @@ def test_a_code_change_changes_every_key(tmp_path):
     assert content_key(before, 1) != content_key(source_fingerprint(tmp_path), 1)
 
 
+def test_another_library_version_changes_every_key(monkeypatch):
+    """The cache folder is the user's, shared by every environment: one with another shapely (another GEOS)
+    was served the contours, morphs and surfaces the other computed, the fingerprint being the source's alone."""
+    from importlib import metadata
+
+    from core.io import cache
+
+    real = metadata.version
+    cache.engine_fingerprint.cache_clear()
+    before = cache.engine_fingerprint()
+    monkeypatch.setattr(metadata, "version", lambda name: "0.0.1" if name == "shapely" else real(name))
+    cache.engine_fingerprint.cache_clear()
+    try:
+        assert cache.engine_fingerprint() != before
+    finally:
+        cache.engine_fingerprint.cache_clear()
+
+
+@pytest.mark.parametrize("value", ["abc", "nan", "-5", "2 GB"])
+def test_a_cache_size_limit_that_is_no_number_of_megabytes_is_refused_by_name(monkeypatch, tmp_path, value):
+    """$BGM_CACHE_MAX_MB=abc ended every command with 'internal error: ValueError'; -5 kept nothing, unsaid."""
+    monkeypatch.setenv("BGM_CACHE_MAX_MB", value)
+    with pytest.raises(BGMInputError, match=r"\$BGM_CACHE_MAX_MB must be .* megabytes"):
+        StageCache(tmp_path)
+    monkeypatch.setenv("BGM_CACHE_MAX_MB", "100")
+    assert StageCache(tmp_path).max_bytes == 100_000_000
+
+
 def test_content_keys_see_values_not_identities():
     a = np.arange(6, dtype=float).reshape(3, 2)
     assert content_key(a, "g1", {"x": 1.0}) == content_key(a.copy(), "g1", {"x": 1.0})

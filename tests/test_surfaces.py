@@ -299,6 +299,20 @@ def test_omf_export(small_mesh, tmp_path):
     assert np.abs(verts - (small_mesh.vertices + [*MINE_ORIGIN, 0.0])).max() < 1e-6
 
 
+def test_an_omf_surface_says_its_unit(small_mesh, tmp_path):
+    """A surface in feet went to OMF with no unit (the project's ``units`` empty): a reader took it for metres."""
+    if not omf_available():
+        pytest.skip("optional 'omf' package not installed")
+    import warnings
+
+    import omf
+
+    path = export_surface(small_mesh, tmp_path / "g1.omf", units="ft")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        assert omf.OMFReader(str(path)).get_project().units == "ft"
+
+
 @pytest.mark.parametrize("fmt", ["vtp", "dxf", "ply", "obj"])
 def test_mine_grid_coordinates_keep_sub_millimetre_precision(small_mesh, tmp_path, fmt):
     world = to_input_frame(small_mesh, MINE_ORIGIN, 1.0)

@@ -3,8 +3,8 @@
 A result is stored under a key that hashes everything it depends on: the
 input's content (hole positions, labels, bench levels), the stage's
 parameters and manual overrides, and the engine's own source code
-(:func:`engine_fingerprint`), so a changed file, parameter or program is
-never served a stale result. Entries are pickles written atomically
+(:func:`engine_fingerprint`, with the Python and numerical libraries it runs
+on), so a changed file, parameter or program is never served a stale result. Entries are pickles written atomically
 (:mod:`core.io.atomic`) under ``$BGM_CACHE_DIR`` or the user's cache folder
 (``~/.cache/bgm`` on Linux); an unreadable entry is deleted and recomputed,
 and the least recently used entries are removed beyond a size limit
@@ -18,8 +18,10 @@ import contextlib
 import dataclasses
 import functools
 import hashlib
+import math
 import os
 import pickle
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -44,10 +46,35 @@ def default_cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("bgm", appauthor=False))
 
 
+#: Distributions whose versions change what the stages compute (geometry, grids, meshes).
+NUMERICAL_DISTRIBUTIONS = ("numpy", "scipy", "scikit-image", "shapely", "pandas", "trimesh")
+
+
 @functools.cache
 def engine_fingerprint() -> str:
-    """Hash of the engine's source code (every ``core/**/*.py``): a code change invalidates the cache."""
-    return source_fingerprint(Path(__file__).resolve().parents[1])
+    """Hash of the engine's source code (every ``core/**/*.py``) and of what it runs on.
+
+    A code change invalidates the cache; so does another Python, GEOS or
+    version of a :data:`NUMERICAL_DISTRIBUTIONS` package: the cache folder is
+    the user's, shared by every environment that runs bgm, and a contour from
+    another GEOS is not this one's.
+    """
+    return content_key(source_fingerprint(Path(__file__).resolve().parents[1]), runtime_versions())
+
+
+def runtime_versions() -> dict[str, str]:
+    """Versions of Python, GEOS and the :data:`NUMERICAL_DISTRIBUTIONS` (``"-"`` for one not installed)."""
+    from importlib import metadata
+
+    import shapely
+
+    versions = {"python": sys.version, "geos": shapely.geos_version_string}
+    for name in NUMERICAL_DISTRIBUTIONS:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = "-"
+    return versions
 
 
 def source_fingerprint(root: Path) -> str:
@@ -100,6 +127,29 @@ def _feed(h, obj) -> None:
         raise TypeError(f"cannot make a cache key of a {type(obj).__name__}")
 
 
+def max_bytes_from_env() -> int:
+    """The cache's size limit: ``$BGM_CACHE_MAX_MB`` megabytes (:data:`DEFAULT_MAX_MB` when unset).
+
+    Raises
+    ------
+    BGMInputError
+        A value that is not a number of megabytes, 0 or more (``abc``, ``nan``, ``-5``): it ended
+        every command as an internal error (``abc``), or kept nothing (``-5``), without a word.
+    """
+    from core.errors import BGMInputError
+
+    text = os.environ.get(MAX_MB_ENV, "").strip()
+    if not text:
+        return int(DEFAULT_MAX_MB * 1e6)
+    try:
+        mb = float(text)
+    except ValueError:
+        mb = float("nan")
+    if not (math.isfinite(mb) and mb >= 0):
+        raise BGMInputError(f"${MAX_MB_ENV} must be the cache's size limit in megabytes (0 or more), got {text!r}")
+    return int(mb * 1e6)
+
+
 class StageCache:
     """Pickled stage results in a folder, one file per ``(stage, key)``.
 
@@ -109,9 +159,7 @@ class StageCache:
 
     def __init__(self, directory: str | os.PathLike | None = None, max_bytes: int | None = None):
         self.directory = Path(directory) if directory is not None else default_cache_dir()
-        if max_bytes is None:
-            max_bytes = int(float(os.environ.get(MAX_MB_ENV, DEFAULT_MAX_MB)) * 1e6)
-        self.max_bytes = max_bytes
+        self.max_bytes = max_bytes if max_bytes is not None else max_bytes_from_env()
         self._stores = 0
 
     def path(self, stage: str, key: str) -> Path:

@@ -95,6 +95,7 @@ def export_surface(
     *,
     name: str | None = None,
     layer: str | None = None,
+    units: str | None = None,
 ) -> Path:
     """Write ``mesh`` to ``path`` atomically and return the path.
 
@@ -114,6 +115,9 @@ def export_surface(
         The DXF layer, when the caller gives every geozone of a model its own
         (:func:`dxf_layer_names`, as the contours' DXF does); else ``name``
         made R12-safe.
+    units : str, optional
+        Length unit of the vertices (``"m"`` or ``"ft"``), recorded where the
+        format has a place for it (the OMF project's ``units``).
 
     Raises
     ------
@@ -136,7 +140,10 @@ def export_surface(
 
     with atomic_path(path) as tmp:
         # The DXF writer names its layer after ``name``; a layer already R12-safe keeps its name.
-        _WRITERS[fmt](tmp, vertices, faces, layer if fmt == "dxf" and layer else name, mesh)
+        if fmt == "omf":  # the one format with a field for the unit: a reader takes metres for feet without it
+            _write_omf(tmp, vertices, faces, name, mesh, units=units or "")
+        else:
+            _WRITERS[fmt](tmp, vertices, faces, layer if fmt == "dxf" and layer else name, mesh)
     if fmt == "stl":
         _record_stl_offset(path, stl_offset(vertices))
     return path
@@ -180,18 +187,22 @@ def export_all(
     formats: Iterable[str] = DEFAULT_FORMATS,
     name: str | None = None,
     layer: str | None = None,
+    units: str | None = None,
 ) -> dict[str, Path]:
     """Write ``mesh`` as ``out_dir/stem.<fmt>`` for every format; returns ``{fmt: path}``.
 
     ``name`` is the geozone's name (DXF layer, OMF element; ``stem`` if not
-    given), ``layer`` its DXF layer if not ``name``'s (see :func:`export_surface`).
+    given), ``layer`` its DXF layer if not ``name``'s, ``units`` the vertices' length
+    unit (see :func:`export_surface`).
     All formats are validated before anything is written.
     """
     fmts = [_canonical(f) for f in formats]
     if "omf" in fmts:
         _require_omf()
     out_dir = Path(out_dir)
-    return {f: export_surface(mesh, out_dir / f"{stem}.{f}", f, name=name or stem, layer=layer) for f in fmts}
+    return {
+        f: export_surface(mesh, out_dir / f"{stem}.{f}", f, name=name or stem, layer=layer, units=units) for f in fmts
+    }
 
 
 def write_geojson(
@@ -454,7 +465,7 @@ def polygon_rings(geometry) -> list[np.ndarray]:
     return [np.asarray(r.coords) for p in polys if not p.is_empty for r in (p.exterior, *p.interiors)]
 
 
-def _write_omf(tmp: Path, vertices, faces, name, mesh) -> None:
+def _write_omf(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
     omf = _require_omf()
     with warnings.catch_warnings():
         # omf 1.0.1 / vectormath predate numpy 2 and emit DeprecationWarnings.
@@ -467,7 +478,7 @@ def _write_omf(tmp: Path, vertices, faces, name, mesh) -> None:
                 triangles=np.asarray(faces, dtype=np.int64),
             ),
         )
-        project = omf.Project(name=str(name), elements=[element])
+        project = omf.Project(name=str(name), elements=[element], units=units)
         project.validate()
         omf.OMFWriter(project, str(tmp))
 

@@ -296,6 +296,8 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
             table, out_dir / "precision_recall.png", title=f"{holes.source}: all geozones", unit=holes.frame.length_unit
         )
 
+    # Said in the report and by bgm build: a build with no evaluation.csv and no word of why left one guessing.
+    note = "" if table is not None else no_evaluation_note(holes.n_benches, ctx.evaluate)
     summary = {
         "input": holes.source,
         "holes": int(len(holes.xy)),
@@ -308,12 +310,25 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
         "containment": containment,
         "geozones": [s.__dict__ for s in summaries],
         "evaluation": None if table is None else table.round(4).to_dict(orient="records"),
+        "evaluation_note": note,
         "formats": {f: FORMAT_NOTES[f] for f in ctx.formats},
     }
     text = json.dumps(_finite(summary), indent=1, default=json_default, allow_nan=False)
     atomic_write_text(out_dir / "summary.json", text)
     atomic_write_text(out_dir / "report.md", report_markdown(summary, table))
     return summary
+
+
+def no_evaluation_note(n_benches: int, evaluated: bool) -> str:
+    """Why a build has no evaluation (``evaluation_note`` of ``summary.json``, said in ``report.md``)."""
+    if not evaluated:
+        return "not evaluated: the evaluation was not asked for"
+    if n_benches < 3:
+        return (
+            f"not evaluated: the protocol predicts a bench withheld below two known benches, so it needs three or "
+            f"more benches; this input has {n_benches}"
+        )
+    return "not evaluated: no geozone built lies on a withheld bench below two known benches of its own to score"
 
 
 #: Files a file browser leaves in any folder it shows (macOS Finder, Windows Explorer): nothing to lose.
@@ -725,7 +740,13 @@ def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildConte
         info = mesh_summary(mesh)
         surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
         exported = export_all(
-            surface, gdir, "surface", ctx.formats, name=model.geozone, layer=ctx.layers.get(model.geozone)
+            surface,
+            gdir,
+            "surface",
+            ctx.formats,
+            name=model.geozone,
+            layer=ctx.layers.get(model.geozone),
+            units=holes.frame.length_unit,
         )
         summary.volume = info["volume_m3"] / mpu**3
         if info["watertight"]:  # a volume only a closed surface has
@@ -825,6 +846,9 @@ def report_markdown(summary: dict, table: pd.DataFrame | None) -> str:
             _markdown_table(table),
             "",
         ]
+    elif summary.get("evaluation_note"):
+        note = summary["evaluation_note"]
+        lines += ["## Predictive value", "", f"{note[0].upper()}{note[1:]}.", ""]
     return "\n".join(lines)
 
 
