@@ -99,3 +99,18 @@ def test_unknown_geozone_and_single_bench(tmp_path):
     t[t.z > 680].to_csv(one, index=False)
     proc = bgm("correspond", one, "--geozone", "g1", "--out", tmp_path / "c.json", check=False)
     assert proc.returncode == 2 and "single bench" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_build_folder_given_as_the_input_names_the_table_it_was_built_from(tmp_path):
+    """``bgm demo`` says "open it in 3D with: bgm view"; ``bgm view bgm-demo`` (or any command) was refused
+    as "a directory" with no word of the table the folder holds the model of."""
+    folder = tmp_path / "bgm-demo"
+    folder.mkdir()
+    (folder / "summary.json").write_text(json.dumps({"input": "/data/holes.csv", "holes": 3}))
+    run = bgm("contours", folder, "--out", tmp_path / "c.geojson", check=False)
+    assert run.returncode == 2
+    assert "is a directory" in run.stderr and "built from /data/holes.csv: give that table" in run.stderr
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    run = bgm("contours", plain, "--out", tmp_path / "c.geojson", check=False)
+    assert run.returncode == 2 and "built from" not in run.stderr

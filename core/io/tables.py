@@ -123,6 +123,21 @@ def display_name(path: str | Path) -> str:
 # --------------------------------------------------------------------------- what the file is
 
 
+def _built_from(folder: Path) -> str:
+    """What to open instead of a ``bgm build`` folder: the table it was built from (its ``summary.json``'s ``input``).
+
+    ``bgm demo`` ends with "open it in 3D with: bgm view", and ``bgm view bgm-demo`` was refused with no word
+    of the table the folder holds the model of.
+    """
+    import json
+
+    try:
+        source = json.loads((folder / "summary.json").read_text(encoding="utf-8")).get("input")
+    except (OSError, ValueError, AttributeError):
+        return ""
+    return f" (it holds a model built from {source}: give that table)" if isinstance(source, str) else ""
+
+
 def _content(path: str | Path) -> tuple[str, Path | bytes]:
     """The input's display name and either its path (regular files) or all its bytes (streams)."""
     name = display_name(path)
@@ -137,7 +152,7 @@ def _content(path: str | Path) -> tuple[str, Path | bytes]:
     if not path.exists():
         raise BGMInputError(f"input file {name} does not exist")
     if path.is_dir():
-        raise BGMInputError(f"input {name} is a directory, not a CSV or Parquet file")
+        raise BGMInputError(f"input {name} is a directory, not a CSV or Parquet file{_built_from(path)}")
     try:
         if path.is_file():
             if path.stat().st_size == 0:
