@@ -37,15 +37,24 @@ def _interrupt_again(unraisable) -> None:
     (logging's lock release as a build forks its workers), where the interrupt
     cannot propagate: Python printed "Exception ignored" and a traceback, and
     the command went on. It is raised again in the main thread a moment later,
-    from a timer: raised from here, it would land in this hook, as unraisable.
+    from a thread: raised from here, it would land in this hook, as unraisable.
+    The thread waits until this hook is past starting it: a timer counted from
+    its own start, and on a loaded machine fired while ``start()`` still waited
+    for it, inside this hook, and the interrupt was lost again.
     """
     import _thread
     import threading
 
     if isinstance(unraisable.exc_value, KeyboardInterrupt) and _INTERRUPTS:
-        timer = threading.Timer(0.01, _thread.interrupt_main, (signal.SIGINT,))
-        timer.daemon = True
-        timer.start()
+        started = threading.Event()
+
+        def interrupt_later() -> None:
+            started.wait()
+            time.sleep(0.01)  # for this hook to return
+            _thread.interrupt_main(signal.SIGINT)
+
+        threading.Thread(target=interrupt_later, daemon=True).start()
+        started.set()
         return
     sys.__unraisablehook__(unraisable)
 
