@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import synthetic
+from conftest import DEMO_CSV, synthetic
 
 from core.errors import BGMInputError
 from core.io.blastholes import BGMWarning, detect_benches, median_hole_spacing, read_blastholes
@@ -151,6 +153,77 @@ def test_a_hole_with_its_elevation_mistyped_is_left_out_not_the_table_refused(tm
         holes = read_blastholes(write(tmp_path, t))
     assert len(holes.xy) == len(t) - len(typos)
     assert holes.n_benches == read_blastholes(write(tmp_path, small_table())).n_benches
+
+
+@pytest.mark.parametrize("missing", ["0", "-9999"])
+def test_many_holes_with_their_elevation_missing_are_left_out_not_the_benches_merged(tmp_path, missing):
+    """300 of the demo's 11,211 holes with z written as 0 (or -9999) where it was missing were a cluster of their own,
+    whose gap hid every gap between benches: the seven benches were read as one at 664.8 m, with only a units
+    warning ('benches 664.8 units high would be feet')."""
+    demo = pd.read_csv(DEMO_CSV, dtype=str)
+    rows = np.sort(np.random.default_rng(0).choice(len(demo), 300, replace=False))
+    demo.loc[rows, "z"] = missing
+    with pytest.warns(BGMWarning, match=rf"300 hole\(s\) lie more than a bench height .* at z {missing} ") as caught:
+        holes = read_blastholes(write(tmp_path, demo))
+    clean = read_blastholes(DEMO_CSV)
+    assert holes.n_benches == 7 and np.array_equal(holes.bench_levels_m, clean.bench_levels_m)
+    assert holes.bench_height_m == clean.bench_height_m == 10.0 and holes.frame.length_unit == "m"
+    assert set(holes.hole_id) == set(clean.hole_id) - set(demo.hole_id[rows])
+    named = f"data line(s) {', '.join(str(r + 2) for r in rows[:10])} and 290 more"  # line 1 is the header
+    assert any(named in str(w.message) for w in caught)
+
+
+def test_too_many_holes_with_their_elevation_missing_are_refused_by_name(tmp_path):
+    """More than a quarter of the holes at RL 0 are no typos to leave out: the table is refused, saying why."""
+    t = small_table()
+    t.loc[: len(t) // 3, "RL"] = 0.0
+    with pytest.raises(BGMInputError, match=r"41 of 120 holes \(34%\) have elevations far off the benches \(at 0;"):
+        read_blastholes(write(tmp_path, t))
+
+
+@pytest.mark.parametrize("below", [1, 3, 8])
+def test_a_sump_of_holes_benches_below_the_pit_is_a_bench_of_its_own(tmp_path, below):
+    """Real benches lie a bench height or a few apart: a sump of 32 holes 3 benches below the pit's five made the
+    widest gap, and the table was refused (its holes 'between the bench levels found (85.1, 30)'); 8 benches
+    below, the five were read as one at 80 m."""
+    pit = small_table(benches=(100.0, 90.0, 80.0, 70.0, 60.0))
+    sump = small_table(n_per_bench=32, benches=(60.0 - 10.0 * below,), seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)  # nothing left out
+        holes = read_blastholes(write(tmp_path, pd.concat([pit, sump])))
+    assert np.allclose(holes.bench_levels_m, [100.0, 90.0, 80.0, 70.0, 60.0, 60.0 - 10.0 * below], atol=0.5)
+    assert len(holes.xy) == len(pit) + len(sump)
+
+
+def test_a_group_of_holes_more_than_ten_benches_off_the_others_is_left_out_by_name(tmp_path):
+    """No pit leaves ten benches unsampled between two of its own: 32 holes 15 benches below are set apart."""
+    pit = small_table(benches=(300.0, 290.0, 280.0, 270.0))
+    far = small_table(n_per_bench=32, benches=(120.0,), seed=1)
+    with pytest.warns(BGMWarning, match=r"32 hole\(s\) lie more than a bench height above or below every bench"):
+        holes = read_blastholes(write(tmp_path, pd.concat([pit, far])))
+    assert np.allclose(holes.bench_levels_m, [300.0, 290.0, 280.0, 270.0], atol=0.5) and len(holes.xy) == len(pit)
+
+
+def test_kennecott_with_300_holes_at_rl_0_reads_as_without_them(kennecott_csv, tmp_path):
+    """Kennecott's floor is 5.4 benches above 0: 300 holes at RL 0 read as two benches, at 366.1 and 0 ft, and 1,888
+    holes were left out as between them. A group all at exactly 0 (or -9999) a few benches off is no bench."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        clean = read_blastholes(kennecott_csv)
+    levels = [564.4, 514.7, 464.5, 414.9, 365.0, 315.4, 267.8]  # as read before and after the change
+    assert clean.n_benches == 7 and len(clean.xy) == 14709
+    assert np.allclose(clean.frame.z_to_input(clean.bench_levels_m), levels)
+    table = pd.read_csv(kennecott_csv, dtype=str, keep_default_na=False)
+    rows = np.random.default_rng(0).choice(len(table), 300, replace=False)
+    table.loc[rows, "RL"] = "0"
+    with pytest.warns(BGMWarning) as caught:  # with Kennecott's own ('-99' labels, 2 holes between benches)
+        holes = read_blastholes(write(tmp_path, table))
+    assert any("300 hole(s) lie more than a bench height above or below" in str(w.message) for w in caught)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        without = read_blastholes(write(tmp_path, table.drop(index=rows), name="without.csv"))
+    assert np.array_equal(holes.bench_levels_m, without.bench_levels_m) and holes.n_benches == 7
+    assert np.array_equal(holes.hole_id, without.hole_id) and np.array_equal(holes.bench, without.bench)
 
 
 def test_a_hole_far_from_every_other_of_its_bench_is_left_out(tmp_path):

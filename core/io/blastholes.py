@@ -14,6 +14,8 @@ CSV or Parquet table into :class:`Blastholes`:
 * coordinates in degrees of latitude and longitude are refused;
 * benches are found by clustering elevations, at the levels as measured
   (uneven bench heights are fine); z that does not form benches is refused;
+  holes far above or below every bench (elevations missing as 0 or -9999, or
+  mistyped) are left out, named in a warning, or refused when they are many;
 * lengths are converted to metres in a local frame centred on the data, so
   mine-grid coordinates (x ~ 650,000, y ~ 7,400,000) keep full precision and
   feet data works with the same metre-based defaults; everything reported goes
@@ -70,6 +72,14 @@ MAX_OFF_BENCH_SHARE = 0.25
 #: A hole farther than this many hole spacings from every other hole of its bench is on no pattern (x, y missing
 #: as 0, or mistyped); the most on Kennecott's and the demo's benches is 3.0.
 FAR_HOLE_SPACINGS = 20.0
+#: A group of holes at the top or bottom of the elevations, more than this many bench heights from every bench, is
+#: no bench of the pit (elevations missing or mistyped): a pit does not leave ten benches unsampled between two of its own.
+FAR_LEVEL_BENCHES = 10.0
+#: Elevations that spell a missing value when a whole group of holes sits exactly on one of them (z exported as 0 or
+#: -9999 where it was missing) ...
+MISSING_ELEVATIONS = frozenset({0.0, -99.0, -999.0, -9999.0, -99999.0})
+#: ... and lies more than this many bench heights from every bench (a real bench at RL 0 next to the others stays).
+MISSING_ELEVATION_BENCHES = 3.0
 #: A single cluster of elevations thicker than this many hole spacings is not one bench.
 MAX_BENCH_THICKNESS_SPACINGS = 5.0
 #: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
@@ -478,10 +488,19 @@ def blastholes_from_table(
 
     zin = coords["z"]
     levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=np.column_stack([coords["x"], coords["y"]]))
-    if off.any():
+    # Holes more than a bench height above or below every bench are no stray between benches: say what they are.
+    outside = off & ((zin < levels_in.min() - height_in) | (zin > levels_in.max() + height_in))
+    if outside.any():
         msg = (
-            f"{int(off.sum())} hole(s) lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from "
-            f"every bench level (data line(s) {_rows(np.flatnonzero(off), lines)}) and were left out"
+            f"{int(outside.sum())} hole(s) lie more than a bench height above or below every bench, at z "
+            f"{_far_values(zin[outside])} (data line(s) {_rows(np.flatnonzero(outside), lines)}): elevations missing "
+            "(written as 0 or -9999) or mistyped? they were left out"
+        )
+        _note(notes, msg, stacklevel=3)
+    if (off & ~outside).any():
+        msg = (
+            f"{int((off & ~outside).sum())} hole(s) lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from "
+            f"every bench level (data line(s) {_rows(np.flatnonzero(off & ~outside), lines)}) and were left out"
         )
         _note(notes, msg, stacklevel=3)
 
@@ -849,7 +868,11 @@ def detect_benches(
     holes) are benches, at their median elevation (shown to 0.1 unit when the
     holes scatter). Benches need not be evenly spaced (10 m, then 15 m): levels
     are taken as measured, and put on a regular ladder only where the medians
-    themselves say the benches are regular (see :func:`_bench_levels`).
+    themselves say the benches are regular (see :func:`_bench_levels`). A
+    cluster too thick for one bench is split into the benches it holds (see
+    :func:`_split_hidden_benches`). Groups of holes far above or below the
+    benches (see :func:`_far_off_elevations`) are no benches: the benches are
+    found without them, and they are off-bench holes.
 
     Parameters
     ----------
@@ -883,7 +906,8 @@ def detect_benches(
     BGMInputError
         When z does not form benches: one elevation cluster far thicker than
         the hole spacing, or more than ``MAX_OFF_BENCH_SHARE`` of the holes
-        between levels; or when ``bench_height`` disagrees with the levels.
+        between levels or far off the benches; or when ``bench_height``
+        disagrees with the levels.
     """
     z = np.asarray(z, float)
     if bench_height is not None and not (np.isfinite(bench_height) and bench_height > 0):
@@ -903,6 +927,23 @@ def detect_benches(
             break
         clusters = [*clusters[:i], *inner, *clusters[i + 1 :]]
         big = [c for c in clusters if len(c) >= min_count]
+    clusters = _split_hidden_benches(clusters, min_count, z, xy)
+    big = [c for c in clusters if len(c) >= min_count]
+    apart = np.isin(z, _far_off_elevations(clusters, min_count, zs[len(zs) // 2], bench_height))
+    if apart.any():
+        # Many holes far off (300 of the demo's 11,211 at RL 0) are a cluster of their own, whose gap hid every gap
+        # between the benches: all seven were read as one at 664.8 m. The benches are found without them.
+        if apart.mean() > MAX_OFF_BENCH_SHARE:
+            raise BGMInputError(
+                f"z does not form benches: {int(apart.sum())} of {len(z)} holes ({apart.mean():.0%}) have elevations "
+                f"far off the benches (at {_far_values(z[apart])}; the others from {np.min(z[~apart]):g} to "
+                f"{np.max(z[~apart]):g}): too many to leave out as missing (written as 0 or -9999) "
+                "or mistyped; fill in their elevations or drop those rows"
+            )
+        levels, found, height, off = detect_benches(z[~apart], bench_height, None if xy is None else xy[~apart])
+        bench, off_all = np.full(len(z), -1), apart.copy()
+        bench[~apart], off_all[~apart] = found, off
+        return levels, bench, height, off_all
     if bench_height is None:
         if len(clusters) >= 2 and max(len(c) for c in clusters) < 3:
             raise BGMInputError(
@@ -937,6 +978,128 @@ def detect_benches(
         )
     height = float(bench_height) if bench_height is not None else float(np.median(-np.diff(levels)))
     return levels, bench, (height if len(levels) >= 2 else np.nan), off
+
+
+def _split_hidden_benches(
+    clusters: list[np.ndarray], min_count: int, z: np.ndarray, xy: np.ndarray | None
+) -> list[np.ndarray]:
+    """Split clusters too thick for one bench into the benches they hold.
+
+    Benches are cut at gaps a third as wide as the widest: a sump 30 or 80 m below benches 10 m apart made the
+    widest gap, and the five benches above it were read as one (or refused, their holes between the two levels).
+    A bench's holes (5th to 95th percentile) are thinner than the gap to the next bench, and than
+    :data:`MAX_BENCH_THICKNESS_SPACINGS` hole spacings; a cluster thicker than either is split, where it splits
+    into two or more clusters of at least ``min_count`` holes. Sub-levels of one bench (685 and 687 m, the next
+    bench 10 m down) are thinner than both: they stay one bench.
+
+    Parameters
+    ----------
+    clusters : list of (k,) float
+        Sorted elevations split into clusters (see :func:`_elevation_clusters`), ascending.
+    min_count : int
+        Holes a cluster needs to be a bench on its own.
+    z : (n,) float
+        Every hole's elevation, to find a cluster's holes in ``xy``.
+    xy : (n, 2) float, optional
+        Hole positions; without them only the gaps tell.
+
+    Returns
+    -------
+    list of (k,) float
+        The clusters, those holding several benches split into them.
+    """
+    out: list[np.ndarray] = []
+    for i, c in enumerate(clusters):
+        gaps = [clusters[i + 1][0] - c[-1]] if i + 1 < len(clusters) else []
+        gaps += [c[0] - clusters[i - 1][-1]] if i > 0 else []
+        thick = float(np.percentile(c, 95) - np.percentile(c, 5)) if len(c) >= min_count else 0.0
+        inner = _elevation_clusters(c) if thick > 0 else [c]
+        pieces = [p for p in inner if len(p) >= min_count]
+        too_thick = bool(gaps) and thick > min(gaps)
+        if len(pieces) >= 2 and not too_thick and xy is not None:
+            # The hole spacing on each piece: sub-levels of one bench sample the same collars.
+            spacing = np.median([_collar_spacing(xy[(z >= p[0]) & (z <= p[-1])]) for p in pieces])
+            too_thick = thick > MAX_BENCH_THICKNESS_SPACINGS * spacing
+        if len(pieces) >= 2 and too_thick:
+            out.extend(_split_hidden_benches(inner, min_count, z, xy))
+        else:
+            out.append(c)
+    return out
+
+
+def _far_off_elevations(
+    clusters: list[np.ndarray], min_count: int, median: float, bench_height: float | None
+) -> np.ndarray:
+    """Elevations of the groups of holes above or below the benches that are no bench: missing (0, -9999) or mistyped.
+
+    Walking up and down from the median elevation's cluster, everything beyond a step of more than
+    :data:`FAR_LEVEL_BENCHES` bench heights between neighbouring clusters is set apart; so is a cluster at
+    either end whose holes all sit exactly on one value of :data:`MISSING_ELEVATIONS` (0, -9999) more than
+    :data:`MISSING_ELEVATION_BENCHES` bench heights from every other bench (Kennecott's floor is 5.4 bench
+    heights above 0). The bench height is the one given, else the median step between the benches with the
+    widest left out. Real benches lie a bench height or a few apart, within the pit's span: a sump of holes
+    one or several benches below the pit floor is a bench and stays (whatever its size), as does a level at
+    RL 0 next to the others. A group more than ten bench heights from the others (a second pit in the same
+    table) is set apart too: its holes are then named in a warning, or the table refused when they are many.
+    Not judged without a bench height to measure by: one bench and a group at 0, two clusters in all, read
+    as two benches (with a warning on their height).
+
+    Parameters
+    ----------
+    clusters : list of (k,) float
+        Sorted elevations split into clusters (see :func:`_elevation_clusters`), ascending.
+    min_count : int
+        Holes a cluster needs to be a bench on its own.
+    median : float
+        The median elevation: its bench is never set apart.
+    bench_height : float, optional
+        Given bench height; else the median distance between the other benches.
+
+    Returns
+    -------
+    (m,) float
+        The elevations set apart (empty when none).
+    """
+    # One huge gap (0 to 625 m) hides the gaps between benches: split the clusters down to the benches to measure.
+    parts: list[np.ndarray] = []
+    todo = list(clusters)
+    while todo:
+        c = todo.pop(0)
+        inner = _elevation_clusters(c) if len(c) >= min_count and np.ptp(c) > 0 else [c]
+        if sum(len(i) >= min_count for i in inner) >= 2:
+            todo[:0] = inner
+        else:
+            parts.append(c)
+    apart: list[np.ndarray] = []
+    while True:
+        centres = np.array([float(np.median(p)) for p in parts])
+        gaps = np.diff(centres[[len(p) >= min_count for p in parts]])
+        if bench_height is None and len(gaps) < 2:
+            break
+        # The widest gap left out: it may be the one to the group being judged (two benches, 300 holes at 0).
+        height = bench_height or float(np.median(np.sort(gaps)[:-1]))
+        home = next(k for k, p in enumerate(parts) if p[0] <= median <= p[-1])  # the parts hold every elevation
+        steps = np.diff(centres) > FAR_LEVEL_BENCHES * height
+        low = max([k + 1 for k in np.flatnonzero(steps) if k < home], default=0)
+        high = min([k for k in np.flatnonzero(steps) if k >= home], default=len(parts) - 1)
+        for k in (low, high):  # a group at exactly 0 or -9999 a few benches off
+            p = parts[k]
+            others = [centres[i] for i in range(low, high + 1) if i != k and len(parts[i]) >= min_count]
+            missing = p[0] == p[-1] and float(p[0]) in MISSING_ELEVATIONS and k != home and bool(others)
+            if missing and np.abs(np.array(others) - centres[k]).min() > MISSING_ELEVATION_BENCHES * height:
+                low, high = (low + 1, high) if k == low else (low, high - 1)
+                break
+        if low == 0 and high == len(parts) - 1:
+            break
+        apart += parts[:low] + parts[high + 1 :]
+        parts = parts[low : high + 1]
+    return np.concatenate(apart) if apart else np.array([])
+
+
+def _far_values(z: np.ndarray) -> str:
+    """The elevations of holes set apart, shortened: ``0``, ``-9999 and 6849.3``, ``-3.2 to 4.1``."""
+    values = np.unique(z)
+    return listing([f"{v:g}" for v in values], 4) if len(values) <= 6 else f"{values[0]:g} to {values[-1]:g}"
 
 
 def _refuse_disagreeing_height(levels: np.ndarray, bench_height: float) -> None:
