@@ -85,7 +85,8 @@ def no_traceback(proc) -> None:
 def error_line(proc, *phrases: str) -> str:
     """Exit 2 with exactly one stderr line, ``bgm: error: ...``, naming the problem; returns it.
 
-    Warnings about the input (``bgm: warning:``) may come before it; nothing
+    Warnings about the input (``bgm: warning:``) and progress lines of the work
+    done before the problem (``bgm: progress:``) may come before it; nothing
     else may be printed on stderr.
     """
     no_traceback(proc)
@@ -94,12 +95,17 @@ def error_line(proc, *phrases: str) -> str:
     lines = [line for line in stderr.splitlines() if line.strip()]
     errors = [line for line in lines if line.startswith("bgm: error:")]
     assert len(errors) == 1, stderr
-    others = [line for line in lines if not line.startswith(("bgm: error:", "bgm: warning:"))]
+    others = [line for line in lines if is_message(line) and not line.startswith(("bgm: error:", "bgm: warning:"))]
     assert all(": " in line and "holes" in line for line in others), stderr  # only the one-line input summary
     assert len(errors[0]) < 1200, errors[0][:300]
     for phrase in phrases:
         assert phrase.lower() in errors[0].lower(), (phrase, errors[0])
     return errors[0]
+
+
+def is_message(line: str) -> bool:
+    """Whether a stderr line is a message (``bgm: ...``, the input summary), not a batch progress line."""
+    return not line.startswith("bgm: progress: ")
 
 
 def succeeds(proc):

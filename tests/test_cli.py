@@ -114,3 +114,47 @@ def test_a_build_folder_given_as_the_input_names_the_table_it_was_built_from(tmp
     plain.mkdir()
     run = bgm("contours", plain, "--out", tmp_path / "c.geojson", check=False)
     assert run.returncode == 2 and "built from" not in run.stderr
+
+
+def test_a_build_in_batch_says_how_far_it_is_as_it_goes(tmp_path):
+    """Off a terminal (a job scheduler, CI, ``2> log``) a build said nothing between its input summary and
+    "wrote report.md" (on Kennecott 100-160 s, as if hung): each step is a line now, flushed as it is done."""
+    import os
+    import re
+
+    table = pd.read_csv(DEMO_CSV)
+    small = tmp_path / "small.csv"
+    table[table.z > 650].to_csv(small, index=False)  # the top four benches
+    env = {k: v for k, v in os.environ.items() if k != "BGM_PROGRESS"}
+    args = [*BGM, "build", str(small), "--out", str(tmp_path / "model"), "--geozone", "g1,g2", "--workers", "1"]
+    # Bytes, not text: text mode would turn a bar's carriage returns into line ends.
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    lines, running = [], None
+    for line in proc.stderr:  # a pipe: not a terminal
+        lines.append(line.decode().removesuffix("\n"))
+        if running is None and line.startswith(b"bgm: progress: "):
+            running = proc.poll() is None
+    stdout = proc.stdout.read().decode()
+    assert proc.wait(timeout=600) == 0, "\n".join(lines)
+    assert running, lines  # the first line came while the build ran, not with its end
+    progress = [line for line in lines if line.startswith("bgm: progress: ")]
+    steps = [re.fullmatch(r"bgm: progress: (\d/\d \w+) \((contours|geozone g[12]), \d+\.\d s\)", p) for p in progress]
+    assert all(steps), progress
+    assert [m[1] for m in steps] == [
+        "1/4 benches",
+        "2/4 benches",
+        "3/4 benches",
+        "4/4 benches",
+        "1/2 geozones",
+        "2/2 geozones",
+    ]
+    wrote = next(k for k, line in enumerate(lines) if line.startswith("wrote "))
+    assert lines.index(progress[-1]) < wrote  # before the end
+    assert "\r" not in "".join(lines) and "\x1b" not in "".join(lines)  # lines, not a bar's redraws
+    # stdout, the command line's contract, is as it was: one JSON line.
+    summary = json.loads(stdout)
+    assert stdout.count("\n") == 1 and summary == {
+        "holes": len(pd.read_csv(small)),
+        "seconds": summary["seconds"],
+        "out": str(tmp_path / "model"),
+    }

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from clirun import BGM
+from clirun import BGM, is_message
 
 from core.synthetic.blobs import make_mine, sample_blastholes
 
@@ -153,7 +153,11 @@ def test_build_killed_at_random_moments_leaves_the_previous_model(small_csv, tmp
         elif how == "ctrl-c":
             outcomes["interrupted"] += 1
             assert proc.returncode == 130, context
-            lines = [line for line in err.splitlines() if line.startswith("bgm:") or "Traceback" in line]
+            lines = [
+                line
+                for line in err.splitlines()
+                if (line.startswith("bgm:") and is_message(line)) or "Traceback" in line
+            ]
             assert lines == ["bgm: interrupted; files being written were left as they were"], context
         else:
             outcomes["killed"] += 1
@@ -219,7 +223,9 @@ def test_a_build_stopped_by_kill_leaves_no_worker_running(small_csv, tmp_path, s
             os.killpg(proc.pid, signal.SIGKILL)
     if sig == signal.SIGTERM:
         assert proc.returncode == 143, err
-        lines = [line for line in err.splitlines() if line.startswith("bgm:") or "Traceback" in line]
+        lines = [
+            line for line in err.splitlines() if (line.startswith("bgm:") and is_message(line)) or "Traceback" in line
+        ]
         assert lines == ["bgm: terminated; files being written were left as they were"], err
         assert not [p.name for p in tmp_path.iterdir() if ".bgm-" in p.name]
 

@@ -29,7 +29,7 @@ predicted section updated with the labels of the holes revealed.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -362,6 +362,7 @@ def plan_sampling(
     candidates_m: np.ndarray | None = None,
     probability: float = DEFAULT_PROBABILITY,
     sections: dict | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> SamplingPlan:
     """Choose ``budget`` holes at elevation ``z_m`` for ``geozones`` (one budget shared by all).
 
@@ -369,7 +370,8 @@ def plan_sampling(
     a planned pattern's holes, or :func:`next_bench_candidates`. Geozones
     without a predicted section there with its uncertainty (at a bench level)
     take no part. ``sections`` (geozone -> SectionUncertainty at ``z_m``)
-    saves computing them again.
+    saves computing them again. ``progress(done, total)`` is called as each
+    geozone's section is done.
     """
     spacing = float(session.holes.hole_spacing_m)
     if candidates_m is None:
@@ -382,7 +384,11 @@ def plan_sampling(
             return geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
 
         # Each geozone's model and backtests release the GIL in their heavy steps: several at once.
-        found = dict(on_threads(section_of, geozones))
+        found = {}
+        for g, section in on_threads(section_of, geozones):
+            found[g] = section
+            if progress:
+                progress(len(found), len(geozones))
         sections = {g: found[g] for g in geozones if found[g] is not None}  # in the order asked
     chosen = suggest_holes(sections, candidates_m, budget, spacing)
     return SamplingPlan(float(z_m), float(probability), np.asarray(candidates_m, float), sections, chosen)
