@@ -226,6 +226,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._next_bench_worker = None
         self._pending_step: str | None = None
         self._queued_step: str | None = None
+        #: Why the last run failed (``None``: it succeeded): the surfaces on screen are from an earlier run.
+        self._failure: str | None = None
         #: What the last Undo did, said when its run is done (the run's progress would hide it before).
         self._undo_note = ""
         self._request_time = 0.0
@@ -921,6 +923,7 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         self._show_latest()  # the last result before saying done
         self._pending_step = None
+        self._failure = None
         self._worker = None
         self.last_run_seconds = time.perf_counter() - self._started
         errors = "; ".join(f"{k}: {v}" for k, v in self.model.result.errors.items())
@@ -988,6 +991,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._pending_step = None
         self._worker = None
         what = str(exc) if isinstance(exc, RunFailed) else f"{type(exc).__name__}: {exc}"
+        self._failure = what
         self.statusBar().showMessage(f"failed: {what}")
 
     def _show_translation(self) -> None:
@@ -1028,6 +1032,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _replace_model(self, model: ViewerModel) -> None:
         self._cancel()
         self._pending_step = self._queued_step = None
+        self._failure = None  # the new input's run says its own
         self.model = model
         self._connect_model()
         with self.renderer.batch():
@@ -1172,14 +1177,21 @@ class MainWindow(QtWidgets.QMainWindow):
         return out
 
     def _check_up_to_date(self) -> None:
-        """Refuse to export while a run is pending: the surfaces shown are those before the last change.
+        """Refuse to export while a run is pending or after it failed: the surfaces shown are those before the last change.
 
         An alignment or parameter just changed leaves the old surfaces on screen until
-        they are redone; exported then, they would not hold the change.
+        they are redone; exported then, they would not hold the change. A failed run
+        never redoes them: they stay those of the last run that succeeded.
         """
         if self.busy:
             raise ValueError(
                 "the model is being recomputed after the last change: export once the status bar says done"
+            )
+        # a failed run leaves the surfaces of the run before it on screen: not those of the current parameters
+        if self._failure is not None:
+            raise ValueError(
+                f"the last run failed ({self._failure}): the surfaces shown are from the earlier parameters or"
+                " alignment; export once a run succeeds"
             )
 
     def export_surfaces_dialog(self) -> None:

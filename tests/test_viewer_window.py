@@ -481,6 +481,30 @@ def test_a_surface_is_not_exported_before_the_last_change_is_in_it(window, qtbot
     assert (tmp_path / "surface.obj").stat().st_size > 0
 
 
+def test_no_surface_is_exported_after_a_failed_run_until_one_succeeds(window, qtbot, monkeypatch, tmp_path):
+    """A run that failed left the surfaces of the parameters before it on screen, and exported them as current."""
+    import core.model.session as session
+
+    extract = session.extract_bench
+
+    def failing(*args, **kwargs):
+        raise ValueError("boom")
+
+    monkeypatch.setattr(session, "extract_bench", failing)
+    window.param_controls["snake_max_iterations"].slider.setValue(10)
+    qtbot.waitUntil(lambda: not window.busy, timeout=10_000)
+    assert "failed: ValueError: boom" in window.statusBar().currentMessage()
+    for export in (window.export_surface, window.export_surfaces):
+        with pytest.raises(ValueError, match="last run failed.*earlier parameters"):
+            export(tmp_path / "surface.obj")
+    assert not list(tmp_path.iterdir())
+    monkeypatch.setattr(session, "extract_bench", extract)
+    window.param_controls["snake_max_iterations"].slider.setValue(12)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.export_surface(tmp_path / "surface.obj")
+    assert (tmp_path / "surface.obj").stat().st_size > 0
+
+
 def test_surfaces_of_the_selected_geozone_follow_the_selection(window, qtbot, tmp_path):
     """With "surfaces of: selected geozone", the geozone selected when it was chosen kept its surface on
     screen (and in Export shown surfaces) beside every geozone selected after it."""
