@@ -330,7 +330,7 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
         m = res.min_component_holes
         return tuple([c.polygon for c in modelled_contours(res.contours.get(b, []), geozone, b, m)] for b in (k, k + 1))
 
-    overrides, notes = relocate_overrides(session.project.overrides, outlines)
+    overrides, notes = relocate_overrides(session.project.overrides, outlines, unit=holes.frame.length_unit)
     run.session = session.updated(project=replace(session.project, overrides=overrides))
     before = res.relocated.notes if res.relocated is not None else []
     placed = session.params if fresh >= set(range(holes.n_benches)) else None
@@ -834,16 +834,17 @@ class ViewerModel:
             the model does not have, and fail every run of the geozone.
         """
         sel, res = self.selection, self.result
+        unit = self.holes.frame.length_unit
         pair = res.pair if res.selection == sel else None
         if pair is None or pair.upper != sel.bench:
             raise ValueError(
-                f"geozone {sel.geozone} has no bench pair from bench {self.source_z_input():g} to align"
+                f"geozone {sel.geozone} has no bench pair from bench {self.source_z_input():g} {unit} to align"
                 " (not computed yet, or no component on one of its benches)"
             )
         if not 0 <= sel.component < len(pair.sources):
             raise ValueError(
                 f"source component {sel.component} does not exist: geozone {sel.geozone} has"
-                f" {len(pair.sources)} on bench {self.source_z_input():g}"
+                f" {len(pair.sources)} on bench {self.source_z_input():g} {unit}"
             )
         return pair
 
@@ -910,7 +911,7 @@ class ViewerModel:
         if flag is not None and not 0 <= int(target) < len(pair.targets):
             raise ValueError(
                 f"target component {target} does not exist: geozone {pair.geozone} has"
-                f" {len(pair.targets)} on bench {self.holes.bench_z_input(pair.lower):g}"
+                f" {len(pair.targets)} on bench {self.holes.bench_z_input(pair.lower):g} {self.holes.frame.length_unit}"
             )
         self._push_undo()
         o = self.override_here(create=True)

@@ -415,14 +415,15 @@ def check_project(
     from core.errors import BGMWarning
 
     extent = input_extent(holes)
+    unit = holes.frame.length_unit  # elevations and translations are the input's
     uppers = [holes.bench_z_input(k) for k in range(holes.n_benches - 1)]
     modelled = set(geozones if geozones is not None else holes.geozones)
     for i, o in enumerate(project.overrides):
-        where = f"project override {i} ({quoted(o.geozone)} at {o.source_z:g}, source {o.source})"
+        where = f"project override {i} ({quoted(o.geozone)} at {o.source_z:g} {unit}, source {o.source})"
         if o.translation is not None and not translation_fits(o.translation, extent):
             raise BGMInputError(
-                f"{where} moves its component by ({o.translation[0]:.6g}, {o.translation[1]:.6g}), more than "
-                f"the whole input spans ({extent:.6g} {holes.frame.length_unit}); fix or remove it"
+                f"{where} moves its component by ({o.translation[0]:.6g}, {o.translation[1]:.6g}) {unit}, more than "
+                f"the whole input spans ({extent:.6g} {unit}); fix or remove it"
             )
         reason = None
         if o.geozone not in holes.geozones:
@@ -430,7 +431,7 @@ def check_project(
         elif o.geozone not in modelled:
             reason = f"{command} does not model geozone {quoted(o.geozone)}"
         elif not any(_same_z(o.source_z, z) for z in uppers):
-            reason = f"no bench pair has its upper bench at {o.source_z:g} (upper benches: {listing(uppers, 8)})"
+            reason = f"no bench pair has its upper bench at {o.source_z:g} {unit} (upper benches in {unit}: {listing(uppers, 8)})"
         if reason:
             warnings.warn(f"{where} is not used: {reason}", BGMWarning, stacklevel=2)
     from core.model.parameters import PARAMETER
