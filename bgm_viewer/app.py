@@ -1110,7 +1110,10 @@ class MainWindow(QtWidgets.QMainWindow):
             )
             if not path:
                 return False
-        return self._guard(lambda: self.model.save_project(path))
+        saved = self._guard(lambda: self.model.save_project(path))
+        if saved:
+            self._said(f"saved the project to {Path(path).resolve()}")
+        return saved
 
     def export_screenshot(self, path, size: tuple[int, int] | None = None) -> Path:
         """The current view as a picture, ``size`` pixels (width, height; default the view's), written atomically.
@@ -1130,6 +1133,7 @@ class MainWindow(QtWidgets.QMainWindow):
             )
         with atomic_path(path, suffix=suffix) as tmp:
             self.plotter.screenshot(str(tmp), window_size=list(size) if size else None)
+        self._said(f"exported the view to {path.resolve()}")
         return path
 
     def export_screenshot_dialog(self) -> None:
@@ -1169,12 +1173,43 @@ class MainWindow(QtWidgets.QMainWindow):
         names = geozone_folders(sorted(surfaces))
         layers = dxf_layer_names(self.model.holes.geozones)  # as bgm build names them
         out = {}
-        for g, mesh in surfaces.items():
-            gdir = Path(folder) / names[g]
-            gdir.mkdir(parents=True, exist_ok=True)
-            moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
-            out[g] = export_all(moved, gdir, "surface", build_formats(), name=g, layer=layers[g], units=f.length_unit)
+        # seconds on Kennecott: said geozone by geozone, else the window looked frozen
+        with self._busy_export() as progress:
+            for i, (g, mesh) in enumerate(sorted(surfaces.items())):
+                progress(f"exporting the surface of geozone {g} ({i + 1} of {len(surfaces)})", i / len(surfaces))
+                gdir = Path(folder) / names[g]
+                gdir.mkdir(parents=True, exist_ok=True)
+                moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
+                out[g] = export_all(
+                    moved, gdir, "surface", build_formats(), name=g, layer=layers[g], units=f.length_unit
+                )
+        formats = ", ".join(build_formats())
+        self._said(f"exported {len(out)} surfaces ({formats}) to {Path(folder).resolve()}")
         return out
+
+    @contextlib.contextmanager
+    def _busy_export(self):
+        """A busy cursor and a ``progress(message, fraction)`` in the status bar while files are written.
+
+        The window's thread writes them: events are processed between files so the status bar
+        shows, but not the user's input (a second export or a click mid-export).
+        """
+
+        def progress(message: str, fraction: float) -> None:
+            self.statusBar().showMessage(f"{message}...")
+            self.progress_bar.setValue(int(fraction * 100))
+            QtWidgets.QApplication.processEvents(QtCore.QEventLoop.ProcessEventsFlag.ExcludeUserInputEvents)
+
+        QtWidgets.QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        try:
+            yield progress
+        finally:
+            QtWidgets.QApplication.restoreOverrideCursor()
+            self.progress_bar.setValue(100)
+
+    def _said(self, message: str) -> None:
+        """What was written where, in the status bar (a save or export gave no word it was done)."""
+        self.statusBar().showMessage(message, 30000)
 
     def _check_up_to_date(self) -> None:
         """Refuse to export while a run is pending or after it failed: the surfaces shown are those before the last change.
@@ -1216,6 +1251,7 @@ class MainWindow(QtWidgets.QMainWindow):
         layer = dxf_layer_names(self.model.holes.geozones)[g]
         moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
         export_surface(moved, path, name=g, layer=layer, units=f.length_unit)
+        self._said(f"exported the surface of geozone {g} to {Path(path).resolve()}")
 
     def export_surface_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(

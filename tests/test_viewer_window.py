@@ -505,6 +505,24 @@ def test_no_surface_is_exported_after_a_failed_run_until_one_succeeds(window, qt
     assert (tmp_path / "surface.obj").stat().st_size > 0
 
 
+def test_saving_and_exporting_say_what_was_written_where(window, tmp_path):
+    """Export shown surfaces took seconds on Kennecott with no progress, and it, Export surface and Save
+    project ended with no word of what they had written."""
+    said: list[str] = []
+    window.statusBar().messageChanged.connect(said.append)
+    written = window.export_surfaces(tmp_path / "surfaces")
+    n = len(written)
+    assert n > 1 and f"exporting the surface of geozone {sorted(written)[-1]} ({n} of {n})..." in said
+    assert said[-1].startswith(f"exported {n} surfaces (") and str((tmp_path / "surfaces").resolve()) in said[-1]
+    window.export_surface(tmp_path / "g1.obj")
+    assert said[-1] == f"exported the surface of geozone g1 to {(tmp_path / 'g1.obj').resolve()}"
+    window.model.project_path = str(tmp_path / "p.bgm.json")
+    assert window.save_project()
+    assert said[-1] == f"saved the project to {(tmp_path / 'p.bgm.json').resolve()}"
+    window.export_screenshot(tmp_path / "view.png", (64, 48))
+    assert said[-1] == f"exported the view to {(tmp_path / 'view.png').resolve()}"
+
+
 def test_surfaces_of_the_selected_geozone_follow_the_selection(window, qtbot, tmp_path):
     """With "surfaces of: selected geozone", the geozone selected when it was chosen kept its surface on
     screen (and in Export shown surfaces) beside every geozone selected after it."""
