@@ -366,34 +366,40 @@ class MainWindow(QtWidgets.QMainWindow):
         for wid in widgets:
             wid.blockSignals(True)
         self.surface_scope.clear()
-        self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
-        if m.surface_geozones is not None:  # a host rock's surface would wrap the bodies
-            host = sorted(set(m.holes.geozones) - set(m.surface_geozones))
-            self.surface_scope.insertItem(0, f"all but the host rock ({', '.join(host)})")
-        self.surface_scope.setCurrentIndex(0)
+        host = bodies(m.holes)
+        if host is not None:  # a host rock's surface would wrap the bodies
+            rock = sorted(set(m.holes.geozones) - set(host))
+            self.surface_scope.addItem(f"all but the host rock ({', '.join(rock)})", "bodies")
+        for text, scope in (("all geozones", "all"), ("ticked geozones", "ticked"), ("selected geozone", "selected")):
+            self.surface_scope.addItem(text, scope)
+        self.surface_scope.setCurrentIndex(max(self.surface_scope.findData(m.surface_scope), 0))
         self._volume_label.setText(f"min body volume ({m.holes.frame.length_unit}³)")
         self.min_volume.setValue(m.min_body_volume_m3 / self._mpu**3)
         self.min_holes.setValue(m.min_body_holes)
         for wid in widgets:
             wid.blockSignals(False)
+        if m.surface_scope == "ticked":  # a project's ticked geozones: the legend ticks them
+            self.legend.set_shown(m.surface_geozones or [])
 
     def _on_shown_geozones(self, *_) -> None:
         """Whose surfaces are built changed (scope or legend ticks): build the ones missing."""
-        scope = self.surface_scope.currentText()
-        if scope.startswith("all but"):
+        scope = self.surface_scope.currentData()
+        if scope == "bodies":
             zones = bodies(self.model.holes)
-        elif scope == "all geozones":
+        elif scope == "all":
             zones = None
         else:
             # the selected geozone's surface is always built: naming it here kept it after another was selected
-            zones = self.legend.shown() if scope == "ticked geozones" else []
-        if zones != self.model.surface_geozones:
-            self.model.surface_geozones = zones
+            zones = self.legend.shown() if scope == "ticked" else []
+        built = zones != self.model.surface_geozones
+        self.model.set_view(surface_scope=scope, surface_geozones=zones)
+        if built:
             self.request("surface", immediate=True)
 
     def _on_body_filter(self, *_) -> None:
-        self.model.min_body_volume_m3 = self.min_volume.value() * self._mpu**3
-        self.model.min_body_holes = self.min_holes.value()
+        self.model.set_view(
+            min_body_volume_m3=self.min_volume.value() * self._mpu**3, min_body_holes=self.min_holes.value()
+        )
         self.request("surface")
 
     def _dock(self, title: str, widget: QtWidgets.QWidget, area) -> QtWidgets.QDockWidget:
@@ -749,7 +755,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.frame_slider.blockSignals(False)
 
     def _on_ve(self, v: float) -> None:
-        self.model.vertical_exaggeration = float(v)
+        self.model.set_view(vertical_exaggeration=float(v))
         with self.renderer.batch():
             self.scene.vertical_exaggeration = float(v)
             self.renderer.fit()  # the data got taller or flatter: fit them again
@@ -1402,6 +1408,7 @@ def viewer_window(
         model.select(geozone, bench)
     if vertical_exaggeration:
         model.vertical_exaggeration = float(vertical_exaggeration)
+    model.dirty = False  # the command line's view is no change to save
     window = MainWindow(model)
     if layers is not None:
         shown = parse_layers(layers)

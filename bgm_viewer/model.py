@@ -62,6 +62,8 @@ from core.morph.levelset import MorphResult
 from core.threads import on_threads
 
 STEPS = ("contours", "snake", *CORE_STAGES[1:])
+#: What :meth:`ViewerModel.set_view` sets: the view settings a project saves besides the selection.
+VIEW_SETTINGS = ("vertical_exaggeration", "surface_scope", "surface_geozones", "min_body_volume_m3", "min_body_holes")
 #: Depths below the deepest bench at which the selected geozone is predicted, in bench heights.
 PREDICTED_FRACTIONS = (0.5, 1.0)
 
@@ -640,6 +642,8 @@ class ViewerModel:
         #: filter are not shown.
         #: By default all but a host rock holding over half the holes: its surface wraps the others.
         self.surface_geozones: list[str] | None = bodies(self.holes)
+        #: How the Surfaces panel chose :attr:`surface_geozones` (:data:`core.io.project.SURFACE_SCOPES`).
+        self.surface_scope = "bodies" if self.surface_geozones is not None else "all"
         self.min_body_volume_m3 = 0.0
         self.min_body_holes = 0
         self.overrides: list = []  # bgm_viewer.alignment.PlacedOverride
@@ -761,6 +765,22 @@ class ViewerModel:
             self.params_changed.emit()
         return step_of(name)
 
+    def set_view(self, **settings) -> bool:
+        """Set view settings the project saves (:attr:`vertical_exaggeration`, :attr:`surface_scope`,
+        :attr:`surface_geozones`, :attr:`min_body_volume_m3`, :attr:`min_body_holes`); ``True`` if one changed.
+
+        A change marks the project unsaved: saved with it, it was lost on closing without a prompt.
+        """
+        unknown = set(settings) - set(VIEW_SETTINGS)
+        if unknown:
+            raise ValueError(f"{', '.join(sorted(unknown))}: no view setting; they are {', '.join(VIEW_SETTINGS)}")
+        changed = {k: v for k, v in settings.items() if getattr(self, k) != v}
+        for name, value in changed.items():
+            setattr(self, name, value)
+        if changed:
+            self.dirty = True
+        return bool(changed)
+
     def select(self, geozone: str | None = None, bench: int | None = None, component: int | None = None) -> str | None:
         """Change the selection; returns the step to re-run from (or ``None``)."""
         old = self.selection
@@ -776,6 +796,7 @@ class ViewerModel:
         if sel == old:
             return None
         self.selection = sel
+        self.dirty = True  # the project saves the selection
         self.selection_changed.emit(sel)
         if sel.bench != old.bench or sel.geozone != old.geozone:
             return "contours"  # the fields of the newly selected contours are needed
@@ -993,6 +1014,27 @@ class ViewerModel:
         return f"{spec.label} {shown}{f' {unit}' if unit else ''}"
 
     # -- project file ------------------------------------------------------------------
+    def _load_surface_view(self, viewer: dict) -> None:
+        """The surface scope and body filter a project saved (checked by :func:`core.io.project.load_project`).
+
+        A project without them (saved before they were) keeps the defaults; a scope of the host
+        rock's bodies on an input without a host rock is all geozones, as the panel offers.
+        """
+        scope = viewer.get("surfaces")
+        if scope == "all" or (scope == "bodies" and bodies(self.holes) is None):
+            self.surface_scope, self.surface_geozones = "all", None
+        elif scope == "bodies":
+            self.surface_scope, self.surface_geozones = scope, bodies(self.holes)
+        elif scope == "selected":
+            self.surface_scope, self.surface_geozones = scope, []
+        elif scope == "ticked":
+            zones = viewer.get("surface_geozones") or []
+            self.surface_scope, self.surface_geozones = scope, [g for g in self.holes.geozones if g in zones]
+        if viewer.get("min_body_volume_m3") is not None:
+            self.min_body_volume_m3 = float(viewer["min_body_volume_m3"])
+        if viewer.get("min_body_holes") is not None:
+            self.min_body_holes = int(viewer["min_body_holes"])
+
     def to_project(self):
         """Parameters (as ``bgm --project`` reads them), overrides, the view settings and the input's reading options."""
         from core.io.project import Project
@@ -1003,7 +1045,12 @@ class ViewerModel:
             "bench": self.selection.bench,
             "component": self.selection.component,
             "vertical_exaggeration": self.vertical_exaggeration,
+            "surfaces": self.surface_scope,
+            "min_body_volume_m3": self.min_body_volume_m3,
+            "min_body_holes": self.min_body_holes,
         }
+        if self.surface_scope == "ticked":
+            params["viewer"]["surface_geozones"] = list(self.surface_geozones or [])
         from core.io.project import reading_of
 
         return Project(
@@ -1056,6 +1103,7 @@ class ViewerModel:
             ve = viewer.get("vertical_exaggeration")
             if isinstance(ve, (int, float)) and ve > 0:
                 self.vertical_exaggeration = float(ve)
+            self._load_surface_view(viewer)
         from .alignment import PlacedOverride
 
         self.overrides = [PlacedOverride.of(o) for o in proj.overrides]

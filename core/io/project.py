@@ -21,11 +21,12 @@ pair, paper section 3 "source"): ``translation`` locks its translation
 ``associate`` forces (``true``) or forbids (``false``) its association with
 target components by index. ``parameters`` sets the model's parameters by
 name (``bgm parameters`` lists them; every command with ``--project`` and the
-viewer apply them) and, under ``viewer``, the viewer's selection and vertical
-exaggeration. ``reading_options`` (optional) are the options the input was
-read with, by their command-line names without dashes (:data:`READING_OPTIONS`):
-every command with ``--project`` and the viewer read the input with them, so
-a table read in feet is not read in metres again. A project that records
+viewer apply them) and, under ``viewer``, the viewer's selection, vertical
+exaggeration, whose surfaces it builds and its body filter. ``reading_options``
+(optional) are the options the input was read with, by their command-line
+names without dashes (:data:`READING_OPTIONS`): every command with
+``--project`` and the viewer read the input with them, so a table read in
+feet is not read in metres again. A project that records
 reading options is written as version 2, which BGMs older than the option
 refuse instead of ignoring them; one without them stays version 1. Files are
 written atomically (core.io.atomic).
@@ -371,7 +372,12 @@ VIEWER_RANGES = {
     "bench": Range(0, integer=True, optional=True),
     "component": Range(0, integer=True, optional=True),
     "vertical_exaggeration": Range(0, 100, low_open=True, optional=True),
+    "min_body_volume_m3": Range(0, optional=True),
+    "min_body_holes": Range(0, integer=True, optional=True),
 }
+#: Whose surfaces the viewer builds (viewer setting ``surfaces``): all but a host rock, all, the
+#: geozones ticked (``surface_geozones``) or the selected one. Projects before it have none: "bodies".
+SURFACE_SCOPES = ("bodies", "all", "ticked", "selected")
 
 
 def _check_viewer(path: Path, viewer: dict) -> None:
@@ -382,6 +388,14 @@ def _check_viewer(path: Path, viewer: dict) -> None:
             )
     if viewer.get("geozone") is not None and not isinstance(viewer["geozone"], str):
         raise BGMInputError(f"project file {path}: viewer setting geozone must be a string.")
+    if viewer.get("surfaces") is not None and viewer["surfaces"] not in SURFACE_SCOPES:
+        raise BGMInputError(
+            f"project file {path}: viewer setting surfaces must be one of {', '.join(SURFACE_SCOPES)},"
+            f" got {viewer['surfaces']!r}."
+        )
+    zones = viewer.get("surface_geozones")
+    if zones is not None and not (isinstance(zones, list) and all(isinstance(z, str) for z in zones)):
+        raise BGMInputError(f"project file {path}: viewer setting surface_geozones must be a list of geozones.")
 
 
 def check_project(
