@@ -446,7 +446,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.ve_spin.setDecimals(2)
         self.ve_spin.setRange(0.01, VIEWER_RANGES["vertical_exaggeration"].high)
         self.ve_spin.setSingleStep(0.5)
-        self.ve_spin.setValue(self.model.vertical_exaggeration)
+        self._show_ve(self.model.vertical_exaggeration)
         self.ve_spin.valueChanged.connect(self._on_ve)
         form.addRow("vertical exaggeration", self.ve_spin)
         lay.addLayout(form)
@@ -754,6 +754,17 @@ class MainWindow(QtWidgets.QMainWindow):
         self.frame_slider.setValue(layer.frame)
         self.frame_slider.blockSignals(False)
 
+    def _show_ve(self, ve: float) -> None:
+        """Show the exaggeration ``ve`` as it is, one below the box's range and decimals (a project's) too.
+
+        A project may hold any exaggeration above 0: clamped to 0.01 (or rounded to two decimals), the
+        box showed another value than drawn and set the model to it, marking the project unsaved.
+        """
+        if ve < self.ve_spin.minimum():
+            self.ve_spin.setDecimals(max(2, int(np.ceil(-np.log10(ve))) + 2))  # two significant digits
+            self.ve_spin.setMinimum(ve)
+        self.ve_spin.setValue(ve)
+
     def _on_ve(self, v: float) -> None:
         self.model.set_view(vertical_exaggeration=float(v))
         with self.renderer.batch():
@@ -1053,7 +1064,7 @@ class MainWindow(QtWidgets.QMainWindow):
         unit = model.holes.frame.length_unit
         self._unit_labels[0].setText(f"translation ({unit})")
         self._unit_labels[1].setText(f"Ctrl+arrow step ({unit})")
-        self.ve_spin.setValue(model.vertical_exaggeration)
+        self._show_ve(model.vertical_exaggeration)
         self.legend.set_holes(model.holes)
         self.sections.set_holes(model.holes)
         self._fill_surface_panel()

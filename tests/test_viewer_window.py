@@ -688,7 +688,7 @@ def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeyp
     assert len(shown) == 1 and "'nope'" in shown[0] and "is not used" in shown[0]
 
 
-@pytest.mark.parametrize("exaggeration", [50.0, 0.05])
+@pytest.mark.parametrize("exaggeration", [50.0, 0.05, 0.004])
 def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration):
     """`bgm view --exaggeration 50` (or a project's) drew 50 while the panel, limited to 0.1-20, said 20."""
     from bgm_viewer.app import viewer_window
@@ -700,6 +700,17 @@ def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration
     finally:
         win.model.dirty = False
         win.close()
+
+
+def test_a_projects_exaggeration_below_the_boxs_range_is_shown_and_kept(window, tmp_path):
+    """The box stopped at 0.01: a project's 0.004 was shown as 0.01, and the model set to it (unsaved)."""
+    path = tmp_path / "p.bgm.json"
+    window.model.vertical_exaggeration = 0.004
+    window.model.save_project(path)
+    window.model.vertical_exaggeration = 2.0
+    window.open_project(path)
+    assert window.ve_spin.value() == window.model.vertical_exaggeration == window.scene.vertical_exaggeration == 0.004
+    assert not window.model.dirty
 
 
 def test_a_screenshot_named_in_capitals_or_without_an_extension_is_written(window, tmp_path):
