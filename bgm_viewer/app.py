@@ -623,7 +623,7 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         d = self.drag_translation(self._drag_start, iren.GetEventPosition())
         if d is not None:
-            cur = self.model.current_translation_m() or (0.0, 0.0)
+            cur = self.model.translation_m() or (0.0, 0.0)  # the release nudges from it
             tx, ty = ((c + v) / self._mpu for c, v in zip(cur, d))
             self.statusBar().showMessage(
                 f"dragging the source: translation {tx:.2f}, {ty:.2f} {self.model.holes.frame.length_unit}"

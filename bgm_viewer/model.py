@@ -904,17 +904,24 @@ class ViewerModel:
         From its locked translation when it has one: the result's is the one before the last nudge
         until that nudge's run is done, and a second Ctrl+arrow or drag before then undid the first.
         """
+        cur = self.translation_m() or (0.0, 0.0)
+        return self.set_translation(cur[0] + ddx_m, cur[1] + ddy_m)
+
+    def translation_m(self) -> tuple[float, float] | None:
+        """The selected source's translation (metres) as the next run uses it: its locked one when it has one.
+
+        The result's (:meth:`current_translation_m`) is the one before the last change until that
+        change's run is done: a drag's preview, a nudge or Lock started from it undid the change.
+        """
         o = self.override_here()
         if o is not None and o.translation is not None:
             mpu = self.holes.frame.metres_per_unit
-            cur = (o.translation[0] * mpu, o.translation[1] * mpu)
-        else:
-            cur = self.current_translation_m() or (0.0, 0.0)
-        return self.set_translation(cur[0] + ddx_m, cur[1] + ddy_m)
+            return o.translation[0] * mpu, o.translation[1] * mpu
+        return self.current_translation_m()
 
     def lock_current(self) -> str:
-        """Lock the selected source at its current (automatic) translation."""
-        cur = self.current_translation_m()
+        """Lock the selected source at its current translation (its automatic one, or the one locked already)."""
+        cur = self.translation_m()
         if cur is None:
             self._selected_pair()  # says why, when the source does not exist
             raise ValueError("the selected source has no translation to lock yet: its correspondence failed")

@@ -183,6 +183,29 @@ def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
     np.testing.assert_allclose(window.model.current_translation_m(), auto, atol=1e-6)
 
 
+def test_drag_and_lock_start_from_a_nudge_whose_run_is_not_done(window, qtbot):
+    """The Shift+drag preview and Lock used the translation on screen, the one before a nudge still
+    running: the preview said the wrong translation, and Lock undid the nudge."""
+    auto = window.model.current_translation_m()
+    window.renderer.set_camera("top")
+    window.plotter.render()
+    window.nudge(8.0, 0.0)
+    assert window.busy and window.model.current_translation_m() == auto  # its run is not done
+    w, h = window.plotter.window_size
+    start, end = (w // 2, h // 2), (w // 2 + 20, h // 2)
+    d = window.drag_translation(start, end)
+    iren = window.plotter.iren.interactor
+    for event, (x, y) in (("LeftButtonPressEvent", start), ("MouseMoveEvent", end)):
+        iren.SetEventInformation(x, y, 0, 1)  # shift on
+        iren.InvokeEvent(event)
+    tx, ty = (np.add(auto, d) + [8.0, 0.0]) / window._mpu
+    assert f"translation {tx:.2f}, {ty:.2f}" in window.statusBar().currentMessage()
+    window._drag_start = None  # not released: no second nudge
+    window.lock_current()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), np.add(auto, [8.0, 0.0]), atol=1e-6)
+
+
 def test_closing_with_unsaved_changes_prompts(window, monkeypatch):
     asked = []
 
