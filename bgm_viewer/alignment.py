@@ -56,9 +56,9 @@ class PlacedOverride(AlignmentOverride):
         self.target_outlines = {t: targets[t] for t in self.associate if 0 <= t < len(targets)}
 
 
-def override_name(o: AlignmentOverride) -> str:
-    """How messages name an override: its geozone, source component and bench."""
-    return f"the alignment override of geozone {o.geozone} source {o.source} on bench {o.source_z:g}"
+def override_name(o: AlignmentOverride, unit: str) -> str:
+    """How messages name an override: its geozone, source component and bench (its elevation in ``unit``, the input's)."""
+    return f"the alignment override of geozone {o.geozone} source {o.source} on bench {o.source_z:g} {unit}"
 
 
 def same_place(outline: BaseGeometry, components: Sequence[BaseGeometry]) -> int | None:
@@ -90,7 +90,9 @@ def same_place(outline: BaseGeometry, components: Sequence[BaseGeometry]) -> int
     return hits[0] if set(inside) <= set(hits) else None
 
 
-def relocate_overrides(overrides: Sequence[AlignmentOverride], outlines: PairOutlines) -> tuple[list, list[str]]:
+def relocate_overrides(
+    overrides: Sequence[AlignmentOverride], outlines: PairOutlines, *, unit: str
+) -> tuple[list, list[str]]:
     """The overrides moved to their components in new contours, and a note on each one moved or dropped.
 
     Parameters
@@ -101,6 +103,8 @@ def relocate_overrides(overrides: Sequence[AlignmentOverride], outlines: PairOut
     outlines : callable
         ``outlines(geozone, source_z)``: the bench pair's source and target outlines now (local
         metres, index order), or ``None`` when they are not at hand (the override is kept as is).
+    unit : str
+        The input's length unit, the overrides' elevations' (the notes name benches by them).
 
     Returns
     -------
@@ -127,7 +131,7 @@ def relocate_overrides(overrides: Sequence[AlignmentOverride], outlines: PairOut
             out.append(o)
             overrides_kept.append(original)
             continue
-        name = override_name(o)
+        name = override_name(o, unit)
         s = same_place(o.source_outline, sources)
         if s is None:
             notes.append(f"{name} was dropped: no single component is now where its source was")
@@ -160,7 +164,7 @@ def relocate_overrides(overrides: Sequence[AlignmentOverride], outlines: PairOut
     clashes = [[o for _, o in g] for g in groups.values() if len({was for was, _ in g}) > 1]
     for group in clashes:
         notes.append(
-            f"{len(group)} alignment overrides of geozone {group[0].geozone} on bench {group[0].source_z:g} were "
+            f"{len(group)} alignment overrides of geozone {group[0].geozone} on bench {group[0].source_z:g} {unit} were "
             f"dropped: their sources are now one component, {group[0].source}"
         )
     dropped = {id(o) for group in clashes for o in group}

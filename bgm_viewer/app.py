@@ -226,6 +226,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._next_bench_worker = None
         self._pending_step: str | None = None
         self._queued_step: str | None = None
+        #: Why the last run failed (``None``: it succeeded): the surfaces on screen are from an earlier run.
+        self._failure: str | None = None
         #: What the last Undo did, said when its run is done (the run's progress would hide it before).
         self._undo_note = ""
         self._request_time = 0.0
@@ -364,34 +366,40 @@ class MainWindow(QtWidgets.QMainWindow):
         for wid in widgets:
             wid.blockSignals(True)
         self.surface_scope.clear()
-        self.surface_scope.addItems(["all geozones", "ticked geozones", "selected geozone"])
-        if m.surface_geozones is not None:  # a host rock's surface would wrap the bodies
-            host = sorted(set(m.holes.geozones) - set(m.surface_geozones))
-            self.surface_scope.insertItem(0, f"all but the host rock ({', '.join(host)})")
-        self.surface_scope.setCurrentIndex(0)
+        host = bodies(m.holes)
+        if host is not None:  # a host rock's surface would wrap the bodies
+            rock = sorted(set(m.holes.geozones) - set(host))
+            self.surface_scope.addItem(f"all but the host rock ({', '.join(rock)})", "bodies")
+        for text, scope in (("all geozones", "all"), ("ticked geozones", "ticked"), ("selected geozone", "selected")):
+            self.surface_scope.addItem(text, scope)
+        self.surface_scope.setCurrentIndex(max(self.surface_scope.findData(m.surface_scope), 0))
         self._volume_label.setText(f"min body volume ({m.holes.frame.length_unit}³)")
         self.min_volume.setValue(m.min_body_volume_m3 / self._mpu**3)
         self.min_holes.setValue(m.min_body_holes)
         for wid in widgets:
             wid.blockSignals(False)
+        if m.surface_scope == "ticked":  # a project's ticked geozones: the legend ticks them
+            self.legend.set_shown(m.surface_geozones or [])
 
     def _on_shown_geozones(self, *_) -> None:
         """Whose surfaces are built changed (scope or legend ticks): build the ones missing."""
-        scope = self.surface_scope.currentText()
-        if scope.startswith("all but"):
+        scope = self.surface_scope.currentData()
+        if scope == "bodies":
             zones = bodies(self.model.holes)
-        elif scope == "all geozones":
+        elif scope == "all":
             zones = None
         else:
             # the selected geozone's surface is always built: naming it here kept it after another was selected
-            zones = self.legend.shown() if scope == "ticked geozones" else []
-        if zones != self.model.surface_geozones:
-            self.model.surface_geozones = zones
+            zones = self.legend.shown() if scope == "ticked" else []
+        built = zones != self.model.surface_geozones
+        self.model.set_view(surface_scope=scope, surface_geozones=zones)
+        if built:
             self.request("surface", immediate=True)
 
     def _on_body_filter(self, *_) -> None:
-        self.model.min_body_volume_m3 = self.min_volume.value() * self._mpu**3
-        self.model.min_body_holes = self.min_holes.value()
+        self.model.set_view(
+            min_body_volume_m3=self.min_volume.value() * self._mpu**3, min_body_holes=self.min_holes.value()
+        )
         self.request("surface")
 
     def _dock(self, title: str, widget: QtWidgets.QWidget, area) -> QtWidgets.QDockWidget:
@@ -438,7 +446,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.ve_spin.setDecimals(2)
         self.ve_spin.setRange(0.01, VIEWER_RANGES["vertical_exaggeration"].high)
         self.ve_spin.setSingleStep(0.5)
-        self.ve_spin.setValue(self.model.vertical_exaggeration)
+        self._show_ve(self.model.vertical_exaggeration)
         self.ve_spin.valueChanged.connect(self._on_ve)
         form.addRow("vertical exaggeration", self.ve_spin)
         lay.addLayout(form)
@@ -615,7 +623,7 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         d = self.drag_translation(self._drag_start, iren.GetEventPosition())
         if d is not None:
-            cur = self.model.current_translation_m() or (0.0, 0.0)
+            cur = self.model.translation_m() or (0.0, 0.0)  # the release nudges from it
             tx, ty = ((c + v) / self._mpu for c, v in zip(cur, d))
             self.statusBar().showMessage(
                 f"dragging the source: translation {tx:.2f}, {ty:.2f} {self.model.holes.frame.length_unit}"
@@ -746,8 +754,19 @@ class MainWindow(QtWidgets.QMainWindow):
         self.frame_slider.setValue(layer.frame)
         self.frame_slider.blockSignals(False)
 
+    def _show_ve(self, ve: float) -> None:
+        """Show the exaggeration ``ve`` as it is, one below the box's range and decimals (a project's) too.
+
+        A project may hold any exaggeration above 0: clamped to 0.01 (or rounded to two decimals), the
+        box showed another value than drawn and set the model to it, marking the project unsaved.
+        """
+        if ve < self.ve_spin.minimum():
+            self.ve_spin.setDecimals(max(2, int(np.ceil(-np.log10(ve))) + 2))  # two significant digits
+            self.ve_spin.setMinimum(ve)
+        self.ve_spin.setValue(ve)
+
     def _on_ve(self, v: float) -> None:
-        self.model.vertical_exaggeration = float(v)
+        self.model.set_view(vertical_exaggeration=float(v))
         with self.renderer.batch():
             self.scene.vertical_exaggeration = float(v)
             self.renderer.fit()  # the data got taller or flatter: fit them again
@@ -921,6 +940,7 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         self._show_latest()  # the last result before saying done
         self._pending_step = None
+        self._failure = None
         self._worker = None
         self.last_run_seconds = time.perf_counter() - self._started
         errors = "; ".join(f"{k}: {v}" for k, v in self.model.result.errors.items())
@@ -988,6 +1008,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._pending_step = None
         self._worker = None
         what = str(exc) if isinstance(exc, RunFailed) else f"{type(exc).__name__}: {exc}"
+        self._failure = what
         self.statusBar().showMessage(f"failed: {what}")
 
     def _show_translation(self) -> None:
@@ -1028,6 +1049,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _replace_model(self, model: ViewerModel) -> None:
         self._cancel()
         self._pending_step = self._queued_step = None
+        self._failure = None  # the new input's run says its own
         self.model = model
         self._connect_model()
         with self.renderer.batch():
@@ -1042,7 +1064,7 @@ class MainWindow(QtWidgets.QMainWindow):
         unit = model.holes.frame.length_unit
         self._unit_labels[0].setText(f"translation ({unit})")
         self._unit_labels[1].setText(f"Ctrl+arrow step ({unit})")
-        self.ve_spin.setValue(model.vertical_exaggeration)
+        self._show_ve(model.vertical_exaggeration)
         self.legend.set_holes(model.holes)
         self.sections.set_holes(model.holes)
         self._fill_surface_panel()
@@ -1105,7 +1127,10 @@ class MainWindow(QtWidgets.QMainWindow):
             )
             if not path:
                 return False
-        return self._guard(lambda: self.model.save_project(path))
+        saved = self._guard(lambda: self.model.save_project(path))
+        if saved:
+            self._said(f"saved the project to {Path(path).resolve()}")
+        return saved
 
     def export_screenshot(self, path, size: tuple[int, int] | None = None) -> Path:
         """The current view as a picture, ``size`` pixels (width, height; default the view's), written atomically.
@@ -1125,6 +1150,7 @@ class MainWindow(QtWidgets.QMainWindow):
             )
         with atomic_path(path, suffix=suffix) as tmp:
             self.plotter.screenshot(str(tmp), window_size=list(size) if size else None)
+        self._said(f"exported the view to {path.resolve()}")
         return path
 
     def export_screenshot_dialog(self) -> None:
@@ -1164,22 +1190,60 @@ class MainWindow(QtWidgets.QMainWindow):
         names = geozone_folders(sorted(surfaces))
         layers = dxf_layer_names(self.model.holes.geozones)  # as bgm build names them
         out = {}
-        for g, mesh in surfaces.items():
-            gdir = Path(folder) / names[g]
-            gdir.mkdir(parents=True, exist_ok=True)
-            moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
-            out[g] = export_all(moved, gdir, "surface", build_formats(), name=g, layer=layers[g], units=f.length_unit)
+        # seconds on Kennecott: said geozone by geozone, else the window looked frozen
+        with self._busy_export() as progress:
+            for i, (g, mesh) in enumerate(sorted(surfaces.items())):
+                progress(f"exporting the surface of geozone {g} ({i + 1} of {len(surfaces)})", i / len(surfaces))
+                gdir = Path(folder) / names[g]
+                gdir.mkdir(parents=True, exist_ok=True)
+                moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
+                out[g] = export_all(
+                    moved, gdir, "surface", build_formats(), name=g, layer=layers[g], units=f.length_unit
+                )
+        formats = ", ".join(build_formats())
+        self._said(f"exported {len(out)} surfaces ({formats}) to {Path(folder).resolve()}")
         return out
 
+    @contextlib.contextmanager
+    def _busy_export(self):
+        """A busy cursor and a ``progress(message, fraction)`` in the status bar while files are written.
+
+        The window's thread writes them: events are processed between files so the status bar
+        shows, but not the user's input (a second export or a click mid-export).
+        """
+
+        def progress(message: str, fraction: float) -> None:
+            self.statusBar().showMessage(f"{message}...")
+            self.progress_bar.setValue(int(fraction * 100))
+            QtWidgets.QApplication.processEvents(QtCore.QEventLoop.ProcessEventsFlag.ExcludeUserInputEvents)
+
+        QtWidgets.QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        try:
+            yield progress
+        finally:
+            QtWidgets.QApplication.restoreOverrideCursor()
+            self.progress_bar.setValue(100)
+
+    def _said(self, message: str) -> None:
+        """What was written where, in the status bar (a save or export gave no word it was done)."""
+        self.statusBar().showMessage(message, 30000)
+
     def _check_up_to_date(self) -> None:
-        """Refuse to export while a run is pending: the surfaces shown are those before the last change.
+        """Refuse to export while a run is pending or after it failed: the surfaces shown are those before the last change.
 
         An alignment or parameter just changed leaves the old surfaces on screen until
-        they are redone; exported then, they would not hold the change.
+        they are redone; exported then, they would not hold the change. A failed run
+        never redoes them: they stay those of the last run that succeeded.
         """
         if self.busy:
             raise ValueError(
                 "the model is being recomputed after the last change: export once the status bar says done"
+            )
+        # a failed run leaves the surfaces of the run before it on screen: not those of the current parameters
+        if self._failure is not None:
+            raise ValueError(
+                f"the last run failed ({self._failure}): the surfaces shown are from the earlier parameters or"
+                " alignment; export once a run succeeds"
             )
 
     def export_surfaces_dialog(self) -> None:
@@ -1204,6 +1268,7 @@ class MainWindow(QtWidgets.QMainWindow):
         layer = dxf_layer_names(self.model.holes.geozones)[g]
         moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
         export_surface(moved, path, name=g, layer=layer, units=f.length_unit)
+        self._said(f"exported the surface of geozone {g} to {Path(path).resolve()}")
 
     def export_surface_dialog(self) -> None:
         path, _ = QtWidgets.QFileDialog.getSaveFileName(
@@ -1354,6 +1419,7 @@ def viewer_window(
         model.select(geozone, bench)
     if vertical_exaggeration:
         model.vertical_exaggeration = float(vertical_exaggeration)
+    model.dirty = False  # the command line's view is no change to save
     window = MainWindow(model)
     if layers is not None:
         shown = parse_layers(layers)

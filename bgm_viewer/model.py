@@ -62,6 +62,8 @@ from core.morph.levelset import MorphResult
 from core.threads import on_threads
 
 STEPS = ("contours", "snake", *CORE_STAGES[1:])
+#: What :meth:`ViewerModel.set_view` sets: the view settings a project saves besides the selection.
+VIEW_SETTINGS = ("vertical_exaggeration", "surface_scope", "surface_geozones", "min_body_volume_m3", "min_body_holes")
 #: Depths below the deepest bench at which the selected geozone is predicted, in bench heights.
 PREDICTED_FRACTIONS = (0.5, 1.0)
 
@@ -330,7 +332,7 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
         m = res.min_component_holes
         return tuple([c.polygon for c in modelled_contours(res.contours.get(b, []), geozone, b, m)] for b in (k, k + 1))
 
-    overrides, notes = relocate_overrides(session.project.overrides, outlines)
+    overrides, notes = relocate_overrides(session.project.overrides, outlines, unit=holes.frame.length_unit)
     run.session = session.updated(project=replace(session.project, overrides=overrides))
     before = res.relocated.notes if res.relocated is not None else []
     placed = session.params if fresh >= set(range(holes.n_benches)) else None
@@ -640,6 +642,8 @@ class ViewerModel:
         #: filter are not shown.
         #: By default all but a host rock holding over half the holes: its surface wraps the others.
         self.surface_geozones: list[str] | None = bodies(self.holes)
+        #: How the Surfaces panel chose :attr:`surface_geozones` (:data:`core.io.project.SURFACE_SCOPES`).
+        self.surface_scope = "bodies" if self.surface_geozones is not None else "all"
         self.min_body_volume_m3 = 0.0
         self.min_body_holes = 0
         self.overrides: list = []  # bgm_viewer.alignment.PlacedOverride
@@ -761,6 +765,22 @@ class ViewerModel:
             self.params_changed.emit()
         return step_of(name)
 
+    def set_view(self, **settings) -> bool:
+        """Set view settings the project saves (:attr:`vertical_exaggeration`, :attr:`surface_scope`,
+        :attr:`surface_geozones`, :attr:`min_body_volume_m3`, :attr:`min_body_holes`); ``True`` if one changed.
+
+        A change marks the project unsaved: saved with it, it was lost on closing without a prompt.
+        """
+        unknown = set(settings) - set(VIEW_SETTINGS)
+        if unknown:
+            raise ValueError(f"{', '.join(sorted(unknown))}: no view setting; they are {', '.join(VIEW_SETTINGS)}")
+        changed = {k: v for k, v in settings.items() if getattr(self, k) != v}
+        for name, value in changed.items():
+            setattr(self, name, value)
+        if changed:
+            self.dirty = True
+        return bool(changed)
+
     def select(self, geozone: str | None = None, bench: int | None = None, component: int | None = None) -> str | None:
         """Change the selection; returns the step to re-run from (or ``None``)."""
         old = self.selection
@@ -776,6 +796,7 @@ class ViewerModel:
         if sel == old:
             return None
         self.selection = sel
+        self.dirty = True  # the project saves the selection
         self.selection_changed.emit(sel)
         if sel.bench != old.bench or sel.geozone != old.geozone:
             return "contours"  # the fields of the newly selected contours are needed
@@ -834,16 +855,17 @@ class ViewerModel:
             the model does not have, and fail every run of the geozone.
         """
         sel, res = self.selection, self.result
+        unit = self.holes.frame.length_unit
         pair = res.pair if res.selection == sel else None
         if pair is None or pair.upper != sel.bench:
             raise ValueError(
-                f"geozone {sel.geozone} has no bench pair from bench {self.source_z_input():g} to align"
+                f"geozone {sel.geozone} has no bench pair from bench {self.source_z_input():g} {unit} to align"
                 " (not computed yet, or no component on one of its benches)"
             )
         if not 0 <= sel.component < len(pair.sources):
             raise ValueError(
                 f"source component {sel.component} does not exist: geozone {sel.geozone} has"
-                f" {len(pair.sources)} on bench {self.source_z_input():g}"
+                f" {len(pair.sources)} on bench {self.source_z_input():g} {unit}"
             )
         return pair
 
@@ -882,17 +904,24 @@ class ViewerModel:
         From its locked translation when it has one: the result's is the one before the last nudge
         until that nudge's run is done, and a second Ctrl+arrow or drag before then undid the first.
         """
+        cur = self.translation_m() or (0.0, 0.0)
+        return self.set_translation(cur[0] + ddx_m, cur[1] + ddy_m)
+
+    def translation_m(self) -> tuple[float, float] | None:
+        """The selected source's translation (metres) as the next run uses it: its locked one when it has one.
+
+        The result's (:meth:`current_translation_m`) is the one before the last change until that
+        change's run is done: a drag's preview, a nudge or Lock started from it undid the change.
+        """
         o = self.override_here()
         if o is not None and o.translation is not None:
             mpu = self.holes.frame.metres_per_unit
-            cur = (o.translation[0] * mpu, o.translation[1] * mpu)
-        else:
-            cur = self.current_translation_m() or (0.0, 0.0)
-        return self.set_translation(cur[0] + ddx_m, cur[1] + ddy_m)
+            return o.translation[0] * mpu, o.translation[1] * mpu
+        return self.current_translation_m()
 
     def lock_current(self) -> str:
-        """Lock the selected source at its current (automatic) translation."""
-        cur = self.current_translation_m()
+        """Lock the selected source at its current translation (its automatic one, or the one locked already)."""
+        cur = self.translation_m()
         if cur is None:
             self._selected_pair()  # says why, when the source does not exist
             raise ValueError("the selected source has no translation to lock yet: its correspondence failed")
@@ -910,7 +939,7 @@ class ViewerModel:
         if flag is not None and not 0 <= int(target) < len(pair.targets):
             raise ValueError(
                 f"target component {target} does not exist: geozone {pair.geozone} has"
-                f" {len(pair.targets)} on bench {self.holes.bench_z_input(pair.lower):g}"
+                f" {len(pair.targets)} on bench {self.holes.bench_z_input(pair.lower):g} {self.holes.frame.length_unit}"
             )
         self._push_undo()
         o = self.override_here(create=True)
@@ -992,6 +1021,27 @@ class ViewerModel:
         return f"{spec.label} {shown}{f' {unit}' if unit else ''}"
 
     # -- project file ------------------------------------------------------------------
+    def _load_surface_view(self, viewer: dict) -> None:
+        """The surface scope and body filter a project saved (checked by :func:`core.io.project.load_project`).
+
+        A project without them (saved before they were) keeps the defaults; a scope of the host
+        rock's bodies on an input without a host rock is all geozones, as the panel offers.
+        """
+        scope = viewer.get("surfaces")
+        if scope == "all" or (scope == "bodies" and bodies(self.holes) is None):
+            self.surface_scope, self.surface_geozones = "all", None
+        elif scope == "bodies":
+            self.surface_scope, self.surface_geozones = scope, bodies(self.holes)
+        elif scope == "selected":
+            self.surface_scope, self.surface_geozones = scope, []
+        elif scope == "ticked":
+            zones = viewer.get("surface_geozones") or []
+            self.surface_scope, self.surface_geozones = scope, [g for g in self.holes.geozones if g in zones]
+        if viewer.get("min_body_volume_m3") is not None:
+            self.min_body_volume_m3 = float(viewer["min_body_volume_m3"])
+        if viewer.get("min_body_holes") is not None:
+            self.min_body_holes = int(viewer["min_body_holes"])
+
     def to_project(self):
         """Parameters (as ``bgm --project`` reads them), overrides, the view settings and the input's reading options."""
         from core.io.project import Project
@@ -1002,7 +1052,12 @@ class ViewerModel:
             "bench": self.selection.bench,
             "component": self.selection.component,
             "vertical_exaggeration": self.vertical_exaggeration,
+            "surfaces": self.surface_scope,
+            "min_body_volume_m3": self.min_body_volume_m3,
+            "min_body_holes": self.min_body_holes,
         }
+        if self.surface_scope == "ticked":
+            params["viewer"]["surface_geozones"] = list(self.surface_geozones or [])
         from core.io.project import reading_of
 
         return Project(
@@ -1055,6 +1110,7 @@ class ViewerModel:
             ve = viewer.get("vertical_exaggeration")
             if isinstance(ve, (int, float)) and ve > 0:
                 self.vertical_exaggeration = float(ve)
+            self._load_surface_view(viewer)
         from .alignment import PlacedOverride
 
         self.overrides = [PlacedOverride.of(o) for o in proj.overrides]

@@ -40,9 +40,9 @@ def test_an_override_follows_its_renumbered_source_and_targets():
     low_west, low_east = _blob(1, 0), _blob(51, 0)
     o = _placed(1, [west, east], [low_west, low_east], associate={1: True, 0: False})  # the east one
     # east grew and is now number 0; the targets swapped too
-    out, notes = relocate_overrides([o], _pair([_blob(50, 0, 9.0), west], [low_east, low_west]))
+    out, notes = relocate_overrides([o], _pair([_blob(50, 0, 9.0), west], [low_east, low_west]), unit="m")
     assert [(p.source, p.associate, p.translation) for p in out] == [(0, {0: True, 1: False}, (1.0, 2.0))]
-    assert len(notes) == 1 and "geozone ore source 1 on bench 685" in notes[0] and "source 1 is 0" in notes[0]
+    assert len(notes) == 1 and "geozone ore source 1 on bench 685 m" in notes[0] and "source 1 is 0" in notes[0]
     assert o.source == 1  # the input is not modified
 
 
@@ -50,26 +50,26 @@ def test_an_override_whose_component_went_is_dropped_with_a_note():
     west, east = _blob(0, 0), _blob(50, 0)
     o = _placed(1, [west, east], [west])
     # the east component is gone: number 1 is now another component, which must not take the override
-    out, notes = relocate_overrides([o], _pair([west, _blob(0, 40)], [west]))
+    out, notes = relocate_overrides([o], _pair([west, _blob(0, 40)], [west]), unit="ft")
     assert out == []
-    assert len(notes) == 1 and "source 1 on bench 685 was dropped" in notes[0]
+    assert len(notes) == 1 and "source 1 on bench 685 ft was dropped" in notes[0]
 
 
 def test_an_override_of_a_split_or_merged_component_is_dropped():
     whole = box(0, 0, 40, 10)
     halves = [box(0, 0, 18, 10), box(22, 0, 40, 10)]
-    out, notes = relocate_overrides([_placed(0, [whole], [whole])], _pair(halves, [whole]))
+    out, notes = relocate_overrides([_placed(0, [whole], [whole])], _pair(halves, [whole]), unit="m")
     assert out == [] and "was dropped" in notes[0]
     # two overrides whose sources merged into one component: neither can be told from the other
     a, b = _placed(0, halves, [whole]), _placed(1, halves, [whole], translation=(3.0, 4.0))
-    out, notes = relocate_overrides([a, b], _pair([whole], [whole]))
-    assert out == [] and "2 alignment overrides of geozone ore on bench 685 were dropped" in notes[-1]
+    out, notes = relocate_overrides([a, b], _pair([whole], [whole]), unit="m")
+    assert out == [] and "2 alignment overrides of geozone ore on bench 685 m were dropped" in notes[-1]
 
 
 def test_a_lost_target_is_forgotten_and_the_rest_kept():
     src, t0, t1 = _blob(0, 0), _blob(0, 1), _blob(60, 0)
     o = _placed(0, [src], [t0, t1], translation=None, associate={0: True, 1: False})
-    out, notes = relocate_overrides([o], _pair([src], [t0]))
+    out, notes = relocate_overrides([o], _pair([src], [t0]), unit="m")
     assert [(p.source, p.associate) for p in out] == [(0, {0: True})]
     assert len(notes) == 1 and "no longer names target 1" in notes[0]
 
@@ -79,7 +79,7 @@ def test_unchanged_unplaced_and_elsewhere_overrides_are_kept_silently():
     placed = _placed(1, [west, east], [west])
     from_file = AlignmentOverride("ore", Z, 0, (1.0, 1.0))  # a project's: placed where its number says
     other_bench = AlignmentOverride("ore", 675.0, 3, (1.0, 1.0))  # its pair is not at hand
-    out, notes = relocate_overrides([placed, from_file, other_bench], _pair([west, east], [west]))
+    out, notes = relocate_overrides([placed, from_file, other_bench], _pair([west, east], [west]), unit="m")
     assert notes == []
     assert [(o.source_z, o.source) for o in out] == [(Z, 1), (Z, 0), (675.0, 3)]
     assert out[1].source_outline is west and out[2].source_outline is None
@@ -87,6 +87,23 @@ def test_unchanged_unplaced_and_elsewhere_overrides_are_kept_silently():
 
 
 # ---------------------------------------------------------------------------- through the viewer's model
+
+
+def test_alignment_messages_give_the_elevations_in_the_inputs_unit(tmp_path):
+    """A feet input was told "no bench pair from bench 2247 to align": feet or metres, not said."""
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.testing import small_holes
+    from core.errors import BGMWarning
+    from core.io.project import Project, check_project
+
+    holes = small_holes(unit="ft")
+    model = ViewerModel(holes)  # not run: the selected pair is not computed
+    z = f"{holes.bench_z_input(model.selection.bench):g}"
+    with pytest.raises(ValueError, match=f"from bench {z} ft to align"):
+        model.set_translation(1.0, 1.0)
+    project = Project(overrides=[AlignmentOverride(holes.geozones[0], 1.5, 0, (1.0, 1.0))])
+    with pytest.warns(BGMWarning, match=r"at 1\.5 ft, source 0.*upper bench at 1\.5 ft \(upper benches in ft"):
+        check_project(project, holes)
 
 
 @pytest.fixture

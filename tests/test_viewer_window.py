@@ -183,6 +183,29 @@ def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
     np.testing.assert_allclose(window.model.current_translation_m(), auto, atol=1e-6)
 
 
+def test_drag_and_lock_start_from_a_nudge_whose_run_is_not_done(window, qtbot):
+    """The Shift+drag preview and Lock used the translation on screen, the one before a nudge still
+    running: the preview said the wrong translation, and Lock undid the nudge."""
+    auto = window.model.current_translation_m()
+    window.renderer.set_camera("top")
+    window.plotter.render()
+    window.nudge(8.0, 0.0)
+    assert window.busy and window.model.current_translation_m() == auto  # its run is not done
+    w, h = window.plotter.window_size
+    start, end = (w // 2, h // 2), (w // 2 + 20, h // 2)
+    d = window.drag_translation(start, end)
+    iren = window.plotter.iren.interactor
+    for event, (x, y) in (("LeftButtonPressEvent", start), ("MouseMoveEvent", end)):
+        iren.SetEventInformation(x, y, 0, 1)  # shift on
+        iren.InvokeEvent(event)
+    tx, ty = (np.add(auto, d) + [8.0, 0.0]) / window._mpu
+    assert f"translation {tx:.2f}, {ty:.2f}" in window.statusBar().currentMessage()
+    window._drag_start = None  # not released: no second nudge
+    window.lock_current()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), np.add(auto, [8.0, 0.0]), atol=1e-6)
+
+
 def test_closing_with_unsaved_changes_prompts(window, monkeypatch):
     asked = []
 
@@ -481,6 +504,75 @@ def test_a_surface_is_not_exported_before_the_last_change_is_in_it(window, qtbot
     assert (tmp_path / "surface.obj").stat().st_size > 0
 
 
+def test_no_surface_is_exported_after_a_failed_run_until_one_succeeds(window, qtbot, monkeypatch, tmp_path):
+    """A run that failed left the surfaces of the parameters before it on screen, and exported them as current."""
+    import core.model.session as session
+
+    extract = session.extract_bench
+
+    def failing(*args, **kwargs):
+        raise ValueError("boom")
+
+    monkeypatch.setattr(session, "extract_bench", failing)
+    window.param_controls["snake_max_iterations"].slider.setValue(10)
+    qtbot.waitUntil(lambda: not window.busy, timeout=10_000)
+    assert "failed: ValueError: boom" in window.statusBar().currentMessage()
+    for export in (window.export_surface, window.export_surfaces):
+        with pytest.raises(ValueError, match="last run failed.*earlier parameters"):
+            export(tmp_path / "surface.obj")
+    assert not list(tmp_path.iterdir())
+    monkeypatch.setattr(session, "extract_bench", extract)
+    window.param_controls["snake_max_iterations"].slider.setValue(12)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.export_surface(tmp_path / "surface.obj")
+    assert (tmp_path / "surface.obj").stat().st_size > 0
+
+
+def test_saving_and_exporting_say_what_was_written_where(window, tmp_path):
+    """Export shown surfaces took seconds on Kennecott with no progress, and it, Export surface and Save
+    project ended with no word of what they had written."""
+    said: list[str] = []
+    window.statusBar().messageChanged.connect(said.append)
+    written = window.export_surfaces(tmp_path / "surfaces")
+    n = len(written)
+    assert n > 1 and f"exporting the surface of geozone {sorted(written)[-1]} ({n} of {n})..." in said
+    assert said[-1].startswith(f"exported {n} surfaces (") and str((tmp_path / "surfaces").resolve()) in said[-1]
+    window.export_surface(tmp_path / "g1.obj")
+    assert said[-1] == f"exported the surface of geozone g1 to {(tmp_path / 'g1.obj').resolve()}"
+    window.model.project_path = str(tmp_path / "p.bgm.json")
+    assert window.save_project()
+    assert said[-1] == f"saved the project to {(tmp_path / 'p.bgm.json').resolve()}"
+    window.export_screenshot(tmp_path / "view.png", (64, 48))
+    assert said[-1] == f"exported the view to {(tmp_path / 'view.png').resolve()}"
+
+
+def test_the_view_a_project_saves_marks_it_unsaved_and_reopens_as_it_was(window, qtbot, tmp_path):
+    """The selection and the exaggeration are saved, but changing them left the project "saved": closing lost
+    them without a prompt. The surface scope and body filter were not saved: a project reopened showed others."""
+    for change in (
+        lambda: window.geozone_combo.setCurrentText("g2"),
+        lambda: window.ve_spin.setValue(5.0),
+        lambda: window.surface_scope.setCurrentText("ticked geozones"),
+        lambda: window.legend.set_shown(["g2", "g3"]),
+        lambda: window.min_holes.setValue(3),
+    ):
+        window.model.dirty = False
+        change()
+        assert window.model.dirty
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert set(window.model.result.surfaces) == {"g2", "g3"}
+    path = tmp_path / "p.bgm.json"
+    window.model.save_project(path)
+    window.legend.show_all()
+    window.surface_scope.setCurrentText("all geozones")
+    window.min_holes.setValue(0)
+    window.open_project(path)
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert window.surface_scope.currentText() == "ticked geozones" and window.legend.shown() == ["g2", "g3"]
+    assert window.min_holes.value() == 3 and window.model.min_body_holes == 3
+    assert set(window.model.result.surfaces) == {"g2", "g3"} and not window.model.dirty
+
+
 def test_surfaces_of_the_selected_geozone_follow_the_selection(window, qtbot, tmp_path):
     """With "surfaces of: selected geozone", the geozone selected when it was chosen kept its surface on
     screen (and in Export shown surfaces) beside every geozone selected after it."""
@@ -558,6 +650,7 @@ def test_an_exported_surface_is_on_the_dxf_layer_bgm_build_puts_it_on(qtbot, tmp
         layers = [{e.dxf.layer for e in ezdxf.readfile(p).modelspace()} for p in (tmp_path / "ore_1.dxf", built)]
         assert layers[0] == layers[1] == {"ore_1_2"}
     finally:
+        win.model.dirty = False  # selected: no prompt on closing
         win.close()
 
 
@@ -618,7 +711,7 @@ def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeyp
     assert len(shown) == 1 and "'nope'" in shown[0] and "is not used" in shown[0]
 
 
-@pytest.mark.parametrize("exaggeration", [50.0, 0.05])
+@pytest.mark.parametrize("exaggeration", [50.0, 0.05, 0.004])
 def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration):
     """`bgm view --exaggeration 50` (or a project's) drew 50 while the panel, limited to 0.1-20, said 20."""
     from bgm_viewer.app import viewer_window
@@ -630,6 +723,17 @@ def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration
     finally:
         win.model.dirty = False
         win.close()
+
+
+def test_a_projects_exaggeration_below_the_boxs_range_is_shown_and_kept(window, tmp_path):
+    """The box stopped at 0.01: a project's 0.004 was shown as 0.01, and the model set to it (unsaved)."""
+    path = tmp_path / "p.bgm.json"
+    window.model.vertical_exaggeration = 0.004
+    window.model.save_project(path)
+    window.model.vertical_exaggeration = 2.0
+    window.open_project(path)
+    assert window.ve_spin.value() == window.model.vertical_exaggeration == window.scene.vertical_exaggeration == 0.004
+    assert not window.model.dirty
 
 
 def test_a_screenshot_named_in_capitals_or_without_an_extension_is_written(window, tmp_path):

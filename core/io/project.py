@@ -21,11 +21,12 @@ pair, paper section 3 "source"): ``translation`` locks its translation
 ``associate`` forces (``true``) or forbids (``false``) its association with
 target components by index. ``parameters`` sets the model's parameters by
 name (``bgm parameters`` lists them; every command with ``--project`` and the
-viewer apply them) and, under ``viewer``, the viewer's selection and vertical
-exaggeration. ``reading_options`` (optional) are the options the input was
-read with, by their command-line names without dashes (:data:`READING_OPTIONS`):
-every command with ``--project`` and the viewer read the input with them, so
-a table read in feet is not read in metres again. A project that records
+viewer apply them) and, under ``viewer``, the viewer's selection, vertical
+exaggeration, whose surfaces it builds and its body filter. ``reading_options``
+(optional) are the options the input was read with, by their command-line
+names without dashes (:data:`READING_OPTIONS`): every command with
+``--project`` and the viewer read the input with them, so a table read in
+feet is not read in metres again. A project that records
 reading options is written as version 2, which BGMs older than the option
 refuse instead of ignoring them; one without them stays version 1. Files are
 written atomically (core.io.atomic).
@@ -371,7 +372,12 @@ VIEWER_RANGES = {
     "bench": Range(0, integer=True, optional=True),
     "component": Range(0, integer=True, optional=True),
     "vertical_exaggeration": Range(0, 100, low_open=True, optional=True),
+    "min_body_volume_m3": Range(0, optional=True),
+    "min_body_holes": Range(0, integer=True, optional=True),
 }
+#: Whose surfaces the viewer builds (viewer setting ``surfaces``): all but a host rock, all, the
+#: geozones ticked (``surface_geozones``) or the selected one. Projects before it have none: "bodies".
+SURFACE_SCOPES = ("bodies", "all", "ticked", "selected")
 
 
 def _check_viewer(path: Path, viewer: dict) -> None:
@@ -382,6 +388,14 @@ def _check_viewer(path: Path, viewer: dict) -> None:
             )
     if viewer.get("geozone") is not None and not isinstance(viewer["geozone"], str):
         raise BGMInputError(f"project file {path}: viewer setting geozone must be a string.")
+    if viewer.get("surfaces") is not None and viewer["surfaces"] not in SURFACE_SCOPES:
+        raise BGMInputError(
+            f"project file {path}: viewer setting surfaces must be one of {', '.join(SURFACE_SCOPES)},"
+            f" got {viewer['surfaces']!r}."
+        )
+    zones = viewer.get("surface_geozones")
+    if zones is not None and not (isinstance(zones, list) and all(isinstance(z, str) for z in zones)):
+        raise BGMInputError(f"project file {path}: viewer setting surface_geozones must be a list of geozones.")
 
 
 def check_project(
@@ -415,14 +429,15 @@ def check_project(
     from core.errors import BGMWarning
 
     extent = input_extent(holes)
+    unit = holes.frame.length_unit  # elevations and translations are the input's
     uppers = [holes.bench_z_input(k) for k in range(holes.n_benches - 1)]
     modelled = set(geozones if geozones is not None else holes.geozones)
     for i, o in enumerate(project.overrides):
-        where = f"project override {i} ({quoted(o.geozone)} at {o.source_z:g}, source {o.source})"
+        where = f"project override {i} ({quoted(o.geozone)} at {o.source_z:g} {unit}, source {o.source})"
         if o.translation is not None and not translation_fits(o.translation, extent):
             raise BGMInputError(
-                f"{where} moves its component by ({o.translation[0]:.6g}, {o.translation[1]:.6g}), more than "
-                f"the whole input spans ({extent:.6g} {holes.frame.length_unit}); fix or remove it"
+                f"{where} moves its component by ({o.translation[0]:.6g}, {o.translation[1]:.6g}) {unit}, more than "
+                f"the whole input spans ({extent:.6g} {unit}); fix or remove it"
             )
         reason = None
         if o.geozone not in holes.geozones:
@@ -430,7 +445,7 @@ def check_project(
         elif o.geozone not in modelled:
             reason = f"{command} does not model geozone {quoted(o.geozone)}"
         elif not any(_same_z(o.source_z, z) for z in uppers):
-            reason = f"no bench pair has its upper bench at {o.source_z:g} (upper benches: {listing(uppers, 8)})"
+            reason = f"no bench pair has its upper bench at {o.source_z:g} {unit} (upper benches in {unit}: {listing(uppers, 8)})"
         if reason:
             warnings.warn(f"{where} is not used: {reason}", BGMWarning, stacklevel=2)
     from core.model.parameters import PARAMETER
