@@ -376,7 +376,7 @@ def contours(
         result = [c for c in session.contours(progress=update) if c.geozone in wanted]
     elapsed = time.perf_counter() - start
     features = [contour_feature(c, holes) for c in result]
-    write_geojson(features, out)
+    write_geojson(features, out, units=holes.frame.length_unit)
     summary = containment_summary(result, holes)
     isolated = sum(len(c.isolated_holes) for c in result)
     summary.update(
@@ -564,8 +564,9 @@ def predict(
     features = _prediction_features(session, geozone, levels, model)
     bands, grid = _uncertainty(session, geozone, levels, model, band_probability)
     # Written together once all is computed: an interrupt during the work leaves the three as they were.
-    write_geojson([f for f in features if not f["geometry"].is_empty], out)
-    write_geojson(bands, sidecars[0])
+    unit = holes.frame.length_unit
+    write_geojson([f for f in features if not f["geometry"].is_empty], out, units=unit)
+    write_geojson(bands, sidecars[0], units=unit)
     write_probability_grid(sidecars[1], grid)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty:

@@ -347,3 +347,30 @@ def test_a_build_without_an_evaluation_says_why(small_mine_csv, tmp_path):
     assert summary["evaluation_note"] in run.stderr
     report = (tmp_path / "out" / "report.md").read_text()
     assert "## Predictive value" in report and "needs three or more benches" in report
+
+
+@pytest.fixture(scope="module")
+def built_in_feet(small_mine_csv, tmp_path_factory):
+    """The small mine in feet: a build of g1 and `bgm predict` of it below the deepest bench."""
+    _, table = small_mine_csv
+    feet = table.assign(x=table.x / 0.3048, y=table.y / 0.3048, z=table.z / 0.3048)
+    folder = tmp_path_factory.mktemp("feet")
+    path = folder / "feet.csv"
+    feet.to_csv(path, index=False)
+    bgm("build", path, "--out", folder / "model", "--geozone", "g1")
+    below = json.loads((folder / "model" / "g1" / "prediction.geojson").read_text())["features"][0]["properties"]["z"]
+    bgm("predict", path, "--geozone", "g1", "--elevations", str(below), "--out", folder / "p.geojson")
+    return folder
+
+
+def test_every_file_of_a_build_or_prediction_in_feet_says_feet(built_in_feet):
+    """band_width (feet) in uncertainty.geojson, the GeoJSONs' coordinates and areas, p_inside.npz's x, y, z and
+    sigma, and surface.stl.json's offset were in feet with nothing in the file saying so: read as metres."""
+    model = built_in_feet / "model"
+    for path in [model / "contours.geojson", *(model / "g1").glob("*.geojson"), *built_in_feet.glob("p*.geojson")]:
+        data = json.loads(path.read_text())
+        assert data["units"] == "ft" and data["features"], path
+        assert all(f["properties"]["units"] == "ft" for f in data["features"]), path
+    for grid in (model / "g1" / "p_inside.npz", built_in_feet / "p.p_inside.npz"):
+        assert str(np.load(grid)["units"]) == "ft", grid
+    assert json.loads((model / "g1" / "surface.stl.json").read_text())["units"] == "ft"

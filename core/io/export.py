@@ -145,7 +145,7 @@ def export_surface(
         else:
             _WRITERS[fmt](tmp, vertices, faces, layer if fmt == "dxf" and layer else name, mesh)
     if fmt == "stl":
-        _record_stl_offset(path, stl_offset(vertices))
+        _record_stl_offset(path, stl_offset(vertices), units)
     return path
 
 
@@ -164,8 +164,11 @@ def stl_offset(vertices: np.ndarray) -> np.ndarray:
     return np.where(needed, np.round((lo + hi) / 2, -3), 0.0)
 
 
-def _record_stl_offset(path: Path, offset: np.ndarray) -> None:
-    """``<name>.stl.json`` beside an STL written in a local frame (a stale one removed otherwise)."""
+def _record_stl_offset(path: Path, offset: np.ndarray, units: str | None = None) -> None:
+    """``<name>.stl.json`` beside an STL written in a local frame (a stale one removed otherwise).
+
+    It records the offset and ``units``, the vertices' length unit (the offset's too), when given.
+    """
     side = path.with_name(path.name + ".json")
     if not offset.any():
         side.unlink(missing_ok=True)
@@ -175,6 +178,7 @@ def _record_stl_offset(path: Path, offset: np.ndarray) -> None:
     note = {
         "format": "stl",
         "offset": [float(o) for o in offset],
+        **({"units": units} if units else {}),
         "note": "the STL's vertices are in a local frame: add offset to each vertex to get input coordinates",
     }
     atomic_write_text(side, json.dumps(note, indent=1) + "\n")
@@ -210,6 +214,7 @@ def write_geojson(
     path: str | Path,
     *,
     name: str | None = None,
+    units: str | None = None,
 ) -> Path:
     """Write Polygon/MultiPolygon features as a GeoJSON FeatureCollection, atomically.
 
@@ -222,6 +227,10 @@ def write_geojson(
     float64 values (e.g. y ~ 7 400 000.123456) read back bit-identical.
     Coordinates are whatever frame they are in (usually the input mine grid);
     note RFC 7946 strictly expects WGS84, so no ``crs`` member is written.
+    ``units`` (``"m"`` or ``"ft"``), the length unit of the coordinates and
+    lengths, is written as the collection's ``units`` (as in ``summary.json``)
+    and as every feature's ``units`` property: a GIS drops the collection's
+    foreign members on import, and feet read as metres give no warning.
     """
     out = []
     for k, feat in enumerate(features):
@@ -238,6 +247,8 @@ def write_geojson(
         if not geom.is_empty and not np.all(np.isfinite(shapely.get_coordinates(geom))):
             raise BGMInputError(f"feature {k} has non-finite coordinates")
         props = dict(feat.get("properties") or {})
+        if units is not None:
+            props.setdefault("units", units)
         entry = {"type": "Feature", "properties": props, "geometry": _plain(mapping(geom))}
         if "id" in feat:
             entry["id"] = feat["id"]
@@ -245,6 +256,8 @@ def write_geojson(
     collection: dict = {"type": "FeatureCollection"}
     if name is not None:
         collection["name"] = name
+    if units is not None:
+        collection["units"] = units
     collection["features"] = out
     try:
         text = json.dumps(collection, default=json_default, allow_nan=False, indent=None)
