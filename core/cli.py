@@ -602,20 +602,12 @@ def _uncertainty(session, geozone: str, levels: list[float], model, probability:
 
 def _prediction_features(session, geozone: str, levels: list[float], model) -> list[dict]:
     """One feature per elevation (input units), empty geometry where the geozone is predicted absent."""
-    from core.io.reporting import to_input_geometry
+    from core.io.reporting import prediction_feature
 
     holes = session.holes
     z_m = [float(holes.frame.z_to_local(v)) for v in levels]
     regions = session.predict(geozone, z_m, model)
-    features = []
-    for level, zm in zip(levels, z_m):
-        region = regions[zm]
-        geometry = to_input_geometry(region, holes)
-        if len(region.geoms) == 1:
-            geometry = geometry.geoms[0]
-        area = {f"area_{holes.frame.length_unit}2": round(geometry.area, 3)}
-        features.append({"geometry": geometry, "properties": {"geozone": geozone, "z": level, **area}})
-    return features
+    return [prediction_feature(regions[zm], holes, geozone, level) for level, zm in zip(levels, z_m)]
 
 
 @app.command()

@@ -374,3 +374,12 @@ def test_every_file_of_a_build_or_prediction_in_feet_says_feet(built_in_feet):
     for grid in (model / "g1" / "p_inside.npz", built_in_feet / "p.p_inside.npz"):
         assert str(np.load(grid)["units"]) == "ft", grid
     assert json.loads((model / "g1" / "surface.stl.json").read_text())["units"] == "ft"
+
+
+def test_a_builds_predicted_sections_carry_what_bgm_predict_gives_for_the_same_section(built_in_feet):
+    """`bgm predict` gave each section's area (area_ft2); the build's prediction.geojson, the same section, had none."""
+    built = json.loads((built_in_feet / "model" / "g1" / "prediction.geojson").read_text())["features"][0]
+    predicted = json.loads((built_in_feet / "p.geojson").read_text())["features"][0]
+    assert set(predicted["properties"]) <= set(built["properties"]), (predicted["properties"], built["properties"])
+    assert built["properties"]["area_ft2"] == pytest.approx(predicted["properties"]["area_ft2"], rel=1e-9)
+    assert built["properties"]["area_ft2"] == pytest.approx(shape(built["geometry"]).area, rel=1e-6)

@@ -32,7 +32,7 @@ from core.extraction.contours import Contour
 from core.geometry.grid import as_multipolygon
 from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
-from core.io.reporting import containment_summary, contour_feature, to_input_geometry
+from core.io.reporting import containment_summary, contour_feature, prediction_feature
 from core.model.pipeline import (
     GeozoneModel,
     ModelParameters,
@@ -646,13 +646,12 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     zs = [float(levels[-1]) - f * height for f in PREDICTION_FRACTIONS]
     predictions = session.predict(g, zs, model)
     features = [
-        {
-            "geometry": to_input_geometry(region, holes),
-            "properties": {"geozone": g, "z": round(float(holes.frame.z_to_input(z)), 3), "fraction_below": f},
-        }
-        for (z, region), f in zip(predictions.items(), PREDICTION_FRACTIONS)
-        if not region.is_empty
+        prediction_feature(region, holes, g, round(float(holes.frame.z_to_input(z)), 3))
+        for z, region in predictions.items()
     ]
+    for feature, f in zip(features, PREDICTION_FRACTIONS):
+        feature["properties"]["fraction_below"] = f
+    features = [f for f in features if not f["geometry"].is_empty]
     write_geojson(features, gdir / "prediction.geojson", units=holes.frame.length_unit)
     write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
