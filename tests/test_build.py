@@ -383,3 +383,15 @@ def test_a_builds_predicted_sections_carry_what_bgm_predict_gives_for_the_same_s
     assert set(predicted["properties"]) <= set(built["properties"]), (predicted["properties"], built["properties"])
     assert built["properties"]["area_ft2"] == pytest.approx(predicted["properties"]["area_ft2"], rel=1e-9)
     assert built["properties"]["area_ft2"] == pytest.approx(shape(built["geometry"]).area, rel=1e-6)
+
+
+def test_a_builds_surfaces_in_feet_say_feet_where_their_format_has_room(built_in_feet):
+    """PLY, OBJ, VTP and STL surfaces of a table in feet held feet with nothing saying so (OMF alone had a field);
+    mine software that assumes metres scaled the surface by 3.28 without a word. DXF R12 has no field for it."""
+    g1 = built_in_feet / "model" / "g1"
+    assert b"\ncomment units ft\n" in (g1 / "surface.ply").read_bytes()[:400]
+    assert (g1 / "surface.obj").read_text().startswith("# units: ft\n")
+    assert "units ft -->" in (g1 / "surface.vtp").read_bytes()[:600].decode()
+    assert (g1 / "surface.stl").read_bytes()[:80].rstrip().endswith(b" units ft")
+    for fmt in ("ply", "obj", "stl"):  # and each still reads back
+        assert len(trimesh.load(g1 / f"surface.{fmt}", force="mesh").faces) > 0
