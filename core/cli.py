@@ -430,7 +430,7 @@ def contours(
         result = [c for c in session.contours(progress=update) if c.geozone in wanted]
     elapsed = time.perf_counter() - start
     features = [contour_feature(c, holes) for c in result]
-    write_geojson(features, out)
+    write_geojson(features, out, units=holes.frame.length_unit)
     summary = containment_summary(result, holes)
     isolated = sum(len(c.isolated_holes) for c in result)
     summary.update(
@@ -618,8 +618,9 @@ def predict(
     features = _prediction_features(session, geozone, levels, model)
     bands, grid = _uncertainty(session, geozone, levels, model, band_probability)
     # Written together once all is computed: an interrupt during the work leaves the three as they were.
-    write_geojson([f for f in features if not f["geometry"].is_empty], out)
-    write_geojson(bands, sidecars[0])
+    unit = holes.frame.length_unit
+    write_geojson([f for f in features if not f["geometry"].is_empty], out, units=unit)
+    write_geojson(bands, sidecars[0], units=unit)
     write_probability_grid(sidecars[1], grid)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty:
@@ -655,20 +656,12 @@ def _uncertainty(session, geozone: str, levels: list[float], model, probability:
 
 def _prediction_features(session, geozone: str, levels: list[float], model) -> list[dict]:
     """One feature per elevation (input units), empty geometry where the geozone is predicted absent."""
-    from core.io.reporting import to_input_geometry
+    from core.io.reporting import prediction_feature
 
     holes = session.holes
     z_m = [float(holes.frame.z_to_local(v)) for v in levels]
     regions = session.predict(geozone, z_m, model)
-    features = []
-    for level, zm in zip(levels, z_m):
-        region = regions[zm]
-        geometry = to_input_geometry(region, holes)
-        if len(region.geoms) == 1:
-            geometry = geometry.geoms[0]
-        area = {f"area_{holes.frame.length_unit}2": round(geometry.area, 3)}
-        features.append({"geometry": geometry, "properties": {"geozone": geozone, "z": level, **area}})
-    return features
+    return [prediction_feature(regions[zm], holes, geozone, level) for level, zm in zip(levels, z_m)]
 
 
 @app.command()

@@ -347,3 +347,51 @@ def test_a_build_without_an_evaluation_says_why(small_mine_csv, tmp_path):
     assert summary["evaluation_note"] in run.stderr
     report = (tmp_path / "out" / "report.md").read_text()
     assert "## Predictive value" in report and "needs three or more benches" in report
+
+
+@pytest.fixture(scope="module")
+def built_in_feet(small_mine_csv, tmp_path_factory):
+    """The small mine in feet: a build of g1 and `bgm predict` of it below the deepest bench."""
+    _, table = small_mine_csv
+    feet = table.assign(x=table.x / 0.3048, y=table.y / 0.3048, z=table.z / 0.3048)
+    folder = tmp_path_factory.mktemp("feet")
+    path = folder / "feet.csv"
+    feet.to_csv(path, index=False)
+    bgm("build", path, "--out", folder / "model", "--geozone", "g1")
+    below = json.loads((folder / "model" / "g1" / "prediction.geojson").read_text())["features"][0]["properties"]["z"]
+    bgm("predict", path, "--geozone", "g1", "--elevations", str(below), "--out", folder / "p.geojson")
+    return folder
+
+
+def test_every_file_of_a_build_or_prediction_in_feet_says_feet(built_in_feet):
+    """band_width (feet) in uncertainty.geojson, the GeoJSONs' coordinates and areas, p_inside.npz's x, y, z and
+    sigma, and surface.stl.json's offset were in feet with nothing in the file saying so: read as metres."""
+    model = built_in_feet / "model"
+    for path in [model / "contours.geojson", *(model / "g1").glob("*.geojson"), *built_in_feet.glob("p*.geojson")]:
+        data = json.loads(path.read_text())
+        assert data["units"] == "ft" and data["features"], path
+        assert all(f["properties"]["units"] == "ft" for f in data["features"]), path
+    for grid in (model / "g1" / "p_inside.npz", built_in_feet / "p.p_inside.npz"):
+        assert str(np.load(grid)["units"]) == "ft", grid
+    assert json.loads((model / "g1" / "surface.stl.json").read_text())["units"] == "ft"
+
+
+def test_a_builds_predicted_sections_carry_what_bgm_predict_gives_for_the_same_section(built_in_feet):
+    """`bgm predict` gave each section's area (area_ft2); the build's prediction.geojson, the same section, had none."""
+    built = json.loads((built_in_feet / "model" / "g1" / "prediction.geojson").read_text())["features"][0]
+    predicted = json.loads((built_in_feet / "p.geojson").read_text())["features"][0]
+    assert set(predicted["properties"]) <= set(built["properties"]), (predicted["properties"], built["properties"])
+    assert built["properties"]["area_ft2"] == pytest.approx(predicted["properties"]["area_ft2"], rel=1e-9)
+    assert built["properties"]["area_ft2"] == pytest.approx(shape(built["geometry"]).area, rel=1e-6)
+
+
+def test_a_builds_surfaces_in_feet_say_feet_where_their_format_has_room(built_in_feet):
+    """PLY, OBJ, VTP and STL surfaces of a table in feet held feet with nothing saying so (OMF alone had a field);
+    mine software that assumes metres scaled the surface by 3.28 without a word. DXF R12 has no field for it."""
+    g1 = built_in_feet / "model" / "g1"
+    assert b"\ncomment units ft\n" in (g1 / "surface.ply").read_bytes()[:400]
+    assert (g1 / "surface.obj").read_text().startswith("# units: ft\n")
+    assert "units ft -->" in (g1 / "surface.vtp").read_bytes()[:600].decode()
+    assert (g1 / "surface.stl").read_bytes()[:80].rstrip().endswith(b" units ft")
+    for fmt in ("ply", "obj", "stl"):  # and each still reads back
+        assert len(trimesh.load(g1 / f"surface.{fmt}", force="mesh").faces) > 0

@@ -1125,3 +1125,20 @@ def test_an_evaluation_refused_leaves_no_output_folder(table, tmp_path, case, ph
     geozone = "late" if case == "nothing to score" else "g1"
     error_line(bgm("evaluate", path, "--geozone", geozone, "--out", out), phrase)
     assert not (tmp_path / "new").exists()
+
+
+FOLDER_COMMANDS = {
+    "build": lambda inp, out: ("build", inp, "--out", out),
+    "evaluate": lambda inp, out: ("evaluate", inp, "--geozone", "g1", "--out", out),
+    "demo": lambda inp, out: ("demo", "--out", out),
+}
+
+
+@pytest.mark.parametrize("command", list(FOLDER_COMMANDS))
+def test_an_output_folder_that_cannot_be_made_is_refused_before_the_table_is_read(csv, command):
+    """`bgm build --out /proc/x` read the whole table (its summary line said so) before refusing the folder."""
+    if not Path("/proc/self").exists():
+        pytest.skip("no /proc here")
+    run = bgm(*FOLDER_COMMANDS[command](csv, Path("/proc") / f"bgm-{command}"))
+    error_line(run, "cannot write", "/proc")
+    assert "holes" not in run.stdout + run.stderr.replace("/proc", "")  # no input summary: the table was not read

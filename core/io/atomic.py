@@ -112,6 +112,8 @@ def check_output(
     if folder:
         if path.exists() and not path.is_dir():
             raise BGMInputError(f"{what} {str(path)!r} is a file; give a folder to write into")
+        # As for a file: a folder that cannot be made (/proc/x) was refused only once the table was read.
+        _creatable_in(path, f"cannot write the folder {str(path)!r}:", probe="folder")
     else:
         _creatable_in(_writable_file(path).parent, f"cannot write {str(path)!r}:")
     for source in inputs:
@@ -191,10 +193,11 @@ def _writable_file(path: Path) -> Path:
     return path
 
 
-def _creatable_in(folder: Path, lead: str) -> None:
+def _creatable_in(folder: Path, lead: str, probe: str = "file") -> None:
     """Refuse, before any work, a folder no file can be created in (the nearest existing one, if it is to be made).
 
-    Permissions alone do not tell (root may write anywhere, yet not in /proc): a file is made and removed.
+    Permissions alone do not tell (root may write anywhere, yet not in /proc): a file is made and removed,
+    or with ``probe="folder"`` a folder (what a folder output makes first; no file is opened outside it).
     """
     existing = folder.absolute()
     while not existing.exists() and existing != existing.parent:
@@ -202,8 +205,11 @@ def _creatable_in(folder: Path, lead: str) -> None:
     if not existing.is_dir():
         raise BGMInputError(f"{lead} {str(existing)!r} is a file, not a folder")
     try:
-        with tempfile.TemporaryFile(dir=existing):
-            pass
+        if probe == "folder":
+            os.rmdir(tempfile.mkdtemp(dir=existing, prefix=".bgm-probe-"))
+        else:
+            with tempfile.TemporaryFile(dir=existing):
+                pass
     except OSError as exc:
         raise BGMInputError(f"{lead} {exc.strerror or exc}") from None
 

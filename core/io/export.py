@@ -117,7 +117,9 @@ def export_surface(
         made R12-safe.
     units : str, optional
         Length unit of the vertices (``"m"`` or ``"ft"``), recorded where the
-        format has a place for it (the OMF project's ``units``).
+        format has a place for it: the OMF project's ``units``, a comment in
+        PLY, OBJ and VTP, the STL header (and ``.stl.json``). DXF R12 has
+        none (``$INSUNITS`` came with R2000).
 
     Raises
     ------
@@ -139,13 +141,11 @@ def export_surface(
         _require_omf()
 
     with atomic_path(path) as tmp:
-        # The DXF writer names its layer after ``name``; a layer already R12-safe keeps its name.
-        if fmt == "omf":  # the one format with a field for the unit: a reader takes metres for feet without it
-            _write_omf(tmp, vertices, faces, name, mesh, units=units or "")
-        else:
-            _WRITERS[fmt](tmp, vertices, faces, layer if fmt == "dxf" and layer else name, mesh)
+        # The DXF writer names its layer after ``name``; a layer already R12-safe keeps its name. The unit goes
+        # where the format has a place for it (OMF's field, a comment or header): a reader takes feet for metres.
+        _WRITERS[fmt](tmp, vertices, faces, layer if fmt == "dxf" and layer else name, mesh, units or "")
     if fmt == "stl":
-        _record_stl_offset(path, stl_offset(vertices))
+        _record_stl_offset(path, stl_offset(vertices), units)
     return path
 
 
@@ -164,8 +164,11 @@ def stl_offset(vertices: np.ndarray) -> np.ndarray:
     return np.where(needed, np.round((lo + hi) / 2, -3), 0.0)
 
 
-def _record_stl_offset(path: Path, offset: np.ndarray) -> None:
-    """``<name>.stl.json`` beside an STL written in a local frame (a stale one removed otherwise)."""
+def _record_stl_offset(path: Path, offset: np.ndarray, units: str | None = None) -> None:
+    """``<name>.stl.json`` beside an STL written in a local frame (a stale one removed otherwise).
+
+    It records the offset and ``units``, the vertices' length unit (the offset's too), when given.
+    """
     side = path.with_name(path.name + ".json")
     if not offset.any():
         side.unlink(missing_ok=True)
@@ -175,6 +178,7 @@ def _record_stl_offset(path: Path, offset: np.ndarray) -> None:
     note = {
         "format": "stl",
         "offset": [float(o) for o in offset],
+        **({"units": units} if units else {}),
         "note": "the STL's vertices are in a local frame: add offset to each vertex to get input coordinates",
     }
     atomic_write_text(side, json.dumps(note, indent=1) + "\n")
@@ -210,6 +214,7 @@ def write_geojson(
     path: str | Path,
     *,
     name: str | None = None,
+    units: str | None = None,
 ) -> Path:
     """Write Polygon/MultiPolygon features as a GeoJSON FeatureCollection, atomically.
 
@@ -222,6 +227,10 @@ def write_geojson(
     float64 values (e.g. y ~ 7 400 000.123456) read back bit-identical.
     Coordinates are whatever frame they are in (usually the input mine grid);
     note RFC 7946 strictly expects WGS84, so no ``crs`` member is written.
+    ``units`` (``"m"`` or ``"ft"``), the length unit of the coordinates and
+    lengths, is written as the collection's ``units`` (as in ``summary.json``)
+    and as every feature's ``units`` property: a GIS drops the collection's
+    foreign members on import, and feet read as metres give no warning.
     """
     out = []
     for k, feat in enumerate(features):
@@ -238,6 +247,8 @@ def write_geojson(
         if not geom.is_empty and not np.all(np.isfinite(shapely.get_coordinates(geom))):
             raise BGMInputError(f"feature {k} has non-finite coordinates")
         props = dict(feat.get("properties") or {})
+        if units is not None:
+            props.setdefault("units", units)
         entry = {"type": "Feature", "properties": props, "geometry": _plain(mapping(geom))}
         if "id" in feat:
             entry["id"] = feat["id"]
@@ -245,6 +256,8 @@ def write_geojson(
     collection: dict = {"type": "FeatureCollection"}
     if name is not None:
         collection["name"] = name
+    if units is not None:
+        collection["units"] = units
     collection["features"] = out
     try:
         text = json.dumps(collection, default=json_default, allow_nan=False, indent=None)
@@ -291,17 +304,19 @@ def _canonical(fmt: str) -> str:
     return f
 
 
-def _write_obj(tmp: Path, vertices, faces, name, mesh) -> None:
+def _write_obj(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
     import trimesh
 
     m = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     text = trimesh.exchange.obj.export_obj(
         m, include_normals=False, include_color=False, include_texture=False, digits=10
     )
+    if units:
+        text = f"# units: {units}\n{text}"
     tmp.write_text(text, encoding="utf-8")
 
 
-def _write_stl(tmp: Path, vertices, faces, name, mesh) -> None:
+def _write_stl(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
     """Binary STL, in a local frame when float32 cannot hold the coordinates (offset in the header)."""
     import trimesh
 
@@ -311,11 +326,13 @@ def _write_stl(tmp: Path, vertices, faces, name, mesh) -> None:
     header = f"BGM {_one_line(name)[:20]}"
     if offset.any():
         header = f"BGM add offset x={offset[0]:.0f} y={offset[1]:.0f} z={offset[2]:.0f}"
+    if units:
+        header = f"{header} units {units}"
     data[:80] = header.encode("ascii", "replace")[:80].ljust(80, b" ")
     tmp.write_bytes(bytes(data))
 
 
-def _write_ply(tmp: Path, vertices, faces, name, mesh) -> None:
+def _write_ply(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
     """Binary little-endian PLY with double vertices and int32 triangle indices.
 
     The header is ASCII (the PLY format's): a geozone named in another script
@@ -324,7 +341,8 @@ def _write_ply(tmp: Path, vertices, faces, name, mesh) -> None:
     header = (
         "ply\nformat binary_little_endian 1.0\n"
         f"comment BGM geozone surface {_ascii_line(name)}\n"
-        f"element vertex {len(vertices)}\n"
+        + (f"comment units {_ascii_line(units)}\n" if units else "")
+        + f"element vertex {len(vertices)}\n"
         "property double x\nproperty double y\nproperty double z\n"
         f"element face {len(faces)}\n"
         "property list uchar int vertex_indices\n"
@@ -341,7 +359,7 @@ def _write_ply(tmp: Path, vertices, faces, name, mesh) -> None:
         fh.write(face_rec.tobytes())
 
 
-def _write_vtp(tmp: Path, vertices, faces, name, mesh) -> None:
+def _write_vtp(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
     """VTK XML PolyData, raw appended binary, Float64 points, Int64 connectivity."""
     blocks = [
         np.ascontiguousarray(vertices, dtype="<f8").tobytes(),
@@ -358,7 +376,7 @@ def _write_vtp(tmp: Path, vertices, faces, name, mesh) -> None:
         '<?xml version="1.0"?>\n'
         '<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n'
         "  <PolyData>\n"
-        f"    <!-- BGM geozone surface: {name_xml.replace('--', '- -')} -->\n"
+        f"    <!-- BGM geozone surface: {name_xml.replace('--', '- -')}{f', units {_xml_escape(units)}' if units else ''} -->\n"
         f'    <Piece NumberOfPoints="{len(vertices)}" NumberOfVerts="0" NumberOfLines="0" '
         f'NumberOfStrips="0" NumberOfPolys="{len(faces)}">\n'
         "      <Points>\n"
@@ -383,7 +401,7 @@ def _write_vtp(tmp: Path, vertices, faces, name, mesh) -> None:
         fh.write(b"\n  </AppendedData>\n</VTKFile>\n")
 
 
-def _write_dxf(tmp: Path, vertices, faces, name, mesh) -> None:
+def _write_dxf(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
     """ASCII DXF R12 (AC1009): one 3DFACE per triangle on the geozone's layer.
 
     Written directly rather than through ezdxf's object model, which takes
@@ -391,7 +409,8 @@ def _write_dxf(tmp: Path, vertices, faces, name, mesh) -> None:
     auditor finds nothing to fix). R12 3DFACEs are read by every mining and
     CAD package. Coordinates use Python's shortest round-trip float repr, so
     float64 vertices read back exactly. The fourth corner repeats the third
-    (a triangle, as the DXF reference specifies).
+    (a triangle, as the DXF reference specifies). ``units`` is not written:
+    R12 has no header variable for it.
     """
     layer = _dxf_layer_name(name)
     head = _dxf_head([layer], vertices.min(axis=0), vertices.max(axis=0))

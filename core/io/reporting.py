@@ -62,6 +62,34 @@ def contour_feature(contour: Contour, holes: Blastholes) -> dict:
     }
 
 
+def prediction_feature(region, holes: Blastholes, geozone: str, z: float) -> dict:
+    """GeoJSON-like feature of a predicted section, in the input's coordinates: what predict and build write.
+
+    Parameters
+    ----------
+    region : shapely.MultiPolygon
+        The predicted section (local metres); empty where the geozone is predicted absent.
+    holes : Blastholes
+        Their frame takes the section to input coordinates and units.
+    geozone : str
+        The geozone predicted.
+    z : float
+        The section's elevation, input units, as the feature gives it.
+
+    Returns
+    -------
+    dict
+        ``geometry`` (shapely; a Polygon where the section is one) and ``properties``
+        ``geozone``, ``z`` and ``area_<unit>2`` (input units squared). One function
+        for both commands: the build's features had no area where `bgm predict`'s had.
+    """
+    geometry = to_input_geometry(region, holes)
+    if geometry.geom_type == "MultiPolygon" and len(geometry.geoms) == 1:
+        geometry = geometry.geoms[0]
+    area = {f"area_{holes.frame.length_unit}2": round(float(geometry.area), 3)}
+    return {"geometry": geometry, "properties": {"geozone": geozone, "z": z, **area}}
+
+
 def hole_ids(holes: Blastholes, index: np.ndarray) -> list:
     """Hole ids of the given holes as written in the input (row numbers, 1-based, where it has none)."""
     index = np.asarray(index, int)

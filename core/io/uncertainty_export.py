@@ -10,6 +10,7 @@ usual outputs (:mod:`core.model.uncertainty`, :mod:`core.model.sampling`):
 * a P(inside) grid (NumPy ``.npz``): ``x`` (cols), ``y`` (rows) cell centres
   and ``z`` (levels) in input units, ``p_inside`` ``(levels, rows, cols)``
   and ``sigma`` (the calibrated scale, input units) of the same shape;
+  ``units`` names those units (``"m"`` or ``"ft"``);
 * suggestions: one row per hole, ``x, y, z, geozone, probability_inside, reason``.
 """
 
@@ -101,6 +102,7 @@ def probability_grid(sections: Mapping[float, SectionUncertainty | None], holes:
             "z": empty,
             "p_inside": none,
             "sigma": none,
+            "units": np.array(frame.length_unit),
         }
     first = next(iter(kept.values()))
     rows, cols = first.grid.shape
@@ -117,6 +119,8 @@ def probability_grid(sections: Mapping[float, SectionUncertainty | None], holes:
         # Rounded to 1e-3: what a map shows, and it compresses to a fraction.
         "p_inside": np.round(np.stack([s.inside_probability for s in kept.values()]), 3).astype(np.float32),
         "sigma": np.round(np.stack([frame.length_to_input(s.sigma) for s in kept.values()]), 3).astype(np.float32),
+        # x, y, z and sigma are lengths: without it an archive in feet reads as one in metres.
+        "units": np.array(frame.length_unit),
     }
 
 

@@ -32,7 +32,7 @@ from core.extraction.contours import Contour
 from core.geometry.grid import as_multipolygon
 from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
-from core.io.reporting import containment_summary, contour_feature, to_input_geometry
+from core.io.reporting import containment_summary, contour_feature, prediction_feature
 from core.model.pipeline import (
     GeozoneModel,
     ModelParameters,
@@ -269,7 +269,7 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
     ctx.contours = extract_all_benches(ctx.session, workers, scheduler, progress)
     mine = [c for c in ctx.contours if c.geozone in wanted]
     features = [contour_feature(c, holes) for c in mine]
-    write_geojson(features, out_dir / "contours.geojson")
+    write_geojson(features, out_dir / "contours.geojson", units=holes.frame.length_unit)
     write_section_dxf(features, "bench", out_dir / "contours.dxf", ctx.layers)
     containment = containment_summary(mine, holes)
     t_contours = time.perf_counter() - t0
@@ -646,14 +646,13 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     zs = [float(levels[-1]) - f * height for f in PREDICTION_FRACTIONS]
     predictions = session.predict(g, zs, model)
     features = [
-        {
-            "geometry": to_input_geometry(region, holes),
-            "properties": {"geozone": g, "z": round(float(holes.frame.z_to_input(z)), 3), "fraction_below": f},
-        }
-        for (z, region), f in zip(predictions.items(), PREDICTION_FRACTIONS)
-        if not region.is_empty
+        prediction_feature(region, holes, g, round(float(holes.frame.z_to_input(z)), 3))
+        for z, region in predictions.items()
     ]
-    write_geojson(features, gdir / "prediction.geojson")
+    for feature, f in zip(features, PREDICTION_FRACTIONS):
+        feature["properties"]["fraction_below"] = f
+    features = [f for f in features if not f["geometry"].is_empty]
+    write_geojson(features, gdir / "prediction.geojson", units=holes.frame.length_unit)
     write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
     summary.note = undrilled_below_note(session, model)
@@ -701,7 +700,7 @@ def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict
     at = [z for z in predictions if np.isclose(z, z_next)]
     z_next = at[0] if at else z_next
     sections = geozone_uncertainty(session, g, sorted({*predictions, z_next}, reverse=True), model, DEFAULT_PROBABILITY)
-    write_geojson(band_features(sections, holes, g), gdir / "uncertainty.geojson")
+    write_geojson(band_features(sections, holes, g), gdir / "uncertainty.geojson", units=holes.frame.length_unit)
     write_probability_grid(gdir / "p_inside.npz", probability_grid(sections, holes, g))
     try:
         candidates = next_bench_candidates(holes)
