@@ -158,3 +158,16 @@ def test_a_build_in_batch_says_how_far_it_is_as_it_goes(tmp_path):
         "seconds": summary["seconds"],
         "out": str(tmp_path / "model"),
     }
+
+
+def test_an_output_that_is_the_next_option_is_refused(tmp_path):
+    """``--out --no-cache`` took "--no-cache" as the file to write, and the flag was dropped without a word."""
+    run = subprocess.run(
+        [*BGM, "contours", str(DEMO_CSV), "--out", "--no-cache"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 2 and "looks like an option: was --out's value left out?" in run.stderr
+    assert not (tmp_path / "--no-cache").exists()

@@ -108,6 +108,13 @@ def check_output(
             f"{what} - would write a {'folder' if folder else 'file'} named '-', not standard output; give a "
             f"{'folder' if folder else 'file'} name"
         )
+    if str(path).startswith("--"):
+        # `--out --no-cache`: the option took the next one as its value, wrote into "--no-cache" and the flag
+        # was dropped without a word. A path meant so can be given as ./--name.
+        raise BGMInputError(
+            f"{what} {str(path)!r} looks like an option: was {what}'s value left out? "
+            f"(a name starting with -- can be given as ./{path})"
+        )
     path = Path(path)
     if folder:
         if path.exists() and not path.is_dir():
