@@ -490,28 +490,13 @@ def blastholes_from_table(
     levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=np.column_stack([coords["x"], coords["y"]]))
     # Holes more than a bench height above or below every bench are no stray between benches: say what they are.
     outside = off & ((zin < levels_in.min() - height_in) | (zin > levels_in.max() + height_in))
-    if outside.any():
-        msg = (
-            f"{int(outside.sum())} hole(s) lie more than a bench height above or below every bench, at z "
-            f"{_far_values(zin[outside])} (data line(s) {_rows(np.flatnonzero(outside), lines)}): elevations missing "
-            "(written as 0 or -9999) or mistyped? they were left out"
-        )
-        _note(notes, msg, stacklevel=3)
-    if (off & ~outside).any():
-        msg = (
-            f"{int((off & ~outside).sum())} hole(s) lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from "
-            f"every bench level (data line(s) {_rows(np.flatnonzero(off & ~outside), lines)}) and were left out"
-        )
-        _note(notes, msg, stacklevel=3)
-
+    where = f"lie more than a bench height above or below every bench, at z {_far_values(zin[outside])}"
+    _left_out(notes, outside, lines, where, "elevations missing (written as 0 or -9999) or mistyped")
+    where = f"lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from every bench level"
+    _left_out(notes, off & ~outside, lines, where)
     far = _far_holes(np.column_stack([coords["x"], coords["y"]]), bench, ~off)
-    if far.any():
-        msg = (
-            f"{int(far.sum())} hole(s) lie more than {FAR_HOLE_SPACINGS:g} hole spacings from every other hole "
-            f"of their bench (data line(s) {_rows(np.flatnonzero(far), lines)}): x, y missing or mistyped? "
-            "they were left out"
-        )
-        _note(notes, msg, stacklevel=3)
+    where = f"lie more than {FAR_HOLE_SPACINGS:g} hole spacings from every other hole of their bench"
+    _left_out(notes, far, lines, where, "x, y missing or mistyped")
 
     unit = _guess_unit(
         height_in,
@@ -579,6 +564,14 @@ def _far_holes(xy: np.ndarray, bench: np.ndarray, on: np.ndarray) -> np.ndarray:
         if alone.sum() <= 0.1 * len(points):
             far[idx] = alone[which.ravel()]
     return far
+
+
+def _left_out(notes: list[str], left: np.ndarray, lines: np.ndarray, where: str, guess: str = "") -> None:
+    """Warn of the holes ``left`` out: how many, where they lie, their data lines and, if any, a likely cause."""
+    if not left.any():
+        return
+    said = f"{int(left.sum())} hole(s) {where} (data line(s) {_rows(np.flatnonzero(left), lines)})"
+    _note(notes, f"{said}: {guess}? they were left out" if guess else f"{said} and were left out", stacklevel=4)
 
 
 def _note(notes: list[str], msg: str, stacklevel: int) -> None:
