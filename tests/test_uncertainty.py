@@ -303,7 +303,7 @@ def test_predict_writes_bands_and_probability_grid_beside_its_output(strip_csv, 
     run = bgm("predict", strip_csv, "--geozone", "ore", "--elevations", "945,940,975", "--out", out)
     assert run.returncode == 0, run.stderr
     predicted = json.loads(out.read_text())["features"]
-    assert {tuple(sorted(f["properties"])) for f in predicted} == {("area_m2", "geozone", "z")}
+    assert {tuple(sorted(f["properties"])) for f in predicted} == {("area_m2", "geozone", "units", "z")}
     bands = json.loads((tmp_path / "p.uncertainty.geojson").read_text())["features"]
     kinds = {(f["properties"]["z"], f["properties"]["kind"]) for f in bands}
     assert {(945.0, "band"), (940.0, "inner"), (940.0, "outer"), (975.0, "band")} <= kinds

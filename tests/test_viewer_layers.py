@@ -304,11 +304,14 @@ def test_an_override_of_a_component_the_pair_lacks_is_refused():
     n_sources, n_targets = len(model.result.pair.sources), len(model.result.pair.targets)
     model.select(component=n_sources + 39)
     model.run("morph", until="correspondence")
+    model.dirty = False  # the selection is saved in the project: choosing one marks it unsaved
     for change in (model.lock_current, lambda: model.set_translation(1.0, 2.0), lambda: model.nudge(1.0, 0.0)):
         with pytest.raises(ValueError, match="does not exist"):
             change()
+    assert not model.dirty
     model.select(component=0)
     model.run("morph", until="correspondence")
+    model.dirty = False
     with pytest.raises(ValueError, match="target component"):
         model.set_association(n_targets + 5, True)
     assert not model.overrides and not model.can_undo and not model.dirty
