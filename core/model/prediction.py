@@ -172,22 +172,36 @@ def undrilled_extension(model: GeozoneModel, z_m: float, hole_spacing_m: float) 
     at_or_below = fields.z_m <= z_m + 1e-6 + 1e-5 * abs(z_m)  # a bench level matched as bench_at does
     if at_or_below.all() or not at_or_below.any():
         return MultiPolygon()
-    below = fields.drilled[at_or_below].any(axis=0)
-    above = fields.drilled[~at_or_below].any(axis=0)
-    if not (above & ~below).any():
+    # The bound depends only on which benches lie at or below: made once for all sections between two benches.
+    n_below = int(at_or_below.sum())
+    bound = memoised(
+        fields,
+        ("undrilled bound", len(fields.z_m), hole_spacing_m, n_below),
+        lambda: _undrilled_bound(fields, n_below, hole_spacing_m),
+    )
+    if bound is None:
         return MultiPolygon()
 
     def compute() -> MultiPolygon:
-        field = depth_trend(fields, fields.bench_height_m, hole_spacing_m).field(z_m)
-        h = fields.grid.cell_size_m
-        outside_below = (ndimage.distance_transform_edt(~below) - ndimage.distance_transform_edt(below)) * h
-        inside_above = (ndimage.distance_transform_edt(above) - ndimage.distance_transform_edt(~above)) * h
-        field = np.minimum(field, np.minimum(outside_below + 0.5 * hole_spacing_m, inside_above))
+        field = np.minimum(depth_trend(fields, fields.bench_height_m, hole_spacing_m).field(z_m), bound)
         return as_multipolygon(fields.grid.polygons_from_distance(field)) if (field > 0).any() else MultiPolygon()
 
     # The surface and a prediction at the same elevation ask for the same extension.
     key = ("undrilled extension", len(fields.z_m), fields.bench_height_m, hole_spacing_m, float(z_m))
     return memoised(fields, key, compute)
+
+
+def _undrilled_bound(fields: BenchFields, n_below: int, hole_spacing_m: float) -> np.ndarray | None:
+    """Where :func:`undrilled_extension` may reach, as a signed distance: inside what the upper benches drilled,
+    outside what the lowest ``n_below`` benches drilled (half a spacing in from its edge); None if nowhere."""
+    below = fields.drilled[-n_below:].any(axis=0)
+    above = fields.drilled[:-n_below].any(axis=0)
+    if not (above & ~below).any():
+        return None
+    h = fields.grid.cell_size_m
+    outside_below = (ndimage.distance_transform_edt(~below) - ndimage.distance_transform_edt(below)) * h
+    inside_above = (ndimage.distance_transform_edt(above) - ndimage.distance_transform_edt(~above)) * h
+    return np.minimum(outside_below + 0.5 * hole_spacing_m, inside_above)
 
 
 def predict_geozone(
