@@ -323,11 +323,8 @@ def progress_bar(description: str, unit: str = "steps"):
         nonlocal now
         if _INTERRUPTS:
             raise KeyboardInterrupt
-        if description is None:
-            bar.update(task, completed=done, total=max(total, 1))
-        else:
-            bar.update(task, completed=done, total=max(total, 1), description=description)
-            now = description
+        now = now if description is None else description
+        bar.update(task, completed=done, total=max(total, 1), description=now)
         if mode == "lines" and total > 0:
             say_line(done, total, unit or said_unit)
 
