@@ -4,7 +4,8 @@ The window only observes and drives plain objects: a :class:`ViewerModel`
 (state, overrides, project file, core's pipeline) and a :class:`Scene` of
 layers drawn by a :class:`SceneRenderer` into a ``pyvistaqt.QtInteractor``.
 Engine runs happen in a superqt generator worker (:func:`bgm_viewer.model.compute`
-on a thread of Qt's pool); a newer request cancels an older one, progress goes
+on a thread of Qt's pool), and so does the next bench's band; a newer request
+cancels both at core's next step (:func:`core.threads.cancelling`), progress goes
 to the status bar. The parameter sliders are generated from core's
 parameter specs (:data:`core.model.parameters.PARAMETERS`), with the command
 line's defaults.
@@ -32,6 +33,7 @@ from superqt.utils import create_worker
 from core.io.blastholes import Blastholes
 from core.io.project import VIEWER_RANGES
 from core.model.parameters import PARAMETERS, ParameterSpec
+from core.threads import cancelling
 
 from . import _vtkenv  # noqa: F401
 from .builders import build_scene, empty_layer_reasons, refresh_scene
@@ -221,9 +223,13 @@ class MainWindow(QtWidgets.QMainWindow):
         self._job = 0
         self._worker = None
         self._stop = threading.Event()
-        #: The next bench being computed in a worker thread (see _start_next_bench), and its worker.
+        #: The next bench being computed in a worker thread (see _start_next_bench), its worker, and the event
+        #: that cancels it (one per computation: a superseded one is told from the current one by it).
         self._next_bench = None
         self._next_bench_worker = None
+        self._next_bench_stop = threading.Event()
+        #: The next bench whose band and suggestions were last drawn.
+        self._next_bench_drawn = None
         self._pending_step: str | None = None
         self._queued_step: str | None = None
         #: Why the last run failed (``None``: it succeeded): the surfaces on screen are from an earlier run.
@@ -866,6 +872,9 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def request(self, step: str, immediate: bool = False) -> None:
         """Re-run from ``step`` (merged with any run not yet finished) after the debounce delay."""
+        # The run replaces the model the next bench is computed from: its band is stale from now on, and
+        # would keep a core busy through the debounce delay and the new run (seconds on Kennecott).
+        self._cancel_next_bench()
         steps = [s for s in (step, self._queued_step, self._pending_step) if s]
         self._queued_step = min(steps, key=STEPS.index)
         self._request_time = time.perf_counter()
@@ -876,12 +885,22 @@ class MainWindow(QtWidgets.QMainWindow):
             self._debounce.start()
 
     def _cancel(self) -> None:
-        """Stop the running job at its next step (its results are ignored from now on)."""
+        """Stop the running job and the next bench's at their next step (their results are ignored from now on)."""
         self._job = next(self._jobs)
         self._stop.set()
         if self._worker is not None:
             self._worker.quit()
             self._worker = None
+        self._cancel_next_bench()
+
+    def _cancel_next_bench(self) -> None:
+        """Stop computing the next bench at core's next step; what it computed is not drawn.
+
+        Its layers' next bench stays pending (or is replaced by the run to come), and is computed again
+        by :meth:`_start_next_bench` if it is still shown once no run is under way.
+        """
+        self._next_bench_stop.set()
+        self._next_bench = self._next_bench_worker = None
 
     def _start_queued(self) -> None:
         step, self._queued_step = self._queued_step, None
@@ -964,40 +983,55 @@ class MainWindow(QtWidgets.QMainWindow):
         if not shown or self.busy:  # a run under way replaces them: started again when it is done
             return
         nb = shown[0].next_bench
-        if not nb.pending or nb.error or nb is self._next_bench:
+        if nb.error or nb is self._next_bench:
             return
+        if nb.computed and nb is not self._next_bench_drawn:  # by a computation superseded after its last step
+            self._draw_next_bench(nb)
+            return
+        if not nb.pending:
+            return
+        # Cancelled by any newer request (_cancel_next_bench): core stops at its next step, and the old
+        # computation's result, should it still come, is told apart by its event and never drawn.
+        stop = self._next_bench_stop = threading.Event()
         self._next_bench, started = nb, time.perf_counter()
         self.statusBar().showMessage("computing the next bench's uncertainty band and suggested holes...")
         self.progress_bar.setRange(0, 0)  # busy: core says nothing of its progress
         worker = create_worker(
             nb.compute,
+            cancelling(stop.is_set),
             _start_thread=False,
-            _connect={"errored": lambda exc, nb=nb: self._on_next_bench(nb, started, exc)},
+            _connect={"errored": lambda exc, nb=nb, stop=stop: self._on_next_bench(nb, stop, started, exc)},
         )
-        worker.returned.connect(lambda _, nb=nb: self._on_next_bench(nb, started))
+        worker.returned.connect(lambda _, nb=nb, stop=stop: self._on_next_bench(nb, stop, started))
         self._next_bench_worker = worker
         worker.start()
 
-    def _on_next_bench(self, nb, started: float, exc: Exception | None = None) -> None:
-        """Draw the next bench just computed, unless a newer result replaced it (then start that one's)."""
-        if nb is self._next_bench:
-            self._next_bench = self._next_bench_worker = None
-            if not self.busy:
-                self.progress_bar.setRange(0, 100)
-                self.progress_bar.setValue(100)
-        layers = [layer for layer in self._next_bench_layers() if layer.next_bench is nb]
-        if not layers:  # stale: parameters or the selection changed meanwhile
-            self._start_next_bench()
+    def _on_next_bench(self, nb, stop: threading.Event, started: float, exc: Exception | None = None) -> None:
+        """Draw the next bench just computed, unless a newer request superseded it (then start the shown one's)."""
+        if stop.is_set():  # superseded: stale, whether core stopped or had finished
+            return
+        self._next_bench = self._next_bench_worker = None
+        if not self.busy:
+            self.progress_bar.setRange(0, 100)
+            self.progress_bar.setValue(100)
+        if not any(layer.next_bench is nb for layer in self._next_bench_layers()):
+            self._start_next_bench()  # replaced meanwhile without a request (none does today): the shown one's
             return
         if exc is not None:
             nb.error = f"{type(exc).__name__}: {exc}"
             self.statusBar().showMessage(f"the next bench failed: {nb.error}")
             return
+        self._draw_next_bench(nb, started)
+
+    def _draw_next_bench(self, nb, started: float | None = None) -> None:
+        """Tell the layers of ``nb`` (computed) that their data changed; say how long it took if ``started``."""
         with self.renderer.batch():
-            for layer in layers:
-                layer._emit("data")
+            for layer in self._next_bench_layers():
+                if layer.next_bench is nb:
+                    layer._emit("data")
+        self._next_bench_drawn = nb
         self._on_layer_row(None)  # the budget slider's range: the suggestions' count
-        if not self.busy:
+        if not self.busy and started is not None:
             seconds = time.perf_counter() - started
             self.statusBar().showMessage(f"next bench's band and suggested holes: done in {seconds:.2f} s")
         self.nextBenchShown.emit()
@@ -1010,6 +1044,8 @@ class MainWindow(QtWidgets.QMainWindow):
         what = str(exc) if isinstance(exc, RunFailed) else f"{type(exc).__name__}: {exc}"
         self._failure = what
         self.statusBar().showMessage(f"failed: {what}")
+        # The request cancelled the next bench of what is still on screen: computed again (not drawn until then).
+        self._start_next_bench()
 
     def _show_translation(self) -> None:
         t = self.model.current_translation_m()
@@ -1310,8 +1346,8 @@ class MainWindow(QtWidgets.QMainWindow):
         if not self._confirm_discard():
             event.ignore()
             return
-        self._cancel()  # let a running worker stop
-        # and wait for it (it stops at its next step): a worker still running when Python exits
+        self._cancel()  # let the running workers stop (the run and the next bench)
+        # and wait for them (they stop at core's next step): a worker still running when Python exits
         # finds its signals deleted and prints a traceback.
         QtCore.QThreadPool.globalInstance().waitForDone(CLOSE_WAIT_MS)
         self._play.stop()

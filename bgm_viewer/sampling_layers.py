@@ -5,7 +5,9 @@ Both draw one :class:`NextBench`, computed by ``core`` (:mod:`core.model.uncerta
 scene rebuilt without showing them costs nothing. The window defers it
 (``deferred``): its layers draw nothing until the window's worker thread has
 run :meth:`NextBench.compute` (1-3.5 s on Kennecott, a frozen window on its
-own thread), then are told their data changed:
+own thread), then are told their data changed. A newer request cancels that
+computation through its ``progress`` (:func:`core.threads.cancelling`): it
+stops at core's next step and leaves the next bench pending, not half computed:
 
 * :class:`UncertaintyLayer` -- P(inside) as a colour map on the next bench's
   plane where it is uncertain (blue outside, red inside, white at one half),
@@ -21,6 +23,8 @@ from functools import cached_property
 
 import numpy as np
 import pyvista as pv
+
+from core.threads import Progress
 
 from . import _vtkenv  # noqa: F401  (must precede pyvista)
 from .layers import Layer, MeshItem, _colormap, _line_style, _xyz, polygon_rings, polylines
@@ -68,9 +72,25 @@ class NextBench:
         """Deferred and not computed yet: the layers draw nothing (computing would freeze the window)."""
         return self.deferred and not self.computed
 
-    def compute(self) -> NextBench:
-        """Compute the band and the suggestions (what the window runs off its thread); returns itself."""
-        _ = self.section, self.suggestions_m
+    def compute(self, progress: Progress | None = None) -> NextBench:
+        """Compute the band and the suggestions (what the window runs off its thread); returns itself.
+
+        Parameters
+        ----------
+        progress : callable, optional
+            ``progress(done, total)`` of each of core's steps (see
+            :func:`core.model.uncertainty.geozone_uncertainty`). Raising
+            :class:`core.threads.Cancelled` there (a superseded request, the window
+            closing) stops the computation at that step; the next bench then stays
+            :attr:`pending`, and a later ``compute`` starts again.
+        """
+        if self.computed:
+            return self
+        section = self._section(progress)
+        suggestions = self._suggestions(section, progress)
+        if progress:  # the last step: a request cancelled meanwhile keeps nothing
+            progress(1, 1)
+        vars(self).update(section=section, suggestions_m=suggestions)  # what the cached properties would hold
         return self
 
     @property
@@ -81,30 +101,38 @@ class NextBench:
     @cached_property
     def section(self):
         """:class:`core.model.uncertainty.SectionUncertainty` on the next bench (None without a model)."""
+        return self._section()
+
+    @cached_property
+    def suggestions_m(self) -> np.ndarray:
+        """Suggested holes, most informative first, ``(n, 2)`` local metres (up to :data:`MAX_BUDGET`)."""
+        return self._suggestions(self.section)
+
+    def _section(self, progress: Progress | None = None):
         from core.model.uncertainty import geozone_uncertainty, section_uncertainty
 
         fields = getattr(self.model, "fields", None)
         if fields is None or len(fields.z_m) < 2:
             return None
         if self.session is not None:  # as core.model.build.write_sampling: a band drawn as it is written
-            return geozone_uncertainty(self.session, self.model.geozone, [self.z_m], self.model, self.probability)[
-                self.z_m
-            ]
-        return section_uncertainty(fields, self.z_m, self.holes.hole_spacing_m, self.probability)
+            sections = geozone_uncertainty(
+                self.session, self.model.geozone, [self.z_m], self.model, self.probability, progress
+            )
+            return sections[self.z_m]
+        return section_uncertainty(fields, self.z_m, self.holes.hole_spacing_m, self.probability, progress=progress)
 
-    @cached_property
-    def suggestions_m(self) -> np.ndarray:
-        """Suggested holes, most informative first, ``(n, 2)`` local metres (up to :data:`MAX_BUDGET`)."""
+    def _suggestions(self, section, progress: Progress | None = None) -> np.ndarray:
         from core.model.sampling import next_bench_candidates, suggest_holes
 
-        if self.section is None:
+        if section is None:
             return np.zeros((0, 2))
         try:
             candidates = next_bench_candidates(self.holes)
         except ValueError:
             return np.zeros((0, 2))
-        budget = min(int(self.section.in_band(candidates).sum()), MAX_BUDGET) if len(candidates) else 0
-        chosen = suggest_holes({self.model.geozone: self.section}, candidates, budget, self.holes.hole_spacing_m)
+        budget = min(int(section.in_band(candidates).sum()), MAX_BUDGET) if len(candidates) else 0
+        spacing = self.holes.hole_spacing_m
+        chosen = suggest_holes({self.model.geozone: section}, candidates, budget, spacing, progress)
         return np.array([s.xy_m for s in chosen], float).reshape(-1, 2)
 
 

@@ -17,6 +17,29 @@ from typing import TypeVar
 
 Item = TypeVar("Item")
 Result = TypeVar("Result")
+#: ``progress(done, total)``: told as each step of a piece of work is done; it may raise :class:`Cancelled`.
+Progress = Callable[[int, int], None]
+
+
+class Cancelled(Exception):
+    """Work whoever asked for it no longer wants: raised from its ``progress`` callback, it stops at that step."""
+
+
+def cancelling(cancelled: Callable[[], bool], progress: Progress | None = None) -> Progress:
+    """A ``progress(done, total)`` that raises :class:`Cancelled` once ``cancelled()`` is true.
+
+    Until then the counts go on to ``progress`` (if any). What a thread cannot
+    be told by a signal, it is told at its next step: the engine calls
+    ``progress`` between steps, so the work stops there.
+    """
+
+    def told(done: int, total: int) -> None:
+        if cancelled():
+            raise Cancelled()
+        if progress is not None:
+            progress(done, total)
+
+    return told
 
 
 def available_cores() -> int:
@@ -33,7 +56,8 @@ def on_threads(
     On ``threads`` threads (default: one per available core); one after
     another, in order, with one item or one core. A caller that stops early
     (an error, a cancelled viewer run) waits for the items begun and drops
-    the others.
+    the others: items that take seconds should stop at their next step too,
+    by the caller's ``progress`` raising :class:`Cancelled` in them.
     """
     todo = list(items)
     threads = min(len(todo), threads or available_cores())

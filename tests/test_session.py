@@ -7,6 +7,7 @@ again, never served stale, when the input, a parameter or the code did.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 
 import numpy as np
@@ -112,6 +113,45 @@ def test_the_uncertainty_of_a_prediction_is_read_back_and_follows_the_parameters
     changed = _session(holes, tmp_path, entropy_threshold=0.2)
     geozone_uncertainty(changed, "g1", z)
     assert _computed(changed)["uncertainty"] == 1
+
+
+def _told_at_least(told: list, steps: int) -> bool:
+    return len(told) >= steps
+
+
+def _tell(told: list, done: int, total: int) -> None:
+    told.append((done, total))
+
+
+def test_a_band_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing_half_done(holes, tmp_path):
+    """The viewer computes the next bench's band on a worker thread (1-3.5 s on Kennecott). A geologist who moved
+    a slider again, chose another geozone or closed the window had it run to its end: core took no word of it.
+    Core now tells ``progress`` each step (the benches backtested, here the other geozones' too as g1's own
+    backtest is too short, the fit's iterations); raised there, ``Cancelled`` stops the band at that step."""
+    from core.model import uncertainty
+    from core.threads import Cancelled, cancelling
+
+    z = [float(holes.bench_levels_m[-1]) - 5.0]
+    told: list[tuple[int, int]] = []
+    whole = uncertainty.geozone_uncertainty(
+        _session(holes, tmp_path / "whole"), "g1", z, progress=lambda done, total: told.append((done, total))
+    )[z[0]]
+    assert whole.scale.source == "pooled backtest"
+    fit = [i for i, (_, total) in enumerate(told) if total == uncertainty.FIT_MAX_ITERATIONS]
+    assert fit and len(told[: fit[0]]) >= 3  # benches of three geozones' backtests, then the fit's iterations
+
+    for steps in (1, fit[0] + 2):  # cancelled in g1's own backtest, then two iterations into the fit
+        session = _session(holes, tmp_path / f"cancelled-{steps}")
+        seen: list[tuple[int, int]] = []
+        stopping = cancelling(functools.partial(_told_at_least, seen, steps), functools.partial(_tell, seen))
+        with pytest.raises(Cancelled):
+            uncertainty.geozone_uncertainty(session, "g1", z, progress=stopping)
+        assert seen == told[:steps]  # stopped at the step it was told it was no longer wanted, not later
+        assert "uncertainty" not in _computed(session)  # nothing half done stored
+        if steps == 1:
+            assert "backtest" not in _computed(session)
+        again = uncertainty.geozone_uncertainty(session, "g1", z)[z[0]]  # asked again: computed whole
+        assert np.array_equal(again.sigma, whole.sigma) and np.array_equal(again.field, whole.field)
 
 
 def test_a_changed_hole_label_recomputes_its_bench_and_what_follows(holes, tmp_path):

@@ -130,3 +130,43 @@ def test_bgm_view_draws_the_next_bench_layers_offscreen(layer, tmp_path):
     else:  # the probability map, red to blue; the axes' own colours take a few hundred pixels
         drawn = img.max(axis=1) - img.min(axis=1) > 80
     assert drawn.sum() > (500 if layer == "suggested holes" else 20_000)
+
+
+def test_a_superseded_next_bench_stops_at_cores_next_step_and_is_computed_whole_when_asked_again(viewer_model):
+    """The window computes the next bench on a worker thread; a newer request (a slider moved again, another
+    geozone, the window closed) let it run to its end, a core busy for 1-3.5 s on Kennecott. Cancelled through
+    its progress, it stops at core's next step and stays pending, with nothing half computed kept."""
+    import threading
+
+    from core.model.session import ModelSession, StageStore
+    from core.threads import Cancelled, cancelling
+
+    m, res = viewer_model, viewer_model.result
+
+    def fresh():  # the model's session with nothing stored yet: the band computed from its start
+        return ModelSession(m.holes, res.session.params, res.session.project, StageStore(None))
+
+    steps: list[tuple[int, int]] = []
+    NextBench(m.holes, res.model, session=fresh(), deferred=True).compute(
+        lambda done, total: steps.append((done, total))
+    )
+    assert len(steps) > 10  # the band's backtests and fit, the suggested holes: each step told
+
+    for told in (1, len(steps) - 1):  # superseded as it begins, and at its last step (after the suggested holes)
+        nb = NextBench(m.holes, res.model, session=fresh(), deferred=True)
+        stop, seen = threading.Event(), []
+
+        def tell(done, total, seen=seen, stop=stop, told=told):
+            seen.append((done, total))
+            if len(seen) == told:
+                stop.set()  # what the window does when a newer request comes
+
+        with pytest.raises(Cancelled):
+            nb.compute(cancelling(stop.is_set, tell))
+        assert len(seen) == told  # not a step further
+        assert nb.pending and not nb.computed and not {"section", "suggestions_m"} & set(vars(nb))
+        assert UncertaintyLayer(nb).build() == [] and SuggestedHolesLayer(nb).build() == []  # nothing stale drawn
+        nb.compute()  # asked again (its model still on screen): computed whole
+        whole = NextBench(m.holes, res.model, session=res.session)
+        assert nb.section.band.equals(whole.section.band)
+        np.testing.assert_allclose(nb.suggestions_m, whole.suggestions_m)

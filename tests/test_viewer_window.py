@@ -902,3 +902,60 @@ def test_the_next_bench_is_computed_off_the_windows_thread_and_a_stale_one_is_no
     assert drawn.section.band.equals(same.section.band)
     np.testing.assert_allclose(drawn.section.inside_probability, same.section.inside_probability)
     np.testing.assert_allclose(drawn.suggestions_m, same.suggestions_m)
+
+
+def test_a_band_superseded_by_a_slider_or_the_window_closing_stops_and_is_never_drawn(window, qtbot, monkeypatch):
+    """The next bench's band went on to its end after a newer request (1-3.5 s of a core on Kennecott), and one
+    whose slider was moved again was drawn while the new run had not yet replaced the model on screen. A request
+    now cancels it at core's next step; its result is not drawn, and closing the window stops it too."""
+    import threading
+
+    import bgm_viewer.app as app
+    from core.model import uncertainty
+
+    gate, ends = threading.Event(), []
+    real = uncertainty.geozone_uncertainty
+
+    def held(*args, **kw):  # core's band, held until the test lets it go; how it ended is recorded
+        gate.wait(10)
+        try:
+            out = real(*args, **kw)
+        except Exception as exc:
+            ends.append(type(exc).__name__)
+            raise
+        ends.append("finished")
+        return out
+
+    run_gate = threading.Event()
+    compute = app.compute
+
+    def held_run(*args, **kw):  # the new run, held before its first result: the old model stays on screen
+        run_gate.wait(10)
+        yield from compute(*args, **kw)
+
+    monkeypatch.setattr(uncertainty, "geozone_uncertainty", held)
+    monkeypatch.setattr(app, "compute", held_run)
+    shown = []
+    window.nextBenchShown.connect(lambda: shown.append(window.scene["uncertainty"].next_bench))
+    window.set_layer_visible("uncertainty", True)
+    qtbot.waitUntil(lambda: window._next_bench is not None, timeout=10_000)
+    old = window._next_bench
+    window.set_param("entropy_threshold", 0.2)  # a slider moved: a new run
+    qtbot.waitUntil(lambda: window._pending_step is not None, timeout=10_000)
+    gate.set()  # the old band computes on, while the new run waits
+    qtbot.waitUntil(lambda: bool(ends), timeout=30_000)
+    qtbot.wait(200)  # its result, had it one, reaches the window
+    assert ends == ["Cancelled"] and shown == []  # stopped at core's next step, and nothing stale drawn
+    assert window.scene["uncertainty"].next_bench is old and not window.renderer.actors["uncertainty"]
+
+    with qtbot.waitSignal(window.nextBenchShown, timeout=120_000):
+        run_gate.set()  # the new run, then its own band
+    assert ends == ["Cancelled", "finished"] and shown[-1].model is window.model.result.model is not old.model
+
+    gate.clear()
+    window._select(geozone="g2", bench=0, component=0)  # another geozone, its band computing when the window closes
+    qtbot.waitUntil(lambda: window._next_bench is not None and not window.busy, timeout=60_000)
+    threading.Timer(0.2, gate.set).start()
+    window.model.dirty = False  # no prompt for the slider's change
+    window.close()  # waits for the workers: the band stops at its next step, not at its end
+    assert ends[-1] == "Cancelled" and shown[-1].model.geozone != "g2"

@@ -39,7 +39,7 @@ from scipy.spatial import cKDTree
 
 from core.io.blastholes import median_hole_spacing
 from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty
-from core.threads import on_threads
+from core.threads import Progress, on_threads
 
 #: Reach of a revealed label's correction of the predicted section (:func:`revealed_field`), in hole
 #: spacings: a label corrects the boundary about two holes around it (chosen on tuning seeds,
@@ -197,6 +197,7 @@ def suggest_holes(
     candidates_m: np.ndarray,
     budget: int,
     hole_spacing_m: float,
+    progress: Progress | None = None,
 ) -> list[Suggestion]:
     """Choose ``budget`` of the candidates whose labels would most reduce the sections' uncertainty.
 
@@ -211,6 +212,9 @@ def suggest_holes(
         Holes to choose (at most ``n``).
     hole_spacing_m : float
         Sets how far a chosen hole makes its neighbours redundant (:data:`REDUNDANCY_SPACINGS`).
+    progress : callable, optional
+        ``progress(chosen, budget)`` after each hole chosen; raising :class:`core.threads.Cancelled`
+        there stops the choice (a viewer's superseded request).
 
     Returns
     -------
@@ -246,6 +250,8 @@ def suggest_holes(
         info[:, near] *= 1.0 - w
         score += weights[:, near] @ (info[:, near].sum(axis=0) - before)
         score[c] = -np.inf
+        if progress:
+            progress(len(chosen), min(int(budget), len(xy)))
     return chosen
 
 

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -66,6 +67,7 @@ from core.model.movement import fastest_movement_m, last_observations
 from core.model.pipeline import GeozoneModel
 from core.model.prediction import predict_geozone
 from core.model.trend import DepthTrend
+from core.threads import Progress
 
 #: Default probability that the band holds the true boundary.
 DEFAULT_PROBABILITY = 0.9
@@ -90,6 +92,8 @@ MIN_BACKTEST_BENCHES = 2
 MIN_BACKTEST_POINTS = 30
 #: Weight of a backtest relative to one made knowing one bench more (see :func:`fit_scale`).
 RECENCY = 0.25
+#: Most iterations of the scale's fit (scipy's L-BFGS-B default, named: the fit tells its progress out of it).
+FIT_MAX_ITERATIONS = 15000
 #: Neighbourhood over which the consistency of the movement is measured, in hole spacings.
 CONSISTENCY_SPACINGS = 3.0
 #: A change of the signed distance faster than this many bench heights per bench is a body appearing or
@@ -290,7 +294,11 @@ def noise_ring_area_m2(hole_spacing_m: float) -> float:
 
 
 def backtest(
-    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, depths: Sequence[int] = BACKTEST_DEPTHS
+    fields: BenchFields,
+    bench_height_m: float,
+    hole_spacing_m: float,
+    depths: Sequence[int] = BACKTEST_DEPTHS,
+    progress: Progress | None = None,
 ) -> Backtest:
     """Predict each known bench from the benches above it and measure the errors at its true boundary.
 
@@ -303,6 +311,8 @@ def backtest(
     nothing), with the scale's terms there. Nothing below the predicting
     bench is used. Predictions from a single bench (which hold it:
     no movement is known yet) are kept apart, ``known == 1``, for the prior.
+    ``progress(done, total)`` is told as each bench is backtested (it may raise
+    :class:`core.threads.Cancelled` to stop there).
     """
     parts = []
     grid = fields.grid
@@ -328,6 +338,8 @@ def backtest(
             sampled = np.column_stack([grid.sample(terms[..., t], seen) for t in range(terms.shape[-1])])
             n = len(seen)
             parts.append(Backtest(error, sampled, np.full(n, j), np.full(n, m), np.full(n, j - m + 1)))
+        if progress:
+            progress(j, len(fields.z_m) - 1)
     return Backtest.concat(parts)
 
 
@@ -343,7 +355,12 @@ def _negative_log_likelihood(log_v: np.ndarray, t2: np.ndarray, e2: np.ndarray) 
     return float(np.sum(np.log(var) + e2 / var))
 
 
-def fit_scale(samples: Backtest, probability: float = DEFAULT_PROBABILITY, source: str = "own backtest"):
+def fit_scale(
+    samples: Backtest,
+    probability: float = DEFAULT_PROBABILITY,
+    source: str = "own backtest",
+    progress: Progress | None = None,
+):
     """Coefficients of the scale fitted to backtest errors, calibrated to hold ``probability`` of them.
 
     First the shape: maximum likelihood of ``error ~ N(0, sigma^2)`` over the
@@ -352,14 +369,23 @@ def fit_scale(samples: Backtest, probability: float = DEFAULT_PROBABILITY, sourc
     multiplied by ``quantile(|error| / sigma, probability) / z_q``, so that
     exactly the share ``probability`` of the backtest points lies within
     ``z_q sigma`` of the predicted boundary, whatever the tails.
+    ``progress(iteration, FIT_MAX_ITERATIONS)`` is told after each iteration of
+    the fit (half a second on Kennecott: a cancelled band stops within it).
     """
     t2 = samples.terms_m**2
     e2 = samples.error_m**2
     start = np.log(np.maximum(np.asarray(FIT_START, float) ** 2, 1e-4))
     from scipy import optimize  # only when fitting: it takes a tenth of a second to import
 
+    iterations = itertools.count(1)
     result = optimize.minimize(
-        _negative_log_likelihood, start, args=(t2, e2), method="L-BFGS-B", bounds=[(-18.0, 6.0)] * len(TERMS)
+        _negative_log_likelihood,
+        start,
+        args=(t2, e2),
+        method="L-BFGS-B",
+        bounds=[(-18.0, 6.0)] * len(TERMS),
+        options={"maxiter": FIT_MAX_ITERATIONS},
+        callback=(lambda _: progress(next(iterations), FIT_MAX_ITERATIONS)) if progress else None,
     )
     coefficients = np.sqrt(np.exp(result.x))
     sigma = np.sqrt(np.maximum(t2 @ coefficients**2, 1e-12))
@@ -384,6 +410,7 @@ def calibrate(
     own: Backtest,
     pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
     probability: float = DEFAULT_PROBABILITY,
+    progress: Progress | None = None,
 ) -> UncertaintyScale:
     """The geozone's :class:`UncertaintyScale`, from the best backtest there is.
 
@@ -398,10 +425,12 @@ def calibrate(
     3. all of those including predictions from a single bench, which hold
        it: a prior from how far the input's boundaries move per bench;
     4. :data:`PRIOR_COEFFICIENTS`, not calibrated.
+
+    ``progress`` is told the fit's iterations (:func:`fit_scale`).
     """
     own_trended = own.subset(own.known >= 2)
     if _enough([own_trended]):
-        return _fitted([own_trended], probability, "own backtest")
+        return _fitted([own_trended], probability, "own backtest", progress)
     others = list(pooled() if callable(pooled) else pooled)
     candidates = (
         ("pooled backtest", [own_trended, *(b.subset(b.known >= 2) for b in others)]),
@@ -409,7 +438,7 @@ def calibrate(
     )
     for source, parts in candidates:
         if _enough(parts):
-            return _fitted(parts, probability, source)
+            return _fitted(parts, probability, source, progress)
     return UncertaintyScale(PRIOR_COEFFICIENTS, "prior", 0, 0)
 
 
@@ -418,8 +447,8 @@ def _enough(parts: Sequence[Backtest]) -> bool:
     return sum(p.benches for p in parts if len(p.error_m)) >= MIN_BACKTEST_BENCHES and points >= MIN_BACKTEST_POINTS
 
 
-def _fitted(parts: Sequence[Backtest], probability: float, source: str) -> UncertaintyScale:
-    scale = fit_scale(Backtest.concat(parts), probability, source)
+def _fitted(parts: Sequence[Backtest], probability: float, source: str, progress=None) -> UncertaintyScale:
+    scale = fit_scale(Backtest.concat(parts), probability, source, progress)
     benches = sum(p.benches for p in parts if len(p.error_m))
     return UncertaintyScale(scale.coefficients, source, scale.points, benches)
 
@@ -537,15 +566,21 @@ def direction_scale(
     hole_spacing_m: float,
     probability: float = DEFAULT_PROBABILITY,
     pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
+    progress: Progress | None = None,
 ) -> UncertaintyScale:
-    """The calibrated scale of predictions below the deepest bench (``down``) or above the top one."""
-    return calibrate(direction_backtest(fields, down, hole_spacing_m), pooled, probability)
+    """The calibrated scale of predictions below the deepest bench (``down``) or above the top one.
+
+    ``progress`` is told the benches backtested, then the fit's iterations.
+    """
+    return calibrate(direction_backtest(fields, down, hole_spacing_m, progress), pooled, probability, progress)
 
 
-def direction_backtest(fields: BenchFields, down: bool, hole_spacing_m: float) -> Backtest:
+def direction_backtest(
+    fields: BenchFields, down: bool, hole_spacing_m: float, progress: Progress | None = None
+) -> Backtest:
     """:func:`backtest` of extrapolating ``fields`` downwards (``down``) or upwards, at their bench height."""
     used = _direction(fields, down)
-    return backtest(used, used.bench_height_m, hole_spacing_m)
+    return backtest(used, used.bench_height_m, hole_spacing_m, progress=progress)
 
 
 def _sigma(used: BenchFields, z_m: float, hole_spacing_m: float, scale: UncertaintyScale) -> np.ndarray:
@@ -562,6 +597,7 @@ def section_uncertainty(
     pooled: Sequence[Backtest] | Callable[[], Sequence[Backtest]] = (),
     region=None,
     scales: dict[bool, UncertaintyScale] | None = None,
+    progress: Progress | None = None,
 ) -> SectionUncertainty | None:
     """The predicted section at ``z_m`` with its calibrated uncertainty (None at a bench level).
 
@@ -589,6 +625,9 @@ def section_uncertainty(
         predicted from the fields (:func:`predicted_region`, outside the benches only).
     scales : dict, optional
         Scales already calibrated, by direction (``True``: down); filled in as calibrated.
+    progress : callable, optional
+        ``progress(done, total)`` of each step as it runs (the benches of a backtest,
+        the iterations of its fit); raising :class:`core.threads.Cancelled` there stops the work.
 
     Returns
     -------
@@ -603,7 +642,7 @@ def section_uncertainty(
     sigmas = []
     for down in ways:
         if down not in scales:
-            scales[down] = direction_scale(fields, down, hole_spacing_m, probability, pooled)
+            scales[down] = direction_scale(fields, down, hole_spacing_m, probability, pooled, progress)
         # Between benches each direction extrapolates only the benches on its side.
         known = _direction(fields, down).through(z_m)
         sigmas.append((_sigma(known, z_m, hole_spacing_m, scales[down]), scales[down]))
@@ -688,11 +727,14 @@ def band_width_m(section: SectionUncertainty, within=None) -> float:
 # On a session: the geozones of one input, with backtests kept with the other stage results
 
 
-def session_backtest(session, geozone: str, down: bool = True, model: GeozoneModel | None = None) -> Backtest:
+def session_backtest(
+    session, geozone: str, down: bool = True, model: GeozoneModel | None = None, progress: Progress | None = None
+) -> Backtest:
     """The geozone's backtest (:func:`backtest`) in one direction, memoised in the session's store.
 
     ``session`` is a :class:`core.model.session.ModelSession`; the key hashes
     the geozone's bench fields, so a changed bench or parameter is backtested again.
+    ``progress`` is told the benches backtested (a backtest it stops is not stored).
     """
     from core.io.cache import content_key, engine_fingerprint
 
@@ -703,12 +745,12 @@ def session_backtest(session, geozone: str, down: bool = True, model: GeozoneMod
         fields = session.bench_fields(geozone, own)
     spacing = float(session.holes.hole_spacing_m)
     key = content_key("backtest", engine_fingerprint(), fields.z_m, fields.distance, fields.drilled, spacing, down)
-    return session.store.get("backtest", key, lambda: direction_backtest(fields, down, spacing))
+    return session.store.get("backtest", key, lambda: direction_backtest(fields, down, spacing, progress))
 
 
-def _backtests(session, geozones: list[str], down: bool) -> list[Backtest]:
+def _backtests(session, geozones: list[str], down: bool, progress: Progress | None = None) -> list[Backtest]:
     session.contours_of(geozones)  # traced together: each bench's evidence once for all of them
-    return [session_backtest(session, g, down) for g in geozones]
+    return [session_backtest(session, g, down, progress=progress) for g in geozones]
 
 
 def geozone_uncertainty(
@@ -717,6 +759,7 @@ def geozone_uncertainty(
     z_m: Sequence[float],
     model: GeozoneModel | None = None,
     probability: float = DEFAULT_PROBABILITY,
+    progress: Progress | None = None,
 ) -> dict[float, SectionUncertainty | None]:
     """The calibrated uncertainty of the geozone's predicted section at each elevation (metres).
 
@@ -729,6 +772,12 @@ def geozone_uncertainty(
         The geozone's model (computed by the session when omitted).
     probability : float
         The band's probability of holding the true boundary.
+    progress : callable, optional
+        ``progress(done, total)`` of each step as it runs: the geozone's model (bench
+        pairs, when not given), its backtests (benches; the other geozones' too when
+        they are pooled), the fit (iterations), the sections. A callback that raises
+        (:class:`core.threads.Cancelled`: a viewer's superseded band) stops the work
+        at that step, and nothing half done is stored.
 
     Returns
     -------
@@ -745,30 +794,37 @@ def geozone_uncertainty(
     """
     if not 0 < probability < 1:
         raise ValueError(f"the band's probability must lie between 0 and 1, got {probability}")
-    model = model or session.geozone_model(geozone)
+    model = model or session.geozone_model(geozone, progress=progress)
     z_m = [float(z) for z in z_m]
     if model.fields is None or not len(model.fields.z_m):
         return dict.fromkeys(z_m)
     fields = model.fields
     key = session.uncertainty_key(model, z_m, probability)
-    return session.store.get("uncertainty", key, lambda: _sections(session, model, fields, z_m, probability))
+    return session.store.get("uncertainty", key, lambda: _sections(session, model, fields, z_m, probability, progress))
 
 
-def _sections(session, model: GeozoneModel, fields: BenchFields, z_m: list[float], probability: float) -> dict:
+def _sections(
+    session, model: GeozoneModel, fields: BenchFields, z_m: list[float], probability: float, progress=None
+) -> dict:
     """:func:`geozone_uncertainty` computed (its scales calibrated once per direction)."""
+    if progress:
+        progress(0, len(z_m))  # nothing begun yet: a band superseded while queued stops here
     geozone = model.geozone
     regions = session.predict(geozone, z_m, model)
     spacing = float(session.holes.hole_spacing_m)
     scales: dict[bool, UncertaintyScale] = {}
     out: dict[float, SectionUncertainty | None] = {}
     others = [g for g in session.holes.geozones if g != geozone]
-    for z in z_m:
+    for i, z in enumerate(z_m, start=1):
         for down in directions(fields, z):
             if down not in scales:
                 scales[down] = calibrate(
-                    session_backtest(session, geozone, down, model),
-                    functools.partial(_backtests, session, others, down),
+                    session_backtest(session, geozone, down, model, progress),
+                    functools.partial(_backtests, session, others, down, progress),
                     probability,
+                    progress,
                 )
         out[z] = section_uncertainty(fields, z, spacing, probability, region=regions.get(z), scales=scales)
+        if progress:
+            progress(i, len(z_m))
     return out
