@@ -59,7 +59,9 @@ from core.model.parameters import STAGES as CORE_STAGES
 from core.model.pipeline import BenchPair, GeozoneModel, modelled_contours
 from core.model.session import ModelSession, StageStore
 from core.morph.levelset import MorphResult
-from core.threads import on_threads
+
+# Cancelled: a newer request superseded a run; core's, so core's steps raise the same (long imported from here)
+from core.threads import Cancelled, cancelling, on_threads
 
 STEPS = ("contours", "snake", *CORE_STAGES[1:])
 #: What :meth:`ViewerModel.set_view` sets: the view settings a project saves besides the selection.
@@ -149,10 +151,6 @@ class PipelineResult:
         return cs[sel.component] if 0 <= sel.component < len(cs) else None
 
 
-class Cancelled(Exception):
-    """A newer request superseded this run."""
-
-
 @dataclass(frozen=True)
 class PipelineInputs:
     """An immutable snapshot of what a run needs (safe to hand to a worker thread)."""
@@ -210,6 +208,9 @@ class _Run:
     def __init__(self, inputs: PipelineInputs, previous: PipelineResult | None, cancelled):
         self.inputs = inputs
         self.session, self.sel, self.cancelled = inputs.session, inputs.selection, cancelled
+        #: Given to core's long steps (a geozone's model: seconds on Kennecott), which call it between their
+        #: own steps: a cancelled run stops there, not only between the run's steps.
+        self.progress: Callable[[int, int], None] = cancelling(cancelled)
         prev = previous or PipelineResult()
         # What is on screen stays there until it is redone (a picture that empties and
         # fills again at every slider step is harder to follow, and slower to draw);
@@ -258,6 +259,8 @@ def _timed(name: str, fn: Callable[[], object], error_key: str | None, timings: 
     t0 = time.perf_counter()
     try:
         return fn()
+    except Cancelled:
+        raise  # a superseded run is no error of its step
     except Exception as exc:
         if error_key is None:
             raise
@@ -423,7 +426,7 @@ def _morph_record(session: ModelSession, pair: BenchPair, sel: Selection) -> Mor
 def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
     """The selected geozone's whole model, its predictions below the deepest bench, and its surface."""
     session, g, res = run.session, run.sel.geozone, run.res
-    res.model = run.step("geozone model", lambda: session.geozone_model(g), "model")
+    res.model = run.step("geozone model", lambda: session.geozone_model(g, progress=run.progress), "model")
     res.session = session
     yield "model of the geozone", 0.85, run.snapshot()
     model = res.model
@@ -479,7 +482,8 @@ def _other_surfaces(run: _Run) -> Iterator[Progress]:
     others = [g for g in run.inputs.surface_geozones if g != run.sel.geozone]
     t0 = time.perf_counter()
     run.check()
-    surfaces = on_threads(functools.partial(_geozone_surface, run.session), others)
+    # The geozones begun stop at their next bench pair too: on_threads waits for them.
+    surfaces = on_threads(functools.partial(_geozone_surface, run.session, progress=run.progress), others)
     for i, (g, (mesh, timings, errors)) in enumerate(surfaces, start=1):
         run.res.timings.update(timings)
         run.res.errors.update(errors)
@@ -489,15 +493,19 @@ def _other_surfaces(run: _Run) -> Iterator[Progress]:
     run.res.timings["other surfaces"] = time.perf_counter() - t0
 
 
-def _geozone_surface(session: ModelSession, g: str) -> tuple[trimesh.Trimesh | None, dict, dict]:
+def _geozone_surface(
+    session: ModelSession, g: str, progress: Callable[[int, int], None] | None = None
+) -> tuple[trimesh.Trimesh | None, dict, dict]:
     """``g``'s model and surface, on a worker thread: ``(mesh, timings, errors)``, errors as messages.
 
     Timed as :meth:`_Run.step` times them, into dicts of its own: the window's
-    snapshots copy the run's while this thread would write them.
+    snapshots copy the run's while this thread would write them. ``progress``
+    goes to the model (:meth:`ModelSession.geozone_model`): a cancelled run stops it.
     """
     timings: dict[str, float] = {}
     errors: dict[str, str] = {}
-    model = _timed(f"model of {g}", functools.partial(session.geozone_model, g), f"model {g}", timings, errors)
+    model_of = functools.partial(session.geozone_model, g, progress=progress)
+    model = _timed(f"model of {g}", model_of, f"model {g}", timings, errors)
     mesh = None
     if model is not None and model.pairs:
         mesh = _timed(f"surface of {g}", functools.partial(session.surface, g, model), f"surface {g}", timings, errors)

@@ -348,3 +348,40 @@ def test_a_project_saved_in_another_folder_finds_its_input(tmp_path, monkeypatch
     model.save_project(tmp_path / "p.json")
     for project in ("sub/p.json", tmp_path / "p.json"):
         assert Path(project_input(project)).resolve() == (tmp_path / "holes.csv").resolve()
+
+
+@pytest.mark.parametrize("stage", ["selected geozone's model", "other geozones' surfaces"])
+def test_a_superseded_run_stops_inside_a_geozones_model_at_its_next_bench_pair(stage, monkeypatch):
+    """A run checked for a newer request only between its steps; a geozone's model is one step (every bench
+    pair corresponded and morphed: 5 s on Kennecott), and the other geozones' surfaces ran on to the end of
+    each one begun (9 s). Core's progress now raises the cancellation at the model's next bench pair."""
+    from bgm_viewer.model import Cancelled, ViewerModel, compute
+    from bgm_viewer.testing import small_holes
+    from core.model.session import ModelSession
+
+    corresponded: list[tuple[str, int]] = []
+    correspond = ModelSession.correspond
+
+    def recorded(self, pair, *args, **kwargs):
+        corresponded.append((pair.geozone, pair.upper))
+        return correspond(self, pair, *args, **kwargs)
+
+    monkeypatch.setattr(ModelSession, "correspond", recorded)
+    model = ViewerModel(small_holes(), cache=False)
+    model.select("g1", 0, 0)
+    assert model.inputs().surface_geozones == ("g1", "g2", "g3")
+
+    def superseded() -> bool:  # a newer request, once the model of `stage` has corresponded its first pair
+        if stage == "selected geozone's model":  # g1's bench pair 0 is corresponded first alone (the pair shown)
+            return corresponded.count(("g1", 0)) >= 2
+        return any(g != "g1" for g, _ in corresponded)
+
+    with warnings.catch_warnings(), pytest.raises(Cancelled):
+        warnings.simplefilter("ignore")
+        for _ in compute(model.inputs(), None, "contours", superseded):
+            pass
+    pairs = {g: [upper for zone, upper in corresponded if zone == g] for g in ("g1", "g2", "g3")}
+    if stage == "selected geozone's model":
+        assert pairs == {"g1": [0, 0], "g2": [], "g3": []}  # g1's second pair (bench 1) never begun
+    else:
+        assert pairs["g1"] == [0, 0, 1] and pairs["g2"] == [0]  # g2 has two pairs: stopped after its first
