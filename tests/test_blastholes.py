@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -224,6 +225,135 @@ def test_kennecott_with_300_holes_at_rl_0_reads_as_without_them(kennecott_csv, t
         without = read_blastholes(write(tmp_path, table.drop(index=rows), name="without.csv"))
     assert np.array_equal(holes.bench_levels_m, without.bench_levels_m) and holes.n_benches == 7
     assert np.array_equal(holes.hole_id, without.hole_id) and np.array_equal(holes.bench, without.bench)
+
+
+def demo_bench(level: float = 685.0) -> pd.DataFrame:
+    """One bench of the demo, as written (strings), its holes within half a bench of ``level``."""
+    demo = pd.read_csv(DEMO_CSV, dtype=str)
+    return demo[np.abs(demo.z.astype(float) - level) < 5.0].reset_index(drop=True)
+
+
+@pytest.mark.parametrize(("level", "missing"), [(685.0, "0"), (685.0, "-9999"), (0.0, "-9999")])
+def test_holes_with_their_elevation_missing_beside_a_single_bench_are_no_second_bench(tmp_path, level, missing):
+    """One bench and 300 holes with z written as 0 (or -9999) where it was missing read as two benches 685 apart,
+    with only a unit warning ('benches 685 units high would be feet ... read as metres'), and the model was built
+    between the bench and a made-up one. A plan at 0 with 300 holes at -9999 likewise."""
+    bench = demo_bench()
+    bench["z"] = (bench.z.astype(float) - 685.0 + level).map("{:.2f}".format) if level else "0"
+    rows = np.sort(np.random.default_rng(0).choice(len(bench), 300, replace=False))
+    table = bench.copy()
+    table.loc[rows, "z"] = missing
+    with pytest.warns(BGMWarning) as caught:
+        holes = read_blastholes(write(tmp_path, table))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        alone = read_blastholes(write(tmp_path, bench.drop(index=rows), name="alone.csv"))
+    assert holes.n_benches == 1 and np.array_equal(holes.bench_levels_m, alone.bench_levels_m)
+    assert np.array_equal(holes.hole_id, alone.hole_id) and np.isnan(holes.bench_height_m)
+    said = rf"300 hole\(s\) lie far above or below the only bench \(at z {level:g}[.\d]*\), at z {missing} \(data line"
+    assert any(re.match(said, str(w.message)) for w in caught), [str(w.message) for w in caught]
+    assert any(str(w.message).endswith("if they are a bench of their own, give --bench-height") for w in caught)
+
+
+def test_a_single_bench_with_more_than_a_quarter_of_its_holes_at_rl_0_is_refused_by_name(tmp_path):
+    """900 of a bench's 2,147 holes at RL 0 read as two benches; now refused, naming the group and the way out."""
+    table = demo_bench()
+    table.loc[np.random.default_rng(1).choice(len(table), 900, replace=False), "z"] = "0"
+    with pytest.raises(
+        BGMInputError,
+        match=r"900 of 2147 holes \(42%\) have elevations far off the benches \(at 0; the others from 684.5 to 685.5\)"
+        r".*if they are a bench of their own, give --bench-height$",
+    ):
+        read_blastholes(write(tmp_path, table))
+
+
+def test_kennecotts_floor_bench_with_300_holes_at_rl_0_reads_as_without_them(kennecott_csv, tmp_path):
+    """Kennecott's floor (267.8 ft) is 11.9 hole spacings above 0, its benches 2.2 high: alone with 300 holes at RL 0,
+    it read as two benches 267.8 ft apart ('feet guessed from the 267.8-unit bench height')."""
+    table = pd.read_csv(kennecott_csv, dtype=str, keep_default_na=False)
+    floor = table[np.abs(table.RL.astype(float) - 267.8) < 25.0].reset_index(drop=True)
+    rows = np.random.default_rng(0).choice(len(floor), 300, replace=False)
+    missing = floor.copy()
+    missing.loc[rows, "RL"] = "0"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = read_blastholes(write(tmp_path, missing))
+        alone = read_blastholes(write(tmp_path, floor.drop(index=rows), name="alone.csv"))
+    assert holes.n_benches == 1 and np.array_equal(holes.bench_levels_m, alone.bench_levels_m)
+    assert np.array_equal(holes.hole_id, alone.hole_id)
+    assert any("300 hole(s) lie far above or below the only bench (at z 267.78), at z 0" in n for n in holes.notes)
+
+
+@pytest.mark.parametrize("levels", [(0.0, -10.0), (0.0, -10.0, -20.0), (10.0, 0.0)])
+@pytest.mark.parametrize("scatter", [True, False])
+def test_real_benches_at_rl_0_on_a_local_datum_stay_benches(tmp_path, levels, scatter):
+    """A mine grid with its datum at a bench (0, -10, -20): the bench at exactly 0 is a bench, nothing left out."""
+    table = small_table(benches=levels)
+    if not scatter:
+        table["RL"] = np.round(table.RL / 10.0) * 10.0  # benches given at their levels: every hole at exactly 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)
+        holes = read_blastholes(write(tmp_path, table))
+    assert np.allclose(holes.bench_levels_m, levels, atol=0.5) and len(holes.xy) == len(table)
+    assert holes.bench_height_m == pytest.approx(10.0, abs=0.5)  # holes scatter +-1 m
+
+
+def test_a_bench_at_rl_0_far_below_the_only_other_is_kept_by_giving_the_bench_height(tmp_path):
+    """Two benches 80 m apart on a 6 m pattern (14 hole spacings), the lower at exactly 0: no pit drills a bench
+    that high, so the one at 0 is taken for missing elevations; the refusal (or warning) says how to keep it."""
+    table = small_table(benches=(80.0, 0.0))
+    table.loc[table.RL.abs() < 5.0, "RL"] = 0.0
+    with pytest.raises(BGMInputError, match=r"40 of 80 holes \(50%\) .* \(at 0; .*give --bench-height$"):
+        read_blastholes(write(tmp_path, table))
+    fewer = table.drop(index=table.index[table.RL == 0.0][:28])
+    with pytest.warns(BGMWarning, match=r"12 hole\(s\) lie far .* at z 0 .*give --bench-height$"):
+        assert read_blastholes(write(tmp_path, fewer)).n_benches == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)
+        holes = read_blastholes(write(tmp_path, table), bench_height=80.0, length_unit="m")
+    assert np.allclose(holes.bench_levels_m, [80.0, 0.0], atol=0.5) and len(holes.xy) == len(table)
+
+
+def test_a_single_bench_at_rl_0_reads_as_a_bench_without_a_word_on_missing_elevations(tmp_path):
+    """A local datum at the only bench: its holes scatter around 0, which is no missing elevation."""
+    with pytest.warns(BGMWarning) as caught:  # none expected, but a single bench's unit is assumed: not a warning
+        warnings.warn("sentinel", BGMWarning, stacklevel=1)
+        holes = read_blastholes(write(tmp_path, small_table(benches=(0.0,))))
+    assert [str(w.message) for w in caught] == ["sentinel"]
+    assert holes.n_benches == 1 and abs(holes.bench_levels_m[0]) < 0.5 and len(holes.xy) == 40
+
+
+def test_a_plan_with_every_elevation_0_reads_as_one_bench_and_says_so(tmp_path):
+    """A 2D table (z all 0) is one bench; if its holes came from several benches their elevations are missing, and
+    nothing said so: the benches' holes were stacked on one plan."""
+    table = small_table()
+    table["RL"] = 0.0
+    with pytest.warns(BGMWarning, match=r"every hole's elevation is 0: read as one bench \(a plan\); if the holes "):
+        holes = read_blastholes(write(tmp_path, table))
+    assert holes.n_benches == 1 and holes.bench_levels_m[0] == 0.0
+
+
+def test_a_few_holes_at_rl_0_beside_a_single_bench_are_named_as_missing_elevations(tmp_path):
+    """5 of a bench's 40 holes at RL 0 had the table refused ('elevations spread continuously over 686 units');
+    among more holes they were said to lie 'more than 30% of a bench height from every bench level', a height a
+    single bench does not have. Its strays are said to lie off the bench's elevations."""
+    table = small_table(benches=(685.0,))
+    table.loc[[0, 1, 2, 3, 4], "RL"] = 0.0
+    table.loc[5, "RL"] = 693.0
+    with pytest.warns(BGMWarning) as caught:
+        holes = read_blastholes(write(tmp_path, table))
+    said = [str(w.message) for w in caught]
+    assert any(
+        m.startswith("5 hole(s) lie far above or below the only bench (at z 685")
+        and "at z 0 (data line(s) 2, 3, 4, 5, 6): elevations missing (written as 0 or -9999)" in m
+        for m in said
+    ), said
+    assert any(
+        m.startswith("1 hole(s) lie off the only bench's elevations (") and "at z 693 (data line(s) 7)" in m
+        for m in said
+    )
+    assert not any("bench height from every" in m or "--bench-height" in m for m in said)
+    assert len(holes.xy) == 34
 
 
 def test_a_hole_far_from_every_other_of_its_bench_is_left_out(tmp_path):

@@ -29,6 +29,7 @@ from __future__ import annotations
 import re
 import unicodedata
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
@@ -80,6 +81,10 @@ FAR_LEVEL_BENCHES = 10.0
 MISSING_ELEVATIONS = frozenset({0.0, -99.0, -999.0, -9999.0, -99999.0})
 #: ... and lies more than this many bench heights from every bench (a real bench at RL 0 next to the others stays).
 MISSING_ELEVATION_BENCHES = 3.0
+#: ... or, beside a single bench (no bench height to measure by), more than this many of its hole spacings from it: a
+#: bench is drilled on a pattern of about its height (1.8 hole spacings on the demo, 2.2 on Kennecott, 1.0-2.9 on the
+#: synthetic drillings), so this is three benches of 3.3 spacings (Kennecott's floor is 11.9 spacings above 0).
+MISSING_ELEVATION_SPACINGS = 10.0
 #: A single cluster of elevations thicker than this many hole spacings is not one bench.
 MAX_BENCH_THICKNESS_SPACINGS = 5.0
 #: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
@@ -488,12 +493,8 @@ def blastholes_from_table(
 
     zin = coords["z"]
     levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=np.column_stack([coords["x"], coords["y"]]))
-    # Holes more than a bench height above or below every bench are no stray between benches: say what they are.
-    outside = off & ((zin < levels_in.min() - height_in) | (zin > levels_in.max() + height_in))
-    where = f"lie more than a bench height above or below every bench, at z {_far_values(zin[outside])}"
-    _left_out(notes, outside, lines, where, "elevations missing (written as 0 or -9999) or mistyped")
-    where = f"lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from every bench level"
-    _left_out(notes, off & ~outside, lines, where)
+    _note_missing_elevations(zin, notes)
+    _left_out_off_bench(notes, zin, off, levels_in, height_in, lines, given=bench_height is not None)
     far = _far_holes(np.column_stack([coords["x"], coords["y"]]), bench, ~off)
     where = f"lie more than {FAR_HOLE_SPACINGS:g} hole spacings from every other hole of their bench"
     _left_out(notes, far, lines, where, "x, y missing or mistyped")
@@ -544,6 +545,76 @@ def blastholes_from_table(
     return holes
 
 
+def _left_out_off_bench(
+    notes: list[str],
+    z: np.ndarray,
+    off: np.ndarray,
+    levels: np.ndarray,
+    height: float,
+    lines: np.ndarray,
+    given: bool,
+) -> None:
+    """Warn of the off-bench holes left out: those far above or below every bench (elevations missing or
+    mistyped), then the strays between or beside the benches.
+
+    Beside several benches the far ones lie more than a bench height beyond the top or the bottom one. A
+    single bench has no bench height: its far ones sit exactly at 0 or -9999 (:data:`MISSING_ELEVATIONS`),
+    the others off the elevations of its holes. 300 holes at 0 beside one bench at 685 were said to lie
+    "more than 30% of a bench height from every bench level", a height it does not have. When ten or more
+    far ones sit at one elevation they may be a bench of their own, which a bench height keeps: said, unless
+    one was ``given``.
+
+    Parameters
+    ----------
+    notes : list of str
+        The holes' notes, appended to.
+    z : (n,) float
+        Elevations, input units.
+    off : (n,) bool
+        Holes on no bench.
+    levels : (b,) float
+        Bench levels, input units.
+    height : float
+        Bench height, input units (nan for a single bench).
+    lines : (n,) int
+        Each hole's data line.
+    given : bool
+        Whether the bench height was given.
+    """
+    if len(levels) >= 2:
+        outside = off & ((z < levels.min() - height) | (z > levels.max() + height))
+        where = f"lie more than a bench height above or below every bench, at z {_far_values(z[outside])}"
+        strays = f"lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from every bench level"
+    else:
+        outside = off & np.isin(z, list(MISSING_ELEVATIONS))
+        where = f"lie far above or below the only bench (at z {levels[0]:g}), at z {_far_values(z[outside])}"
+        on = z[~off]
+        strays = (
+            f"lie off the only bench's elevations ({on.min():g} to {on.max():g}), at z {_far_values(z[off & ~outside])}"
+        )
+    one_level = outside.sum() >= 10 and np.ptp(z[outside]) == 0 and len(levels) == 1 and not given
+    then = "; if they are a bench of their own, give --bench-height" if one_level else ""
+    _left_out(
+        notes, outside, lines, where, "elevations missing (written as 0 or -9999) or mistyped", then, stacklevel=5
+    )
+    _left_out(notes, off & ~outside, lines, strays, stacklevel=5)
+
+
+def _note_missing_elevations(z: np.ndarray, notes: list[str]) -> None:
+    """Say so when every hole sits at 0 (or -9999): one bench, a plan, unless the table's elevations are missing.
+
+    A table without elevations (a plan of one bench, z written as 0) reads as one bench, as it should; but a
+    table of several benches whose z column was exported empty reads so too, its benches' holes stacked on one
+    plan (their positions merged, their labels in conflict) with nothing saying why.
+    """
+    if np.ptp(z) == 0 and float(z[0]) in MISSING_ELEVATIONS:
+        msg = (
+            f"every hole's elevation is {z[0]:g}: read as one bench (a plan); if the holes come from several "
+            "benches, their elevations are missing and the benches cannot be told apart: fill them in"
+        )
+        _note(notes, msg, stacklevel=4)
+
+
 def _far_holes(xy: np.ndarray, bench: np.ndarray, on: np.ndarray) -> np.ndarray:
     """Holes of ``on`` more than :data:`FAR_HOLE_SPACINGS` hole spacings from every other position of their bench.
 
@@ -566,12 +637,22 @@ def _far_holes(xy: np.ndarray, bench: np.ndarray, on: np.ndarray) -> np.ndarray:
     return far
 
 
-def _left_out(notes: list[str], left: np.ndarray, lines: np.ndarray, where: str, guess: str = "") -> None:
-    """Warn of the holes ``left`` out: how many, where they lie, their data lines and, if any, a likely cause."""
+def _left_out(
+    notes: list[str],
+    left: np.ndarray,
+    lines: np.ndarray,
+    where: str,
+    guess: str = "",
+    then: str = "",
+    stacklevel: int = 4,
+) -> None:
+    """Warn of the holes ``left`` out: how many, where they lie, their data lines, if any a likely cause, and
+    ``then`` what to do if they should not have been."""
     if not left.any():
         return
     said = f"{int(left.sum())} hole(s) {where} (data line(s) {_rows(np.flatnonzero(left), lines)})"
-    _note(notes, f"{said}: {guess}? they were left out" if guess else f"{said} and were left out", stacklevel=4)
+    msg = f"{said}: {guess}? they were left out" if guess else f"{said} and were left out"
+    _note(notes, msg + then, stacklevel=stacklevel)
 
 
 def _note(notes: list[str], msg: str, stacklevel: int) -> None:
@@ -922,16 +1003,20 @@ def detect_benches(
         big = [c for c in clusters if len(c) >= min_count]
     clusters = _split_hidden_benches(clusters, min_count, z, xy)
     big = [c for c in clusters if len(c) >= min_count]
-    apart = np.isin(z, _far_off_elevations(clusters, min_count, zs[len(zs) // 2], bench_height))
+    spacing = None if xy is None else (lambda part: median_hole_spacing(xy[(z >= part[0]) & (z <= part[-1])]))
+    apart = np.isin(z, _far_off_elevations(clusters, min_count, zs[len(zs) // 2], bench_height, spacing))
     if apart.any():
         # Many holes far off (300 of the demo's 11,211 at RL 0) are a cluster of their own, whose gap hid every gap
         # between the benches: all seven were read as one at 664.8 m. The benches are found without them.
         if apart.mean() > MAX_OFF_BENCH_SHARE:
+            # Without a bench height the far-off group was judged by the hole spacing, or against the others' own
+            # height: one given says how far apart the benches are drilled, and keeps a real bench that far off.
+            hint = "; if they are a bench of their own, give --bench-height" if bench_height is None else ""
             raise BGMInputError(
                 f"z does not form benches: {int(apart.sum())} of {len(z)} holes ({apart.mean():.0%}) have elevations "
                 f"far off the benches (at {_far_values(z[apart])}; the others from {np.min(z[~apart]):g} to "
                 f"{np.max(z[~apart]):g}): too many to leave out as missing (written as 0 or -9999) "
-                "or mistyped; fill in their elevations or drop those rows"
+                f"or mistyped; fill in their elevations or drop those rows{hint}"
             )
         levels, found, height, off = detect_benches(z[~apart], bench_height, None if xy is None else xy[~apart])
         bench, off_all = np.full(len(z), -1), apart.copy()
@@ -1021,7 +1106,11 @@ def _split_hidden_benches(
 
 
 def _far_off_elevations(
-    clusters: list[np.ndarray], min_count: int, median: float, bench_height: float | None
+    clusters: list[np.ndarray],
+    min_count: int,
+    median: float,
+    bench_height: float | None,
+    spacing: Callable[[np.ndarray], float] | None = None,
 ) -> np.ndarray:
     """Elevations of the groups of holes above or below the benches that are no bench: missing (0, -9999) or mistyped.
 
@@ -1034,8 +1123,8 @@ def _far_off_elevations(
     one or several benches below the pit floor is a bench and stays (whatever its size), as does a level at
     RL 0 next to the others. A group more than ten bench heights from the others (a second pit in the same
     table) is set apart too: its holes are then named in a warning, or the table refused when they are many.
-    Not judged without a bench height to measure by: one bench and a group at 0, two clusters in all, read
-    as two benches (with a warning on their height).
+    With no bench height to measure by (one bench and a group at 0, two clusters in all), the group at 0 or
+    -9999 is judged by the bench's hole spacing (see :func:`_missing_beside_one_bench`).
 
     Parameters
     ----------
@@ -1047,6 +1136,9 @@ def _far_off_elevations(
         The median elevation: its bench is never set apart.
     bench_height : float, optional
         Given bench height; else the median distance between the other benches.
+    spacing : callable, optional
+        A cluster's elevations -> the hole spacing of its holes (input units); without it, one bench and a
+        group at 0 read as two benches.
 
     Returns
     -------
@@ -1068,6 +1160,8 @@ def _far_off_elevations(
         centres = np.array([float(np.median(p)) for p in parts])
         gaps = np.diff(centres[[len(p) >= min_count for p in parts]])
         if bench_height is None and len(gaps) < 2:
+            if spacing is not None:
+                apart += _missing_beside_one_bench(parts, min_count, spacing)
             break
         # The widest gap left out: it may be the one to the group being judged (two benches, 300 holes at 0).
         height = bench_height or float(np.median(np.sort(gaps)[:-1]))
@@ -1087,6 +1181,50 @@ def _far_off_elevations(
         apart += parts[:low] + parts[high + 1 :]
         parts = parts[low : high + 1]
     return np.concatenate(apart) if apart else np.array([])
+
+
+def _missing_beside_one_bench(
+    parts: list[np.ndarray], min_count: int, spacing: Callable[[np.ndarray], float]
+) -> list[np.ndarray]:
+    """Groups of holes all at 0 or -9999 beside the only bench and far from it (``[]`` when there are none).
+
+    One bench and 300 holes whose elevation was written as 0 where it was missing read as two benches 685
+    units apart, with only a warning on the unit, and the model was built between a real bench and a made-up
+    one; 5 such holes among a bench's 40 had the table refused as elevations "spread continuously". With one
+    bench there is no bench height to measure the gap by, but its drilling pattern says how high it is (see
+    :data:`MISSING_ELEVATION_SPACINGS`): a group exactly on a value of :data:`MISSING_ELEVATIONS` more than
+    that many of the bench's hole spacings from it is no bench. A real bench at RL 0 beside another (a local
+    datum: 0 and -10) lies a bench height from it, a few spacings, and stays; so does any pair of benches when
+    neither sits exactly on such a value. When both do, the smaller is judged (the larger is the bench).
+
+    Parameters
+    ----------
+    parts : list of (k,) float
+        Sorted elevations, one cluster per bench (ascending).
+    min_count : int
+        Holes a cluster needs to be a bench on its own: one or two such clusters make the bench and the group.
+    spacing : callable
+        A cluster's elevations -> the hole spacing of its holes (input units, NaN when not measurable).
+
+    Returns
+    -------
+    list of (k,) float
+        The groups' elevations, or nothing.
+    """
+    on_code = [len(p) > 0 and p[0] == p[-1] and float(p[0]) in MISSING_ELEVATIONS for p in parts]
+    big = [k for k, p in enumerate(parts) if len(p) >= min_count]
+    benches = [k for k in big if not on_code[k]]
+    if not benches and big:  # every large group on a code (a plan at 0, a group at -9999): the largest is the bench
+        benches = [max(big, key=lambda k: len(parts[k]))]
+    groups = [k for k in range(len(parts)) if on_code[k] and k not in benches]
+    if len(benches) != 1 or not groups:
+        return []
+    bench = parts[benches[0]]
+    holes_apart = spacing(bench)
+    if not (np.isfinite(holes_apart) and holes_apart > 0):
+        return []
+    reach = MISSING_ELEVATION_SPACINGS * holes_apart
+    return [parts[k] for k in groups if abs(float(np.median(bench)) - float(parts[k][0])) > reach]
 
 
 def _far_values(z: np.ndarray) -> str:
