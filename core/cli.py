@@ -286,9 +286,12 @@ def progress_bar(description: str, unit: str = "steps"):
     Yields
     ------
     callable
-        ``update(done, total, description=None, unit=None)`` (a new unit
-        begins a new stage of lines), which also ends the command at its next
-        step after a Ctrl-C that a library caught and swallowed.
+        ``update(done, total, description=None, unit=None, run=None)`` (a
+        new unit begins a new stage of lines), which also ends the command at
+        its next step after a Ctrl-C that a library caught and swallowed.
+        ``run`` names a series of steps that others interleave with (the
+        steps of one geozone, while another worker reports its own): each
+        run is thinned to :data:`PROGRESS_LINES` apart (default: its unit).
     """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -305,31 +308,48 @@ def progress_bar(description: str, unit: str = "steps"):
     )
     task = bar.add_task(description, total=1)
     start = time.perf_counter()
-    # The lines' stage (a new unit is a new one: benches, then geozones), its last step said, the last description.
-    said_unit, said, now = unit, 0, description
+    # The last unit and description, and the last step said of each run (by default a unit's steps are one:
+    # benches, then geozones; two geozones' steps on two workers are two runs, each thinned on its own).
+    said_unit, said, now = unit, dict[str, int](), description
 
-    def say_line(done: int, total: int, unit: str) -> None:
-        nonlocal said_unit, said
-        if unit != said_unit or done < said:
-            said_unit, said = unit, 0
+    def say_line(done: int, total: int, unit: str, run: str) -> None:
+        last = said.get(run, 0)
+        if done < last:  # the run begun again
+            last = said[run] = 0
         # Every step of a short stage; of a long one (hundreds of benches) every 1/PROGRESS_LINES: not a flood.
-        if done < total and done * PROGRESS_LINES // total == said * PROGRESS_LINES // total:
+        if done < total and done * PROGRESS_LINES // total == last * PROGRESS_LINES // total:
             return
-        said = done
+        said[run] = done
         _say(f"bgm: progress: {done}/{total} {unit} ({now}, {time.perf_counter() - start:.1f} s)")
         sys.stderr.flush()  # as it happens, to a log file or a pipe too
 
-    def update(done: int, total: int, description: str | None = None, unit: str | None = None) -> None:
-        nonlocal now
+    def update(
+        done: int, total: int, description: str | None = None, unit: str | None = None, run: str | None = None
+    ) -> None:
+        nonlocal now, said_unit
         if _INTERRUPTS:
             raise KeyboardInterrupt
         now = now if description is None else description
         bar.update(task, completed=done, total=max(total, 1), description=now)
+        said_unit = unit or said_unit
         if mode == "lines" and total > 0:
-            say_line(done, total, unit or said_unit)
+            say_line(done, total, said_unit, run or said_unit)
 
     with bar:
         yield update
+
+
+def _staged(update):
+    """A core ``progress(stage, done, total)`` said through :func:`progress_bar`'s ``update``.
+
+    The stages ("contours", "surface of geozone 3310", "geozone 3310") are the
+    description; what their steps count (benches, steps, geozones) is the
+    unit, and a geozone's steps are a run of their own
+    (:func:`core.model.progress.stage_unit` and ``stage_run``).
+    """
+    from core.model.progress import stage_run, stage_unit
+
+    return lambda stage, done, total: update(done, total, stage, stage_unit(stage), stage_run(stage))
 
 
 def _positive(option: str, value: float | None) -> None:
@@ -766,10 +786,7 @@ def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None
             params=session.params,
             project=session.project,
             truth=truth,
-            # Stages "contours" (over benches), then "geozone NAME" (the last of the geozones done).
-            progress=lambda stage, done, total: update(
-                done, total, stage, "benches" if stage == "contours" else "geozones"
-            ),
+            progress=_staged(update),
             workers=workers,
             scheduler=scheduler,
             cache=session.store.cache,
@@ -935,7 +952,7 @@ def suggest(
         except ValueError as exc:
             raise BGMInputError(f"{exc}; give the holes with --pattern") from None
     with progress_bar("uncertainty", "geozones") as update:
-        plan = plan_sampling(session, wanted, budget, level, candidates, band_probability, progress=update)
+        plan = plan_sampling(session, wanted, budget, level, candidates, band_probability, progress=_staged(update))
     if not plan.sections:
         raise BGMInputError(f"no geozone of {', '.join(wanted)} has a predicted boundary to sample at that elevation")
     in_band = int(sum(s.in_band for s in plan.suggestions))

@@ -138,15 +138,17 @@ def test_a_build_in_batch_says_how_far_it_is_as_it_goes(tmp_path):
     assert proc.wait(timeout=600) == 0, "\n".join(lines)
     assert running, lines  # the first line came while the build ran, not with its end
     progress = [line for line in lines if line.startswith("bgm: progress: ")]
-    steps = [re.fullmatch(r"bgm: progress: (\d/\d \w+) \((contours|geozone g[12]), \d+\.\d s\)", p) for p in progress]
+    steps = [re.fullmatch(r"bgm: progress: (\d/\d \w+) \(([\w ]+), \d+\.\d s\)", p) for p in progress]
     assert all(steps), progress
-    assert [m[1] for m in steps] == [
-        "1/4 benches",
-        "2/4 benches",
-        "3/4 benches",
-        "4/4 benches",
-        "1/2 geozones",
-        "2/2 geozones",
+    said = [(m[1], m[2]) for m in steps]
+    first = said[4][1].removeprefix("correspondence and morph of geozone ")  # one worker: a geozone after the other
+    second = "g1" if first == "g2" else "g2"
+    assert said == [
+        *((f"{k}/4 benches", "contours") for k in (1, 2, 3, 4)),
+        *_geozone_steps(first, 3, 8),
+        ("1/2 geozones", f"geozone {first}"),
+        *_geozone_steps(second, 3, 8),
+        ("2/2 geozones", f"geozone {second}"),
     ]
     wrote = next(k for k, line in enumerate(lines) if line.startswith("wrote "))
     assert lines.index(progress[-1]) < wrote  # before the end
@@ -158,6 +160,93 @@ def test_a_build_in_batch_says_how_far_it_is_as_it_goes(tmp_path):
         "seconds": summary["seconds"],
         "out": str(tmp_path / "model"),
     }
+
+
+def _geozone_steps(geozone: str, pairs: int, total: int) -> list[tuple[str, str]]:
+    """The steps a build says of one geozone: each of its bench pairs, then what follows, as (count, stage)."""
+    after = ["bench fields", "predictions", "uncertainty", "surface", "evaluation"][: total - pairs]
+    names = ["correspondence and morph"] * pairs + after
+    return [(f"{k}/{total} steps", f"{name} of geozone {geozone}") for k, name in enumerate(names, start=1)]
+
+
+def _progress_lines(command: list[str]) -> tuple[list[str], list[str]]:
+    """The stderr lines of a bgm command run with ``BGM_PROGRESS=lines``, and its progress lines."""
+    import os
+
+    env = os.environ | {"BGM_PROGRESS": "lines"}
+    run = subprocess.run([*BGM, *command], capture_output=True, text=True, timeout=600, env=env)
+    lines = run.stderr.splitlines()
+    assert run.returncode == 0, run.stderr
+    return lines, [line.removeprefix("bgm: progress: ") for line in lines if line.startswith("bgm: progress: ")]
+
+
+def _stages(progress: list[str]) -> list[tuple[str, str]]:
+    """``(count unit, stage)`` of each progress line ("3/8 steps", "surface of geozone g1")."""
+    import re
+
+    found = [re.fullmatch(r"(\d+/\d+ \w+) \((.+), \d+\.\d s\)", line) for line in progress]
+    assert all(found), progress
+    return [(m[1], m[2]) for m in found]
+
+
+def test_a_build_on_two_workers_says_each_geozones_steps_in_order_before_the_geozone(tmp_path):
+    """Between its last bench's contours and its first geozone done, a Kennecott build said nothing for 12-41 s
+    (each geozone's model, predictions, uncertainty, surface and evaluation, on the worker processes), as
+    hung. The workers' steps are said as they go, each geozone's in order and before the geozone's line."""
+    table = pd.read_csv(DEMO_CSV)
+    small = tmp_path / "small.csv"
+    table[table.z > 660].to_csv(small, index=False)  # the top three benches: two bench pairs a geozone
+    lines, progress = _progress_lines(
+        ["build", str(small), "--out", str(tmp_path / "model"), "--geozone", "g1,g2", "--workers", "2"]
+    )
+    said = _stages(progress)
+    assert said[:3] == [(f"{k}/3 benches", "contours") for k in (1, 2, 3)]
+    first_geozone = next(k for k, (_, stage) in enumerate(said) if stage.startswith("geozone "))
+    assert first_geozone >= 3 + 7, said  # the first geozone's steps came before it: not one silence
+    for g in ("g1", "g2"):
+        own = [pair for pair in said if pair[1].endswith(f"of geozone {g}")]
+        assert own == _geozone_steps(g, 2, 7), said  # in order, each once
+        done = said.index(next(pair for pair in said if pair[1] == f"geozone {g}"))
+        assert said.index(own[-1]) < done  # every step said before its geozone
+    assert sorted(stage for count, stage in said if count.endswith("geozones")) == ["geozone g1", "geozone g2"]
+    wrote = next(k for k, line in enumerate(lines) if line.startswith("wrote "))
+    assert lines.index("bgm: progress: " + progress[-1]) < wrote
+
+
+def test_two_geozones_steps_interleaved_are_each_thinned_not_a_flood(monkeypatch, capsys):
+    """A table of hundreds of benches gives each geozone hundreds of steps; two workers report them
+    interleaved. Thinned as one series, one geozone's lines hid the other's (level counts: none of g2's
+    said) or reset it (a lower count: every step a line); each geozone's are thinned on their own."""
+    from core import cli
+
+    monkeypatch.setenv("BGM_PROGRESS", "lines")
+    with cli.progress_bar("building") as update:
+        staged_update = cli._staged(update)
+        for done in range(1, 201):
+            for g in ("g1", "g2"):
+                staged_update(f"correspondence and morph of geozone {g}", done, 205)
+    lines = capsys.readouterr().err.splitlines()
+    for g in ("g1", "g2"):
+        own = [line for line in lines if f"of geozone {g}," in line]
+        assert 10 <= len(own) <= cli.PROGRESS_LINES, own
+
+
+def test_suggest_says_the_contours_and_each_geozones_model_before_its_uncertainty(tmp_path):
+    """``bgm suggest`` on Kennecott said nothing for 9-19 s (the benches' contours, then each geozone's model)
+    before its one line a geozone: the benches and the model's steps are said as they go."""
+    table = pd.read_csv(DEMO_CSV)
+    small = tmp_path / "small.csv"
+    table[table.z > 660].to_csv(small, index=False)  # the top three benches: two bench pairs a geozone
+    args = ["suggest", str(small), "--geozone", "g1,g2", "--budget", "4", "--out", str(tmp_path / "s.csv")]
+    _, progress = _progress_lines([*args, "--no-cache"])
+    said = _stages(progress)
+    assert said[:3] == [(f"{k}/3 benches", "contours") for k in (1, 2, 3)]
+    for g in ("g1", "g2"):
+        own = [pair for pair in said if pair[1].endswith(f"of geozone {g}")]
+        assert own == _geozone_steps(g, 2, 3), said  # its bench pairs, then its model's bench fields
+        done = said.index(next(pair for pair in said if pair[1] == f"geozone {g}"))
+        assert said.index(own[-1]) < done
+    assert [count for count, stage in said if stage.startswith("geozone ")] == ["1/2 geozones", "2/2 geozones"]
 
 
 def test_an_output_that_is_the_next_option_is_refused(tmp_path):

@@ -41,6 +41,7 @@ from core.model.pipeline import (
     pair_coverage,
 )
 from core.model.prediction import predict_geozone
+from core.model.progress import CONTOURS_STAGE, FIELDS_STEP, GeozoneSteps, geozone_stage
 from core.model.session import (  # noqa: F401 - the surface build's steps, long imported from here
     SURFACE_STEPS_PER_BENCH,
     ModelSession,
@@ -222,6 +223,12 @@ def build(
     disk for the next run. Surfaces are written in ``formats``
     (:func:`core.io.export.build_formats` by default: OMF too where its package is installed).
 
+    ``progress(stage, done, total)`` is told the benches traced (stage
+    ``"contours"``), the steps of each geozone's work (``"surface of geozone
+    3310"``), reported by the worker processes as they go, and each geozone
+    done (``"geozone 3310"``); :func:`core.model.progress.stage_unit` says
+    what each counts.
+
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
     from core.io.export import build_formats, dxf_layer_names
@@ -278,12 +285,12 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
         holes.drilled_area(k)  # once, before the workers fork, so they all share it
     summaries: list[GeozoneSummary] = []
     evaluations = []
-    for done, (summary, rows) in enumerate(_map_geozones(ctx, wanted, workers, scheduler), start=1):
+    for done, (summary, rows) in enumerate(_map_geozones(ctx, wanted, workers, scheduler, progress), start=1):
         summaries.append(summary)
         if rows is not None and len(rows):
             evaluations.append(rows)
         if progress:
-            progress(f"geozone {summary.geozone[:40]}", done, len(wanted))
+            progress(geozone_stage(summary.geozone), done, len(wanted))
     summaries.sort(key=lambda s: wanted.index(s.geozone))
     evaluations.sort(key=lambda rows: wanted.index(rows["geozone"].iloc[0]))  # the same file whatever finished first
     table = None
@@ -446,9 +453,11 @@ class BuildContext:
 
 #: Set once per worker process by _init_worker: a build's context, or the session whose benches are extracted.
 _WORKER_CONTEXT: BuildContext | ModelSession | None = None
+#: Set with it: the queue a job's steps go to, read by the parent (None: its jobs report none).
+_WORKER_STEPS = None
 
 
-def _init_worker(ctx: BuildContext | ModelSession, parent: int) -> None:
+def _init_worker(ctx: BuildContext | ModelSession, parent: int, steps=None) -> None:
     # Ctrl-C reaches every process of the terminal's group: the parent alone
     # handles it (one line, exit 130) and stops the workers, by SIGTERM, which
     # must end them (the parent's handler, inherited by fork, would not).
@@ -456,8 +465,8 @@ def _init_worker(ctx: BuildContext | ModelSession, parent: int) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     _end_with_parent(parent)
-    global _WORKER_CONTEXT
-    _WORKER_CONTEXT = ctx
+    global _WORKER_CONTEXT, _WORKER_STEPS
+    _WORKER_CONTEXT, _WORKER_STEPS = ctx, steps
 
 
 #: ``prctl`` option: the signal this process gets when the thread that forked it ends (Linux).
@@ -479,21 +488,32 @@ def _end_with_parent(parent: int) -> None:
         os._exit(1)
 
 
-def _map_geozones(ctx: BuildContext, geozones: list[str], workers: int | None, scheduler: str | None = None):
-    """Yield ``build_geozone`` results as they finish, in parallel where it pays."""
+def _map_geozones(
+    ctx: BuildContext, geozones: list[str], workers: int | None, scheduler: str | None = None, steps=None
+):
+    """Yield ``build_geozone`` results as they finish, in parallel where it pays; their steps said to ``steps``."""
     # Largest geozones first so the last job to start is a short one.
     order = sorted(geozones, key=lambda g: -int(np.sum(ctx.session.holes.geozone == g)))
-    yield from _parallel_map(build_geozone, ctx, order, workers, scheduler)
+    yield from _parallel_map(build_geozone, ctx, order, workers, scheduler, steps)
 
 
-def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | None):
+#: How often the parent says the steps its workers reported while it waits for their results (seconds).
+STEPS_POLL_S = 0.2
+
+
+def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | None, steps=None):
     """``func(ctx, item)`` for every item: serially, on local processes, or on a dask cluster.
 
     Local workers ignore Ctrl-C; when the caller stops early (an error, an
     interrupt) they are terminated rather than left to finish their jobs.
+
+    With ``steps`` (a ``progress(stage, done, total)``), ``func`` is called
+    as ``func(ctx, item, progress)`` and what it reports is said to
+    ``steps`` in this process, as it happens and before the item's result:
+    the workers put it on a queue the parent reads while it waits. A dask
+    cluster has no such channel: there ``func`` is given no progress.
     """
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
 
     if scheduler:
         yield from _dask_map(func, ctx, items, scheduler)
@@ -501,27 +521,45 @@ def _parallel_map(func, ctx, items: list, workers: int | None, scheduler: str | 
     workers = available_cores() if workers is None else workers
     if workers <= 1 or len(items) <= 1 or "fork" not in multiprocessing.get_all_start_methods():
         for item in items:
-            yield func(ctx, item)
+            yield func(ctx, item) if steps is None else func(ctx, item, steps)
         return
+    context = multiprocessing.get_context("fork")
+    # A SimpleQueue's put writes to its pipe at once (a Queue's feeder thread may lag): a job's steps are
+    # in the pipe before its result is sent, so the parent, reading the pipe first, says them first.
+    queue = None if steps is None else context.SimpleQueue()
+    yield from _pool_map(func, ctx, items, workers, context, queue, steps)
+
+
+def _pool_map(func, ctx, items: list, workers: int, context, queue, steps):
+    """:func:`_parallel_map` on local worker processes (``queue``: their steps, said to ``steps``)."""
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
     pool = ProcessPoolExecutor(
         max_workers=min(workers, len(items)),
-        mp_context=multiprocessing.get_context("fork"),
+        mp_context=context,
         initializer=_init_worker,
-        initargs=(ctx, os.getpid()),
+        initargs=(ctx, os.getpid(), queue),
     )
     try:
         # Workers are forked on the first submit: with SIGINT blocked they are
         # born ignoring it, and a Ctrl-C meanwhile reaches the parent just after.
         with _sigint_blocked():
-            futures = [pool.submit(_call_in_worker, func, item) for item in items]
-        for fut in as_completed(futures):
-            yield fut.result()
+            pending = {pool.submit(_call_in_worker, func, item) for item in items}
+        while pending:
+            finished, pending = wait(pending, timeout=STEPS_POLL_S if queue else None, return_when=FIRST_COMPLETED)
+            while queue is not None and not queue.empty():
+                steps(*queue.get())
+            for fut in finished:
+                yield fut.result()
         # Inside the try: a Ctrl-C cutting this short would leave idle workers waiting for work forever.
         pool.shutdown(wait=True)
     except BaseException:
         _stop_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
         raise
+    finally:
+        if queue is not None:
+            queue.close()
 
 
 @contextlib.contextmanager
@@ -572,8 +610,11 @@ SHARED_STAGES = ("contours", "drilled")
 
 
 def _call_in_worker(func, item):
+    queue = _WORKER_STEPS
     try:
-        return func(_WORKER_CONTEXT, item)
+        if queue is None:
+            return func(_WORKER_CONTEXT, item)
+        return func(_WORKER_CONTEXT, item, lambda stage, done, total: queue.put((stage, done, total)))
     finally:
         # A worker's next job is another geozone or bench: what this one computed is never asked for again
         # there (its results went back to the parent), and held it grew each worker by ~100 MB a geozone.
@@ -591,7 +632,7 @@ def extract_all_benches(session: ModelSession, workers=None, scheduler=None, pro
     ):
         by_bench[k] = contours
         if progress:
-            progress("contours", done, holes.n_benches)
+            progress(CONTOURS_STAGE, done, holes.n_benches)
     for k, contours in by_bench.items():  # from worker processes: remembered here (they cached them on disk)
         session.store.put("contours", session._contours_key(k), contours, disk=False)
     return [c for k in sorted(by_bench) for c in by_bench[k]]
@@ -601,15 +642,23 @@ def _extract_one_bench(session: ModelSession, k: int):
     return k, session.bench_contours(k)
 
 
-def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFrame | None]:
-    """Everything ``bgm build`` writes for one geozone, under ``out_dir/<geozone>/``."""
+def build_geozone(ctx: BuildContext, g: str, progress=None) -> tuple[GeozoneSummary, pd.DataFrame | None]:
+    """Everything ``bgm build`` writes for one geozone, under ``out_dir/<geozone>/``.
+
+    ``progress(stage, done, total)`` is told each step as it is done (its
+    bench pairs, bench fields, predictions, uncertainty, surface and
+    evaluation: :class:`core.model.progress.GeozoneSteps`).
+    """
     from core.io.export import write_geojson
     from core.model.evaluation import evaluate_geozone
 
     session, out_dir = ctx.session, ctx.out_dir
     holes, params = session.holes, session.params
     tg = time.perf_counter()
-    model = session.geozone_model(g, contours=ctx.contours)
+    evaluated = ctx.evaluate and holes.n_benches >= 3
+    after = ("predictions", "uncertainty", "surface", *(("evaluation",) if evaluated else ()))
+    steps = GeozoneSteps(progress, g, after)
+    model = session.geozone_model(g, contours=ctx.contours, progress=steps.pair)
     gdir = out_dir / (ctx.folders.get(g) or geozone_folders([g])[g])
     gdir.mkdir(exist_ok=True)
     folder = gdir.name
@@ -638,6 +687,7 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
         )
         summary.seconds = time.perf_counter() - tg
         return summary, rows
+    steps.step(FIELDS_STEP)  # made by geozone_model after its last pair
     # Below the table's deepest bench, by its deepest pair's height, whichever bench the geozone's pairs end on:
     # a geozone whose pairs end higher up was predicted between two known benches, where no pair of it is and
     # so always absent, while the depth trend may carry it on below the deepest (`bgm predict` there).
@@ -654,15 +704,19 @@ def build_geozone(ctx: BuildContext, g: str) -> tuple[GeozoneSummary, pd.DataFra
     features = [f for f in features if not f["geometry"].is_empty]
     write_geojson(features, gdir / "prediction.geojson", units=holes.frame.length_unit)
     write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
+    steps.step("predictions")
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
+    steps.step("uncertainty")
     summary.note = undrilled_below_note(session, model)
     _write_surface(summary, model, ctx, gdir)
-    if ctx.evaluate and holes.n_benches >= 3:
+    steps.step("surface")
+    if evaluated:
         rows = evaluate_geozone(
             holes, g, predictor_from_model(model, holes, params), truth=ctx.truth, contours=ctx.contours
         )
         if len(rows):
             rows.insert(0, "geozone", g)
+        steps.step("evaluation")
     summary.seconds = time.perf_counter() - tg
     return summary, rows
 

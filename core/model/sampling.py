@@ -38,6 +38,7 @@ from scipy import ndimage, sparse, special
 from scipy.spatial import cKDTree
 
 from core.io.blastholes import median_hole_spacing
+from core.model.progress import CONTOURS_STAGE, FIELDS_STEP, GeozoneSteps, geozone_stage, one_at_a_time
 from core.model.uncertainty import DEFAULT_PROBABILITY, SectionUncertainty, geozone_uncertainty
 from core.threads import Progress, on_threads
 
@@ -368,7 +369,7 @@ def plan_sampling(
     candidates_m: np.ndarray | None = None,
     probability: float = DEFAULT_PROBABILITY,
     sections: dict | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> SamplingPlan:
     """Choose ``budget`` holes at elevation ``z_m`` for ``geozones`` (one budget shared by all).
 
@@ -376,25 +377,33 @@ def plan_sampling(
     a planned pattern's holes, or :func:`next_bench_candidates`. Geozones
     without a predicted section there with its uncertainty (at a bench level)
     take no part. ``sections`` (geozone -> SectionUncertainty at ``z_m``)
-    saves computing them again. ``progress(done, total)`` is called as each
-    geozone's section is done.
+    saves computing them again. ``progress(stage, done, total)`` is told
+    each bench traced (stage ``"contours"``), each step of a geozone's model
+    (its bench pairs, then its bench fields: ``"bench fields of geozone
+    3310"``) and each geozone's section done (``"geozone 3310"``), as
+    :mod:`core.model.progress` says; from several threads, one call at a time.
     """
     spacing = float(session.holes.hole_spacing_m)
     if candidates_m is None:
         candidates_m = next_bench_candidates(session.holes)
     if sections is None:
         geozones = list(geozones)
-        session.contours_of(geozones)  # traced together: each bench's evidence once for all of them
+        say = one_at_a_time(progress)
+        # Traced together: each bench's evidence once for all of them.
+        session.contours_of(geozones, progress=lambda done, total: say(CONTOURS_STAGE, done, total))
 
         def section_of(g: str):
-            return geozone_uncertainty(session, g, [z_m], probability=probability)[float(z_m)]
+            # The model first, step by step (what geozone_uncertainty would make, silently, the same).
+            steps = GeozoneSteps(say, g)
+            model = session.geozone_model(g, progress=steps.pair)
+            steps.step(FIELDS_STEP)
+            return geozone_uncertainty(session, g, [z_m], model, probability=probability)[float(z_m)]
 
         # Each geozone's model and backtests release the GIL in their heavy steps: several at once.
         found = {}
         for g, section in on_threads(section_of, geozones):
             found[g] = section
-            if progress:
-                progress(len(found), len(geozones))
+            say(geozone_stage(g), len(found), len(geozones))
         sections = {g: found[g] for g in geozones if found[g] is not None}  # in the order asked
     chosen = suggest_holes(sections, candidates_m, budget, spacing)
     return SamplingPlan(float(z_m), float(probability), np.asarray(candidates_m, float), sections, chosen)

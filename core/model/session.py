@@ -235,7 +235,9 @@ class ModelSession:
         """Contours of one geozone on every bench, in bench order (see :meth:`contours_of`)."""
         return self.contours_of([geozone])[geozone]
 
-    def contours_of(self, geozones: list[str]) -> dict[str, list[Contour]]:
+    def contours_of(
+        self, geozones: list[str], progress: Callable[[int, int], None] | None = None
+    ) -> dict[str, list[Contour]]:
         """Contours of the given geozones on every bench, in bench order, by geozone.
 
         A geozone's contours depend on the others' only through the bench's
@@ -243,6 +245,8 @@ class ModelSession:
         these geozones alone, on one evidence (a Kennecott ``bgm predict``
         extracted all thirteen geozones for one: 11 of its 15 s), benches on
         threads (:func:`traced_benches`); stored whole, they are filtered.
+        ``progress(done, total)`` is called as each bench to trace is traced
+        (never when all are stored).
         """
         found: dict[int, dict[str, list[Contour]]] = {}
         missing: dict[tuple[str, ...], list[int]] = {}  # the geozones a bench lacks -> those benches
@@ -256,9 +260,13 @@ class ModelSession:
             lacking = tuple(g for g, own in found[k].items() if own is MISSING)
             if lacking:
                 missing.setdefault(lacking, []).append(k)
+        done, total = 0, sum(len(benches) for benches in missing.values())
         for lacking, benches in missing.items():
             for k, traced in traced_benches(self.holes, benches, lacking, self.params.extraction):
                 self.store.counts["contours", "computed"] += 1
+                done += 1
+                if progress:
+                    progress(done, total)
                 for g in lacking:
                     found[k][g] = [c for c in traced if c.geozone == g]
                     self.store.put("contours", content_key(keys[k], g), found[k][g])
