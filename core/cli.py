@@ -749,12 +749,16 @@ def evaluate(
 
 
 def _refuse_empty_scores(rows, holes, geozone: str) -> None:
-    """Refuse an evaluation whose every score is 0 / 0: the geozone outlined on no bench scored, or predicted nowhere."""
+    """Refuse an evaluation whose every score is 0 / 0: the geozone on no bench scored, outlined on none, or predicted nowhere."""
     if rows["g_area"].any() and rows["p_area"].any():
         return
-    on = _benches_at(holes, set(holes.bench[holes.geozone == geozone].tolist()))
-    scored = _benches_at(holes, {int(k) + 1 for k in rows["bench"]})
-    if not rows["g_area"].any():
+    benches_on = set(holes.bench[holes.geozone == geozone].tolist())
+    benches_scored = {int(k) + 1 for k in rows["bench"]}
+    on, scored = _benches_at(holes, benches_on), _benches_at(holes, benches_scored)
+    if not benches_on & benches_scored:
+        # Said as label noise, a body of fifty holes on the top bench alone read as if it were two stray holes.
+        why = f"has no hole on any bench it could be scored on ({scored}, those with two benches above): its holes are on {on}"
+    elif not rows["g_area"].any():
         why = (
             f"has no contour on any bench it could be scored on ({scored}): its holes are on {on}, "
             "and one or two holes alone are taken as label noise"

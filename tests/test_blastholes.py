@@ -135,6 +135,25 @@ def test_duplicates_are_merged_with_a_warning(tmp_path):
     assert len(holes.xy) == len(t) - 4
 
 
+@pytest.mark.parametrize("how", ["merged", "left out"])
+def test_a_geozone_whose_every_hole_was_merged_or_left_out_is_not_said_to_be_absent_from_the_table(tmp_path, how):
+    """A geozone whose every hole coincides with another geozone's (merged, first row kept), or lies off the
+    benches, was "not in holes.csv": the geologist looked for a typo in a label the file holds."""
+    t = small_table()
+    if how == "merged":
+        lost = t[t["lookup_domain"] == "3310"].iloc[:5].assign(lookup_domain="4410")
+    else:
+        lost = t.iloc[:2].assign(lookup_domain="4410", RL=-9999.0)
+    with pytest.warns(BGMWarning):
+        holes = read_blastholes(write(tmp_path, pd.concat([t, lost], ignore_index=True)))
+    assert "4410" not in holes.geozones
+    with pytest.raises(BGMInputError, match="none of its holes is left") as refused:
+        holes.check_geozones(["4410"])
+    assert "is in" in str(refused.value) and ("merged" in str(refused.value)) == (how == "merged")
+    with pytest.raises(BGMInputError, match="is not in"):  # a label the table does not hold is still that
+        holes.check_geozones(["9999"])
+
+
 def test_off_bench_holes_are_reported_and_left_out(tmp_path):
     t = small_table()
     t.loc[0, "RL"] = 95.0  # between the 100 and 90 benches

@@ -278,6 +278,31 @@ def test_summary_gives_each_methods_f1_and_the_models_margin_over_the_best_refer
     assert "best reference nil" in line and "(-" in line
 
 
+def test_a_method_that_predicts_nothing_where_the_geozone_is_has_f1_zero_not_nan():
+    """bgm evaluate wrote no F1 (nan) for a method that predicted nothing where the geozone was.
+
+    A geozone of three holes a bench: the implicit model drew nothing on any bench,
+    evaluation.csv had f1_implicit empty while f1_holes_implicit said 0, and a model
+    predicting nothing lost its margin line. F1 is ``2 |P ∩ G| / (|P| + |G|)``: 0 there.
+    """
+    import pandas as pd
+
+    def row(k, method, i, pa, ga):
+        return {"bench": k, "fraction": 1.0, "depth_m": 10.0, "method": method, "i_area": i, "p_area": pa, "g_area": ga}
+
+    rows = [row(k, "nil", 40, 50, 60) for k in (1, 2)] + [row(k, "implicit", 0, 0, 60) for k in (1, 2)]
+    summary = ev.summary_table(pd.DataFrame([*rows, row(1, "model", 40, 50, 60), row(2, "model", 40, 50, 60)]))
+    assert summary["f1_implicit"].item() == 0.0 and math.isnan(summary["precision_implicit"].item())
+    # The model predicting nothing: F1 0, its margin said, not left out.
+    blind = ev.summary_table(pd.DataFrame([*rows, row(1, "model", 0, 0, 60), row(2, "model", 0, 0, 60)]))
+    assert blind["f1_model"].item() == 0.0
+    assert blind["f1_margin"].item() == pytest.approx(-80 / 110)
+    (line,) = ev.margin_lines(blind)
+    assert "model F1 0.0, best reference nil 72.7" in line
+    # Predicted where the geozone is not (no truth on any bench scored): F1 0 too; nothing either side stays nan.
+    assert ev.f1_score(0.0, float("nan")) == 0.0 and math.isnan(ev.f1_score(float("nan"), float("nan")))
+
+
 def test_n_counts_the_benches_scored_not_those_where_the_geozone_was_neither_predicted_nor_there():
     """``n`` is the benches scored: one where no method predicted the geozone and it was absent scored nothing.
 

@@ -1019,18 +1019,27 @@ def test_tall_benches_are_feet_only_where_their_holes_make_a_pattern_in_feet(tmp
     assert holes.frame.length_unit == "ft" and holes.bench_height_m == pytest.approx(50.0 * 0.3048, abs=0.2)
 
 
-@pytest.mark.parametrize("case", ["outlined nowhere scored", "first on the deepest bench"])
+@pytest.mark.parametrize("case", ["outlined nowhere scored", "first on the deepest bench", "on the top bench alone"])
 def test_an_evaluation_with_nothing_to_score_says_why_instead_of_printing_nan(table, tmp_path, case):
-    """A geozone whose every score would be 0 / 0 is refused, naming where its holes are, not scored NaN."""
-    deepest = table["z"] <= table["z"].min() + 1.0
-    west_to_east = table.loc[deepest, "x"].sort_values().index
+    """A geozone whose every score would be 0 / 0 is refused, naming where its holes are, not scored NaN.
+
+    A body on the top bench alone, which no bench scored holds, was said to be one or two holes of label noise.
+    """
+    bench = (
+        table["z"] >= table["z"].max() - 1.0
+        if case == "on the top bench alone"
+        else table["z"] <= table["z"].min() + 1.0
+    )
+    west_to_east = table.loc[bench, "x"].sort_values().index
     # Two holes far apart are label noise (no contour); fifteen side by side are a body no bench above shows.
     picked = [west_to_east[0], west_to_east[-1]] if case == "outlined nowhere scored" else west_to_east[:15]
     path = tmp_path / "holes.csv"
     table.assign(geozone=table["geozone"].where(~table.index.isin(picked), "late")).to_csv(path, index=False)
     line = error_line(bgm("evaluate", path, "--geozone", "late", "--out", tmp_path / "e"), "nothing to evaluate")
-    assert re.search(r"its holes are on the bench at [-0-9.]+ m\b", line), line  # the deepest alone
+    assert re.search(r"its holes are on the bench at [-0-9.]+ m\b", line), line  # that bench alone
     assert ("no contour" in line) == (case == "outlined nowhere scored"), line
+    assert ("label noise" in line) == (case == "outlined nowhere scored"), line
+    assert ("has no hole on any bench it could be scored on" in line) == (case == "on the top bench alone"), line
 
 
 @pytest.mark.parametrize("shift_m", [0.0, 60.0, 5000.0])

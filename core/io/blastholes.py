@@ -201,6 +201,10 @@ class Blastholes:
     read_options : dict
         The options :func:`read_blastholes` was given (keyword -> value, those
         not given left out): a project saves them to read the table the same way.
+    lost_geozones : dict
+        Labels the table holds none of whose holes were kept (label -> why: all
+        left out, or all merged into another geozone's coincident holes), so a
+        request for one is told why it is missing, not that it is not in the table.
     """
 
     xy: np.ndarray
@@ -216,6 +220,7 @@ class Blastholes:
     notes: list[str] = field(default_factory=list)
     unit_guess: str = ""
     read_options: dict = field(default_factory=dict)
+    lost_geozones: dict = field(default_factory=dict)
     _drilled: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -252,6 +257,13 @@ class Blastholes:
         requested = [unicodedata.normalize("NFC", str(g)).strip() for g in requested]
         found = [g if g in present else by_number.get(label_number(g)) for g in requested]
         missing = [g for g, f in zip(requested, found) if f is None]
+        lost = [g for g in missing if g in self.lost_geozones]
+        if lost:
+            # "not in the file" of a label the file holds sent the geologist looking for a typo.
+            raise BGMInputError(
+                f"geozone {quoted(lost[0])} is in {self.source or 'the input'}, but none of its holes is left: "
+                f"{self.lost_geozones[lost[0]]}; geozones present: {listing(present)}"
+            )
         if missing:
             raise BGMInputError(
                 f"geozone {', '.join(map(quoted, missing[:5]))} is not in {self.source or 'the input'}; "
@@ -284,6 +296,7 @@ class Blastholes:
             notes=list(self.notes),
             unit_guess=self.unit_guess,
             read_options=dict(self.read_options),
+            lost_geozones=dict(self.lost_geozones),
         )
 
 
@@ -527,6 +540,7 @@ def blastholes_from_table(
         notes=notes,
     )
     holes = _deduplicate(holes, lines[keep])
+    holes.lost_geozones = _lost_geozones(labels, labels[keep], holes.geozone)
     holes.hole_spacing_m = median_hole_spacing(holes.xy, holes.bench)
     if not np.isfinite(holes.hole_spacing_m) or holes.hole_spacing_m <= 0:
         raise BGMInputError(
@@ -613,6 +627,30 @@ def _note_missing_elevations(z: np.ndarray, notes: list[str]) -> None:
             "benches, their elevations are missing and the benches cannot be told apart: fill them in"
         )
         _note(notes, msg, stacklevel=4)
+
+
+def _lost_geozones(read: np.ndarray, kept: np.ndarray, merged: np.ndarray) -> dict[str, str]:
+    """Labels of the table none of whose holes is left, and why: label -> reason.
+
+    Parameters
+    ----------
+    read : ndarray of str
+        Every row's label as read.
+    kept : ndarray of str
+        The labels of the holes kept on the benches (none far off every bench or every other hole).
+    merged : ndarray of str
+        The labels left once coincident holes were merged (first row kept).
+    """
+    kept_labels, merged_labels = set(kept.tolist()), set(merged.tolist())
+    lost = {}
+    for label in sorted(set(read.tolist()) - merged_labels):
+        lost[label] = (
+            "every one of its holes lies where another geozone's hole is, on the same bench, and was merged "
+            "into it (the first row kept, as warned)"
+            if label in kept_labels
+            else "every one of its holes was left out, off the benches or far from every other hole (as warned)"
+        )
+    return lost
 
 
 def _far_holes(xy: np.ndarray, bench: np.ndarray, on: np.ndarray) -> np.ndarray:
