@@ -208,8 +208,8 @@ class _Run:
     def __init__(self, inputs: PipelineInputs, previous: PipelineResult | None, cancelled):
         self.inputs = inputs
         self.session, self.sel, self.cancelled = inputs.session, inputs.selection, cancelled
-        #: Given to core's long steps (a geozone's model: seconds on Kennecott), which call it between their
-        #: own steps: a cancelled run stops there, not only between the run's steps.
+        #: Given to core's long steps (a bench's contours, a geozone's model, a surface: seconds on Kennecott),
+        #: which call it between their own steps: a cancelled run stops there, not only between the run's steps.
         self.progress: Callable[[int, int], None] = cancelling(cancelled)
         prev = previous or PipelineResult()
         # What is on screen stays there until it is redone (a picture that empties and
@@ -299,8 +299,9 @@ def compute(
     yield from _selected_fields(run)
     t0 = time.perf_counter()
     others = [b for b in range(n) if b not in pair_benches]
-    # Several benches are traced at once; each is shown as it comes, and a cancelled run stops between them.
-    for i, (b, contours) in enumerate(run.session.traced_contours(others), start=1):
+    # Several benches are traced at once; each is shown as it comes. A cancelled run stops the benches begun at
+    # their next part (a Kennecott bench: 2-4 s, 20-40 parts) and begins no other.
+    for i, (b, contours) in enumerate(run.session.traced_contours(others, run.progress), start=1):
         run.res.contours[b] = contours
         yield f"contours of bench {b}", 0.5 + 0.3 * i / len(others), run.snapshot()
         run.check()
@@ -348,7 +349,7 @@ def _snake_preview(run: _Run, previous: PipelineResult) -> Iterator[Progress]:
     """The selected component's snake alone, on its own edge points (a snake parameter changed)."""
     c = previous.selected_contour(run.sel)
     if c is not None and c.fields is not None:
-        new = run.step("selected snake", lambda: run.session.snake_preview(c))
+        new = run.step("selected snake", lambda: run.session.snake_preview(c, run.progress))
         bench = run.res.contours[run.sel.bench]
         run.res.contours[run.sel.bench] = [new if x is c else x for x in bench]
         yield "snake of the selected component", 0.1, run.snapshot()
@@ -365,11 +366,12 @@ def _bench_pair(run: _Run, benches: list[int]) -> Iterator[Progress]:
     t0 = time.perf_counter()
     stored = session.stored_bench_contours(sel.bench, sel.geozone)
     if stored is None:
-        stored = run.step("selected bench", lambda: session.bench_contours_with_fields(sel.bench, sel.geozone))
+        selected = functools.partial(session.bench_contours_with_fields, sel.bench, sel.geozone, run.progress)
+        stored = run.step("selected bench", selected)
     res.contours[sel.bench] = stored
     yield "contours of the selected bench", 0.2, run.snapshot()
     for b in benches[1:]:
-        res.contours[b] = run.step("next bench", functools.partial(session.bench_contours, b))
+        res.contours[b] = run.step("next bench", functools.partial(session.bench_contours, b, run.progress))
         yield "contours of the bench pair", 0.3, run.snapshot()
     res.timings["extraction (pair)"] = time.perf_counter() - t0
 
@@ -379,7 +381,8 @@ def _selected_fields(run: _Run) -> Iterator[Progress]:
     session, sel, res = run.session, run.sel, run.res
     own = [c for c in res.contours[sel.bench] if c.geozone == sel.geozone]
     if own and all(c.fields is None for c in own):
-        res.contours[sel.bench] = run.step("fields", lambda: session.bench_contours_with_fields(sel.bench, sel.geozone))
+        fields = functools.partial(session.bench_contours_with_fields, sel.bench, sel.geozone, run.progress)
+        res.contours[sel.bench] = run.step("fields", fields)
         yield "edge map, GVF and snake of the selected bench", 0.4, run.snapshot()
 
 
@@ -447,7 +450,7 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
         # has no surface, and the other geozones' are still redone: returning here left its surface from
         # before and every other geozone's from the last parameters on screen, and exported.
         if paired:
-            res.surface = run.step("surface", lambda: session.surface(g, model), "surface")
+            res.surface = run.step("surface", lambda: session.surface(g, model, run.progress), "surface")
         _show_surface(run, g, res.surface)
         yield "surface", 0.9, run.snapshot()
         yield from _other_surfaces(run)
@@ -482,7 +485,8 @@ def _other_surfaces(run: _Run) -> Iterator[Progress]:
     others = [g for g in run.inputs.surface_geozones if g != run.sel.geozone]
     t0 = time.perf_counter()
     run.check()
-    # The geozones begun stop at their next bench pair too: on_threads waits for them.
+    # The geozones begun stop at their model's next bench pair or their surface's next section: on_threads
+    # waits for them.
     surfaces = on_threads(functools.partial(_geozone_surface, run.session, progress=run.progress), others)
     for i, (g, (mesh, timings, errors)) in enumerate(surfaces, start=1):
         run.res.timings.update(timings)
@@ -500,7 +504,8 @@ def _geozone_surface(
 
     Timed as :meth:`_Run.step` times them, into dicts of its own: the window's
     snapshots copy the run's while this thread would write them. ``progress``
-    goes to the model (:meth:`ModelSession.geozone_model`): a cancelled run stops it.
+    goes to the model (:meth:`ModelSession.geozone_model`) and the surface
+    (:meth:`ModelSession.surface`): a cancelled run stops either at its next step.
     """
     timings: dict[str, float] = {}
     errors: dict[str, str] = {}
@@ -508,7 +513,8 @@ def _geozone_surface(
     model = _timed(f"model of {g}", model_of, f"model {g}", timings, errors)
     mesh = None
     if model is not None and model.pairs:
-        mesh = _timed(f"surface of {g}", functools.partial(session.surface, g, model), f"surface {g}", timings, errors)
+        surface_of = functools.partial(session.surface, g, model, progress)
+        mesh = _timed(f"surface of {g}", surface_of, f"surface {g}", timings, errors)
     return mesh, timings, errors
 
 

@@ -154,6 +154,65 @@ def test_a_band_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing_ha
         assert np.array_equal(again.sigma, whole.sigma) and np.array_equal(again.field, whole.field)
 
 
+def _stopping(seen: list, steps: int):
+    """A cancelling progress that records what it is told and is no longer wanted once told ``steps`` steps."""
+    from core.threads import cancelling
+
+    return cancelling(functools.partial(_told_at_least, seen, steps), functools.partial(_tell, seen))
+
+
+def test_a_bench_whose_caller_cancels_its_tracing_stops_at_that_part_and_stores_nothing_half_done(holes, tmp_path):
+    """A bench's contours are traced part by part (edge map, GVF, snake: a Kennecott bench holds 20-40 parts and
+    takes 2-4 s). A viewer run superseded while it traced one ran on to the bench's last part. Core now tells
+    ``progress`` the bench's evidence found, then each part traced; raised there, ``Cancelled`` stops the bench."""
+    from core.threads import Cancelled
+
+    bench = holes.n_benches - 1
+    told: list[tuple[int, int]] = []
+    whole = _session(holes, tmp_path / "whole").bench_contours(bench, progress=functools.partial(_tell, told))
+    parts = len(whole)
+    assert parts >= 3 and told == [(done, parts) for done in range(parts + 1)]  # the evidence, then each part
+
+    for steps in (1, 2):  # stopped once the evidence is found, then after the first part
+        session = _session(holes, tmp_path / f"cancelled-{steps}")
+        seen: list[tuple[int, int]] = []
+        with pytest.raises(Cancelled):
+            session.bench_contours(bench, progress=_stopping(seen, steps))
+        assert seen == told[:steps]  # stopped at the step it was told it was no longer wanted, not later
+        assert "contours" not in _computed(session) and session.stored_bench_contours(bench) is None
+        again = session.bench_contours(bench)  # asked again: traced whole
+        assert [c.polygon.wkb for c in again] == [c.polygon.wkb for c in whole]
+
+
+def test_a_surface_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing_half_done(holes, tmp_path):
+    """A geozone's surface (its sections, then the mesh) was one step: a superseded viewer run made every surface
+    it had begun to its end (6 s on Kennecott after the request). Core now tells ``progress`` each bench pair's
+    sections, the sections below the deepest bench, each section's depth trend, each section's signed distance
+    and the mesh's two steps; raised there, ``Cancelled`` stops the surface at that step."""
+    from core.threads import Cancelled
+
+    told: list[tuple[int, int]] = []
+    first = _session(holes, tmp_path / "whole")
+    model = first.geozone_model("g1")
+    whole = first.surface("g1", model, progress=functools.partial(_tell, told))
+    pairs = len(model.pairs)
+    assert told[: pairs + 1] == [(done, pairs + 1) for done in range(1, pairs + 2)]  # the pairs, then below
+    assert told[-2:] == [(1, 2), (2, 2)]  # the mesh closed, then its specks dropped
+    sdfs = [i for i, step in enumerate(told) if step[0] == 1 and i > pairs and step[1] != 2]
+    assert len(sdfs) == 2  # the first section trended, the first section's signed distance
+
+    for steps in (1, pairs + 2, sdfs[1] + 1, len(told) - 1):  # in the pairs, the trend, the distances, the mesh
+        session = _session(holes, tmp_path / f"cancelled-{steps}")
+        zone = session.geozone_model("g1")
+        seen: list[tuple[int, int]] = []
+        with pytest.raises(Cancelled):
+            session.surface("g1", zone, progress=_stopping(seen, steps))
+        assert seen == told[:steps]
+        assert "surface" not in _computed(session)  # nothing half done stored
+        again = session.surface("g1", zone)  # asked again: made whole
+        assert np.array_equal(again.vertices, whole.vertices) and np.array_equal(again.faces, whole.faces)
+
+
 def test_a_changed_hole_label_recomputes_its_bench_and_what_follows(holes, tmp_path):
     _session(holes, tmp_path).geozone_model("g1")
     on = holes.on_bench(1)

@@ -385,3 +385,91 @@ def test_a_superseded_run_stops_inside_a_geozones_model_at_its_next_bench_pair(s
         assert pairs == {"g1": [0, 0], "g2": [], "g3": []}  # g1's second pair (bench 1) never begun
     else:
         assert pairs["g1"] == [0, 0, 1] and pairs["g2"] == [0]  # g2 has two pairs: stopped after its first
+
+
+@pytest.mark.parametrize("stage", ["selected bench", "other benches"])
+def test_a_superseded_run_stops_inside_a_benchs_contour_tracing_and_a_later_run_traces_it_whole(stage, monkeypatch):
+    """A bench's contours were one step of a run: superseded while it traced one (a Kennecott bench: 2-4 s, 20-40
+    parts), the run traced every part of it, and of every bench begun on the other threads, before it stopped.
+    Core's progress now raises the cancellation at the bench's next part, and nothing of the bench is stored."""
+    import core.extraction.contours as extraction
+    from bgm_viewer.model import Cancelled, ViewerModel, compute
+    from bgm_viewer.testing import small_holes
+    from core.model.session import ModelSession
+
+    holes = small_holes()
+    whole = {k: ModelSession(holes).bench_contours(k) for k in range(holes.n_benches)}  # never cancelled
+    traced: list[int] = []  # the bench of each part traced
+    part_contour = extraction._part_contour
+
+    def recorded(holes, bench, *args, **kwargs):
+        contour = part_contour(holes, bench, *args, **kwargs)
+        traced.append(bench)
+        return contour
+
+    monkeypatch.setattr(extraction, "_part_contour", recorded)
+    model = ViewerModel(holes, cache=False)
+    model.select("g1", 0, 0)
+    bench = 0 if stage == "selected bench" else 2  # bench 1 is traced with 0, the pair shown; 2 after them
+
+    def superseded() -> bool:  # a newer request, once the bench's first part is traced
+        return bench in traced
+
+    with warnings.catch_warnings(), pytest.raises(Cancelled):
+        warnings.simplefilter("ignore")
+        for _ in compute(model.inputs(), None, "contours", superseded):
+            pass
+    assert len(whole[bench]) >= 3 and traced.count(bench) == 1  # its other parts never traced
+    assert model.session().stored_bench_contours(bench, "g1") is None  # nothing half done stored
+    *_, (_, _, again) = compute(model.inputs(), None, "contours", until="contours")  # a later run: whole, the same
+    for k, contours in whole.items():
+        assert [c.polygon.wkb for c in again.contours[k]] == [c.polygon.wkb for c in contours]
+
+
+@pytest.mark.parametrize("stage", ["selected geozone's surface", "other geozones' surfaces"])
+def test_a_superseded_run_stops_inside_a_geozones_surface_and_a_later_run_makes_it_whole(stage, monkeypatch):
+    """A surface begun was made to its end: its sections, then the mesh (Kennecott: the other geozones' surfaces
+    ran 6 s after the request). Core's progress now raises the cancellation at the surface's next step (a bench
+    pair's sections, a section's depth trend or signed distance, the mesh), and nothing of it is stored."""
+    import core.model.session as sessions
+    import core.model.surfaces as surfaces
+    from bgm_viewer.model import Cancelled, ViewerModel, compute
+    from bgm_viewer.testing import small_holes
+
+    holes = small_holes()
+    begun: list[str] = []  # the geozone of each surface begun
+    meshed: list[int] = []  # a mesh made of sections
+    sections_of, mesh_of = sessions.surface_sections, surfaces.surface_from_sections
+
+    def recorded_sections(model, *args, **kwargs):
+        begun.append(model.geozone)
+        return sections_of(model, *args, **kwargs)
+
+    def recorded_mesh(sections, *args, **kwargs):
+        meshed.append(len(sections))
+        return mesh_of(sections, *args, **kwargs)
+
+    monkeypatch.setattr(sessions, "surface_sections", recorded_sections)
+    monkeypatch.setattr(surfaces, "surface_from_sections", recorded_mesh)
+    model = ViewerModel(holes, cache=False)
+    model.select("g1", 0, 0)
+    selected = stage == "selected geozone's surface"
+
+    def superseded() -> bool:  # a newer request, once the surface of `stage` is begun
+        return "g1" in begun if selected else any(g != "g1" for g in begun)
+
+    with warnings.catch_warnings(), pytest.raises(Cancelled):
+        warnings.simplefilter("ignore")
+        for _ in compute(model.inputs(), None, "contours", superseded):
+            pass
+    assert len(meshed) == (0 if selected else 1)  # g1's alone, when the others' were superseded
+    assert model.store.counts["surface", "computed"] == len(meshed)  # nothing half done stored
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        *_, (_, _, again) = compute(model.inputs(), None, "contours")  # a later run: whole, the same
+        fresh = {g: sessions.ModelSession(holes).surface(g) for g in ("g1", "g2", "g3")}  # never cancelled
+    assert set(again.built) == set(fresh)
+    for g, mesh in fresh.items():
+        assert np.array_equal(again.built[g].vertices, mesh.vertices) and np.array_equal(
+            again.built[g].faces, mesh.faces
+        )

@@ -57,6 +57,7 @@ sections (``tests/benchmarks/bench_extraction.py``):
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 
@@ -76,7 +77,7 @@ from core.extraction.transition import TransitionField, bench_grid, edge_map, ne
 from core.geometry.grid import Grid, as_multipolygon, cells_covering
 from core.geometry.sdf import region_signed_distance, signed_distance, smoothed_sections
 from core.io.blastholes import Blastholes, median_hole_spacing
-from core.threads import on_threads
+from core.threads import Progress, on_threads
 
 #: Cells within this many hole spacings of a hole belong to the hole's geozone,
 #: whatever the smoothed field says: a contour holds its own holes.
@@ -368,24 +369,46 @@ def extract_bench(
     geozones: Iterable[str] | None = None,
     params: ExtractionParameters | None = None,
     keep_fields: bool = False,
+    progress: Progress | None = None,
 ) -> list[Contour]:
-    """Contours of one bench (see :func:`extract_contours`)."""
+    """Contours of one bench (see :func:`extract_contours`).
+
+    ``progress(done, total)`` is told as the bench's evidence is found (``0``)
+    and as each part's contour is traced (its edge map, GVF and snake: a
+    Kennecott bench holds 20-40 parts, 0.1-0.5 s each); raising
+    :class:`core.threads.Cancelled` there stops the bench at that part, and
+    nothing of it is returned.
+    """
     params = params or ExtractionParameters()
     ev = bench_evidence(holes, bench, params)
     if ev is None:
         return []
     wanted = set(holes.geozones if geozones is None else geozones)
+    # Every part is found before any is traced, so the count told is the bench's whole.
+    traces = [
+        trace
+        for g in ev.transition.geozones
+        if g in wanted
+        for trace in _geozone_parts(holes, bench, g, ev, params, keep_fields)
+    ]
+    if progress:
+        progress(0, len(traces))
     contours: list[Contour] = []
-    for g in ev.transition.geozones:
-        if g in wanted:
-            contours.extend(_geozone_contours(holes, bench, g, ev, params, keep_fields))
+    for trace in traces:
+        contours.append(trace())
+        if progress:
+            progress(len(contours), len(traces))
     return contours
 
 
-def _geozone_contours(
+def _geozone_parts(
     holes: Blastholes, bench: int, geozone: str, ev: BenchEvidence, params: ExtractionParameters, keep_fields: bool
-) -> list[Contour]:
-    """One contour per connected part of the geozone's region that holds its holes, largest first."""
+) -> list[Callable[[], Contour]]:
+    """The tracing of each connected part of the geozone's region that holds its holes, largest first.
+
+    One call a part gives its contour (:func:`_part_contour`), so the caller can
+    tell its progress between parts.
+    """
     parts = ev.parts[geozone]
     grid = ev.transition.grid
     own = np.flatnonzero(ev.labels == geozone)
@@ -399,13 +422,23 @@ def _geozone_contours(
     if len(sel):
         gap_local[sel] = gap_boundary(ev.xy[sel], params.gap_angle_rad, params.gap_neighbours, 2.5 * radius)[0]
     i = ev.transition.geozones.index(geozone)
-    out = []
-    for number, part in enumerate(order):
-        members = own[part_of == part]
-        out.append(
-            _part_contour(holes, bench, geozone, number, ev, i, parts == part, members, gap_local, params, keep_fields)
+    return [
+        functools.partial(
+            _part_contour,
+            holes,
+            bench,
+            geozone,
+            number,
+            ev,
+            i,
+            parts == part,
+            own[part_of == part],
+            gap_local,
+            params,
+            keep_fields,
         )
-    return out
+        for number, part in enumerate(order)
+    ]
 
 
 def _part_contour(

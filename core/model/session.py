@@ -21,6 +21,7 @@ sessions: treat them as read-only.
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 from collections import Counter, OrderedDict
@@ -51,7 +52,7 @@ from core.model.pipeline import (
     morph_instance,
 )
 from core.model.prediction import predict_geozone, regions_between, undrilled_extension
-from core.threads import on_threads
+from core.threads import Progress, on_threads
 
 #: Iso-contours per bench interval used to build surfaces.
 SURFACE_STEPS_PER_BENCH = 4
@@ -226,10 +227,16 @@ class ModelSession:
         )
 
     # -- contours (paper section 2) ------------------------------------------------------------
-    def bench_contours(self, bench: int) -> list[Contour]:
-        """Contours of every geozone on one bench."""
+    def bench_contours(self, bench: int, progress: Progress | None = None) -> list[Contour]:
+        """Contours of every geozone on one bench.
+
+        ``progress`` is told the parts traced (:func:`core.extraction.contours.extract_bench`) when the
+        bench is not stored; a :class:`core.threads.Cancelled` it raises stores nothing.
+        """
         key = self._contours_key(bench)
-        return self.store.get("contours", key, lambda: extract_bench(self.holes, bench, None, self.params.extraction))
+        return self.store.get(
+            "contours", key, lambda: extract_bench(self.holes, bench, None, self.params.extraction, progress=progress)
+        )
 
     def geozone_contours(self, geozone: str) -> list[Contour]:
         """Contours of one geozone on every bench, in bench order (see :meth:`contours_of`)."""
@@ -272,12 +279,17 @@ class ModelSession:
                     self.store.put("contours", content_key(keys[k], g), found[k][g])
         return {g: [c for k in sorted(found) for c in found[k][g]] for g in geozones}
 
-    def traced_contours(self, benches: Iterable[int]) -> Iterator[tuple[int, list[Contour]]]:
+    def traced_contours(
+        self, benches: Iterable[int], progress: Progress | None = None
+    ) -> Iterator[tuple[int, list[Contour]]]:
         """``(bench, contours of every geozone)``: the stored benches first, then the others as they are traced.
 
         The others are traced several at once (:meth:`bench_contours` on
         threads, :func:`core.threads.on_threads`), each stored as it comes;
-        the order is the order they finish in.
+        the order is the order they finish in. ``progress`` is told each
+        bench's parts as they are traced, from the bench's thread (its counts
+        are the bench's): a :class:`core.threads.Cancelled` it raises stops
+        the benches begun at their next part, and the others are not begun.
         """
         todo = []
         for k in benches:
@@ -286,26 +298,28 @@ class ModelSession:
                 todo.append(k)
             else:
                 yield k, cast(list, stored)
-        yield from on_threads(self.bench_contours, todo)
+        yield from on_threads(functools.partial(self.bench_contours, progress=progress), todo)
 
-    def bench_contours_with_fields(self, bench: int, geozone: str) -> list[Contour]:
+    def bench_contours_with_fields(self, bench: int, geozone: str, progress: Progress | None = None) -> list[Contour]:
         """:meth:`bench_contours`, with the edge map, GVF and snake history of ``geozone``'s contours.
 
         Kept in memory only, for the newest few requests: fields are large. Once the
         bench's contours are stored, only ``geozone``'s are traced again, with their
         fields (the viewer's switch of geozone on a Kennecott bench: 0.4 s, not 2-5 s
-        tracing all thirteen).
+        tracing all thirteen). ``progress`` is told the parts traced (see :meth:`bench_contours`).
         """
         key = self._contours_key(bench)
 
         def extract() -> list[Contour]:
             stored = self.store.peek("contours", key)
             if stored is not MISSING:
-                own = extract_bench(self.holes, bench, [geozone], self.params.extraction, keep_fields=True)
+                own = extract_bench(
+                    self.holes, bench, [geozone], self.params.extraction, keep_fields=True, progress=progress
+                )
                 if len(own) == sum(c.geozone == geozone for c in stored):  # a geozone's contours come in order
                     traced = iter(own)
                     return [next(traced) if c.geozone == geozone else c for c in stored]
-            full = extract_bench(self.holes, bench, None, self.params.extraction, keep_fields=True)
+            full = extract_bench(self.holes, bench, None, self.params.extraction, keep_fields=True, progress=progress)
             if self.store.peek("contours", key, disk=False) is MISSING:
                 self.store.put("contours", key, [replace(c, fields=None) for c in full])
             return [c if c.geozone == geozone else replace(c, fields=None) for c in full]
@@ -330,15 +344,17 @@ class ModelSession:
                 progress(done, len(benches))
         return [c for k in benches for c in by_bench[k]]
 
-    def snake_preview(self, contour: Contour) -> Contour:
+    def snake_preview(self, contour: Contour, progress: Progress | None = None) -> Contour:
         """The contour extracted again, with its fields, with this session's parameters.
 
         A quick preview for a snake parameter change, before the whole bench
         is extracted again: only the contour's geozone is traced (its bench's
         evidence, then the snake of each of its parts). The contour itself when
-        the new parameters give the geozone no part of that number.
+        the new parameters give the geozone no part of that number. ``progress`` is told the parts traced.
         """
-        fresh = extract_bench(self.holes, contour.bench, [contour.geozone], self.params.extraction, keep_fields=True)
+        fresh = extract_bench(
+            self.holes, contour.bench, [contour.geozone], self.params.extraction, keep_fields=True, progress=progress
+        )
         return next((c for c in fresh if c.component == contour.component), contour)
 
     # -- correspondence and morph (sections 3-4) -------------------------------------------------
@@ -464,8 +480,14 @@ class ModelSession:
             "prediction", key, lambda: predict_geozone(model, z_m, self.holes.hole_spacing_m, self.params)
         )
 
-    def surface(self, geozone: str, model: GeozoneModel | None = None):
+    def surface(self, geozone: str, model: GeozoneModel | None = None, progress: Progress | None = None):
         """The geozone's closed surface (trimesh, local metres): what ``bgm build`` exports.
+
+        ``progress`` is told the model's bench pairs when ``model`` is not given, then the
+        sections made (:func:`surface_sections`), then the mesh's steps
+        (:func:`core.model.surfaces.surface_from_sections`). A
+        :class:`core.threads.Cancelled` it raises stops the surface at that step, and
+        nothing of it is stored.
 
         Raises
         ------
@@ -474,7 +496,7 @@ class ModelSession:
         """
         from core.model.surfaces import surface_from_sections
 
-        model = model or self.geozone_model(geozone)
+        model = model or self.geozone_model(geozone, progress=progress)
         key = content_key(
             "surface",
             self._model_key(model),
@@ -483,16 +505,24 @@ class ModelSession:
         )
 
         def compute():
-            sections = surface_sections(model, self.holes, self.params)
+            sections = surface_sections(model, self.holes, self.params, progress=progress)
             cell = surface_cell_size(model, self.holes, self.params.surface_max_cells)
             # What the holes showed is at least about a spacing wide: on a grid coarsened past half a spacing
             # (a geozone across a wide pit) a dyke one hole wide is narrower than a cell, and no morph speck.
-            return surface_from_sections(sections, cell_size_m=cell, min_width_m=0.5 * self.holes.hole_spacing_m)
+            return surface_from_sections(
+                sections, cell_size_m=cell, min_width_m=0.5 * self.holes.hole_spacing_m, progress=progress
+            )
 
         return self.store.get("surface", key, compute)
 
 
-def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParameters, below_fraction: float = 1.0):
+def surface_sections(
+    model: GeozoneModel,
+    holes: Blastholes,
+    params: ModelParameters,
+    below_fraction: float = 1.0,
+    progress: Progress | None = None,
+):
     """Stacked regions (z metres, region) from the top bench to one bench below the table's deepest.
 
     A pair's lower bench is a section of its own where the next pair does not
@@ -512,6 +542,12 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
     the geozone's pairs end above the deepest bench, the sections run on below
     the deepest as every other geozone's do, empty but for that trend: a body
     absent from benches that drilled its ground closes above them.
+
+    ``progress(done, total)`` is told as each bench pair's sections are made and the
+    sections below the deepest bench (``total``: the pairs and one), then as each
+    section takes in the depth trend (``total``: the sections). Seconds on a large
+    geozone (Kennecott's 3026: 3 s); a :class:`core.threads.Cancelled` it raises stops
+    them there.
     """
     sections = []
     for i, p in enumerate(model.pairs):
@@ -525,6 +561,8 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
             sections.append((z, as_multipolygon(region)))
         if i + 1 < len(model.pairs) and model.pairs[i + 1].upper != p.lower:
             sections.append((p.target_z_m, as_multipolygon(model.region_at_bench(p.lower))))
+        if progress:
+            progress(i + 1, len(model.pairs) + 1)
     if not model.pairs:
         return sections
     last = model.pairs[-1]
@@ -536,7 +574,14 @@ def surface_sections(model: GeozoneModel, holes: Blastholes, params: ModelParame
     height = float(levels[-2] - levels[-1]) if len(levels) > 1 else last.source_z_m - last.target_z_m
     zs = [float(levels[-1] - f * height) for f in np.linspace(0.25, below_fraction, 4)]
     sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
-    return [(z, as_multipolygon(r.union(undrilled_extension(model, z, holes.hole_spacing_m)))) for z, r in sections]
+    if progress:
+        progress(len(model.pairs) + 1, len(model.pairs) + 1)
+    trended = []
+    for z, r in sections:
+        trended.append((z, as_multipolygon(r.union(undrilled_extension(model, z, holes.hole_spacing_m)))))
+        if progress:
+            progress(len(trended), len(sections))
+    return trended
 
 
 def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 300) -> float:

@@ -55,6 +55,7 @@ from skimage import measure
 from core.errors import BGMInputError
 from core.geometry.grid import Grid, as_multipolygon, union_bounds
 from core.geometry.sdf import region_signed_distance
+from core.threads import Progress
 
 #: Default number of cells along the longer horizontal side of the sections.
 DEFAULT_CELLS_ACROSS = 300
@@ -82,6 +83,7 @@ def surface_from_sections(
     cell_size_m: float | None = None,
     z_spacing_m: float | None = None,
     min_width_m: float | None = None,
+    progress: Progress | None = None,
 ) -> trimesh.Trimesh:
     """Closed, outward-oriented triangle mesh of the solid stacked from ``sections``.
 
@@ -111,6 +113,12 @@ def surface_from_sections(
         cell. On a grid coarsened past half a hole spacing, give half a
         spacing: a geozone one hole wide (a dyke across a wide pit) is
         narrower than a cell there, but it is what the holes showed.
+    progress : callable, optional
+        ``progress(done, total)``, told as each section's signed distance is
+        computed (``total``: the sections), then as the mesh is closed and
+        its specks are dropped (``total``: 2). A large geozone's surface
+        takes a second or two; a :class:`core.threads.Cancelled` it raises
+        stops it at that step.
 
     Returns
     -------
@@ -139,9 +147,14 @@ def surface_from_sections(
             f"the surface grid would have {n_vox:,} voxels (more than {MAX_VOXELS:,}); "
             f"use a larger cell size than {grid.cell_size_m:g} m or a larger z spacing"
         )
-    mesh = _closed_mesh(_sdf_volume(regions, grid, src), grid, z_levels)
+    mesh = _closed_mesh(_sdf_volume(regions, grid, src, progress), grid, z_levels)
+    if progress:
+        progress(1, 2)
     voxel_m3 = grid.cell_size_m**2 * float(np.median(np.diff(z_levels)))
-    return _without_specks(mesh, voxel_m3)
+    mesh = _without_specks(mesh, voxel_m3)
+    if progress:
+        progress(2, 2)
+    return mesh
 
 
 def _without_specks(mesh: trimesh.Trimesh, voxel_m3: float) -> trimesh.Trimesh:
@@ -178,17 +191,24 @@ def _section_grid(regions: list[MultiPolygon], cell_size_m: float | None) -> Gri
     return Grid.covering(bounds, cell_size_m, margin_cells=MARGIN_CELLS)
 
 
-def _sdf_volume(regions: list[MultiPolygon], grid: Grid, slices: list[tuple[int, float]]) -> np.ndarray:
+def _sdf_volume(
+    regions: list[MultiPolygon], grid: Grid, slices: list[tuple[int, float]], progress: Progress | None = None
+) -> np.ndarray:
     """Signed distances on every slice, axes (slice, row, col), padded by one outside layer all round.
 
     Each section's SDF (:func:`_section_sdf`; empty sections pinch out,
     :func:`_fill_empty_sections`) is interpolated linearly in z onto the
     slices between sections (``slices`` from :func:`_z_slices`). Exact zeros
     are nudged to a tiny positive value: marching cubes would emit zero-area
-    triangles there.
+    triangles there. ``progress(done, len(regions))`` is told as each section's is computed.
     """
     h = grid.cell_size_m
-    sdfs = _fill_empty_sections([_section_sdf(grid, r) for r in regions], h)
+    computed: list[np.ndarray | None] = []
+    for r in regions:
+        computed.append(_section_sdf(grid, r))
+        if progress:
+            progress(len(computed), len(regions))
+    sdfs = _fill_empty_sections(computed, h)
     outside = -(max(float(np.max(s)) for s in sdfs) + 2.0 * h)
     vol = np.full((len(slices) + 2, grid.shape[0] + 2, grid.shape[1] + 2), outside)
     for k, (i, t) in enumerate(slices):
