@@ -244,6 +244,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._latest: tuple | None = None
         self._show_timer = self._single_shot(0, self._show_latest)
         self._debounce = self._single_shot(debounce_ms, self._start_queued)
+        #: Writes the unsaved work to the autosave a few seconds after a change (ViewerModel.autosave).
+        self._autosave_timer = self._single_shot(0, self._autosave)
 
         # no multi-sampling: software rendering is ~4x slower with it (see issue 6)
         self.plotter = _single_render(QtInteractor(self, multi_samples=0, auto_update=False))
@@ -281,6 +283,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._update_title()
         if auto_run:
             self.request("contours", immediate=True)
+        # Once the window is up (the question shows over it): work an earlier session autosaved and never saved.
+        # (A timer of the window's own: one of the application's would call it on a window closed already.)
+        self._single_shot(0, self.offer_restore).start()
 
     # ------------------------------------------------------------------ building
     def _single_shot(self, interval_ms: int, slot) -> QtCore.QTimer:
@@ -840,6 +845,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _connect_model(self) -> None:
         self.model.dirty_changed.connect(self._update_title)
+        self.model.dirty_changed.connect(self._arm_autosave)
         self.model.overrides_changed.connect(self._on_overrides)
         self.model.params_changed.connect(self._show_params)
         self._on_overrides()  # a new model has nothing to undo: Edit > Undo was left enabled, doing nothing
@@ -864,6 +870,54 @@ class MainWindow(QtWidgets.QMainWindow):
         self.setWindowTitle(
             f"BGM viewer - {holes.source or 'input'} ({unit}) - {name}{' *' if self.model.dirty else ''}"
         )
+
+    # ------------------------------------------------------------------ autosave
+    def _arm_autosave(self, *_) -> None:
+        """Autosave the unsaved work when it is due: one write for a burst of changes (a slider dragged)."""
+        wait_s = self.model.autosave_due_in_s()
+        if wait_s is not None and not self._autosave_timer.isActive():
+            self._autosave_timer.start(int(wait_s * 1000) + 1)
+
+    def _autosave(self) -> None:
+        self.model.autosave()
+        if self.model.autosave_note:
+            self.statusBar().showMessage(self.model.autosave_note, 10000)
+        self._arm_autosave()  # one put off until a run has placed the overrides is tried again
+
+    def offer_restore(self) -> bool:
+        """Offer to restore work autosaved by a session that ended without saving it; ``True`` if restored.
+
+        No deletes the autosave. An unreadable autosave is said in the status bar.
+        """
+        offer = self.model.autosave_offer()
+        if self.model.autosave_note:
+            self.statusBar().showMessage(self.model.autosave_note, 15000)
+        if offer is None:
+            return False
+        when = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(offer.written))
+        name = Path(self.model.project_path).name if self.model.project_path else "this table's untitled project"
+        answer = QtWidgets.QMessageBox.question(
+            self,
+            "Restore unsaved work?",
+            f"Changes to {name} were autosaved at {when} and never saved: the viewer or the machine"
+            " stopped before they were. Restore them?\n\nNo deletes the autosave.",
+            QtWidgets.QMessageBox.StandardButton.Yes | QtWidgets.QMessageBox.StandardButton.No,
+            QtWidgets.QMessageBox.StandardButton.Yes,
+        )
+        if answer != QtWidgets.QMessageBox.StandardButton.Yes:
+            self.model.discard_autosave()
+            self._said(f"deleted the autosave {offer.path}")
+            return False
+
+        def restore() -> None:
+            model, notes = _noted(lambda: self.model.restored(offer))
+            self._replace_model(model)
+            self._tell(notes)
+
+        restored = self._guard(restore)
+        if restored:
+            self._said(f"restored the changes autosaved at {when}: save the project to keep them")
+        return restored
 
     # ------------------------------------------------------------------ worker
     @property
@@ -1080,12 +1134,14 @@ class MainWindow(QtWidgets.QMainWindow):
         if model.holes.unit_guess:  # a unit it had to guess is said, not taken silently
             guess = model.holes.unit_guess.split(": give --units")[0]
             notes.append(f"{model.holes.source}: {guess}; if not, open it again and choose its length unit")
+        self.offer_restore()
         return notes
 
     def _replace_model(self, model: ViewerModel) -> None:
         self._cancel()
         self._pending_step = self._queued_step = None
         self._failure = None  # the new input's run says its own
+        self._autosave_timer.stop()  # the model replaced has nothing to autosave: saved, discarded or restored
         self.model = model
         self._connect_model()
         with self.renderer.batch():
@@ -1141,6 +1197,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
         model, notes = _noted(load)
         self._replace_model(model)
+        self.offer_restore()
         return notes
 
     def _tell(self, notes: list[str]) -> None:
@@ -1340,7 +1397,10 @@ class MainWindow(QtWidgets.QMainWindow):
         )
         if answer == QtWidgets.QMessageBox.StandardButton.Save:
             return self.save_project()
-        return answer == QtWidgets.QMessageBox.StandardButton.Discard
+        if answer == QtWidgets.QMessageBox.StandardButton.Discard:
+            self.model.discard_autosave()  # discarded on purpose: not offered again at the next opening
+            return True
+        return False
 
     def closeEvent(self, event) -> None:
         if not self._confirm_discard():
@@ -1351,6 +1411,7 @@ class MainWindow(QtWidgets.QMainWindow):
         # finds its signals deleted and prints a traceback.
         QtCore.QThreadPool.globalInstance().waitForDone(CLOSE_WAIT_MS)
         self._play.stop()
+        self._autosave_timer.stop()
         if not getattr(self, "_closed", False):
             self._closed = True
             self.plotter.close()

@@ -68,6 +68,9 @@ STEPS = ("contours", "snake", *CORE_STAGES[1:])
 VIEW_SETTINGS = ("vertical_exaggeration", "surface_scope", "surface_geozones", "min_body_volume_m3", "min_body_holes")
 #: Depths below the deepest bench at which the selected geozone is predicted, in bench heights.
 PREDICTED_FRACTIONS = (0.5, 1.0)
+#: Seconds from the first unsaved change to its autosave: a slider dragged for a while is written
+#: once every few seconds, not at each step, and a crash loses at most this much work.
+AUTOSAVE_DELAY_S = 3.0
 
 
 def display_unit(spec, holes: Blastholes) -> tuple[float, str]:
@@ -550,6 +553,13 @@ def project_read_options(project_path) -> dict:
     return load_project(project_path).read_keywords()
 
 
+def _reading(reading: dict) -> dict:
+    """Reading options by command-line name, the unit by its one name (``feet`` is ``ft``), to compare two."""
+    from core.io.blastholes import unit_name
+
+    return {k: unit_name(v) if k == "units" else v for k, v in reading.items() if v is not None}
+
+
 def input_relative_to(input_path: str | None, project_path) -> str | None:
     """``input_path`` as a project file at ``project_path`` names it: relative to the project's folder.
 
@@ -670,6 +680,12 @@ class ViewerModel:
         self.result: PipelineResult = PipelineResult()
         self._dirty = False
         self.project_path: str | None = None
+        #: The clock the autosave delay is measured on (tests set their own).
+        self.clock: Callable[[], float] = time.monotonic
+        #: When the first change not in the autosave was made (``None``: none is).
+        self._unsaved_since: float | None = None
+        #: What the last autosave or restore offer could not do, for the status bar (``None``: nothing to say).
+        self.autosave_note: str | None = None
 
     @property
     def dirty(self) -> bool:
@@ -679,6 +695,10 @@ class ViewerModel:
     @dirty.setter
     def dirty(self, value: bool) -> None:
         self._dirty = bool(value)
+        if not self._dirty:
+            self._unsaved_since = None  # saved, opened or discarded: nothing left to autosave
+        elif self._unsaved_since is None:
+            self._unsaved_since = self.clock()
         self.dirty_changed.emit(self._dirty)
 
     # -- inputs for a run ------------------------------------------------------
@@ -1102,7 +1122,12 @@ class ViewerModel:
         project = self.to_project()
         project.input_path = input_relative_to(self.input_path, path)
         save_project(project, path)
+        # The saved project holds the work now: the autosave it had (or the table's, never saved
+        # before, or the one beside the project saved as another) would only offer it again.
+        before = self.autosave_path
         self.project_path = str(path)
+        for autosave in {before, self.autosave_path}:
+            self._remove_autosave(autosave)
         self.dirty = False
 
     def load_project(self, path: str | Path) -> None:
@@ -1111,9 +1136,16 @@ class ViewerModel:
         Overrides and parameters the model cannot use are named in warnings
         (:func:`core.io.project.check_project`); parameters out of range are refused.
         """
-        from core.io.project import check_project, load_project
+        from core.io.project import load_project
 
-        proj = load_project(path)
+        self._apply_project(load_project(path))
+        self.project_path = str(path)
+        self.dirty = False
+
+    def _apply_project(self, proj) -> None:
+        """Take a :class:`~core.io.project.Project`'s parameters, view and overrides (see :meth:`load_project`)."""
+        from core.io.project import check_project
+
         check_project(proj, self.holes, command="the viewer", uses_parameters=True)
         self.params = self._placed_params = parameters_from_dict(proj.parameters)
         self.params_changed.emit()
@@ -1130,6 +1162,115 @@ class ViewerModel:
         self.overrides = [PlacedOverride.of(o) for o in proj.overrides]
         self._override_edits += 1
         self._undo.clear()
-        self.project_path = str(path)
         self.overrides_changed.emit()
-        self.dirty = False
+
+    # -- autosave ----------------------------------------------------------------------
+    @property
+    def autosave_path(self) -> Path | None:
+        """Where this session's unsaved work is autosaved: beside its project, else one per table (``None``: nowhere).
+
+        See :func:`core.io.autosave.autosave_path`.
+        """
+        from core.io.autosave import autosave_path
+
+        return autosave_path(self.project_path, self.input_path)
+
+    def autosave_due_in_s(self, now: float | None = None) -> float | None:
+        """Seconds until the unsaved changes are due to be autosaved (0: now; ``None``: none to autosave)."""
+        if self._unsaved_since is None or self.autosave_path is None:
+            return None
+        now = self.clock() if now is None else now
+        return max(0.0, self._unsaved_since + AUTOSAVE_DELAY_S - now)
+
+    def autosave(self, now: float | None = None) -> Path | None:
+        """Write the unsaved work to :attr:`autosave_path` if it is due (:data:`AUTOSAVE_DELAY_S`); returns where.
+
+        Never the project file, and never raises: what goes wrong is said in :attr:`autosave_note`
+        and tried again at the next change. Overrides not yet moved to the components of a changed
+        parameter (a run is on its way) would be written under parameters they were not placed
+        under: the autosave waits a delay more for the run.
+
+        Parameters
+        ----------
+        now : float, optional
+            The time on :attr:`clock` (default: now).
+        """
+        from core.errors import BGMInputError
+        from core.io.autosave import write_autosave
+
+        due, path = self.autosave_due_in_s(now), self.autosave_path
+        if due is None or due > 0 or path is None:
+            return None
+        now = self.clock() if now is None else now
+        if self.overrides and self._placed_params != self.params:
+            self._unsaved_since = now  # tried again once the run has placed them
+            return None
+        self._unsaved_since = None
+        try:
+            write_autosave(self.to_project(), path, self.project_path, self.input_path)
+        except (BGMInputError, OSError) as exc:
+            self.autosave_note = f"autosave not written: {exc}"
+            return None
+        self.autosave_note = None
+        return path
+
+    def _remove_autosave(self, path: Path | None) -> None:
+        """Delete the autosave at ``path``; failing to is said in :attr:`autosave_note`, never raised."""
+        from core.errors import BGMInputError
+        from core.io.autosave import remove_autosave
+
+        try:
+            remove_autosave(path)
+        except BGMInputError as exc:
+            self.autosave_note = str(exc)
+
+    def discard_autosave(self) -> None:
+        """Delete this session's autosave: the user chose not to keep the unsaved work (or declined to restore it)."""
+        self._unsaved_since = None
+        self._remove_autosave(self.autosave_path)
+
+    def autosave_offer(self):
+        """The autosave to offer to restore on opening, or ``None``; one unreadable is said in :attr:`autosave_note`.
+
+        Offered when it is at least as new as the saved project, or there is no saved project
+        (:func:`core.io.autosave.pending_autosave`). The window asks; :meth:`restored` applies it.
+        """
+        from core.io.autosave import pending_autosave
+
+        offer, note = pending_autosave(self.autosave_path, self.project_path, self.input_path)
+        self.autosave_note = note
+        return offer
+
+    def restored(self, offer) -> ViewerModel:
+        """A model of this session's table holding the autosave's work, unsaved (its project is this one's).
+
+        The table is read again the autosave's way when it was read otherwise (a table opened
+        in feet, reopened without ``--units``): the overrides and parameters were made on it
+        read so. Otherwise the holes and the computed stages are shared.
+
+        Raises
+        ------
+        BGMInputError
+            If the table must be read again and is no file (standard input), or an override
+            cannot be honoured (:func:`core.io.project.check_project`).
+        """
+        from core.errors import BGMInputError
+        from core.io.project import reading_of
+
+        want, have = _reading(offer.project.reading), _reading(reading_of(self.holes.read_options))
+        if want == have:
+            model = ViewerModel(self.holes, selection=self.selection, cache=False)
+            model.store, model.input_path = self.store, self.input_path  # one store: the stages computed stay
+        elif self.input_path is not None and Path(self.input_path).is_file():
+            options = offer.project.read_keywords()
+            model = ViewerModel(self.input_path, cache=self.store.cache is not None, read_options=options)
+        else:
+            raise BGMInputError(
+                f"the autosave {offer.path} was made reading the table with {want}, not {have}, and"
+                " it cannot be read again: open it from its file"
+            )
+        model._apply_project(offer.project)
+        model.project_path = self.project_path
+        model.dirty = True  # the project file does not hold it: Save writes it, closing asks
+        model._unsaved_since = None  # the autosave holds it already
+        return model

@@ -27,6 +27,9 @@ os.environ.setdefault("QT_API", "pyside6")
 # cache, and each test gets a cache of its own (fixture below); commands started by a test inherit it.
 os.environ["BGM_CACHE_DIR"] = tempfile.mkdtemp(prefix="bgm-test-cache-")
 atexit.register(shutil.rmtree, os.environ["BGM_CACHE_DIR"], ignore_errors=True)
+# Likewise the viewer's autosaves of never-saved projects (core.io.autosave) never go to the user's state folder.
+os.environ["BGM_AUTOSAVE_DIR"] = tempfile.mkdtemp(prefix="bgm-test-autosave-")
+atexit.register(shutil.rmtree, os.environ["BGM_AUTOSAVE_DIR"], ignore_errors=True)
 
 
 @pytest.fixture(autouse=True)
@@ -34,6 +37,14 @@ def own_stage_cache(tmp_path_factory, monkeypatch) -> Path:
     """A fresh, empty stage cache for every test (see :mod:`core.io.cache`)."""
     path = tmp_path_factory.mktemp("bgm-cache")
     monkeypatch.setenv("BGM_CACHE_DIR", str(path))
+    return path
+
+
+@pytest.fixture(autouse=True)
+def own_autosave_dir(tmp_path_factory, monkeypatch) -> Path:
+    """A fresh, empty folder for every test's autosaves of never-saved projects (see :mod:`core.io.autosave`)."""
+    path = tmp_path_factory.mktemp("bgm-autosave")
+    monkeypatch.setenv("BGM_AUTOSAVE_DIR", str(path))
     return path
 
 

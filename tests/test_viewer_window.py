@@ -959,3 +959,44 @@ def test_a_band_superseded_by_a_slider_or_the_window_closing_stops_and_is_never_
     window.model.dirty = False  # no prompt for the slider's change
     window.close()  # waits for the workers: the band stops at its next step, not at its end
     assert ends[-1] == "Cancelled" and shown[-1].model.geozone != "g2"
+
+
+def test_work_autosaved_before_a_crash_is_offered_restored_and_discarded_on_quitting(qtbot, monkeypatch, tmp_path):
+    """An hour of alignment was lost to a crash: nothing was written between saves. `bgm view` now
+    offers the autosave; restored, the work is back and unsaved; quitting without saving removes it."""
+    from bgm_viewer.app import viewer_window
+    from bgm_viewer.model import AUTOSAVE_DELAY_S
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    csv = tmp_path / "holes.csv"
+    table = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
+    table.to_csv(csv, index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        crashed = ViewerModel(csv)
+        crashed.select("g1", 0, 0)
+        crashed.run(until="correspondence")
+    project = tmp_path / "p.bgm.json"
+    crashed.save_project(project)
+    crashed.nudge(6.0, -3.0)
+    autosave = crashed.autosave(now=crashed.clock() + AUTOSAVE_DELAY_S)
+    assert autosave is not None
+    want = crashed.translation_m()
+
+    asked = []
+
+    def answer(parent, title, text, *a, **k):
+        asked.append((title, text))
+        return QtWidgets.QMessageBox.StandardButton.Yes if len(asked) == 1 else QtWidgets.QMessageBox.Discard
+
+    monkeypatch.setattr(QtWidgets.QMessageBox, "question", answer)
+    win = viewer_window(csv, project)  # what `bgm view holes.csv --project p.bgm.json` opens
+    win.show()
+    qtbot.waitUntil(lambda: bool(asked) and not win.busy and win.model.result.complete, timeout=60_000)
+    assert asked[0][0] == "Restore unsaved work?" and "p.bgm.json" in asked[0][1]
+    assert win.model.dirty and win.windowTitle().endswith(" *") and win.model.project_path == str(project)
+    np.testing.assert_allclose(win.model.translation_m(), want, atol=1e-9)
+    assert autosave.exists()  # until saved or discarded
+
+    assert win.close()  # "Save them?" Discard: the work is thrown away on purpose
+    assert len(asked) == 2 and not autosave.exists()

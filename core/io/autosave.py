@@ -1,0 +1,176 @@
+"""Autosaves of the viewer's unsaved work, so a crash or a killed session loses seconds, not an hour.
+
+An autosave is a project file (:mod:`core.io.project`: parameters, the view,
+alignment overrides and the options the table was read with) with one more
+member naming what it was made for::
+
+    "autosave": {"project": "/pit/p.bgm.json", "input": "/pit/holes.csv"}
+
+Its input is named by absolute path, so it is found wherever it lies. It lies
+
+* beside the project, as ``<project name>.autosave`` (``p.bgm.json.autosave``), for a
+  project saved at least once;
+* for a table whose project was never saved, under the user's state folder
+  (``$BGM_AUTOSAVE_DIR``, else ``~/.local/state/bgm/autosave`` on Linux), named after the
+  table and a digest of its absolute path: one autosave per table, whichever folder the
+  viewer was started in.
+
+It is written atomically (:mod:`core.io.atomic`), never through a link (a link named
+like the autosave and pointing at the project would overwrite the project), and never
+read by the command line: ``bgm build --project p.bgm.json`` reads ``p.bgm.json`` alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from core.errors import BGMInputError
+from core.io.atomic import atomic_write_text
+from core.io.project import Project, load_project
+
+#: Appended to a project's name for its autosave.
+SUFFIX = ".autosave"
+#: Where autosaves of never-saved projects go instead of the user's state folder (tests set it).
+AUTOSAVE_ENV = "BGM_AUTOSAVE_DIR"
+#: The member of an autosave naming the project and table it was made for.
+MEMBER = "autosave"
+
+
+@dataclass
+class AutosaveOffer:
+    """An autosave to offer for restoring: where it is, its work and when it was written.
+
+    Attributes
+    ----------
+    path : Path
+        The autosave file.
+    project : Project
+        Its work; ``input_path`` absolute, ``reading`` how the table was read.
+    written : float
+        When it was written (seconds since the epoch, the file's modification time).
+    """
+
+    path: Path
+    project: Project
+    written: float
+
+
+def autosave_dir() -> Path:
+    """``$BGM_AUTOSAVE_DIR`` if set, else ``autosave`` in the user's state folder for bgm."""
+    env = os.environ.get(AUTOSAVE_ENV)
+    if env:
+        return Path(env).expanduser()
+    import platformdirs
+
+    return Path(platformdirs.user_state_dir("bgm", appauthor=False)) / "autosave"
+
+
+def autosave_path(project_path: str | os.PathLike | None, input_path: str | os.PathLike | None) -> Path | None:
+    """Where the autosave of a session goes: beside its project, else one per table (``None``: nowhere).
+
+    Parameters
+    ----------
+    project_path : path or None
+        The project file the session was last saved to or opened from.
+    input_path : path or None
+        The table the session shows; without a project, only a file on disk has an autosave
+        (standard input or the bundled demo cannot be read again to restore it).
+    """
+    if project_path is not None:
+        project = Path(project_path).absolute()
+        return project.with_name(project.name + SUFFIX)
+    if input_path is None or not Path(input_path).is_file():
+        return None
+    table = Path(input_path).resolve()
+    digest = hashlib.sha256(str(table).encode("utf-8", "surrogatepass")).hexdigest()[:16]
+    stem = re.sub(r"[^\w.-]", "_", table.stem)[:40]  # a name the user can recognise, on every file system
+    return autosave_dir() / f"{stem}-{digest}.json"
+
+
+def write_autosave(
+    project: Project, path: str | os.PathLike, project_path: str | os.PathLike | None, input_path
+) -> None:
+    """Write ``project`` as the autosave at ``path``, atomically.
+
+    ``project.input_path`` is written absolute (the autosave may lie far from the table).
+
+    Raises
+    ------
+    BGMInputError
+        If ``path`` is a link (written through, it could overwrite the project), the
+        project cannot be written as JSON, or the folder is not writable.
+    """
+    path = Path(path)
+    if path.is_symlink():
+        raise BGMInputError(f"autosave {path} is a link; it is not written through it (it could be the project)")
+    data = project.to_dict()
+    table = Path(input_path).resolve() if input_path is not None and Path(input_path).is_file() else None
+    data["input_path"] = str(table) if table is not None else project.input_path
+    data[MEMBER] = {
+        "project": None if project_path is None else str(Path(project_path).absolute()),
+        "input": None if table is None else str(table),
+    }
+    try:
+        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    except (TypeError, ValueError) as exc:
+        raise BGMInputError(f"autosave cannot be written as JSON: {exc}.") from None
+    atomic_write_text(path, text)
+
+
+def pending_autosave(
+    path: Path | None, project_path: str | os.PathLike | None, input_path
+) -> tuple[AutosaveOffer | None, str | None]:
+    """The autosave at ``path`` if it holds work the saved project lacks, and what to say of one ignored.
+
+    An autosave is offered when it exists and is at least as new as the project
+    file (a project saved after it, by another viewer, has the later work), or
+    when there is no project file. One made for another table (named in its
+    ``autosave`` member) is not this session's and is passed over in silence.
+    One that cannot be read (half written by a full disk, edited by hand) is
+    ignored, with a sentence saying so: never a traceback.
+
+    Returns
+    -------
+    offer : AutosaveOffer or None
+    note : str or None
+        Why an autosave there was ignored (``None``: nothing to say).
+    """
+    if path is None or not path.is_file():
+        return None, None
+    try:
+        written = path.stat().st_mtime
+        if project_path is not None and Path(project_path).is_file():
+            if written < Path(project_path).stat().st_mtime:
+                return None, None  # the project was saved after it
+        project = load_project(path)
+        member = json.loads(path.read_text(encoding="utf-8-sig")).get(MEMBER)
+    except (BGMInputError, OSError, ValueError) as exc:
+        return None, f"the autosave {path} cannot be restored and was ignored: {_reason(exc, path)}"
+    if not isinstance(member, dict):
+        return None, f"the autosave {path} cannot be restored and was ignored: it names no table"
+    if project_path is None and input_path is not None and member.get("input") != str(Path(input_path).resolve()):
+        return None, None  # another table's (the digest of its path is the same): not this session's
+    return AutosaveOffer(path, project, written), None
+
+
+def _reason(exc: Exception, path: Path) -> str:
+    """An exception's message without the autosave's path, which the caller names already."""
+    text = str(exc).rstrip(".").replace(f"project file {path}", "it").replace(str(path), "it")
+    return text or type(exc).__name__
+
+
+def remove_autosave(path: Path | None) -> None:
+    """Delete the autosave at ``path`` if there is one (a link is removed, not what it points at)."""
+    if path is None:
+        return
+    try:
+        path.unlink()
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        raise BGMInputError(f"cannot remove the autosave {path}: {exc.strerror or exc}") from None
