@@ -1118,3 +1118,34 @@ def test_no_part_of_a_prediction_below_the_deepest_bench_lies_where_no_bench_dri
             # Nor slivers below the field's resolution (g2 had four of 0-3 m2 at each level).
             slivers = [part.area for part in region.geoms if part.area < model.fields.grid.cell_size_m**2]
             assert not slivers, (geozone, z, slivers)
+
+
+@pytest.mark.parametrize(("seed", "geozone"), [(1, "g1"), (3, "g3")])
+def test_a_geozone_the_deepest_bench_did_not_find_is_predicted_absent_there_not_as_slivers_of_the_trend(seed, geozone):
+    """A strips mine whose deepest bench found none of ``geozone`` (its holes there relabelled host).
+
+    The depth trend of the benches above reached half a spacing into the deepest bench's drilled edge and
+    left slivers there (3 parts, 11.5 m^2; 11 parts, 55 m^2): a section of a geozone the bench drilled and
+    did not find. Every other section keeps every part a hole could show.
+    """
+    import warnings
+
+    from core.io.blastholes import BGMWarning, blastholes_from_table
+    from core.model.session import ModelSession
+    from core.synthetic.scenarios import scenario
+
+    _, table, _ = scenario("strips", seed)
+    deepest = table["z"].round(-1) == table["z"].round(-1).min()
+    table.loc[deepest & (table["geozone"] == geozone), "geozone"] = "host"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = blastholes_from_table(table, source=f"strips {seed}")
+    session = ModelSession.open(holes, None, None, cache=False)
+    model = session.geozone_model(geozone)
+    z = float(holes.bench_levels_m[-1])
+    assert predict_geozone(model, [z], holes.hole_spacing_m)[z].is_empty
+    for k, z_k in enumerate(holes.bench_levels_m[:-1]):  # above it, no part smaller than a hole's share
+        section = predict_geozone(model, [float(z_k)], holes.hole_spacing_m)[float(z_k)]
+        bench_region = model.region_at_bench(k)
+        near = bench_region.buffer(0.25 * holes.hole_spacing_m)
+        assert all(p.area >= holes.hole_spacing_m**2 or p.intersects(near) for p in section.geoms)

@@ -817,7 +817,7 @@ def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildConte
 def undrilled_below_note(session: ModelSession, model: GeozoneModel) -> str:
     """What the report says of a geozone whose last bench is above the deepest and the bench below it drilled
     less than half of it there: its body ends for want of drilling, not of the geozone, and below that bench
-    its surface and predictions are its depth trend (:func:`core.model.session.undrilled_extension`).
+    its surface and predictions are its depth trend (:func:`core.model.prediction.undrilled_extension`).
 
     Empty otherwise: a geozone the bench below drilled and did not find closes above it
     (a pit narrowing with depth leaves parts of most bodies undrilled below; only where the whole end is

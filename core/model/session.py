@@ -51,7 +51,7 @@ from core.model.pipeline import (
     morph,
     morph_instance,
 )
-from core.model.prediction import predict_geozone, regions_between, undrilled_extension
+from core.model.prediction import predict_geozone, regions_between, with_undrilled_extension
 from core.threads import Progress, on_threads
 
 #: Iso-contours per bench interval used to build surfaces.
@@ -578,7 +578,7 @@ def surface_sections(
         progress(len(model.pairs) + 1, len(model.pairs) + 1)
     trended = []
     for z, r in sections:
-        trended.append((z, as_multipolygon(r.union(undrilled_extension(model, z, holes.hole_spacing_m)))))
+        trended.append((z, with_undrilled_extension(r, model, z, holes.hole_spacing_m)))
         if progress:
             progress(len(trended), len(sections))
     return trended
