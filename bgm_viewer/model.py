@@ -791,7 +791,18 @@ class ViewerModel:
         return parameter_value(self.params, name)
 
     def set_param(self, name: str, value) -> str:
-        """Set a parameter (engine units, ``None`` for the data-derived default); returns the step to re-run."""
+        """Set a parameter (engine units, ``None`` for the data-derived default); returns the step to re-run.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is no parameter (the message names it and the parameters),
+            or the value is not one it takes (:class:`core.errors.BGMInputError`).
+        """
+        if name not in PARAMETER:
+            # parameters_from_dict leaves unknown keys alone (a project file may hold others'): a misspelt
+            # name set nothing, and step_of raised a bare KeyError after.
+            raise ValueError(f"{name!r} is no model parameter; the parameters are {', '.join(PARAMETER)}")
         params = parameters_from_dict({name: value}, self.params)
         if params != self.params:
             self.params = params
