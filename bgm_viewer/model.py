@@ -1259,12 +1259,30 @@ class ViewerModel:
         in feet, reopened without ``--units``): the overrides and parameters were made on it
         read so. Otherwise the holes and the computed stages are shared.
 
+        A restore that fails sets the autosave aside (:func:`core.io.autosave.set_aside`): kept
+        under a name the message gives, and not offered again at every opening.
+
         Raises
         ------
         BGMInputError
             If the table must be read again and is no file (standard input), or an override
             cannot be honoured (:func:`core.io.project.check_project`).
         """
+        from core.errors import BGMInputError
+        from core.io.autosave import set_aside
+
+        try:
+            return self._restored(offer)
+        except (BGMInputError, ValueError, OSError) as exc:
+            # Left where it was, the autosave that cannot fit this table was offered, and failed, at every opening.
+            try:
+                aside = f"it is kept as {set_aside(offer.path)} and will not be offered again"
+            except BGMInputError as why:
+                aside = str(why)
+            raise BGMInputError(f"the autosave {offer.path} cannot be restored: {exc}; {aside}") from None
+
+    def _restored(self, offer) -> ViewerModel:
+        """:meth:`restored` without setting the autosave aside when it fails."""
         from core.errors import BGMInputError
         from core.io.project import reading_of
 
@@ -1277,8 +1295,8 @@ class ViewerModel:
             model = ViewerModel(self.input_path, cache=self.store.cache is not None, read_options=options)
         else:
             raise BGMInputError(
-                f"the autosave {offer.path} was made reading the table with {want}, not {have}, and"
-                " it cannot be read again: open it from its file"
+                f"it was made reading the table with {want}, not {have}, and the table cannot be read"
+                " again: open it from its file"
             )
         model._apply_project(offer.project)
         model.project_path = self.project_path

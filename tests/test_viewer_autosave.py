@@ -276,3 +276,39 @@ def test_bgm_build_reads_the_project_not_its_autosave(table_in_feet, tmp_path):
     run = bgm("correspond", table_in_feet, "--geozone", "g1", "--project", tmp_path / "p.json", "--out", out)
     assert run.returncode == 0, run.stderr
     assert "autosave" not in run.stderr
+
+
+def test_an_autosave_that_fails_to_restore_is_set_aside_and_not_offered_again(table_in_feet, tmp_path):
+    """The table changed (cut to a corner of the pit) so the autosaved override no longer fits it: the
+    restore fails, and the autosave was offered, and failed, at every opening. It is now kept under
+    another name the message gives, and the next opening offers nothing."""
+    import pandas as pd
+
+    from core.errors import BGMInputError
+
+    table = tmp_path / "holes.csv"
+    table.write_bytes(table_in_feet.read_bytes())
+    clock = Clock()
+    model = _model(table, clock)
+    model.save_project(tmp_path / "p.json")
+    model.nudge(60.0, 0.0)  # the pit spans 140 m
+    clock.now += AUTOSAVE_DELAY_S
+    autosave = model.autosave()
+    assert autosave is not None
+    kept = autosave.read_bytes()
+    del model  # the viewer crashed
+
+    holes = pd.read_csv(table)
+    corner = (holes.x < holes.x.min() + 131) & (holes.y < holes.y.min() + 131)  # 40 m, in feet
+    holes[corner].to_csv(table, index=False)
+    again = _reopened(table, clock, tmp_path / "p.json", length_unit="ft")
+    offer = again.autosave_offer()
+    assert offer is not None
+    with pytest.raises(BGMInputError) as failed:
+        again.restored(offer)
+    aside = [p for p in tmp_path.iterdir() if p.name.startswith("p.json.autosave.failed-")]
+    assert len(aside) == 1 and not autosave.exists()
+    assert aside[0].read_bytes() == kept  # nothing lost
+    message = str(failed.value)
+    assert str(aside[0]) in message and "not be offered again" in message and "more than the whole input" in message
+    assert _reopened(table, clock, tmp_path / "p.json", length_unit="ft").autosave_offer() is None

@@ -18,6 +18,10 @@ Its input is named by absolute path, so it is found wherever it lies. It lies
 It is written atomically (:mod:`core.io.atomic`), never through a link (a link named
 like the autosave and pointing at the project would overwrite the project), and never
 read by the command line: ``bgm build --project p.bgm.json`` reads ``p.bgm.json`` alone.
+
+An autosave whose restore failed (the table changed, so an override no longer fits) is
+renamed aside, ``p.bgm.json.autosave.failed-20261205-110812`` (:func:`set_aside`): kept,
+and no longer offered at every opening.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import hashlib
 import json
 import os
 import re
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,6 +44,8 @@ SUFFIX = ".autosave"
 AUTOSAVE_ENV = "BGM_AUTOSAVE_DIR"
 #: The member of an autosave naming the project and table it was made for.
 MEMBER = "autosave"
+#: Between an autosave's name and the time its restore failed, in the name it is set aside under.
+FAILED_TAG = ".failed-"
 
 
 @dataclass
@@ -174,3 +181,30 @@ def remove_autosave(path: Path | None) -> None:
         pass
     except OSError as exc:
         raise BGMInputError(f"cannot remove the autosave {path}: {exc.strerror or exc}") from None
+
+
+def set_aside(path: Path, now: float | None = None) -> Path:
+    """Rename the autosave at ``path`` to ``<name>.failed-<local time>`` beside it; returns the new path.
+
+    For an autosave whose restore failed: kept (nothing the user did is lost, and
+    the name says what it is), but no longer offered at every opening. Renamed,
+    not copied: a rename within a folder is atomic, so the autosave is under one
+    name or the other, never half of each. A name taken already (two failures in
+    one second) is never overwritten: the next free ``-1``, ``-2`` is used.
+
+    Raises
+    ------
+    BGMInputError
+        If it cannot be renamed (the folder is not writable, the file went).
+    """
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(now))
+    for n in range(1000):
+        aside = path.with_name(f"{path.name}{FAILED_TAG}{stamp}{f'-{n}' if n else ''}")
+        if aside.exists() or aside.is_symlink():
+            continue
+        try:
+            os.rename(path, aside)
+        except OSError as exc:
+            raise BGMInputError(f"cannot set the autosave {path} aside: {exc.strerror or exc}") from None
+        return aside
+    raise BGMInputError(f"cannot set the autosave {path} aside: every name for {stamp} is taken")
