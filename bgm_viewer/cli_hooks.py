@@ -84,7 +84,7 @@ def view(
         ),
     ] = None,
     camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
-    geozone: Annotated[str | None, typer.Option("--geozone", help="Geozone to select.")] = None,
+    geozone: Annotated[list[str] | None, typer.Option("--geozone", help="Geozone to select.", metavar="<str>")] = None,
     bench: Annotated[int | None, typer.Option(help=BENCH_HELP)] = None,
     exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
     no_cache: Annotated[
@@ -94,7 +94,9 @@ def view(
     table=None,
 ) -> None:
     """Open the 3D viewer (or render a screenshot with no display)."""
-    from core.cli import DEMO_CSV, _outputs  # the engine's checks of every output
+    from core.cli import DEMO_CSV, _given_once, _outputs  # the engine's checks of every output
+
+    selected = None if geozone is None else _given_once(geozone, "bgm view")  # typer kept the last one alone
 
     if input is not None and str(input) != "-" and not Path(input).exists():
         raise BGMInputError(f"input file {str(input)!r} does not exist")
@@ -118,7 +120,7 @@ def view(
         screenshot,
         layers,
         camera,
-        geozone=geozone,
+        geozone=selected,
         bench=bench,
         vertical_exaggeration=exaggeration,
         cache=not no_cache,
@@ -171,7 +173,7 @@ def view_command(
             layers=layers,
             camera=camera or "iso",
             project=project,
-            geozone=geozone if geozone is None else holes.check_geozones([geozone])[0],
+            geozone=geozone if geozone is None else holes.check_one_geozone(geozone, "bgm view"),
             bench=bench,
             vertical_exaggeration=vertical_exaggeration,
             cache=cache,
@@ -179,7 +181,7 @@ def view_command(
         return 0
     if geozone is not None or bench is not None:
         input = _checked_holes(input, geozone, bench)  # read once: the window opens on these holes
-        geozone = geozone if geozone is None else input.check_geozones([geozone])[0]
+        geozone = geozone if geozone is None else input.check_one_geozone(geozone, "bgm view")
     view = {"geozone": geozone, "bench": bench, "layers": layers, "camera": camera}
     view["vertical_exaggeration"] = vertical_exaggeration
     return run_viewer(input, project, cache=cache, **{k: v for k, v in view.items() if v is not None})
@@ -255,7 +257,7 @@ def _checked_holes(input, geozone: str | None, bench: int | None):
 
     holes = load_holes(input)
     if geozone is not None:
-        holes.check_geozones([geozone])
+        holes.check_one_geozone(geozone, "bgm view")
     last = max(holes.n_benches - 2, 0)  # a single bench still has its own contours to show, as pair 0
     if bench is not None and not 0 <= bench <= last:
         raise BGMInputError(

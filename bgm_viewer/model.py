@@ -686,6 +686,10 @@ class ViewerModel:
         self._unsaved_since: float | None = None
         #: What the last autosave or restore offer could not do, for the status bar (``None``: nothing to say).
         self.autosave_note: str | None = None
+        #: The autosave another viewer running now writes, this session's had it not (see :attr:`autosave_path`).
+        self._shared_autosave: Path | None = None
+        #: An autosave of another name this session offered or restored: removed with its own on saving or discarding.
+        self._taken_autosave: Path | None = None
 
     @property
     def dirty(self) -> bool:
@@ -791,7 +795,18 @@ class ViewerModel:
         return parameter_value(self.params, name)
 
     def set_param(self, name: str, value) -> str:
-        """Set a parameter (engine units, ``None`` for the data-derived default); returns the step to re-run."""
+        """Set a parameter (engine units, ``None`` for the data-derived default); returns the step to re-run.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is no parameter (the message names it and the parameters),
+            or the value is not one it takes (:class:`core.errors.BGMInputError`).
+        """
+        if name not in PARAMETER:
+            # parameters_from_dict leaves unknown keys alone (a project file may hold others'): a misspelt
+            # name set nothing, and step_of raised a bare KeyError after.
+            raise ValueError(f"{name!r} is no model parameter; the parameters are {', '.join(PARAMETER)}")
         params = parameters_from_dict({name: value}, self.params)
         if params != self.params:
             self.params = params
@@ -1126,8 +1141,9 @@ class ViewerModel:
         # before, or the one beside the project saved as another) would only offer it again.
         before = self.autosave_path
         self.project_path = str(path)
-        for autosave in {before, self.autosave_path}:
+        for autosave in {before, self.autosave_path, self._taken_autosave}:
             self._remove_autosave(autosave)
+        self._taken_autosave = None
         self.dirty = False
 
     def load_project(self, path: str | Path) -> None:
@@ -1169,11 +1185,34 @@ class ViewerModel:
     def autosave_path(self) -> Path | None:
         """Where this session's unsaved work is autosaved: beside its project, else one per table (``None``: nowhere).
 
-        See :func:`core.io.autosave.autosave_path`.
+        See :func:`core.io.autosave.autosave_path`. When another viewer running now writes that
+        autosave (two viewers on one project), this session's goes to a name of its own
+        (:func:`core.io.autosave.own_autosave_path`): the last to write no longer wins.
         """
-        from core.io.autosave import autosave_path
+        from core.io.autosave import autosave_path, own_autosave_path
 
-        return autosave_path(self.project_path, self.input_path)
+        path = autosave_path(self.project_path, self.input_path)
+        return own_autosave_path(path) if path is not None and path == self._shared_autosave else path
+
+    def _share_autosave_if_another_writes_it(self) -> bool:
+        """Take a name of this session's own when another viewer running now writes the autosave; ``True`` if so.
+
+        Said in :attr:`autosave_note` (the window's status bar), naming the other viewer and both files.
+        """
+        from core.io.autosave import autosave_path, live_writer
+
+        path = autosave_path(self.project_path, self.input_path)
+        if path is None or path == self._shared_autosave:
+            return False
+        writer = live_writer(path)
+        if writer is None:
+            return False
+        self._shared_autosave = path
+        self.autosave_note = (
+            f"another viewer (process {writer['pid']} on {writer['host']}) is autosaving this project to {path}:"
+            f" it is not offered nor overwritten; this session autosaves to {self.autosave_path}"
+        )
+        return True
 
     def autosave_due_in_s(self, now: float | None = None) -> float | None:
         """Seconds until the unsaved changes are due to be autosaved (0: now; ``None``: none to autosave)."""
@@ -1198,20 +1237,26 @@ class ViewerModel:
         from core.errors import BGMInputError
         from core.io.autosave import write_autosave
 
-        due, path = self.autosave_due_in_s(now), self.autosave_path
-        if due is None or due > 0 or path is None:
+        due = self.autosave_due_in_s(now)
+        if due is None or due > 0:
             return None
         now = self.clock() if now is None else now
         if self.overrides and self._placed_params != self.params:
             self._unsaved_since = now  # tried again once the run has placed them
             return None
         self._unsaved_since = None
+        # Another viewer may have opened the project since this one did, and autosaved first.
+        switched = self._share_autosave_if_another_writes_it()
+        path = self.autosave_path
+        if path is None:
+            return None
         try:
             write_autosave(self.to_project(), path, self.project_path, self.input_path)
         except (BGMInputError, OSError) as exc:
             self.autosave_note = f"autosave not written: {exc}"
             return None
-        self.autosave_note = None
+        if not switched:
+            self.autosave_note = None
         return path
 
     def _remove_autosave(self, path: Path | None) -> None:
@@ -1228,17 +1273,32 @@ class ViewerModel:
         """Delete this session's autosave: the user chose not to keep the unsaved work (or declined to restore it)."""
         self._unsaved_since = None
         self._remove_autosave(self.autosave_path)
+        self._remove_autosave(self._taken_autosave)
+        self._taken_autosave = None
 
     def autosave_offer(self):
         """The autosave to offer to restore on opening, or ``None``; one unreadable is said in :attr:`autosave_note`.
 
         Offered when it is at least as new as the saved project, or there is no saved project
         (:func:`core.io.autosave.pending_autosave`). The window asks; :meth:`restored` applies it.
+        One another viewer running now writes is neither offered nor overwritten (said in the
+        note); the autosave of a viewer that wrote under a name of its own and ended without
+        saving is offered when the project's own is not.
         """
-        from core.io.autosave import pending_autosave
+        from core.io.autosave import live_writer, other_viewers_autosaves, pending_autosave
 
-        offer, note = pending_autosave(self.autosave_path, self.project_path, self.input_path)
-        self.autosave_note = note
+        self.autosave_note = None
+        offer, note = None, None
+        if not self._share_autosave_if_another_writes_it():
+            offer, note = pending_autosave(self.autosave_path, self.project_path, self.input_path)
+        base = self._shared_autosave or self.autosave_path
+        for other in [] if offer is not None or base is None else other_viewers_autosaves(base):
+            if other != self.autosave_path and live_writer(other) is None:
+                offer, _ = pending_autosave(other, self.project_path, self.input_path)
+                if offer is not None:
+                    break
+        self.autosave_note = self.autosave_note or note
+        self._taken_autosave = offer.path if offer is not None and offer.path != self.autosave_path else None
         return offer
 
     def restored(self, offer) -> ViewerModel:
@@ -1248,12 +1308,30 @@ class ViewerModel:
         in feet, reopened without ``--units``): the overrides and parameters were made on it
         read so. Otherwise the holes and the computed stages are shared.
 
+        A restore that fails sets the autosave aside (:func:`core.io.autosave.set_aside`): kept
+        under a name the message gives, and not offered again at every opening.
+
         Raises
         ------
         BGMInputError
             If the table must be read again and is no file (standard input), or an override
             cannot be honoured (:func:`core.io.project.check_project`).
         """
+        from core.errors import BGMInputError
+        from core.io.autosave import set_aside
+
+        try:
+            return self._restored(offer)
+        except (BGMInputError, ValueError, OSError) as exc:
+            # Left where it was, the autosave that cannot fit this table was offered, and failed, at every opening.
+            try:
+                aside = f"it is kept as {set_aside(offer.path)} and will not be offered again"
+            except BGMInputError as why:
+                aside = str(why)
+            raise BGMInputError(f"the autosave {offer.path} cannot be restored: {exc}; {aside}") from None
+
+    def _restored(self, offer) -> ViewerModel:
+        """:meth:`restored` without setting the autosave aside when it fails."""
         from core.errors import BGMInputError
         from core.io.project import reading_of
 
@@ -1266,11 +1344,12 @@ class ViewerModel:
             model = ViewerModel(self.input_path, cache=self.store.cache is not None, read_options=options)
         else:
             raise BGMInputError(
-                f"the autosave {offer.path} was made reading the table with {want}, not {have}, and"
-                " it cannot be read again: open it from its file"
+                f"it was made reading the table with {want}, not {have}, and the table cannot be read"
+                " again: open it from its file"
             )
         model._apply_project(offer.project)
         model.project_path = self.project_path
+        model._shared_autosave, model._taken_autosave = self._shared_autosave, self._taken_autosave
         model.dirty = True  # the project file does not hold it: Save writes it, closing asks
         model._unsaved_since = None  # the autosave holds it already
         return model

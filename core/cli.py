@@ -92,7 +92,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from core.errors import BGMInputError, quoted
+from core.errors import BGMInputError, listing, quoted
 
 app = typer.Typer(
     name="bgm",
@@ -110,7 +110,13 @@ MAX_PREDICTION_BENCHES = 3.0
 InputArg = Annotated[
     Path, typer.Argument(help="Blasthole table (CSV or Parquet; - for standard input).", show_default=False)
 ]
-GeozoneOpt = Annotated[str, typer.Option("--geozone", help="Geozone to model (as written in the input, e.g. 3310).")]
+# A list, so that a repeated --geozone is refused (_given_once), not silently the last one given.
+GeozoneOpt = Annotated[
+    list[str],
+    typer.Option(
+        "--geozone", help="Geozone to model (as written in the input, e.g. 3310).", metavar="<str>", show_default=False
+    ),
+]
 ProjectOpt = Annotated[
     Path | None,
     typer.Option(
@@ -456,10 +462,25 @@ def contours(
     typer.echo(json.dumps(summary, indent=2))
 
 
+def _given_once(given: list[str], command: str) -> str:
+    """The one ``--geozone`` of a command that models one geozone; refused when the option is repeated.
+
+    Typer keeps the last of a repeated single-valued option: ``bgm correspond
+    --geozone 3320 --geozone 3310`` modelled 3310 alone, with nothing said.
+    """
+    if len(given) != 1:
+        raise BGMInputError(
+            f"{command} takes one geozone; --geozone is given {len(given)} times: "
+            f"{listing(map(quoted, given))} (run {command} once for each)"
+        )
+    return given[0]
+
+
 def _model(input, geozone, project, stages, table: TableOptions, command: str, no_cache: bool):
     """Read the input and model one geozone up to ``stages``; returns (session, label, model, seconds)."""
+    geozone = _given_once(geozone, f"bgm {command}")
     holes = table.read(input)
-    geozone = holes.check_geozones([geozone])[0]
+    geozone = holes.check_one_geozone(geozone, f"bgm {command}")
     if holes.n_benches < 2:
         raise BGMInputError(
             f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
@@ -615,6 +636,7 @@ def predict(
     from core.io.export import write_geojson
     from core.io.uncertainty_export import write_probability_grid
 
+    given = _given_once(geozone, "bgm predict")
     levels = _elevations(elevations)
     _band_probability(band_probability)
     sidecars = uncertainty_sidecars(out)
@@ -622,7 +644,7 @@ def predict(
     for sidecar in sidecars:  # written too: none may be an input, a folder or a device
         _outputs(sidecar, input, project, what="the uncertainty file beside --out")
     holes = table.read(input)
-    geozone = holes.check_geozones([geozone])[0]
+    geozone = holes.check_one_geozone(given, "bgm predict")
     if holes.n_benches < 2:
         raise BGMInputError(
             f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
@@ -704,12 +726,13 @@ def evaluate(
         summary_table,
     )
 
+    given = _given_once(geozone, "bgm evaluate")
     names = ("evaluation_rows.csv", "evaluation.csv", "precision_recall.png")
     check_output(out, folder=True)
     for name in names:
         _outputs(out / name, input)
     holes = table.read(input)
-    geozone = holes.check_geozones([geozone])[0]
+    geozone = holes.check_one_geozone(given, "bgm evaluate")
     if holes.n_benches < 3:
         raise BGMInputError(f"{input} has {holes.n_benches} bench(es); evaluation needs at least three")
     truth = load_truth(input, holes)

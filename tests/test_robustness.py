@@ -300,6 +300,34 @@ def test_unknown_geozone_for_correspond_and_morph(base_csv, tmp_path):
         fails_cleanly(bgm(command, base_csv, "--geozone", "3310", "--out", tmp_path / "o.json"), "'3310'", "present")
 
 
+ONE_GEOZONE = {
+    "correspond": ("--out", "o.json"),
+    "morph": ("--out", "o.json"),
+    "predict": ("--elevations", "0", "--out", "o.geojson"),
+    "evaluate": ("--out", "ev"),
+    "view": ("--screenshot", "o.png"),
+}
+
+
+@pytest.mark.parametrize("command", sorted(ONE_GEOZONE))
+@pytest.mark.parametrize(
+    "given, phrases",
+    [
+        (("g0,g1",), ("'g0,g1' names 2: g0, g1",)),
+        (("g0, nope",), ("names 2: g0, nope", "'nope' not in")),
+        (("g0 g1",), ("'g0 g1' names 2: g0, g1",)),
+        (("g0", "g1"), ("--geozone is given 2 times: 'g0', 'g1'",)),
+    ],
+)
+def test_a_command_that_models_one_geozone_says_so_when_given_several(base_csv, tmp_path, command, given, phrases):
+    """``bgm predict --geozone 3320,3310`` said "'3320,3310' is not in" the table; given twice, the last was taken."""
+    options = [a if a.startswith("-") or a == "0" else tmp_path / a for a in ONE_GEOZONE[command]]
+    geozones = [a for g in given for a in ("--geozone", g)]
+    line = fails_cleanly(bgm(command, base_csv, *geozones, *options), f"bgm {command} takes one geozone", *phrases)
+    assert "is not in" not in line
+    assert list(tmp_path.iterdir()) == []
+
+
 # ---------------------------------------------------------------------------
 # Project files (--project)
 

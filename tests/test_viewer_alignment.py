@@ -209,3 +209,21 @@ def test_undo_returns_the_earliest_step_of_the_parameters_it_brings_back(model):
     _run(model, "snake")
     model.nudge(1.0, 0.0)
     assert model.undo() == "correspondence" and model.params == before and shown == [3]
+
+
+def test_a_parameter_that_does_not_exist_is_refused_at_once_naming_it_and_the_parameters():
+    """``set_param("gvf_muu", ...)`` set nothing and raised a bare ``KeyError`` after; a project saved
+    between the two kept a change the geologist thought was made."""
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.testing import small_holes
+    from core.model.parameters import PARAMETER
+
+    model = ViewerModel(small_holes(3))
+    before, dirty = model.params, model.dirty
+    with pytest.raises(ValueError) as raised:
+        model.set_param("gvf_muu", 0.12)
+    message = str(raised.value)
+    assert not isinstance(raised.value, KeyError)
+    assert "'gvf_muu'" in message and all(name in message for name in PARAMETER)
+    assert model.params == before and model.dirty == dirty
+    assert model.set_param("gvf_mu", 0.12) == "snake" and model.param("gvf_mu") == 0.12

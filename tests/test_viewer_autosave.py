@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import warnings
 from pathlib import Path
 
@@ -276,3 +277,118 @@ def test_bgm_build_reads_the_project_not_its_autosave(table_in_feet, tmp_path):
     run = bgm("correspond", table_in_feet, "--geozone", "g1", "--project", tmp_path / "p.json", "--out", out)
     assert run.returncode == 0, run.stderr
     assert "autosave" not in run.stderr
+
+
+def test_an_autosave_that_fails_to_restore_is_set_aside_and_not_offered_again(table_in_feet, tmp_path):
+    """The table changed (cut to a corner of the pit) so the autosaved override no longer fits it: the
+    restore fails, and the autosave was offered, and failed, at every opening. It is now kept under
+    another name the message gives, and the next opening offers nothing."""
+    import pandas as pd
+
+    from core.errors import BGMInputError
+
+    table = tmp_path / "holes.csv"
+    table.write_bytes(table_in_feet.read_bytes())
+    clock = Clock()
+    model = _model(table, clock)
+    model.save_project(tmp_path / "p.json")
+    model.nudge(60.0, 0.0)  # the pit spans 140 m
+    clock.now += AUTOSAVE_DELAY_S
+    autosave = model.autosave()
+    assert autosave is not None
+    kept = autosave.read_bytes()
+    del model  # the viewer crashed
+
+    holes = pd.read_csv(table)
+    corner = (holes.x < holes.x.min() + 131) & (holes.y < holes.y.min() + 131)  # 40 m, in feet
+    holes[corner].to_csv(table, index=False)
+    again = _reopened(table, clock, tmp_path / "p.json", length_unit="ft")
+    offer = again.autosave_offer()
+    assert offer is not None
+    with pytest.raises(BGMInputError) as failed:
+        again.restored(offer)
+    aside = [p for p in tmp_path.iterdir() if p.name.startswith("p.json.autosave.failed-")]
+    assert len(aside) == 1 and not autosave.exists()
+    assert aside[0].read_bytes() == kept  # nothing lost
+    message = str(failed.value)
+    assert str(aside[0]) in message and "not be offered again" in message and "more than the whole input" in message
+    assert _reopened(table, clock, tmp_path / "p.json", length_unit="ft").autosave_offer() is None
+
+
+#: Another viewer: writes the project's autosave as a viewer does, then runs until its standard input closes.
+OTHER_VIEWER = """
+import sys
+from core.io.autosave import write_autosave
+from core.io.project import load_project
+write_autosave(load_project(sys.argv[1]), sys.argv[2], sys.argv[1], sys.argv[3])
+print("written", flush=True)
+sys.stdin.read()
+"""
+
+
+def test_two_viewers_on_one_project_keep_each_their_autosave(table_in_feet, tmp_path):
+    """Two viewers on one project shared its autosave and the last to write won. A viewer that finds
+    the autosave of another running now neither offers it nor overwrites it: it autosaves to a name of
+    its own and says so; once that other has ended, its autosave is offered again."""
+    import subprocess
+    import sys
+
+    clock = Clock()
+    first = _model(table_in_feet, clock)  # opened before the other viewer autosaved
+    project = tmp_path / "p.json"
+    first.save_project(project)
+    base = tmp_path / "p.json.autosave"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    other = subprocess.Popen(
+        [sys.executable, "-c", OTHER_VIEWER, str(project), str(base), str(table_in_feet)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        assert other.stdout is not None and other.stdout.readline().strip() == "written"
+        theirs = base.read_bytes()
+        assert json.loads(theirs)["autosave"]["writer"]["pid"] == other.pid
+
+        first.nudge(2.0, 0.0)
+        clock.now += AUTOSAVE_DELAY_S
+        mine = first.autosave()
+        assert mine is not None and mine != base and str(os.getpid()) in mine.name
+        assert base.read_bytes() == theirs  # not overwritten
+        assert str(other.pid) in first.autosave_note and str(mine) in first.autosave_note
+
+        second = _reopened(table_in_feet, clock, project, length_unit="ft")  # opened while the other runs
+        assert second.autosave_offer() is None
+        assert str(base) in second.autosave_note and str(other.pid) in second.autosave_note
+        assert second.autosave_path == mine.with_name(f"p.json.autosave-{os.getpid()}")
+    finally:
+        other.communicate("")  # the other viewer ends
+    assert other.returncode == 0
+
+    after = _reopened(table_in_feet, clock, project, length_unit="ft")
+    offer = after.autosave_offer()
+    assert offer is not None and offer.path == base  # no viewer writes it now: offered
+    after.discard_autosave()
+    offer = _reopened(table_in_feet, clock, project, length_unit="ft").autosave_offer()
+    assert offer is not None and offer.path == mine  # the one this session wrote under its own name
+
+
+def test_a_writer_whose_process_id_was_reused_or_is_on_another_machine_is_no_running_viewer(tmp_path):
+    """A crashed viewer's process id, reused by another program, hid its autosave forever."""
+    from core.io.autosave import _process_start, live_writer
+
+    path = tmp_path / "p.json.autosave"
+    parent = os.getppid()  # a process that runs now, not this one
+
+    def written(**writer) -> Path:
+        path.write_text(json.dumps({"autosave": {"writer": writer}}))
+        return path
+
+    host = socket.gethostname()
+    started = _process_start(parent)
+    assert live_writer(written(pid=parent, host=host, started=started)) is not None
+    assert live_writer(written(pid=os.getpid(), host=host, started=_process_start(os.getpid()))) is None  # this one
+    assert live_writer(written(pid=parent, host=host + "-elsewhere", started=started)) is None
+    if started is not None:  # where the start of a process can be told (Linux)
+        assert live_writer(written(pid=parent, host=host, started=started + 1)) is None

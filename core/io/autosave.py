@@ -18,6 +18,16 @@ Its input is named by absolute path, so it is found wherever it lies. It lies
 It is written atomically (:mod:`core.io.atomic`), never through a link (a link named
 like the autosave and pointing at the project would overwrite the project), and never
 read by the command line: ``bgm build --project p.bgm.json`` reads ``p.bgm.json`` alone.
+
+An autosave records the viewer that wrote it (its process id, the machine, when the
+process started). A viewer that finds the autosave of another viewer running now on
+this machine (two viewers on one project) neither offers it nor overwrites it: it
+autosaves to a name of its own, ``p.bgm.json.autosave-<pid>`` (:func:`own_autosave_path`),
+which a later opening offers once no viewer runs that writes it.
+
+An autosave whose restore failed (the table changed, so an override no longer fits) is
+renamed aside, ``p.bgm.json.autosave.failed-20261205-110812`` (:func:`set_aside`): kept,
+and no longer offered at every opening.
 """
 
 from __future__ import annotations
@@ -26,6 +36,8 @@ import hashlib
 import json
 import os
 import re
+import socket
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,6 +51,8 @@ SUFFIX = ".autosave"
 AUTOSAVE_ENV = "BGM_AUTOSAVE_DIR"
 #: The member of an autosave naming the project and table it was made for.
 MEMBER = "autosave"
+#: Between an autosave's name and the time its restore failed, in the name it is set aside under.
+FAILED_TAG = ".failed-"
 
 
 @dataclass
@@ -114,6 +128,7 @@ def write_autosave(
     data[MEMBER] = {
         "project": None if project_path is None else str(Path(project_path).absolute()),
         "input": None if table is None else str(table),
+        "writer": this_writer(),
     }
     try:
         text = json.dumps(data, indent=2, allow_nan=False) + "\n"
@@ -174,3 +189,107 @@ def remove_autosave(path: Path | None) -> None:
         pass
     except OSError as exc:
         raise BGMInputError(f"cannot remove the autosave {path}: {exc.strerror or exc}") from None
+
+
+def set_aside(path: Path, now: float | None = None) -> Path:
+    """Rename the autosave at ``path`` to ``<name>.failed-<local time>`` beside it; returns the new path.
+
+    For an autosave whose restore failed: kept (nothing the user did is lost, and
+    the name says what it is), but no longer offered at every opening. Renamed,
+    not copied: a rename within a folder is atomic, so the autosave is under one
+    name or the other, never half of each. A name taken already (two failures in
+    one second) is never overwritten: the next free ``-1``, ``-2`` is used.
+
+    Raises
+    ------
+    BGMInputError
+        If it cannot be renamed (the folder is not writable, the file went).
+    """
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(now))
+    for n in range(1000):
+        aside = path.with_name(f"{path.name}{FAILED_TAG}{stamp}{f'-{n}' if n else ''}")
+        if aside.exists() or aside.is_symlink():
+            continue
+        try:
+            os.rename(path, aside)
+        except OSError as exc:
+            raise BGMInputError(f"cannot set the autosave {path} aside: {exc.strerror or exc}") from None
+        return aside
+    raise BGMInputError(f"cannot set the autosave {path} aside: every name for {stamp} is taken")
+
+
+def this_writer() -> dict:
+    """Who writes an autosave: this process's id, the machine's name and when the process started."""
+    return {"pid": os.getpid(), "host": socket.gethostname(), "started": _process_start(os.getpid())}
+
+
+def live_writer(path: Path | None) -> dict | None:
+    """The writer of the autosave at ``path`` when it is another viewer running now on this machine, else ``None``.
+
+    Two viewers on one project shared its autosave, and the last to write won:
+    each overwrote the other's work. A process id is only alive on its own
+    machine, and may be reused after the viewer ended: a writer whose process
+    started at another time than recorded is another program, not a viewer.
+    Anything unreadable is no live writer (the autosave is offered, or said
+    unreadable, as before).
+    """
+    if path is None or not path.is_file():
+        return None
+    try:
+        member = json.loads(path.read_text(encoding="utf-8-sig")).get(MEMBER)
+        writer = member.get("writer") if isinstance(member, dict) else None
+        if not isinstance(writer, dict):
+            return None  # written before autosaves named their writer, or by hand
+        pid, host = int(writer["pid"]), str(writer["host"])
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
+        return None
+    if host != socket.gethostname() or pid == os.getpid() or pid <= 0 or not _alive(pid):
+        return None
+    started = writer.get("started")
+    if started is not None and _process_start(pid) not in (None, started):
+        return None  # the id of a viewer that ended, reused by another process
+    return writer
+
+
+def own_autosave_path(path: Path, pid: int | None = None) -> Path:
+    """The autosave of this viewer beside ``path``, which another running viewer writes: ``<name>-<pid>``.
+
+    ``p.bgm.json.autosave`` -> ``p.bgm.json.autosave-4242``; ``holes-<digest>.json`` ->
+    ``holes-<digest>-4242.json``.
+    """
+    pid = os.getpid() if pid is None else pid
+    if path.name.endswith(".json"):
+        return path.with_name(f"{path.name[: -len('.json')]}-{pid}.json")
+    return path.with_name(f"{path.name}-{pid}")
+
+
+def other_viewers_autosaves(path: Path) -> list[Path]:
+    """The autosaves other viewers wrote beside ``path`` under names of their own (:func:`own_autosave_path`), newest first."""
+    stem, json_suffix = (path.name[: -len(".json")], ".json") if path.name.endswith(".json") else (path.name, "")
+    pattern = re.compile(re.escape(stem) + r"-\d+" + re.escape(json_suffix))
+    try:
+        found = [p for p in path.parent.iterdir() if pattern.fullmatch(p.name) and p.is_file()]
+    except OSError:
+        return []
+    return sorted(found, key=lambda p: p.stat().st_mtime, reverse=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # another user's process: alive
+    except OSError:
+        return False
+    return True
+
+
+def _process_start(pid: int) -> int | None:
+    """When process ``pid`` started (clock ticks since boot, Linux's ``/proc``), or ``None`` where it cannot be told."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+        return int(text.rsplit(")", 1)[1].split()[19])
+    except (OSError, ValueError, IndexError):
+        return None

@@ -271,6 +271,57 @@ class Blastholes:
             )
         return list(dict.fromkeys(f for f in found if f is not None))
 
+    def check_one_geozone(self, value: str, command: str) -> str:
+        """The one geozone ``value`` names for ``command`` (``bgm predict``, ...), validated.
+
+        ``bgm contours`` and ``bgm build`` take several geozones separated by
+        commas; the commands that model one refused ``3320,3310`` as a label
+        "not in" the table, and the geologist looked for a typo. A value that
+        is no label but several (separated by commas or semicolons, or by
+        spaces where each part is a label) is refused naming them.
+
+        Parameters
+        ----------
+        value : str
+            The ``--geozone`` as given.
+        command : str
+            The command, as the message names it (``bgm predict``).
+
+        Returns
+        -------
+        str
+            The label as the table writes it.
+        """
+        try:
+            return self.check_geozones([value])[0]
+        except BGMInputError:
+            several = [] if str(value).strip() in self.lost_geozones else self._several_geozones(value)
+            if not several:
+                raise
+        missing = [g for g in several if not self._is_geozone(g)]
+        absent = f"; {listing(map(quoted, missing))} not in {self.source or 'the input'}" if missing else ""
+        raise BGMInputError(
+            f"{command} takes one geozone; --geozone {quoted(value)} names {len(several)}: "
+            f"{listing(several)}{absent} (run {command} once for each)"
+        )
+
+    def _is_geozone(self, value: str) -> bool:
+        try:
+            self.check_geozones([value])
+        except BGMInputError:
+            return False
+        return True
+
+    def _several_geozones(self, value: str) -> list[str]:
+        """The geozones a value that is no label lists, or none when it lists fewer than two."""
+        text = unicodedata.normalize("NFC", str(value)).strip()
+        if re.search(r"[,;]", text):
+            parts = [g.strip() for g in re.split(r"[,;]", text) if g.strip()]
+            return parts if len(parts) > 1 else []
+        parts = text.split()
+        # Spaces only when every part is a label: a label may hold spaces ("ore oxide").
+        return parts if len(parts) > 1 and all(self._is_geozone(g) for g in parts) else []
+
     def drilled_area(self, k: int):
         """Area drilled on bench ``k`` (see :func:`drilled_area`), computed once per bench."""
         if k not in self._drilled:
