@@ -69,6 +69,18 @@ def _reopened(path, clock: Clock, project=None, **read) -> ViewerModel:
     return model
 
 
+def _autosaved_after_save(path, tmp_path, nudge_m: float = 2.0) -> tuple[Clock, Path]:
+    """A project saved to ``tmp_path/p.json``, then a nudge of ``nudge_m`` autosaved a delay later: the clock, the autosave."""
+    clock = Clock()
+    model = _model(path, clock)
+    model.save_project(tmp_path / "p.json")
+    model.nudge(nudge_m, 0.0)
+    clock.now += AUTOSAVE_DELAY_S
+    autosave = model.autosave()
+    assert autosave is not None
+    return clock, autosave
+
+
 def test_an_override_is_autosaved_beside_the_project_once_a_burst_of_changes_is_a_delay_old(table_in_feet, tmp_path):
     clock = Clock()
     model = _model(table_in_feet, clock)
@@ -131,13 +143,7 @@ def test_restore_is_offered_on_reopening_and_gives_back_the_work_unsaved(table_i
 
 
 def test_declining_the_restore_removes_the_autosave(table_in_feet, tmp_path):
-    clock = Clock()
-    model = _model(table_in_feet, clock)
-    model.save_project(tmp_path / "p.json")
-    model.nudge(2.0, 0.0)
-    clock.now += AUTOSAVE_DELAY_S
-    autosave = model.autosave()
-    assert autosave is not None
+    clock, autosave = _autosaved_after_save(table_in_feet, tmp_path)
 
     again = _reopened(table_in_feet, clock, tmp_path / "p.json")
     assert again.autosave_offer() is not None
@@ -223,13 +229,7 @@ def test_a_never_saved_projects_autosave_is_kept_per_table_and_restores_its_read
 
 def test_an_autosave_older_than_the_saved_project_is_not_offered(table_in_feet, tmp_path):
     """The project was saved after it (by another viewer): the later work is the project's."""
-    clock = Clock()
-    model = _model(table_in_feet, clock)
-    model.save_project(tmp_path / "p.json")
-    model.nudge(2.0, 0.0)
-    clock.now += AUTOSAVE_DELAY_S
-    autosave = model.autosave()
-    assert autosave is not None
+    clock, autosave = _autosaved_after_save(table_in_feet, tmp_path)
     stamp = (tmp_path / "p.json").stat().st_mtime
     os.utime(autosave, (stamp - 60, stamp - 60))
     assert _reopened(table_in_feet, clock, tmp_path / "p.json").autosave_offer() is None
@@ -289,15 +289,8 @@ def test_an_autosave_that_fails_to_restore_is_set_aside_and_not_offered_again(ta
 
     table = tmp_path / "holes.csv"
     table.write_bytes(table_in_feet.read_bytes())
-    clock = Clock()
-    model = _model(table, clock)
-    model.save_project(tmp_path / "p.json")
-    model.nudge(60.0, 0.0)  # the pit spans 140 m
-    clock.now += AUTOSAVE_DELAY_S
-    autosave = model.autosave()
-    assert autosave is not None
+    clock, autosave = _autosaved_after_save(table, tmp_path, nudge_m=60.0)  # the pit spans 140 m; then a crash
     kept = autosave.read_bytes()
-    del model  # the viewer crashed
 
     holes = pd.read_csv(table)
     corner = (holes.x < holes.x.min() + 131) & (holes.y < holes.y.min() + 131)  # 40 m, in feet
