@@ -1277,7 +1277,7 @@ class ViewerModel:
         self._taken_autosave = None
 
     def autosave_offer(self):
-        """The autosave to offer to restore on opening, or ``None``; one unreadable is said in :attr:`autosave_note`.
+        """The autosave to offer to restore on opening, or ``None``; one unreadable is set aside, said in :attr:`autosave_note`.
 
         Offered when it is at least as new as the saved project, or there is no saved project
         (:func:`core.io.autosave.pending_autosave`). The window asks; :meth:`restored` applies it.
@@ -1297,9 +1297,27 @@ class ViewerModel:
                 offer, _ = pending_autosave(other, self.project_path, self.input_path)
                 if offer is not None:
                     break
+        if note is not None and self.autosave_path is not None:
+            note = self._set_unreadable_autosave_aside(self.autosave_path, note)
         self.autosave_note = self.autosave_note or note
         self._taken_autosave = offer.path if offer is not None and offer.path != self.autosave_path else None
         return offer
+
+    @staticmethod
+    def _set_unreadable_autosave_aside(path: Path, note: str) -> str:
+        """Set the unreadable autosave at ``path`` aside (:func:`core.io.autosave.set_aside`); ``note`` saying where.
+
+        Left where it was, an autosave that cannot be read (half written by a full disk, edited
+        by hand) was ignored with the same note at every opening, forever: it is kept under a
+        name the note gives, as one whose restore failed, and not reported again.
+        """
+        from core.errors import BGMInputError
+        from core.io.autosave import set_aside
+
+        try:
+            return f"{note}; it is kept as {set_aside(path)} and will not be offered again"
+        except BGMInputError as why:
+            return f"{note}; {why}"
 
     def restored(self, offer) -> ViewerModel:
         """A model of this session's table holding the autosave's work, unsaved (its project is this one's).
