@@ -37,10 +37,14 @@ class PlacedOverride(AlignmentOverride):
         ``None`` until it is (an override read from a project file).
     target_outlines : dict of int to shapely geometry
         The outlines of the targets ``associate`` names.
+    renumbered_from : int or None
+        The source's number before :func:`relocate_overrides` last moved the override to its
+        renumbered component (``None``: it was not moved), so a selection of it can follow.
     """
 
     source_outline: BaseGeometry | None = field(default=None, compare=False, repr=False)
     target_outlines: dict[int, BaseGeometry] = field(default_factory=dict, compare=False, repr=False)
+    renumbered_from: int | None = field(default=None, compare=False, repr=False)
 
     @classmethod
     def of(cls, o: AlignmentOverride) -> PlacedOverride:
@@ -153,6 +157,7 @@ def relocate_overrides(
         if s != o.source or moved_targets:
             moves = ([f"source {o.source} is {s}"] if s != o.source else []) + moved_targets
             notes.append(f"{name} follows its components, renumbered: {', '.join(moves)}")
+        o.renumbered_from = o.source if s != o.source else None
         o.source, o.associate = s, associate
         o.place(sources, targets)
         out.append(o)

@@ -848,6 +848,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model.dirty_changed.connect(self._arm_autosave)
         self.model.overrides_changed.connect(self._on_overrides)
         self.model.params_changed.connect(self._show_params)
+        self.model.selection_changed.connect(self._show_component)
         self._on_overrides()  # a new model has nothing to undo: Edit > Undo was left enabled, doing nothing
 
     def _show_params(self) -> None:
@@ -859,6 +860,13 @@ class MainWindow(QtWidgets.QMainWindow):
             value = self.model.param(name)
             if ctl.value() != value:
                 ctl.set_value(value)
+
+    def _show_component(self, sel) -> None:
+        """Show the selected source component's number (a run moves it when its override follows it)."""
+        if self.component_spin.value() != sel.component:
+            self.component_spin.blockSignals(True)  # the model selected it already: no second run
+            self.component_spin.setValue(sel.component)
+            self.component_spin.blockSignals(False)
 
     def _on_overrides(self) -> None:
         self.undo_action.setEnabled(self.model.can_undo)

@@ -183,6 +183,9 @@ class Relocation:
     overrides: list
     notes: list[str] = field(default_factory=list)
     params: ModelParameters | None = None
+    #: ``(before, after)``: the run's selection, and the one it moved to because the selected source's
+    #: override followed its component to another number (``None``: the selection did not move).
+    followed: tuple[Selection, Selection] | None = None
 
 
 @dataclass
@@ -342,10 +345,28 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
     overrides, notes = relocate_overrides(session.project.overrides, outlines, unit=holes.frame.length_unit)
     run.session = session.updated(project=replace(session.project, overrides=overrides))
     before = res.relocated.notes if res.relocated is not None else []
+    followed = res.relocated.followed if res.relocated is not None else _follow_selection(run, overrides)
     placed = session.params if fresh >= set(range(holes.n_benches)) else None
-    res.relocated = Relocation(run.inputs.override_edits, overrides, before + notes, placed)
+    res.relocated = Relocation(run.inputs.override_edits, overrides, before + notes, placed, followed)
     if res.relocated.notes:
         res.errors["alignment overrides"] = "; ".join(res.relocated.notes)
+
+
+def _follow_selection(run: _Run, overrides: list) -> tuple[Selection, Selection] | None:
+    """Select the component the selected source's override moved to; ``(before, after)``, or ``None`` if none moved.
+
+    The geologist selected the component they corrected. Left on its old number after a
+    parameter renumbered the components, the selection showed another body, and the next
+    nudge or typed translation overrode that body instead of the one corrected.
+    """
+    from core.io.project import _same_z
+
+    sel, z = run.sel, float(run.session.holes.bench_z_input(run.sel.bench))
+    for o in overrides:
+        if o.geozone == sel.geozone and _same_z(o.source_z, z) and o.renumbered_from == sel.component:
+            run.sel = run.res.selection = replace(sel, component=o.source)
+            return sel, run.sel
+    return None
 
 
 def _snake_preview(run: _Run, previous: PipelineResult) -> Iterator[Progress]:
@@ -757,6 +778,10 @@ class ViewerModel:
         if changed:
             self._push_run_undo(relocated.edits)
         self.overrides = copy.deepcopy(relocated.overrides)  # with the outlines the run placed them at
+        if relocated.followed is not None and self.selection == relocated.followed[0]:
+            # the selection follows the corrected component to its new number, as the run did
+            self.selection = relocated.followed[1]
+            self.selection_changed.emit(self.selection)
         if relocated.params is not None:
             self._placed_params = relocated.params
         if changed:
@@ -1277,7 +1302,7 @@ class ViewerModel:
         self._taken_autosave = None
 
     def autosave_offer(self):
-        """The autosave to offer to restore on opening, or ``None``; one unreadable is said in :attr:`autosave_note`.
+        """The autosave to offer to restore on opening, or ``None``; one unreadable is set aside, said in :attr:`autosave_note`.
 
         Offered when it is at least as new as the saved project, or there is no saved project
         (:func:`core.io.autosave.pending_autosave`). The window asks; :meth:`restored` applies it.
@@ -1297,9 +1322,27 @@ class ViewerModel:
                 offer, _ = pending_autosave(other, self.project_path, self.input_path)
                 if offer is not None:
                     break
+        if note is not None and self.autosave_path is not None:
+            note = self._set_unreadable_autosave_aside(self.autosave_path, note)
         self.autosave_note = self.autosave_note or note
         self._taken_autosave = offer.path if offer is not None and offer.path != self.autosave_path else None
         return offer
+
+    @staticmethod
+    def _set_unreadable_autosave_aside(path: Path, note: str) -> str:
+        """Set the unreadable autosave at ``path`` aside (:func:`core.io.autosave.set_aside`); ``note`` saying where.
+
+        Left where it was, an autosave that cannot be read (half written by a full disk, edited
+        by hand) was ignored with the same note at every opening, forever: it is kept under a
+        name the note gives, as one whose restore failed, and not reported again.
+        """
+        from core.errors import BGMInputError
+        from core.io.autosave import set_aside
+
+        try:
+            return f"{note}; it is kept as {set_aside(path)} and will not be offered again"
+        except BGMInputError as why:
+            return f"{note}; {why}"
 
     def restored(self, offer) -> ViewerModel:
         """A model of this session's table holding the autosave's work, unsaved (its project is this one's).

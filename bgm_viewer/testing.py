@@ -25,6 +25,23 @@ def small_holes(seed: int = 3, unit: str = "m"):
         return blastholes_from_table(table, length_unit=unit, source=f"small mine {seed} ({unit})")
 
 
+@functools.lru_cache(maxsize=1)
+def two_bodies_holes():
+    """:func:`small_holes` with a second body of g1, a few holes in a corner of the top two benches.
+
+    g1's top bench pair then has two source components: the main body (0) and the corner one (1).
+    """
+    from core.io.blastholes import blastholes_from_table
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    table = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
+    corner = (table.x - table.x.min() - 12) ** 2 + (table.y - table.y.min() - 12) ** 2 < 9**2
+    table.loc[corner, "geozone"] = "g1"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return blastholes_from_table(table, length_unit="m", source="small mine with two g1 bodies")
+
+
 def small_model(seed: int = 3, until: str = "surface"):
     """A :class:`~bgm_viewer.model.ViewerModel` of :func:`small_holes` with the pipeline run."""
     from .model import ViewerModel

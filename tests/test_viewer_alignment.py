@@ -227,3 +227,36 @@ def test_a_parameter_that_does_not_exist_is_refused_at_once_naming_it_and_the_pa
     assert "'gvf_muu'" in message and all(name in message for name in PARAMETER)
     assert model.params == before and model.dirty == dirty
     assert model.set_param("gvf_mu", 0.12) == "snake" and model.param("gvf_mu") == 0.12
+
+
+def _two_bodies_model():
+    """A model of :func:`bgm_viewer.testing.two_bodies_holes`, the corner body of g1 (component 1) selected."""
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.testing import two_bodies_holes
+
+    model = ViewerModel(two_bodies_holes(), cache=False)
+    model.select("g1", 0, 1)
+    _run(model, "contours")
+    return model
+
+
+def test_the_selection_follows_the_corrected_component_when_it_is_renumbered():
+    """The geologist corrects the small corner body, then a slider renumbers the components: the override
+    followed its body, but the selection stayed on the old number, now the main body. The panel showed the
+    main body's translation, and the next nudge overrode the main body instead of the corner one."""
+    model = _two_bodies_model()
+    assert len(model.result.pair.sources) == 2
+    model.set_translation(3.0, -2.0)  # the corner body, component 1
+    _run(model, "correspondence")
+    # As if a parameter had renumbered the components: the corner body was number 0 and selected as such.
+    model.select(component=0)
+    model.overrides[0].source = 0
+    _run(model, "correspondence")
+
+    assert model.overrides[0].source == 1  # the override followed its body
+    assert model.selection.component == 1, "the selection stayed on another body"
+    np.testing.assert_allclose(model.translation_m(), (3.0, -2.0), atol=1e-9)
+    model.nudge(1.0, 0.0)
+    _run(model, "correspondence")
+    assert [(o.source, o.translation) for o in model.overrides] == [(1, (4.0, -2.0))]
+    np.testing.assert_allclose(model.result.correspondence.translations[1], (4.0, -2.0), atol=1e-9)

@@ -183,7 +183,7 @@ def test_an_explicit_save_removes_the_autosave(table_in_feet, tmp_path):
         ("[1, 2]", "is not a BGM project file"),
     ],
 )
-def test_a_corrupt_autosave_is_ignored_with_a_message(table_in_feet, tmp_path, content, reason):
+def test_a_corrupt_autosave_is_set_aside_with_a_message(table_in_feet, tmp_path, content, reason):
     clock = Clock()
     model = _model(table_in_feet, clock)
     model.save_project(tmp_path / "p.json")
@@ -195,6 +195,12 @@ def test_a_corrupt_autosave_is_ignored_with_a_message(table_in_feet, tmp_path, c
     assert again.autosave_note is not None
     assert str(autosave) in again.autosave_note and "ignored" in again.autosave_note
     assert reason in again.autosave_note, again.autosave_note
+    # Set aside, kept under the name the note gives, and not reported at every opening after.
+    aside = [p for p in tmp_path.iterdir() if p.name.startswith("p.json.autosave.failed-")]
+    assert len(aside) == 1 and not autosave.exists() and aside[0].read_text() == content
+    assert str(aside[0]) in again.autosave_note and "not be offered again" in again.autosave_note
+    third = _reopened(table_in_feet, clock, tmp_path / "p.json")
+    assert third.autosave_offer() is None and third.autosave_note is None
 
 
 def test_a_never_saved_projects_autosave_is_kept_per_table_and_restores_its_reading(

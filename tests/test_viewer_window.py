@@ -1000,3 +1000,28 @@ def test_work_autosaved_before_a_crash_is_offered_restored_and_discarded_on_quit
 
     assert win.close()  # "Save them?" Discard: the work is thrown away on purpose
     assert len(asked) == 2 and not autosave.exists()
+
+
+def test_the_component_shown_follows_the_corrected_body_when_a_run_renumbers_it(qtbot):
+    """The selection panel showed the old number of the corrected body after a run renumbered it (see
+    test_viewer_alignment.py): the spin box now shows the number the selection followed to."""
+    from bgm_viewer.testing import two_bodies_holes
+
+    model = ViewerModel(two_bodies_holes(), cache=False)
+    model.select("g1", 0, 1)
+    win = MainWindow(model, debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        win.apply_translation()  # lock the corner body where it is
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+        win.component_spin.setValue(0)  # as if numbered 0 before a parameter renumbered it
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+        win.model.overrides[0].source = 0
+        win.request("correspondence", immediate=True)
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+        assert win.model.selection.component == 1 and win.component_spin.value() == 1
+        assert "locked" in win.translation_label.text()
+    finally:
+        win.model.dirty = False
+        win.close()
