@@ -326,7 +326,7 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
     it by its new number, and one whose component cannot be found again is dropped, never
     applied to another component. What moved is in ``run.res.relocated`` and its errors.
     """
-    from core.io.project import _same_z
+    from core.io.project import same_elevation
 
     from .alignment import relocate_overrides
 
@@ -336,7 +336,7 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
     holes = session.holes
 
     def outlines(geozone: str, source_z: float):
-        k = next((k for k in range(holes.n_benches - 1) if _same_z(holes.bench_z_input(k), source_z)), None)
+        k = next((k for k in range(holes.n_benches - 1) if same_elevation(holes.bench_z_input(k), source_z)), None)
         if k is None or k not in fresh or k + 1 not in fresh:
             return None
         m = res.min_component_holes
@@ -359,11 +359,11 @@ def _follow_selection(run: _Run, overrides: list) -> tuple[Selection, Selection]
     parameter renumbered the components, the selection showed another body, and the next
     nudge or typed translation overrode that body instead of the one corrected.
     """
-    from core.io.project import _same_z
+    from core.io.project import same_elevation
 
     sel, z = run.sel, float(run.session.holes.bench_z_input(run.sel.bench))
     for o in overrides:
-        if o.geozone == sel.geozone and _same_z(o.source_z, z) and o.renumbered_from == sel.component:
+        if o.geozone == sel.geozone and same_elevation(o.source_z, z) and o.renumbered_from == sel.component:
             run.sel = run.res.selection = replace(sel, component=o.source)
             return sel, run.sel
     return None
@@ -879,13 +879,13 @@ class ViewerModel:
     # -- manual alignment ------------------------------------------------------------
     def override_here(self, create: bool = False):
         """The override of the selected source (``None`` if it has none and ``create`` is false)."""
-        from core.io.project import _same_z
+        from core.io.project import same_elevation
 
         from .alignment import PlacedOverride
 
         sel, z = self.selection, self.source_z_input()
         for o in self.overrides:
-            if o.geozone == sel.geozone and o.source == sel.component and _same_z(o.source_z, z):
+            if o.geozone == sel.geozone and o.source == sel.component and same_elevation(o.source_z, z):
                 return o
         if not create:
             return None

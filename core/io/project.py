@@ -444,7 +444,7 @@ def check_project(
             reason = f"geozone {quoted(o.geozone)} is not in the input"
         elif o.geozone not in modelled:
             reason = f"{command} does not model geozone {quoted(o.geozone)}"
-        elif not any(_same_z(o.source_z, z) for z in uppers):
+        elif not any(same_elevation(o.source_z, z) for z in uppers):
             reason = f"no bench pair has its upper bench at {o.source_z:g} {unit} (upper benches in {unit}: {listing(uppers, 8)})"
         if reason:
             warnings.warn(f"{where} is not used: {reason}", BGMWarning, stacklevel=2)
@@ -510,7 +510,8 @@ def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
-def _same_z(a: float, b: float) -> bool:
+def same_elevation(a: float, b: float) -> bool:
+    """Whether two bench elevations (input units) are the same bench: equal within :data:`Z_RELATIVE_TOLERANCE`."""
     return abs(a - b) <= Z_RELATIVE_TOLERANCE * max(1.0, abs(a), abs(b))
 
 
@@ -586,7 +587,7 @@ def overrides_for(
     locked: dict[int, tuple[float, float]] = {}
     assoc: dict[tuple[int, int], bool] = {}
     for o in project.overrides:
-        if o.geozone != geozone or not _same_z(o.source_z, source_z):
+        if o.geozone != geozone or not same_elevation(o.source_z, source_z):
             continue
         if o.translation is not None:
             locked[o.source] = (float(o.translation[0]), float(o.translation[1]))
