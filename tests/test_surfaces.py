@@ -460,3 +460,19 @@ def test_geozones_only_accents_tell_apart_get_their_own_dxf_layers(tmp_path):
     assert len(set(layers)) == len(labels), layers
     assert layers[1] == "Sud_Oxid" and layers[2] == "Sud-Oxid" and layers[4] == "Zone_Nord_este", layers
     assert all(len(layer) <= 31 and layer.isascii() for layer in layers)
+
+
+def test_geozones_only_case_tells_apart_get_their_own_dxf_layers(tmp_path):
+    """DXF layer names are case-insensitive: "ox" and "OX" on layers "ox" and "OX" were read back as one layer."""
+    from core.io.export import write_polylines_dxf
+
+    labels = ["ox", "OX", "Ox_2", "sulphide"]
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    path = write_polylines_dxf([(g, 600.0 + k, square + k) for k, g in enumerate(labels)], tmp_path / "c.dxf")
+    doc = ezdxf.readfile(path)
+    lines = list(doc.modelspace().query("POLYLINE"))
+    by_z = {round(line.dxf.elevation[2]) - 600: line.dxf.layer.casefold() for line in lines}
+    layers = [by_z[k] for k in range(len(labels))]
+    assert len(set(layers)) == len(labels), layers
+    # Every geozone's layer is in the layer table as read back (one entry per case-folded name).
+    assert {layer.dxf.name.casefold() for layer in doc.layers} >= set(layers)

@@ -545,16 +545,20 @@ def dxf_layer_names(names: Iterable[str]) -> dict[str, str]:
     """Each name's R12 layer (:func:`_dxf_layer_name`), distinct names on distinct layers (``_2``, ``_3``...).
 
     Two labels that only non-ASCII characters tell apart (``Süd/Oxid``, ``Süd-Oxid``) would share one
-    layer, and mine software would merge the two geozones.
+    layer, and mine software would merge the two geozones. So would two that only case tells apart
+    (``ox``, ``OX``): DXF layer names are case-insensitive (AutoCAD, Vulcan and ezdxf keep one of the
+    two layer entries), so layers are told apart case-folded.
     """
     layers: dict[str, str] = {}
+    taken: set[str] = set()
     for name in sorted(set(names)):
         base = layer = _dxf_layer_name(name)
         n = 1
-        while layer in layers.values():
+        while layer.casefold() in taken:
             n += 1
             layer = f"{base[: 31 - len(str(n)) - 1]}_{n}"
         layers[name] = layer
+        taken.add(layer.casefold())
     return layers
 
 
