@@ -14,7 +14,7 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shapely import affinity
-from shapely.geometry import MultiPolygon, Point, Polygon, box, shape
+from shapely.geometry import LinearRing, MultiPolygon, Point, Polygon, box, shape
 
 from core.errors import BGMInputError
 from core.io import export as export_mod
@@ -407,8 +407,9 @@ def test_write_geojson_round_trips_float64(tmp_path):
     assert data["features"][0]["properties"] == {"geozone": "g1", "z": -12.5, "bench": 3}
     assert data["features"][1]["id"] == 7
     back = shape(data["features"][0]["geometry"])
-    assert back.equals_exact(holed, 0.0) and len(back.interiors) == 1
-    assert shape(data["features"][1]["geometry"]).equals_exact(multi, 0.0)
+    # Bit-identical coordinates; rings may be wound the other way (right-hand rule), hence normalize.
+    assert back.normalize().equals_exact(holed.normalize(), 0.0) and len(back.interiors) == 1
+    assert shape(data["features"][1]["geometry"]).normalize().equals_exact(multi.normalize(), 0.0)
 
     with pytest.raises(BGMInputError, match="Point"):
         write_geojson([{"geometry": Point(0, 0)}], tmp_path / "bad.geojson")
@@ -460,3 +461,36 @@ def test_geozones_only_accents_tell_apart_get_their_own_dxf_layers(tmp_path):
     assert len(set(layers)) == len(labels), layers
     assert layers[1] == "Sud_Oxid" and layers[2] == "Sud-Oxid" and layers[4] == "Zone_Nord_este", layers
     assert all(len(layer) <= 31 and layer.isascii() for layer in layers)
+
+
+def test_geozones_only_case_tells_apart_get_their_own_dxf_layers(tmp_path):
+    """DXF layer names are case-insensitive: "ox" and "OX" on layers "ox" and "OX" were read back as one layer."""
+    from core.io.export import write_polylines_dxf
+
+    labels = ["ox", "OX", "Ox_2", "sulphide"]
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    path = write_polylines_dxf([(g, 600.0 + k, square + k) for k, g in enumerate(labels)], tmp_path / "c.dxf")
+    doc = ezdxf.readfile(path)
+    lines = list(doc.modelspace().query("POLYLINE"))
+    by_z = {round(line.dxf.elevation[2]) - 600: line.dxf.layer.casefold() for line in lines}
+    layers = [by_z[k] for k in range(len(labels))]
+    assert len(set(layers)) == len(labels), layers
+    # Every geozone's layer is in the layer table as read back (one entry per case-folded name).
+    assert {layer.dxf.name.casefold() for layer in doc.layers} >= set(layers)
+
+
+def test_write_geojson_winds_rings_by_the_right_hand_rule(tmp_path):
+    """RFC 7946: outlines counterclockwise, holes clockwise; predicted sections came out wound the other way."""
+    x0, y0 = 650123.0, 7401234.0
+    # GEOS overlays wind their outlines clockwise: a section made by difference or union, as predictions are.
+    holed = box(x0, y0, x0 + 50, y0 + 30).difference(box(x0 + 10, y0 + 10, x0 + 20, y0 + 20))
+    clockwise = Polygon(list(box(x0 - 100, y0, x0 - 90, y0 + 10).exterior.coords)[::-1])
+    assert not holed.exterior.is_ccw and not clockwise.exterior.is_ccw  # the cases the rule is about
+    features = [{"geometry": holed}, {"geometry": MultiPolygon([clockwise, box(x0 - 80, y0, x0 - 70, y0 + 10)])}]
+    data = json.loads(write_geojson(features, tmp_path / "sections.geojson").read_text())
+    polygons = [data["features"][0]["geometry"]["coordinates"], *data["features"][1]["geometry"]["coordinates"]]
+    assert [LinearRing(p[0]).is_ccw for p in polygons] == [True, True, True]
+    assert [LinearRing(hole).is_ccw for p in polygons for hole in p[1:]] == [False]
+    # Only the order of the vertices changed: the same ground, to the bit.
+    assert shape(data["features"][0]["geometry"]).normalize().equals_exact(holed.normalize(), 0.0)
+    assert shape(data["features"][1]["geometry"]).area == MultiPolygon([clockwise, box(0, 0, 10, 10)]).area

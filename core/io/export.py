@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import shapely
 from shapely.geometry import mapping, shape
+from shapely.geometry.polygon import orient
 
 from core.errors import BGMInputError
 from core.io.atomic import atomic_path
@@ -249,7 +250,7 @@ def write_geojson(
         props = dict(feat.get("properties") or {})
         if units is not None:
             props.setdefault("units", units)
-        entry = {"type": "Feature", "properties": props, "geometry": _plain(mapping(geom))}
+        entry = {"type": "Feature", "properties": props, "geometry": _plain(mapping(_right_hand(geom)))}
         if "id" in feat:
             entry["id"] = feat["id"]
         out.append(entry)
@@ -267,6 +268,21 @@ def write_geojson(
     with atomic_path(path) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
     return path
+
+
+def _right_hand(geom):
+    """``geom`` with its rings wound by RFC 7946's right-hand rule: outlines counterclockwise, holes clockwise.
+
+    Sections come out of the level set and the union of components wound either way (a predicted section's
+    outlines were clockwise, a contour's counterclockwise); a GIS or web map that fills by winding then
+    draws an outline wound the wrong way as a hole, or a hole as ground. Only the order of each ring's
+    vertices changes, never a coordinate.
+    """
+    if geom.is_empty:
+        return geom
+    if geom.geom_type == "Polygon":
+        return orient(geom, sign=1.0)
+    return shapely.MultiPolygon([orient(part, sign=1.0) for part in geom.geoms])
 
 
 def build_formats() -> tuple[str, ...]:
@@ -545,16 +561,20 @@ def dxf_layer_names(names: Iterable[str]) -> dict[str, str]:
     """Each name's R12 layer (:func:`_dxf_layer_name`), distinct names on distinct layers (``_2``, ``_3``...).
 
     Two labels that only non-ASCII characters tell apart (``Süd/Oxid``, ``Süd-Oxid``) would share one
-    layer, and mine software would merge the two geozones.
+    layer, and mine software would merge the two geozones. So would two that only case tells apart
+    (``ox``, ``OX``): DXF layer names are case-insensitive (AutoCAD, Vulcan and ezdxf keep one of the
+    two layer entries), so layers are told apart case-folded.
     """
     layers: dict[str, str] = {}
+    taken: set[str] = set()
     for name in sorted(set(names)):
         base = layer = _dxf_layer_name(name)
         n = 1
-        while layer in layers.values():
+        while layer.casefold() in taken:
             n += 1
             layer = f"{base[: 31 - len(str(n)) - 1]}_{n}"
         layers[name] = layer
+        taken.add(layer.casefold())
     return layers
 
 
