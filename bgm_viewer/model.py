@@ -464,9 +464,7 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
         # Below the input's deepest bench, as bgm build predicts (core.model.build.build_geozone), not below
         # the geozone's deepest pair: a geozone whose pairs end higher up was drawn between known benches,
         # where it is absent, while the build carries it on below the deepest bench.
-        levels = run.session.holes.bench_levels_m
-        height = float(levels[-2] - levels[-1])
-        zs = [float(levels[-1]) - f * height for f in PREDICTED_FRACTIONS]
+        zs = [run.session.holes.below_deepest_m(f) for f in PREDICTED_FRACTIONS]
         regions = run.step("prediction", lambda: session.predict(g, zs, model), "prediction") or {}
         res.predicted = [(g, z, poly) for z, region in regions.items() for poly in region.geoms]
     if last >= STEPS.index("surface"):

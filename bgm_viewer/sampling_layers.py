@@ -95,8 +95,7 @@ class NextBench:
 
     @property
     def z_m(self) -> float:
-        levels = np.asarray(self.holes.bench_levels_m, float)
-        return float(levels[-1] - np.median(-np.diff(levels))) if len(levels) > 1 else float(levels[-1])
+        return self.holes.below_deepest_m() if self.holes.n_benches > 1 else float(self.holes.bench_levels_m[-1])
 
     @cached_property
     def section(self):

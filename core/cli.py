@@ -1033,9 +1033,8 @@ def _next_level(holes, elevation: float | None) -> float:
     It must lie below the deepest bench, within :data:`MAX_PREDICTION_BENCHES` bench heights.
     """
     levels = holes.bench_levels_m
-    height = float(np.median(-np.diff(levels)))
     if elevation is None:
-        return float(levels[-1] - height)
+        return holes.below_deepest_m()
     if not math.isfinite(elevation):
         raise BGMInputError(f"--elevation must be a finite number, got {elevation}")
     from core.model.prediction import bench_at
@@ -1056,7 +1055,7 @@ def _next_level(holes, elevation: float | None) -> float:
             "where the section is the bench's own contours with no uncertainty to sample; suggestions are for "
             "the next bench down: give an elevation further below it"
         )
-    if z < levels[-1] - MAX_PREDICTION_BENCHES * height:
+    if z < holes.below_deepest_m(MAX_PREDICTION_BENCHES):
         raise BGMInputError(
             f"elevation {elevation:g} is more than {MAX_PREDICTION_BENCHES:g} bench heights below the deepest bench "
             f"({bottom:g} {holes.frame.length_unit}); a prediction that far is a guess"

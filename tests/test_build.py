@@ -51,9 +51,9 @@ def test_build_writes_every_output(built):
 
 
 def test_the_next_bench_the_report_samples_has_its_band_in_the_uncertainty_file(small_mine_csv, tmp_path):
-    """Benches of uneven height: the deepest pair's height (the predictions' step) is not the median one
-    (the next bench's level). The band at the level the report's suggestions are for is written, and
-    its width is the report's."""
+    """Benches of uneven height: the deepest pair's gap is not the median one (the bench height). The band
+    at the level the report's suggestions are for is written, its width is the report's, and the prediction
+    a bench below the deepest is at that level too."""
     path, table = small_mine_csv
     table = table.copy()
     deepest = table["z"] < table["z"].min() + 4.0  # the deepest bench (10 m benches)
@@ -66,6 +66,11 @@ def test_the_next_bench_the_report_samples_has_its_band_in_the_uncertainty_file(
     at = [f["properties"] for f in bands if np.isclose(f["properties"]["z"], sampling["z"])]
     assert at, (sampling["z"], sorted({f["properties"]["z"] for f in bands}))
     assert np.isclose(at[0]["band_width"], sampling["band_width"], rtol=1e-3)
+    # One next bench: the prediction a bench below the deepest is where the suggestions and their band are,
+    # a bench height (the median gap) down, not the deepest pair's shorter gap (two levels 2 m apart).
+    predicted = json.loads((tmp_path / "out" / "g1" / "prediction.geojson").read_text())["features"]
+    one_bench = {f["properties"]["z"] for f in predicted if f["properties"]["fraction_below"] == 1.0}
+    assert one_bench and all(np.isclose(z, sampling["z"]) for z in one_bench), (one_bench, sampling["z"])
 
 
 def test_contours_and_predictions_open_as_3d_polylines_in_mine_software(built):

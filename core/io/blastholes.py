@@ -236,6 +236,16 @@ class Blastholes:
         """Elevation of bench ``k`` in the input's units, rounded for display."""
         return round(float(self.frame.z_to_input(self.bench_levels_m[k])), 3)
 
+    def below_deepest_m(self, fraction: float = 1.0) -> float:
+        """The elevation ``fraction`` of a bench height below the deepest bench (local metres); 1: the next bench.
+
+        One height for every "next bench" (the build's and the viewer's predictions, the surfaces' ends, the
+        band and the suggestions): :attr:`bench_height_m`, the median gap between benches or the one given. The
+        deepest pair's own gap put Kennecott's predictions 47.6 ft down and its suggestions 49.65 ft down, two
+        "next benches" 2 ft apart in one build.
+        """
+        return float(self.bench_levels_m[-1] - fraction * self.bench_height_m)
+
     def on_bench(self, k: int, geozone: str | None = None) -> np.ndarray:
         """Indices of the holes on bench ``k`` (optionally of one geozone)."""
         sel = self.bench == k

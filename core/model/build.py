@@ -691,9 +691,7 @@ def build_geozone(ctx: BuildContext, g: str, progress=None) -> tuple[GeozoneSumm
     # Below the table's deepest bench, by its deepest pair's height, whichever bench the geozone's pairs end on:
     # a geozone whose pairs end higher up was predicted between two known benches, where no pair of it is and
     # so always absent, while the depth trend may carry it on below the deepest (`bgm predict` there).
-    levels = holes.bench_levels_m
-    height = float(levels[-2] - levels[-1])
-    zs = [float(levels[-1]) - f * height for f in PREDICTION_FRACTIONS]
+    zs = [holes.below_deepest_m(f) for f in PREDICTION_FRACTIONS]
     predictions = session.predict(g, zs, model)
     features = [
         prediction_feature(region, holes, g, round(float(holes.frame.z_to_input(z)), 3))
@@ -748,8 +746,7 @@ def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict
     from core.model.uncertainty import DEFAULT_PROBABILITY, band_width_m, geozone_uncertainty
 
     holes, g = session.holes, model.geozone
-    levels = holes.bench_levels_m
-    z_next = float(levels[-1] - np.median(-np.diff(levels)))
+    z_next = holes.below_deepest_m()
     # The next bench the suggestions are for has its band in the files too, predicted level or not.
     at = [z for z in predictions if np.isclose(z, z_next)]
     z_next = at[0] if at else z_next

@@ -571,8 +571,7 @@ def surface_sections(
     # On down to the table's deepest bench where the geozone's pairs end above it: empty but for the trend.
     for upper, lower in zip(levels[last.lower : -1], levels[last.lower + 1 :]):
         sections.extend((float(upper + f * (lower - upper)), MultiPolygon()) for f in np.linspace(0.25, 1.0, 4))
-    height = float(levels[-2] - levels[-1]) if len(levels) > 1 else last.source_z_m - last.target_z_m
-    zs = [float(levels[-1] - f * height) for f in np.linspace(0.25, below_fraction, 4)]
+    zs = [holes.below_deepest_m(f) for f in np.linspace(0.25, below_fraction, 4)]
     sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
     if progress:
         progress(len(model.pairs) + 1, len(model.pairs) + 1)
