@@ -400,3 +400,51 @@ def test_a_builds_surfaces_in_feet_say_feet_where_their_format_has_room(built_in
     assert (g1 / "surface.stl").read_bytes()[:80].rstrip().endswith(b" units ft")
     for fmt in ("ply", "obj", "stl"):  # and each still reads back
         assert len(trimesh.load(g1 / f"surface.{fmt}", force="mesh").faces) > 0
+
+
+def test_a_rebuild_keeps_the_files_a_geologist_added_to_a_geozone_folder(small_mine_csv, tmp_path):
+    """The build replaced its folder whole: notes or a marked-up section put in ``g1/`` were deleted without a
+    word by the next build. They are carried over byte for byte, named in a warning, also when ``g1`` is not
+    built again; the build's own files are written afresh, a stale one (a format no longer built) never kept."""
+    from core.io.export import SURFACE_FORMATS
+    from core.model.build import GEOZONE_FILES
+
+    path, _ = small_mine_csv
+    out = tmp_path / "model"
+    bgm("build", path, "--out", out, "--geozone", "g1")
+    written = {p.name for p in (out / "g1").iterdir()}
+    formats = json.loads((out / "summary.json").read_text())["formats"]
+    assert written <= GEOZONE_FILES, written - GEOZONE_FILES  # the set holds every file a build writes...
+    unbuilt = {f"surface.{f}" for f in SURFACE_FORMATS if f not in formats}
+    assert GEOZONE_FILES - written <= unbuilt, GEOZONE_FILES - written  # ...and nothing it does not
+
+    mine = {
+        "g1/notes.txt": "pit wall sloughing on 1180 bench — résumé à revoir\r\n".encode(),
+        "g1/surface.omf_old_copy.dxf": b"0\nSECTION\n2\nENTITIES\n0\nENDSEC\n0\nEOF\n",
+        "g1/sections/my_section.dxf": bytes(range(256)),
+    }
+    for rel, data in mine.items():
+        (out / rel).parent.mkdir(exist_ok=True)
+        (out / rel).write_bytes(data)
+    built_morph = (out / "g1" / "morph.json").read_bytes()
+    (out / "g1" / "morph.json").write_text("edited by hand")  # a build's name: written afresh
+    stale = next(iter(unbuilt), "surface.omf")
+    (out / "g1" / stale).write_bytes(b"from a build with more formats")
+
+    proc = bgm("build", path, "--out", out, "--geozone", "g1")
+    for rel, data in mine.items():
+        assert (out / rel).read_bytes() == data, rel
+    assert (
+        "g1/notes.txt" in proc.stderr and "g1/surface.omf_old_copy.dxf" in proc.stderr and "g1/sections" in proc.stderr
+    )
+    assert "morph.json" not in proc.stderr and stale not in proc.stderr.replace("surface.omf_old_copy", "")
+    assert (out / "g1" / "morph.json").read_bytes() == built_morph
+    assert not (out / "g1" / stale).exists() or (out / "g1" / stale).read_bytes() != b"from a build with more formats"
+
+    bgm("build", path, "--out", out, "--geozone", "g2")  # g1 not built: its folder keeps the geologist's files
+    assert {p.name for p in (out / "g1").iterdir()} == {"notes.txt", "surface.omf_old_copy.dxf", "sections"}
+    assert json.loads((out / "summary.json").read_text())["kept_folders"] == ["g1"]
+    bgm("build", path, "--out", out, "--geozone", "g1")  # a kept folder does not stop the next build
+    for rel, data in mine.items():
+        assert (out / rel).read_bytes() == data, rel
+    assert (out / "g1" / "morph.json").read_bytes() == built_morph

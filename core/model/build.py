@@ -13,10 +13,12 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import signal
 import sys
 import threading
 import time
+import warnings
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -27,11 +29,12 @@ import pandas as pd
 import shapely
 from shapely.geometry import shape
 
-from core.errors import BGMInputError, listing, quoted
+from core.errors import BGMInputError, BGMWarning, listing, quoted
 from core.extraction.contours import Contour
 from core.geometry.grid import as_multipolygon
 from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
+from core.io.export import SURFACE_FORMATS
 from core.io.reporting import containment_summary, contour_feature, prediction_feature
 from core.model.pipeline import (
     GeozoneModel,
@@ -62,6 +65,24 @@ TOP_LEVEL_FILES = (
     "precision_recall.png",
     "report.md",
     "summary.json",
+)
+#: What ``bgm build`` writes in a geozone's folder, in any run: replaced by each build, never carried over.
+#: :func:`build_geozone` writes the JSON files and predictions, :func:`write_sampling` the uncertainty,
+#: suggestions and map, :func:`_write_surface` the surface in every format the build can write (a stale
+#: ``surface.omf`` of a build with more formats is not kept by one with fewer) and the STL's offset beside it.
+GEOZONE_FILES = frozenset(
+    {
+        "correspondence.json",
+        "morph.json",
+        "prediction.geojson",
+        "prediction.dxf",
+        "uncertainty.geojson",
+        "p_inside.npz",
+        "suggestions.csv",
+        "where_to_sample.png",
+        *(f"surface.{fmt}" for fmt in SURFACE_FORMATS),
+        "surface.stl.json",  # core.io.export._record_stl_offset
+    }
 )
 #: Longest geozone folder name (characters), before its distinguishing suffix.
 MAX_FOLDER_CHARS = 48
@@ -229,6 +250,11 @@ def build(
     done (``"geozone 3310"``); :func:`core.model.progress.stage_unit` says
     what each counts.
 
+    ``out_dir`` is replaced whole, but for what a geologist put in a previous
+    model's geozone folders (:func:`user_files`): carried over to the same
+    place in the new model, geozone built this time or not, with a
+    :class:`~core.errors.BGMWarning` naming them.
+
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
     from core.io.export import build_formats, dxf_layer_names
@@ -237,6 +263,8 @@ def build(
     out_dir = check_output(out_dir, [holes.source], folder=True)
     check_model_folder(out_dir)
     wanted = holes.check_geozones(geozones)
+    folders = geozone_folders(wanted)
+    carried = user_files(out_dir)
     with replaced_folder(out_dir) as staging:
         ctx = BuildContext(
             ModelSession(holes, params, project, StageStore(cache)),
@@ -245,10 +273,21 @@ def build(
             staging,
             tuple(formats or build_formats()),
             evaluate,
-            geozone_folders(wanted),
+            folders,
             dxf_layer_names(holes.geozones),  # a geozone's layer whichever geozones are built
+            kept_folders(carried, folders),
         )
-        return _build_into(ctx, wanted, progress, workers, scheduler)
+        summary = _build_into(ctx, wanted, progress, workers, scheduler)
+        # Into the staging folder, before the swap: an interrupted build leaves them in the previous model.
+        carry_over(out_dir, staging, carried)
+    if carried:
+        warnings.warn(
+            f"kept {len(carried)} file{'s' if len(carried) > 1 else ''} of yours that bgm build does not write, "
+            f"carried over into the new model in {str(out_dir)!r}: {listing(p.as_posix() for p in carried)}",
+            BGMWarning,
+            stacklevel=2,
+        )
+    return summary
 
 
 def write_section_dxf(features: list[dict], z_key: str, path: Path, layers: dict | None = None) -> None:
@@ -319,6 +358,8 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
         "evaluation": None if table is None else table.round(4).to_dict(orient="records"),
         "evaluation_note": note,
         "formats": {f: FORMAT_NOTES[f] for f in ctx.formats},
+        # Folders of geozones not built this time that hold the geologist's files: the next build's to keep.
+        "kept_folders": ctx.kept_folders,
     }
     text = json.dumps(_finite(summary), indent=1, default=json_default, allow_nan=False)
     atomic_write_text(out_dir / "summary.json", text)
@@ -346,8 +387,9 @@ def check_model_folder(out_dir: Path) -> None:
     """Refuse an output folder that holds anything ``bgm build`` did not write.
 
     The build replaces its folder whole; a folder that is new, empty, or a
-    previous model (with nothing added but a file browser's
-    :data:`FOLDER_METADATA`) can be replaced without loss.
+    previous model (with nothing added at its top but a file browser's
+    :data:`FOLDER_METADATA`) can be replaced without loss. Files added in a
+    previous model's geozone folders are carried over (:func:`user_files`).
     """
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
@@ -387,7 +429,57 @@ def _model_entries(out_dir: Path) -> set[str] | None:
             known.add(Path(str(f)).parts[0])
         if isinstance(g.get("geozone"), str):  # builds before folders were recorded
             known.add(_legacy_folder(g["geozone"]))
+    kept = summary.get("kept_folders")
+    known.update(f for f in (kept if isinstance(kept, list) else []) if isinstance(f, str))
     return known
+
+
+def user_files(out_dir: Path) -> list[Path]:
+    """What a geologist put in a previous model's geozone folders: entries no build writes there.
+
+    Paths relative to ``out_dir``, sorted; a folder put there is one entry
+    (carried whole). Empty when ``out_dir`` is not a previous model. The
+    build's own files (:data:`GEOZONE_FILES`) and a file browser's
+    :data:`FOLDER_METADATA` are not among them.
+    """
+    out_dir = Path(out_dir)
+    known = (_model_entries(out_dir) if out_dir.is_dir() else None) or set()
+    found: list[Path] = []
+    # The folder's own entries, not summary.json's names: a name there ("..", "/") is never a path to follow.
+    for folder in sorted(out_dir.iterdir() if known else [], key=lambda e: e.name):
+        if folder.name not in known or folder.name in TOP_LEVEL_FILES or folder.is_symlink() or not folder.is_dir():
+            continue  # a linked folder's target is not deleted by the build
+        found += [
+            Path(folder.name, e.name)
+            for e in sorted(folder.iterdir(), key=lambda e: e.name)
+            if e.name not in GEOZONE_FILES and e.name not in FOLDER_METADATA
+        ]
+    return found
+
+
+def kept_folders(carried: list[Path], folders: dict[str, str]) -> list[str]:
+    """The folders of ``carried`` files that no geozone of this build writes (see :func:`user_files`), sorted."""
+    return sorted({p.parts[0] for p in carried} - set(folders.values()))
+
+
+def carry_over(out_dir: Path, staging: Path, carried: list[Path]) -> None:
+    """Copy the ``carried`` entries of ``out_dir`` to the same relative paths under ``staging``, byte for byte.
+
+    Links are copied as links, and modification times kept, so the files are as the geologist left them.
+    """
+    for rel in carried:
+        source, target = Path(out_dir) / rel, Path(staging) / rel
+        target.parent.mkdir(exist_ok=True)
+        try:
+            if source.is_dir() and not source.is_symlink():
+                shutil.copytree(source, target, symlinks=True)
+            else:
+                shutil.copy2(source, target, follow_symlinks=False)
+        except OSError as exc:
+            raise BGMInputError(
+                f"cannot carry {rel.as_posix()!r} over into the new model: {exc.strerror or exc}; the previous "
+                f"model in {str(out_dir)!r} is untouched"
+            ) from None
 
 
 def geozone_folders(labels: list[str]) -> dict[str, str]:
@@ -449,6 +541,8 @@ class BuildContext:
     folders: dict = field(default_factory=dict)  #: geozone label -> its folder (see :func:`geozone_folders`)
     #: Geozone label -> its layer in every DXF of the build (:func:`core.io.export.dxf_layer_names` of the input's).
     layers: dict = field(default_factory=dict)
+    #: Folders of geozones not built this time kept for the geologist's files in them (:func:`kept_folders`).
+    kept_folders: list = field(default_factory=list)
 
 
 #: Set once per worker process by _init_worker: a build's context, or the session whose benches are extracted.
