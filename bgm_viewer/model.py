@@ -572,13 +572,6 @@ def project_read_options(project_path) -> dict:
     return load_project(project_path).read_keywords()
 
 
-def _reading(reading: dict) -> dict:
-    """Reading options by command-line name, the unit by its one name (``feet`` is ``ft``), to compare two."""
-    from core.io.blastholes import unit_name
-
-    return {k: unit_name(v) if k == "units" else v for k, v in reading.items() if v is not None}
-
-
 def input_relative_to(input_path: str | None, project_path) -> str | None:
     """``input_path`` as a project file at ``project_path`` names it: relative to the project's folder.
 
@@ -1374,9 +1367,9 @@ class ViewerModel:
     def _restored(self, offer) -> ViewerModel:
         """:meth:`restored` without setting the autosave aside when it fails."""
         from core.errors import BGMInputError
-        from core.io.project import reading_of
+        from core.io.project import comparable_reading, reading_of
 
-        want, have = _reading(offer.project.reading), _reading(reading_of(self.holes.read_options))
+        want, have = comparable_reading(offer.project.reading), comparable_reading(reading_of(self.holes.read_options))
         if want == have:
             model = ViewerModel(self.holes, selection=self.selection, cache=False)
             model.store, model.input_path = self.store, self.input_path  # one store: the stages computed stay

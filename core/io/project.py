@@ -218,6 +218,14 @@ def reading_of(read_keywords: dict) -> dict:
     return {names[k]: v for k, v in read_keywords.items() if k in names and v is not None}
 
 
+def comparable_reading(reading: dict) -> dict:
+    """Reading options by command-line name, those given only, the unit by its one name (``feet`` is ``ft``):
+    two readings of a table are the same reading when these are equal."""
+    from core.io.blastholes import unit_name
+
+    return {k: unit_name(v) if k == "units" else v for k, v in reading.items() if v is not None}
+
+
 def merge_reading(project: Project, project_path, given: dict) -> tuple[dict, list[str]]:
     """The options to read the input with: the project's, and those given on the command line.
 
@@ -247,8 +255,6 @@ def merge_reading(project: Project, project_path, given: dict) -> tuple[dict, li
     BGMInputError
         Naming the option, both values and how to resolve it.
     """
-    from core.io.blastholes import unit_name
-
     options = dict(given)
     used = []
     for name, saved in project.reading.items():
@@ -258,8 +264,7 @@ def merge_reading(project: Project, project_path, given: dict) -> tuple[dict, li
             options[name] = saved
             used.append(f"{flag} {saved}")
             continue
-        same = unit_name(value) == saved if name == "units" else value == saved
-        if not same:
+        if comparable_reading({name: value}) != comparable_reading({name: saved}):
             raise BGMInputError(
                 f"{flag} {value} conflicts with project file {project_path}, made reading the input with "
                 f"{flag} {saved}: read otherwise it is other data than its overrides and view were made on; "
