@@ -465,7 +465,8 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
         # the geozone's deepest pair: a geozone whose pairs end higher up was drawn between known benches,
         # where it is absent, while the build carries it on below the deepest bench.
         zs = [run.session.holes.below_deepest_m(f) for f in PREDICTED_FRACTIONS]
-        regions = run.step("prediction", lambda: session.predict(g, zs, model), "prediction") or {}
+        # Seconds on a large geozone (its depth trend's backtests): a newer request stops it at its next step.
+        regions = run.step("prediction", lambda: session.predict(g, zs, model, run.progress), "prediction") or {}
         res.predicted = [(g, z, poly) for z, region in regions.items() for poly in region.geoms]
     if last >= STEPS.index("surface"):
         # A selected geozone with no bench pair (a geozone of one bench, or one a parameter left without)

@@ -187,8 +187,9 @@ def test_a_bench_whose_caller_cancels_its_tracing_stops_at_that_part_and_stores_
 def test_a_surface_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing_half_done(holes, tmp_path):
     """A geozone's surface (its sections, then the mesh) was one step: a superseded viewer run made every surface
     it had begun to its end (6 s on Kennecott after the request). Core now tells ``progress`` each bench pair's
-    sections, the sections below the deepest bench, each section's depth trend, each section's signed distance
-    and the mesh's two steps; raised there, ``Cancelled`` stops the surface at that step."""
+    sections, the sections below the deepest bench (their depth trend's backtests, each elevation), each
+    section's depth trend, each section's signed distance and the mesh's two steps; raised there, ``Cancelled``
+    stops the surface at that step."""
     from core.threads import Cancelled
 
     told: list[tuple[int, int]] = []
@@ -196,12 +197,15 @@ def test_a_surface_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing
     model = first.geozone_model("g1")
     whole = first.surface("g1", model, progress=functools.partial(_tell, told))
     pairs = len(model.pairs)
-    assert told[: pairs + 1] == [(done, pairs + 1) for done in range(1, pairs + 2)]  # the pairs, then below
+    assert told[:pairs] == [(done, pairs + 1) for done in range(1, pairs + 1)]  # the pairs
+    below = told.index((pairs + 1, pairs + 1))  # the sections below the deepest bench made
+    assert below > pairs + 4  # their own steps before: the depth trend's backtests, each elevation
     assert told[-2:] == [(1, 2), (2, 2)]  # the mesh closed, then its specks dropped
-    sdfs = [i for i, step in enumerate(told) if step[0] == 1 and i > pairs and step[1] != 2]
+    sdfs = [i for i, step in enumerate(told) if step[0] == 1 and i > below and step[1] != 2]
     assert len(sdfs) == 2  # the first section trended, the first section's signed distance
 
-    for steps in (1, pairs + 2, sdfs[1] + 1, len(told) - 1):  # in the pairs, the trend, the distances, the mesh
+    # in the pairs, the predictions below, the trend, the distances, the mesh
+    for steps in (1, pairs + 1, below + 2, sdfs[1] + 1, len(told) - 1):
         session = _session(holes, tmp_path / f"cancelled-{steps}")
         zone = session.geozone_model("g1")
         seen: list[tuple[int, int]] = []
@@ -211,6 +215,35 @@ def test_a_surface_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing
         assert "surface" not in _computed(session)  # nothing half done stored
         again = session.surface("g1", zone)  # asked again: made whole
         assert np.array_equal(again.vertices, whole.vertices) and np.array_equal(again.faces, whole.faces)
+
+
+def test_a_prediction_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing_half_done(holes, tmp_path):
+    """Below the deepest bench a geozone is predicted by its depth trend, whose backtests (each bench pair with
+    each dip, each bench pair's ways to carry the movement, its confirmation) took 1-6 s on Kennecott as one
+    step: a superseded viewer run waited for it. Core now tells ``progress`` each backtest's step and each
+    elevation; raised there, ``Cancelled`` stops the prediction at that step, and nothing of it is stored."""
+    from core.threads import Cancelled
+
+    z = [holes.below_deepest_m(f) for f in (0.25, 0.5, 0.75, 1.0)]
+    first = _session(holes, tmp_path / "whole")
+    told: list[tuple[int, int]] = []
+    whole = first.predict("g1", z, first.geozone_model("g1"), progress=functools.partial(_tell, told))
+    assert told[-len(z) :] == [(done, len(z)) for done in range(1, len(z) + 1)]  # each elevation, at the end
+    trend = len(told) - len(z)
+    assert trend >= 3  # the depth trend's backtests, before the first elevation below
+
+    for steps in (1, trend - 1, trend + 2):  # in the dip's backtest, its confirmation, the elevations
+        session = _session(holes, tmp_path / f"cancelled-{steps}")
+        model = session.geozone_model("g1")
+        seen: list[tuple[int, int]] = []
+        with pytest.raises(Cancelled):
+            session.predict("g1", z, model, progress=_stopping(seen, steps))
+        assert seen == told[:steps]  # stopped at the step it was told it was no longer wanted, not later
+        assert "prediction" not in _computed(session)  # nothing half done stored
+        made = any(key[0] == "trend" for key in model.fields.memo)
+        assert made == (steps >= trend)  # a trend is kept whole, never of half its backtests
+        again = session.predict("g1", z, model)  # asked again: predicted whole, the same
+        assert [again[h].wkb for h in z] == [whole[h].wkb for h in z]
 
 
 def test_a_changed_hole_label_recomputes_its_bench_and_what_follows(holes, tmp_path):

@@ -473,3 +473,38 @@ def test_a_superseded_run_stops_inside_a_geozones_surface_and_a_later_run_makes_
         assert np.array_equal(again.built[g].vertices, mesh.vertices) and np.array_equal(
             again.built[g].faces, mesh.faces
         )
+
+
+def test_a_superseded_run_stops_inside_the_selected_geozones_predictions_and_stores_none(monkeypatch):
+    """The selected geozone's predictions below the deepest bench were one step: its depth trend's backtests ran
+    to their end (Kennecott's 3026: 3-7 s after the request). Core's progress now raises the cancellation at the
+    prediction's next step (a backtest's bench pair, an elevation), and no prediction is stored."""
+    import core.model.session as sessions
+    from bgm_viewer.model import Cancelled, ViewerModel, compute
+    from bgm_viewer.testing import small_holes
+
+    holes = small_holes()
+    begun: list[str] = []  # the geozone of each prediction begun
+    predict = sessions.predict_geozone
+
+    def recorded(model, *args, **kwargs):
+        begun.append(model.geozone)
+        return predict(model, *args, **kwargs)
+
+    monkeypatch.setattr(sessions, "predict_geozone", recorded)
+    model = ViewerModel(holes, cache=False)
+    model.select("g1", 0, 0)
+    with warnings.catch_warnings(), pytest.raises(Cancelled):
+        warnings.simplefilter("ignore")
+        for _ in compute(model.inputs(), None, "contours", lambda: bool(begun)):  # a newer request, once begun
+            pass
+    assert begun == ["g1"]
+    assert model.store.counts["prediction", "computed"] == 0  # nothing half done stored
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        *_, (_, _, again) = compute(model.inputs(), None, "contours", until="prediction")  # a later run: whole
+    zs = sorted({z for _, z, _ in again.predicted})
+    fresh = sessions.ModelSession(holes).predict("g1", zs)  # never cancelled
+    assert sorted((z, p.wkb) for _, z, p in again.predicted) == sorted(
+        (z, p.wkb) for z, region in fresh.items() for p in region.geoms
+    )

@@ -47,6 +47,7 @@ from core.model.movement import (
     outline_movement,
 )
 from core.model.trend import TRANSPORT_SMOOTHING_SPACINGS, DepthTrend, sliding_bias, with_shared_transport
+from core.threads import Progress
 
 #: The deepest section is smoothed over this many hole spacings before it is carried on
 #: (:func:`core.geometry.sdf.smoothed_section`): its boundary runs between holes and wavers by a fraction of a
@@ -153,35 +154,53 @@ def lens_sized(fields: BenchFields, bench_height_m: float, counts: list[int] | N
     return typical_body_cells(fields, counts) < np.pi * _lens_reach_cells(fields, bench_height_m) ** 2
 
 
-def depth_trend(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
+def depth_trend(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, progress: Progress | None = None
+) -> DepthTrend:
     """The geozone's :class:`DepthTrend` from its benches' :class:`BenchFields`.
 
     Kept in ``fields.memo``: a prediction and the uncertainty of each of its
-    elevations ask for the same trend.
+    elevations ask for the same trend. ``progress(done, total)`` is told each
+    step of its backtests (:func:`with_backtested_dip`'s bench pairs and
+    dips, :func:`chosen_persistence`'s and :func:`carried_precision`'s bench
+    pairs): a large geozone's trend takes seconds (Kennecott's 3026: 1-6 s),
+    and a :class:`core.threads.Cancelled` it raises stops it at that step. What
+    is kept then is whole: the backtests of the pairs done (each rests on its
+    benches alone), never the trend.
     """
 
     def compute() -> DepthTrend:
-        return _confirmed(fields, _trend(fields, bench_height_m, hole_spacing_m), bench_height_m, hole_spacing_m)
+        trend = _trend(fields, bench_height_m, hole_spacing_m, progress=progress)
+        return _confirmed(fields, trend, bench_height_m, hole_spacing_m, progress)
 
     return memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)
 
 
-def depth_trend_region(fields: BenchFields, bench_height_m: float, hole_spacing_m: float, z_m: float) -> MultiPolygon:
+def depth_trend_region(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, z_m: float, progress: Progress | None = None
+) -> MultiPolygon:
     """:meth:`DepthTrend.region` at ``z_m`` of :func:`depth_trend`, kept in ``fields.memo`` with the trend.
 
     A geozone's prediction, its uncertainty's backtest, the evaluation and its surface ask for the same sections.
+    ``progress`` goes to :func:`depth_trend`.
     """
     key = ("trend region", len(fields.z_m), bench_height_m, hole_spacing_m, float(z_m))
-    return memoised(fields, key, lambda: depth_trend(fields, bench_height_m, hole_spacing_m).region(z_m))
+    return memoised(fields, key, lambda: depth_trend(fields, bench_height_m, hole_spacing_m, progress).region(z_m))
 
 
-def _confirmed(fields: BenchFields, trend: DepthTrend, bench_height_m: float, hole_spacing_m: float) -> DepthTrend:
+def _confirmed(
+    fields: BenchFields,
+    trend: DepthTrend,
+    bench_height_m: float,
+    hole_spacing_m: float,
+    progress: Progress | None = None,
+) -> DepthTrend:
     """``trend`` with its :func:`carried_precision` backtested on ``fields``; the bench pairs' movements dropped.
 
     The movements (three grids a pair, in the memo and in the observed benches' memo) are kept only while a
-    trend is made.
+    trend is made. ``progress`` goes to :func:`carried_precision`.
     """
-    confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision)
+    confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision, progress)
     fields.memo.pop(MOVEMENTS_MEMO, None)
     fields.memo.get(OBSERVED_MEMO, {}).pop(MOVEMENTS_MEMO, None)
     return trend.replaced(carried_precision=confirmed)  # shares the trend's arrays and its transport's fits
@@ -213,7 +232,9 @@ SHALLOW_DIP_GAIN = 0.1
 TWO_BENCH_DIP_DEG = 20.0
 
 
-def with_backtested_dip(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> BenchFields:
+def with_backtested_dip(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, progress: Progress | None = None
+) -> BenchFields:
     """``fields`` with the shallowest dip taken as movement that best predicted the geozone's own benches.
 
     A backtest (issue 12: how far to carry the movement on is learnt from
@@ -230,7 +251,10 @@ def with_backtested_dip(fields: BenchFields, bench_height_m: float, hole_spacing
     backtested: :data:`TWO_BENCH_DIP_DEG`, but the usual bound where the
     geozone's bodies are lens-sized (:func:`lens_sized`: a lens beside the
     one above is another lens). Each pair's count rests on its benches
-    alone: kept in ``fields.memo``.
+    alone: kept in ``fields.memo``. ``progress(done, total)`` is told as each
+    pair is counted with each bound (and, within, the backtests of the
+    benches above it); a :class:`core.threads.Cancelled` it raises stops the
+    backtest there.
     """
     if fields.min_dip_deg is not None:
         return fields
@@ -241,12 +265,19 @@ def with_backtested_dip(fields: BenchFields, bench_height_m: float, hole_spacing
     def wrong_cells(dip: float, j: int) -> float:
         def compute() -> float:
             known = replace(fields.through(float(fields.z_m[j])), min_dip_deg=dip)
-            trend = _trend(known, bench_height_m, hole_spacing_m, geozone_persistence(known, hole_spacing_m))
+            persistence = geozone_persistence(known, hole_spacing_m)
+            trend = _trend(known, bench_height_m, hole_spacing_m, persistence, progress)
             return float(_backtest_rows(fields, j, [trend])[0, 0])
 
         return memoised(fields, ("dip backtest", dip, j, bench_height_m, hole_spacing_m), compute)
 
-    usual, shallow = (sum(wrong_cells(dip, j) for j in range(1, n - 1)) for dip in (MIN_DIP_DEG, SHALLOW_DIP_DEG))
+    counts = {}
+    steps = [(dip, j) for dip in (MIN_DIP_DEG, SHALLOW_DIP_DEG) for j in range(1, n - 1)]
+    for done, (dip, j) in enumerate(steps, start=1):
+        counts[dip, j] = wrong_cells(dip, j)
+        if progress:
+            progress(done, len(steps))
+    usual, shallow = (sum(counts[dip, j] for j in range(1, n - 1)) for dip in (MIN_DIP_DEG, SHALLOW_DIP_DEG))
     chosen = SHALLOW_DIP_DEG if shallow < (1.0 - SHALLOW_DIP_GAIN) * usual else MIN_DIP_DEG
     return replace(fields, min_dip_deg=chosen)
 
@@ -314,7 +345,9 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     return out
 
 
-def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m: float, prior: float) -> float:
+def carried_precision(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, prior: float, progress: Progress | None = None
+) -> float:
     """The share of the geozone's carried section that the next bench confirmed, over its own benches.
 
     A backtest: each bench ``j + 1`` is predicted from the benches down to
@@ -325,9 +358,14 @@ def carried_precision(fields: BenchFields, bench_height_m: float, hole_spacing_m
     over the pairs. The ``prior`` share is worth one of the geozone's typical
     bodies (:func:`typical_body_cells`): a backtest of a few cells at the edge
     of the drilling says little, and where nothing was predicted that the next
-    bench drilled (too few benches), the prior stands.
+    bench drilled (too few benches), the prior stands. ``progress(done, total)``
+    is told as each pair is backtested.
     """
-    pairs = [_pair_backtest(fields, j, bench_height_m, hole_spacing_m) for j in range(len(fields.z_m) - 1)]
+    pairs = []
+    for j in range(len(fields.z_m) - 1):
+        pairs.append(_pair_backtest(fields, j, bench_height_m, hole_spacing_m))
+        if progress:
+            progress(len(pairs), len(fields.z_m) - 1)
     confirmed, predicted = sum(c for c, _ in pairs), sum(p for _, p in pairs)
     weight = typical_body_cells(fields)
     return (confirmed + prior * weight) / (predicted + weight) if predicted + weight > 0 else prior
@@ -392,7 +430,9 @@ def typical_body_cells(fields: BenchFields, counts: list[int] | None = None) -> 
     return cells / sum(counts) if sum(counts) else 0.0
 
 
-def chosen_persistence(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> tuple[float, float]:
+def chosen_persistence(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, progress: Progress | None = None
+) -> tuple[float, float]:
     """The persistence of each part of the movement whose way of carrying it on best predicted the geozone's benches.
 
     A backtest (issue 12): from the fourth bench on, each bench ``j + 1`` is
@@ -410,23 +450,30 @@ def chosen_persistence(fields: BenchFields, bench_height_m: float, hole_spacing_
     the benches below still try the agreement read against 0 as their middle
     way (read otherwise there, it tied with carrying all of it and took the
     place of the agreement of more benches: travelling waves with four benches
-    known had 2.5% more area wrong).
+    known had 2.5% more area wrong). ``progress(done, total)`` is told as each pair is backtested.
     """
     if len(fields.z_m) == 3:
         return geozone_persistence(fields, hole_spacing_m, THREE_BENCH_CHANCE)
-    return _ways_to_carry(fields, hole_spacing_m)[_chosen_way(fields, bench_height_m, hole_spacing_m)]
+    return _ways_to_carry(fields, hole_spacing_m)[_chosen_way(fields, bench_height_m, hole_spacing_m, progress)]
 
 
-def _chosen_way(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> int:
+def _chosen_way(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, progress: Progress | None = None
+) -> int:
     """Which of :func:`_ways_to_carry` the benches' backtest takes (0, the agreement, with fewer than four benches).
 
     :func:`chosen_persistence` takes it from the fourth bench; with three it reads the agreement otherwise.
+    ``progress(done, total)`` is told as each pair is backtested.
     """
     n = len(fields.z_m)
     if n < 4:
         return 0
-    errors = sum(_ways_backtest(fields, j, bench_height_m, hole_spacing_m)[:, 0] for j in range(2, n - 1))
-    return int(np.argmin(errors))
+    rows = []
+    for j in range(2, n - 1):
+        rows.append(_ways_backtest(fields, j, bench_height_m, hole_spacing_m)[:, 0])
+        if progress:
+            progress(len(rows), n - 3)
+    return int(np.argmin(sum(rows)))
 
 
 def _ways_to_carry(fields: BenchFields, hole_spacing_m: float) -> tuple[tuple[float, float], ...]:
@@ -439,6 +486,7 @@ def _trend(
     bench_height_m: float,
     hole_spacing_m: float,
     persistence: tuple[float, float] | None = None,
+    progress: Progress | None = None,
 ) -> DepthTrend:
     """The depth trend with the share of bodies reaching the next bench as its :attr:`DepthTrend.carried_precision`.
 
@@ -446,11 +494,12 @@ def _trend(
     the same benches both start from it, and keeping it for every prefix of
     the benches took a Kennecott build from 1.41 to 2.11 GB (all processes)
     for no measurable time (37.6-40.5 s against 38.7-39.1 s). ``persistence``
-    (outlines, finer changes) is :func:`chosen_persistence`'s unless given.
+    (outlines, finer changes) is :func:`chosen_persistence`'s unless given. ``progress`` is told the
+    steps of both backtests.
     """
-    fields = with_backtested_dip(fields, bench_height_m, hole_spacing_m)
+    fields = with_backtested_dip(fields, bench_height_m, hole_spacing_m, progress)
     if persistence is None:
-        persistence = chosen_persistence(fields, bench_height_m, hole_spacing_m)
+        persistence = chosen_persistence(fields, bench_height_m, hole_spacing_m, progress)
     return _trends(fields, bench_height_m, hole_spacing_m, [persistence])[0]
 
 

@@ -28,6 +28,7 @@ from core.model.extrapolation import depth_trend, depth_trend_region
 from core.model.fields import BenchFields, memoised
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.morph.trajectories import normalised_arc_length
+from core.threads import Progress
 
 
 def _point_at(xy: np.ndarray, s: np.ndarray, f: float) -> np.ndarray:
@@ -225,7 +226,7 @@ def _undrilled_bound(fields: BenchFields, n_below: int, hole_spacing_m: float) -
 
 
 def predict_geozone(
-    model: GeozoneModel, z_m: list[float], hole_spacing_m: float, params=None
+    model: GeozoneModel, z_m: list[float], hole_spacing_m: float, params=None, progress: Progress | None = None
 ) -> dict[float, MultiPolygon]:
     """The geozone's region at each elevation (metres): at, between, below or above the benches.
 
@@ -239,6 +240,13 @@ def predict_geozone(
     predicted absent below it. ``hole_spacing_m`` sets the trend's
     neighbourhoods (the transport's smoothing, the distance cap); ``params``
     is unused (kept for callers).
+
+    ``progress(done, total)`` is told as each elevation is predicted
+    (``total``: the elevations) and, the first time the depth trend is
+    needed, each step of its backtests (:func:`depth_trend`): below the
+    deepest bench a large geozone takes seconds (Kennecott's 3026: 1-6 s), and
+    a :class:`core.threads.Cancelled` it raises stops the prediction at that
+    step, nothing of it returned.
     """
     fields = model.fields
     pairs = [p for p in model.pairs if p.correspondence is not None]
@@ -256,11 +264,13 @@ def predict_geozone(
             down = bool(z < levels[-1])
             if down not in beyond:
                 beyond[down] = fields if down else fields.reversed()
-            out[z] = depth_trend_region(beyond[down], height, hole_spacing_m, z)
+            out[z] = depth_trend_region(beyond[down], height, hole_spacing_m, z, progress)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             region = MultiPolygon()
             if pair is not None:
                 region = region_between(pair, (pair.source_z_m - z) / (pair.source_z_m - pair.target_z_m))
             out[z] = with_undrilled_extension(region, model, z, hole_spacing_m)
+        if progress:
+            progress(len(out), len(z_m))
     return out

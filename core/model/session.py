@@ -471,13 +471,19 @@ class ModelSession:
             "bench_fields", self._fields_key(geozone, own), lambda: geozone_fields(self.holes, own, reach)
         )
 
-    def predict(self, geozone: str, z_m, model: GeozoneModel | None = None) -> dict:
-        """The geozone's region at each elevation (metres); see :func:`core.model.prediction.predict_geozone`."""
-        model = model or self.geozone_model(geozone)
+    def predict(self, geozone: str, z_m, model: GeozoneModel | None = None, progress: Progress | None = None) -> dict:
+        """The geozone's region at each elevation (metres); see :func:`core.model.prediction.predict_geozone`.
+
+        ``progress`` is told the model's bench pairs when ``model`` is not given, then the
+        prediction's steps (each elevation, the depth trend's backtests); a
+        :class:`core.threads.Cancelled` it raises stops it there, and nothing of it is stored.
+        """
+        model = model or self.geozone_model(geozone, progress=progress)
         z_m = [float(z) for z in z_m]
         key = content_key("prediction", self._model_key(model), z_m, stage_values(self.params, "prediction"))
+        spacing_m = self.holes.hole_spacing_m
         return self.store.get(
-            "prediction", key, lambda: predict_geozone(model, z_m, self.holes.hole_spacing_m, self.params)
+            "prediction", key, lambda: predict_geozone(model, z_m, spacing_m, self.params, progress=progress)
         )
 
     def surface(self, geozone: str, model: GeozoneModel | None = None, progress: Progress | None = None):
@@ -543,9 +549,11 @@ def surface_sections(
     the deepest as every other geozone's do, empty but for that trend: a body
     absent from benches that drilled its ground closes above them.
 
-    ``progress(done, total)`` is told as each bench pair's sections are made and the
-    sections below the deepest bench (``total``: the pairs and one), then as each
-    section takes in the depth trend (``total``: the sections). Seconds on a large
+    ``progress(done, total)`` is told as each bench pair's sections are made, then the
+    steps of the sections below the deepest bench (:func:`predict_geozone`: each
+    elevation, the depth trend's backtests), then once they are all made (``total``:
+    the pairs and one), then as each section takes in the depth trend (``total``:
+    the sections). Seconds on a large
     geozone (Kennecott's 3026: 3 s); a :class:`core.threads.Cancelled` it raises stops
     them there.
     """
@@ -572,7 +580,7 @@ def surface_sections(
     for upper, lower in zip(levels[last.lower : -1], levels[last.lower + 1 :]):
         sections.extend((float(upper + f * (lower - upper)), MultiPolygon()) for f in np.linspace(0.25, 1.0, 4))
     zs = [holes.below_deepest_m(f) for f in np.linspace(0.25, below_fraction, 4)]
-    sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params).items())
+    sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params, progress=progress).items())
     if progress:
         progress(len(model.pairs) + 1, len(model.pairs) + 1)
     trended = []
