@@ -171,9 +171,11 @@ def test_a_bench_whose_caller_cancels_its_tracing_stops_at_that_part_and_stores_
     told: list[tuple[int, int]] = []
     whole = _session(holes, tmp_path / "whole").bench_contours(bench, progress=functools.partial(_tell, told))
     parts = len(whole)
-    assert parts >= 3 and told == [(done, parts) for done in range(parts + 1)]  # the evidence, then each part
+    assert parts >= 3 and told[0] == (0, parts)  # the evidence, then each part (and each part's own steps)
+    assert sorted(set(told)) == [(done, parts) for done in range(parts + 1)] and told == sorted(told)
+    first = told.index((1, parts))  # told (0, parts) again at the first part's own steps, before it is done
 
-    for steps in (1, 2):  # stopped once the evidence is found, then after the first part
+    for steps in (1, 2, first + 1):  # once the evidence is found, in the first part, after the first part
         session = _session(holes, tmp_path / f"cancelled-{steps}")
         seen: list[tuple[int, int]] = []
         with pytest.raises(Cancelled):
@@ -182,6 +184,27 @@ def test_a_bench_whose_caller_cancels_its_tracing_stops_at_that_part_and_stores_
         assert "contours" not in _computed(session) and session.stored_bench_contours(bench) is None
         again = session.bench_contours(bench)  # asked again: traced whole
         assert [c.polygon.wkb for c in again] == [c.polygon.wkb for c in whole]
+
+
+def test_a_part_whose_caller_cancels_its_tracing_stops_within_it_at_its_next_step(holes, tmp_path):
+    """A part's GVF, snake and smoothing were one step (Kennecott: up to 0.9 s for a bench's largest part): a
+    superseded viewer run waited for the part it had begun. Core now tells ``progress`` the parts done again at
+    each of the part's own steps (its GVF solved, every few snake iterations, each step of its smoothing)."""
+    import core.extraction.contours as extraction
+    from core.threads import Cancelled
+
+    bench = holes.n_benches - 1
+    told: list[tuple[int, int]] = []
+    whole = extraction.extract_bench(holes, bench, progress=functools.partial(_tell, told))
+    within = told.index((1, len(whole))) - 1  # the first part's own steps
+    assert within >= 3  # its GVF, its snake's iterations, its smoothing
+    for steps in (2, within):  # its GVF solved, its last step
+        seen: list[tuple[int, int]] = []
+        with pytest.raises(Cancelled):
+            extraction.extract_bench(holes, bench, progress=_stopping(seen, steps))
+        assert seen == told[:steps] and seen[-1] == (0, len(whole))  # stopped within the first part
+    again = extraction.extract_bench(holes, bench)  # not cancelled: the same contours
+    assert [c.polygon.wkb for c in again] == [c.polygon.wkb for c in whole]
 
 
 def test_a_surface_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing_half_done(holes, tmp_path):

@@ -375,9 +375,11 @@ def extract_bench(
 
     ``progress(done, total)`` is told as the bench's evidence is found (``0``)
     and as each part's contour is traced (its edge map, GVF and snake: a
-    Kennecott bench holds 20-40 parts, 0.1-0.5 s each); raising
+    Kennecott bench holds 20-40 parts, 0.1-0.9 s each); raising
     :class:`core.threads.Cancelled` there stops the bench at that part, and
-    nothing of it is returned.
+    nothing of it is returned. Within a part it is told the parts done again
+    at each of the part's own steps (its GVF solved, every few of the snake's
+    iterations, each step of its smoothing), so a large part stops there too.
     """
     params = params or ExtractionParameters()
     ev = bench_evidence(holes, bench, params)
@@ -395,7 +397,9 @@ def extract_bench(
         progress(0, len(traces))
     contours: list[Contour] = []
     for trace in traces:
-        contours.append(trace())
+        # Told the same count within the part: no part more is done, but the caller may stop it there.
+        within = functools.partial(progress, len(contours), len(traces)) if progress else None
+        contours.append(trace(within))
         if progress:
             progress(len(contours), len(traces))
     return contours
@@ -406,8 +410,8 @@ def _geozone_parts(
 ) -> list[Callable[[], Contour]]:
     """The tracing of each connected part of the geozone's region that holds its holes, largest first.
 
-    One call a part gives its contour (:func:`_part_contour`), so the caller can
-    tell its progress between parts.
+    One call a part gives its contour (:func:`_part_contour`, given its ``check``),
+    so the caller can tell its progress between parts.
     """
     parts = ev.parts[geozone]
     grid = ev.transition.grid
@@ -453,8 +457,14 @@ def _part_contour(
     gap_local: np.ndarray,
     params: ExtractionParameters,
     keep_fields: bool,
+    check: Callable[[], None] | None = None,
 ) -> Contour:
-    """Edge map, GVF and snake of one part (steps 4-5 of the module)."""
+    """Edge map, GVF and snake of one part (steps 4-5 of the module).
+
+    ``check()`` is called between the part's steps (:func:`snake_contour`'s,
+    :func:`smoothed_contour`'s); a :class:`core.threads.Cancelled` it raises
+    stops the part there.
+    """
     window, (rs, cs) = _window(ev.transition.grid, mask, (SNAKE_START_SPACINGS + 2.0) * ev.spacing_m)
     outline = window.polygons_from_mask(mask[rs, cs])
     boundary = ev.on_entropy[members] | gap_local[members]
@@ -474,7 +484,7 @@ def _part_contour(
     others_field, claimed = _others_and_claimed(ev, i, rs, cs)
     others = window.polygons_from_field(others_field, 0.0)
     if len(members) >= 3:
-        snake, contour.fields = snake_contour(ev, i, mask, ev.xy[members[boundary]], params, keep_fields)
+        snake, contour.fields = snake_contour(ev, i, mask, ev.xy[members[boundary]], params, keep_fields, check)
         # The cells around its own holes are the geozone's (see _claim_own_cells):
         # where the snake cut a corner off a neck, they are given back.
         if not snake.is_empty:
@@ -493,13 +503,18 @@ def _part_contour(
     if contour.method == "snake":
         # An outline (a part too small for a snake) is a few cells' staircase around its holes: smoothed, a
         # part of one hole shrank to nothing, and its share then blew it up (a Kennecott speck to 6,500 m2).
-        polygon = smoothed_contour(polygon, others, ev.xy, xy, ev.spacing_m)
+        polygon = smoothed_contour(polygon, others, ev.xy, xy, ev.spacing_m, check)
     contour.polygon = at_least_its_share(polygon, float(share.sum()) * window.cell_size_m**2, ev.xy)
     return contour
 
 
 def smoothed_contour(
-    polygon: Polygon, others: MultiPolygon, bench_xy: np.ndarray, own_xy: np.ndarray, spacing_m: float
+    polygon: Polygon,
+    others: MultiPolygon,
+    bench_xy: np.ndarray,
+    own_xy: np.ndarray,
+    spacing_m: float,
+    check: Callable[[], None] | None = None,
 ) -> Polygon:
     """``polygon`` with the waver it has between the holes smoothed out, no hole of the bench changing side.
 
@@ -528,21 +543,28 @@ def smoothed_contour(
         The part's own holes (the polygon kept is the one holding most of them).
     spacing_m : float
         The bench's hole spacing.
+    check : callable, optional
+        Called between steps (the smoothings, each step down); a large part's smoothing takes up to half a
+        second on Kennecott, and a :class:`core.threads.Cancelled` it raises stops it there.
     """
     if polygon.is_empty:
         return polygon
+    check = check or _nothing
     x0, y0, x1, y1 = polygon.bounds
     pad = 2.0 * spacing_m
     grid = Grid.covering((x0 - pad, y0 - pad, x1 + pad, y1 + pad), spacing_m / 6, margin_cells=0)
     distance = region_signed_distance(grid, polygon)
     changes = _smoothing_ladder(distance, grid.cell_size_m, spacing_m)
+    check()
     outside = None
     if not others.is_empty:
         others_distance = region_signed_distance(grid, others)
         outside = (others_distance, _smoothing_ladder(others_distance, grid.cell_size_m, spacing_m))
+        check()
     before = shapely.contains_xy(polygon, bench_xy[:, 0], bench_xy[:, 1])
     level = np.zeros(grid.shape)
     for _ in range(2 * len(changes)):
+        check()
         field = distance + _at_level(changes, level)
         if outside is not None:
             field = np.minimum(field, -(outside[0] + _at_level(outside[1], level)))
@@ -557,6 +579,10 @@ def smoothed_contour(
             break
         level = stepped
     return polygon
+
+
+def _nothing() -> None:
+    """A ``check`` that never stops anything."""
 
 
 def _smoothing_ladder(distance: np.ndarray, cell_size_m: float, spacing_m: float) -> np.ndarray:
@@ -643,6 +669,7 @@ def snake_contour(
     boundary_xy_m: np.ndarray,
     params: ExtractionParameters,
     keep_fields: bool = False,
+    check: Callable[[], None] | None = None,
 ) -> tuple[Polygon, ExtractionFields | None]:
     """Edge map, GVF and active contour of one part of a geozone's region (sections 2.4-2.5).
 
@@ -659,6 +686,10 @@ def snake_contour(
         radius of them (the paper builds its edge map from boundary holes).
     params : ExtractionParameters
     keep_fields : bool
+    check : callable, optional
+        Called once the GVF is solved and every few of the snake's iterations
+        (:func:`core.extraction.snake.evolve_snake`); a :class:`core.threads.Cancelled`
+        it raises stops the part there.
 
     Returns
     -------
@@ -682,6 +713,8 @@ def snake_contour(
     else:
         f[:] = 0.0
     gvf = gvf_steady_state(f, params.gvf_mu)
+    if check:
+        check()
     start = _start_ring(grid, sdf, SNAKE_START_SPACINGS * spacing)
     if start is None:
         return Polygon(), None
@@ -693,6 +726,7 @@ def snake_contour(
         step=params.snake_step,
         max_iterations=params.snake_max_iterations,
         keep_history=keep_fields,
+        check=check,
     )
     snake = onto_crest(snake, smooth / grid.cell_size_m, f, spacing / grid.cell_size_m)
     if keep_fields:

@@ -13,6 +13,8 @@ Everything here is in grid units (cells); :mod:`core.extraction.contours` maps t
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy import ndimage
 
@@ -61,6 +63,7 @@ def evolve_snake(
     tolerance: float = 0.02,
     resample_every: int = 10,
     keep_history: bool = False,
+    check: Callable[[], None] | None = None,
 ) -> tuple[np.ndarray, list[np.ndarray], int]:
     """Evolve a closed snake in a GVF field until it stops moving.
 
@@ -86,6 +89,10 @@ def evolve_snake(
         Re-spacing interval (keeps points evenly spread along the contour).
     keep_history : bool
         Return the snake every ``resample_every`` iterations (for the viewer).
+    check : callable, optional
+        Called every ``resample_every`` iterations; an exception it raises
+        (:class:`core.threads.Cancelled`: the caller no longer wants the
+        snake) stops the evolution there.
 
     Returns
     -------
@@ -120,6 +127,8 @@ def evolve_snake(
         x[:, 0] = np.clip(x[:, 0], 0, rows - 1)
         x[:, 1] = np.clip(x[:, 1], 0, cols - 1)
         if it % resample_every == 0:
+            if check:
+                check()
             x = resample_closed(x, n)
             if keep_history:
                 history.append(x.copy())
