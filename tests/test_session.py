@@ -211,8 +211,8 @@ def test_a_surface_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing
     """A geozone's surface (its sections, then the mesh) was one step: a superseded viewer run made every surface
     it had begun to its end (6 s on Kennecott after the request). Core now tells ``progress`` each bench pair's
     sections, the sections below the deepest bench (their depth trend's backtests, each elevation), each
-    section's depth trend, each section's signed distance and the mesh's two steps; raised there, ``Cancelled``
-    stops the surface at that step."""
+    section's depth trend, each section's signed distance, the steps of closing the mesh (marching cubes done)
+    and the mesh's two steps; raised there, ``Cancelled`` stops the surface at that step."""
     from core.threads import Cancelled
 
     told: list[tuple[int, int]] = []
@@ -224,11 +224,13 @@ def test_a_surface_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing
     below = told.index((pairs + 1, pairs + 1))  # the sections below the deepest bench made
     assert below > pairs + 4  # their own steps before: the depth trend's backtests, each elevation
     assert told[-2:] == [(1, 2), (2, 2)]  # the mesh closed, then its specks dropped
+    closing = told.index((0, 2))
+    assert told[closing:-2] == [(0, 2), (0, 2)]  # closing it: before its try, after the try's marching cubes
     sdfs = [i for i, step in enumerate(told) if step[0] == 1 and i > below and step[1] != 2]
     assert len(sdfs) == 2  # the first section trended, the first section's signed distance
 
-    # in the pairs, the predictions below, the trend, the distances, the mesh
-    for steps in (1, pairs + 1, below + 2, sdfs[1] + 1, len(told) - 1):
+    # in the pairs, the predictions below, the trend, the distances, marching cubes, the mesh
+    for steps in (1, pairs + 1, below + 2, sdfs[1] + 1, closing + 1, len(told) - 1):
         session = _session(holes, tmp_path / f"cancelled-{steps}")
         zone = session.geozone_model("g1")
         seen: list[tuple[int, int]] = []

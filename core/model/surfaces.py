@@ -42,8 +42,9 @@ PLY, VTP, OBJ (text), DXF and OMF; STL is float32 by definition.
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 import shapely
@@ -116,9 +117,10 @@ def surface_from_sections(
     progress : callable, optional
         ``progress(done, total)``, told as each section's signed distance is
         computed (``total``: the sections), then as the mesh is closed and
-        its specks are dropped (``total``: 2). A large geozone's surface
-        takes a second or two; a :class:`core.threads.Cancelled` it raises
-        stops it at that step.
+        its specks are dropped (``total``: 2), and ``(0, 2)`` at the steps of
+        closing it (the volume filled, each marching cubes done, each
+        smoothed try). A large geozone's surface takes a second or two; a
+        :class:`core.threads.Cancelled` it raises stops it at that step.
 
     Returns
     -------
@@ -147,7 +149,10 @@ def surface_from_sections(
             f"the surface grid would have {n_vox:,} voxels (more than {MAX_VOXELS:,}); "
             f"use a larger cell size than {grid.cell_size_m:g} m or a larger z spacing"
         )
-    mesh = _closed_mesh(_sdf_volume(regions, grid, src, progress), grid, z_levels)
+    vol = _sdf_volume(regions, grid, src, progress)
+    # Closing the mesh takes up to half a second on Kennecott (marching cubes, trimesh's checks, tried
+    # again smoothed where it must): told between its steps, with none of the mesh's two steps done.
+    mesh = _closed_mesh(vol, grid, z_levels, functools.partial(progress, 0, 2) if progress else None)
     if progress:
         progress(1, 2)
     voxel_m3 = grid.cell_size_m**2 * float(np.median(np.diff(z_levels)))
@@ -217,33 +222,46 @@ def _sdf_volume(
     return vol
 
 
-def _closed_mesh(vol: np.ndarray, grid: Grid, z_levels: np.ndarray) -> trimesh.Trimesh:
+def _closed_mesh(
+    vol: np.ndarray, grid: Grid, z_levels: np.ndarray, check: Callable[[], None] | None = None
+) -> trimesh.Trimesh:
     """Watertight mesh of the zero level of ``vol``, smoothing the slices only if it must.
 
     Parts of a section that touch only at a cell corner make marching cubes
     emit non-manifold edges that no repair closes. Smoothing each slice by a
     fraction of a cell removes such contacts and moves the surface by well
-    under a cell, so it is the fallback, not the default.
+    under a cell, so it is the fallback, not the default. ``check()`` is
+    called before each try and after its marching cubes; a
+    :class:`core.threads.Cancelled` it raises stops the mesh there.
     """
     h = grid.cell_size_m
     for sigma in (0.0, 0.5, 1.0):
+        if check:
+            check()
         field = vol if sigma == 0.0 else ndimage.gaussian_filter(vol, (0.0, sigma, sigma), mode="nearest")
         field[field == 0.0] = 1e-9 * h
-        mesh = _mesh_from_volume(field, grid, h, z_levels)
+        mesh = _mesh_from_volume(field, grid, h, z_levels, check)
         if _problems(mesh) == []:
             break
     _check(mesh)
     return mesh
 
 
-def _mesh_from_volume(vol: np.ndarray, grid: Grid, cell_size_m: float, z_levels: np.ndarray) -> trimesh.Trimesh:
-    """Marching cubes of the padded (slice, row, col) volume, in local metres, outward-oriented."""
+def _mesh_from_volume(
+    vol: np.ndarray, grid: Grid, cell_size_m: float, z_levels: np.ndarray, check: Callable[[], None] | None = None
+) -> trimesh.Trimesh:
+    """Marching cubes of the padded (slice, row, col) volume, in local metres, outward-oriented.
+
+    ``check()`` is called once marching cubes is done, before the mesh is built and oriented.
+    """
     # A value (almost) exactly 0 at a node puts the vertices of every edge
     # through it a hair apart: a float32 export (STL) then merges them and the
     # mesh no longer closes. Kept a thousandth of a cell away from 0.
     eps = 1e-3 * cell_size_m
     vol = np.where(np.abs(vol) < eps, np.where(vol < 0, -eps, eps), vol)
     verts, faces, _normals, _values = measure.marching_cubes(vol, level=0.0, allow_degenerate=False)
+    if check:
+        check()
     verts = verts.astype(np.float64)
 
     # Slice index -> elevation: the pads sit 1e-3 of a slice beyond the end sections.
