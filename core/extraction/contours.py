@@ -407,7 +407,7 @@ def extract_bench(
 
 def _geozone_parts(
     holes: Blastholes, bench: int, geozone: str, ev: BenchEvidence, params: ExtractionParameters, keep_fields: bool
-) -> list[Callable[[], Contour]]:
+) -> list[Callable[[Callable[[], None] | None], Contour]]:
     """The tracing of each connected part of the geozone's region that holds its holes, largest first.
 
     One call a part gives its contour (:func:`_part_contour`, given its ``check``),
