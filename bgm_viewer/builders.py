@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.model.surfaces import faces_drilled_by
+
 from . import _vtkenv  # noqa: F401
 from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, parse_layers  # noqa: F401 - long imported from here
 from .layers import (
@@ -56,7 +58,12 @@ def make_layers(holes, result: PipelineResult, selection: Selection, predicted=(
         layers.append(TrajectoriesLayer())
     predicted = list(predicted) or list(getattr(result, "predicted", []))
     layers.append(ContoursLayer(predicted, colours, name="predicted contours", predicted=True, line_width=2.0))
-    layers.append(SurfaceLayer.from_trimesh(sorted(result.surfaces.items()), colours))
+    surfaces = sorted(result.surfaces.items())
+
+    def drilled() -> list[np.ndarray]:  # when the layer is first drawn: a refresh may keep the old one
+        return [faces_drilled_by(holes, mesh) for _, mesh in surfaces]
+
+    layers.append(SurfaceLayer.from_trimesh(surfaces, colours, drilled=drilled))
     layers.append(selected_components_layer(result))
     # computed by core when one of its layers is first drawn, or by the window's worker thread (deferred)
     next_bench = NextBench(holes, result.model, session=result.session, deferred=deferred)

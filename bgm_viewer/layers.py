@@ -14,7 +14,7 @@ the vertical exaggeration about a reference elevation (the top bench).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -718,7 +718,15 @@ class TrajectoriesLayer(Layer):
 
 
 class SurfaceLayer(Layer):
-    """Triangulated geozone surface(s) in local metres; default opacity 0.6, shaded."""
+    """Triangulated geozone surface(s) in local metres; default opacity 0.6, shaded.
+
+    ``drilled``: per mesh, which faces lie in drilled ground
+    (:func:`core.model.surfaces.drilled_faces`), or a function giving them,
+    called when first needed (a scene refresh makes every layer and keeps
+    only the changed ones); the other faces (below the deepest bench,
+    curtains under an upper bench's edge) are drawn in a lighter shade, as the
+    predicted contours are. ``None`` draws every face alike.
+    """
 
     kind = "surfaces"
 
@@ -729,11 +737,22 @@ class SurfaceLayer(Layer):
         *,
         name="surfaces",
         opacity: float = 0.6,
+        drilled: Sequence[np.ndarray] | Callable[[], Sequence[np.ndarray]] | None = None,
         **kw,
     ):
         super().__init__(name, opacity=opacity, **kw)
         self.meshes = [(str(g), np.asarray(v, float), np.asarray(f, np.int64)) for g, v, f in meshes]
         self.colours = dict(colours) if colours else geozone_colours(g for g, _, _ in self.meshes)
+        self._drilled = drilled
+
+    @property
+    def drilled(self) -> list[np.ndarray | None]:
+        """Per mesh, which faces lie in drilled ground (``None``: not known, every face drawn alike)."""
+        if callable(self._drilled):
+            self._drilled = self._drilled()
+        if self._drilled is None:
+            return [None] * len(self.meshes)
+        return [np.asarray(d, bool) for d in self._drilled]
 
     @classmethod
     def from_trimesh(cls, items: Iterable[tuple[str, Any]], colours=None, **kw) -> SurfaceLayer:
@@ -742,31 +761,36 @@ class SurfaceLayer(Layer):
 
     def set_meshes(self, meshes) -> None:
         self.meshes = [(str(g), np.asarray(v, float), np.asarray(f, np.int64)) for g, v, f in meshes]
+        self._drilled = None
         self._emit("data")
 
     def _build(self, view):
         items = []
+        drilled_of = self.drilled
         for i, (g, v, f) in enumerate(self.meshes):
             if not len(f) or not view.shows(g):
                 continue
             pts = v.copy()
             pts[:, 2] = view.z(pts[:, 2])
-            faces = np.column_stack([np.full(len(f), 3), f]).ravel()
-            mesh = pv.PolyData(pts, faces=faces)
-            mesh.point_data["item"] = np.full(len(pts), i)  # what a pick reports
-            items.append(
-                MeshItem(
-                    mesh,
-                    {
-                        "color": self.colours.get(g, (200, 200, 200)),
-                        "smooth_shading": False,
-                        "show_scalar_bar": False,
-                        "scalars": None,
-                        "pickable": True,
-                    },
-                )
-            )
+            colour = self.colours.get(g, (200, 200, 200))
+            drilled = drilled_of[i]
+            parts = [(f, colour)] if drilled is None else [(f[drilled], colour), (f[~drilled], lighten(colour, 0.55))]
+            items += [MeshItem(_surface_mesh(pts, part, i), _surface_style(rgb)) for part, rgb in parts if len(part)]
         return items
 
     def legend(self):
-        return [(f"geozone {g}", self.colours.get(g, (200, 200, 200))) for g in sorted({g for g, _, _ in self.meshes})]
+        rows = [(f"geozone {g}", self.colours.get(g, (200, 200, 200))) for g in sorted({g for g, _, _ in self.meshes})]
+        if any(d is not None and not d.all() for d in self.drilled):
+            rows.append(("predicted (lighter shade)", LAYER_COLOURS["predicted"]))
+        return rows
+
+
+def _surface_mesh(pts: np.ndarray, faces: np.ndarray, item: int) -> pv.PolyData:
+    """One part of a surface; ``item`` is what a pick reports (the mesh's index in the layer)."""
+    mesh = pv.PolyData(pts, faces=np.column_stack([np.full(len(faces), 3), faces]).ravel())
+    mesh.point_data["item"] = np.full(len(pts), item)
+    return mesh
+
+
+def _surface_style(rgb) -> dict:
+    return {"color": rgb, "smooth_shading": False, "show_scalar_bar": False, "scalars": None, "pickable": True}

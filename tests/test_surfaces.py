@@ -26,7 +26,7 @@ from core.io.export import (
     omf_available,
     write_geojson,
 )
-from core.model.surfaces import mesh_summary, surface_from_sections, to_input_frame
+from core.model.surfaces import drilled_faces, mesh_summary, surface_from_sections, to_input_frame
 
 MINE_ORIGIN = (650000.0, 7400000.0)
 
@@ -494,3 +494,45 @@ def test_write_geojson_winds_rings_by_the_right_hand_rule(tmp_path):
     # Only the order of the vertices changed: the same ground, to the bit.
     assert shape(data["features"][0]["geometry"]).normalize().equals_exact(holed.normalize(), 0.0)
     assert shape(data["features"][1]["geometry"]).area == MultiPolygon([clockwise, box(0, 0, 10, 10)]).area
+
+
+def test_drilled_faces_shade_ground_no_bench_bracketed():
+    """A pit narrowing with depth: the surface under the upper bench's outer drilling, and below the
+    deepest bench, lies in ground no two benches bracket; between the benches' common drilling it does not."""
+    levels = [100.0, 90.0]
+    drilled_areas = [box(0, -50, 200, 50), box(0, -50, 100, 50)]  # the lower bench drilled half as far east
+    body = box(20, -30, 180, 30)
+    mesh = surface_from_sections([(100.0, body), (90.0, body), (80.0, body)])
+    drilled = drilled_faces(mesh, levels, drilled_areas, reach_m=3.0)
+    x, z = mesh.triangles_center[:, 0], mesh.triangles_center[:, 2]
+    between = (z < 99.0) & (z > 91.0)
+    assert drilled[between & (x < 90)].all()
+    assert not drilled[between & (x > 110)].any()
+    assert not drilled[z < 89.0].any()  # below the deepest bench: its depth trend
+    top = z > 100.0 - 1e-6
+    assert drilled[top & (x < 190)].all()  # the top bench drilled its whole section
+    area = mesh.area_faces
+    assert 0.2 < area[drilled].sum() / area.sum() < 0.6
+
+
+def test_drilled_faces_needs_a_bench_on_each_side():
+    """A surface over ground neither bench drilled is drilled nowhere; with no bench, nowhere either."""
+    mesh = surface_from_sections([(100.0, box(0, 0, 50, 50)), (90.0, box(0, 0, 50, 50))])
+    far = [box(500, 500, 600, 600)] * 2
+    assert not drilled_faces(mesh, [100.0, 90.0], far, reach_m=5.0).any()
+    assert not drilled_faces(mesh, [], [], reach_m=5.0).any()
+
+
+def test_drilled_faces_are_written_per_face_in_vtp_and_ply(tmp_path):
+    """A surface's drilled faces reach mine software: VTP cell data and a PLY face property, face for face."""
+    import pyvista as pv
+
+    mesh = trimesh.creation.box(extents=(10.0, 10.0, 10.0))
+    drilled = np.arange(len(mesh.faces)) % 3 == 0
+    mesh.face_attributes["drilled"] = drilled
+    moved = to_input_frame(mesh, MINE_ORIGIN, 0.3048)
+    vtp = pv.read(export_surface(moved, tmp_path / "s.vtp"))
+    assert vtp.n_cells == len(drilled) and np.array_equal(vtp.cell_data["drilled"].astype(bool), drilled)
+    ply = trimesh.load(export_surface(moved, tmp_path / "s.ply"), process=False)
+    assert np.array_equal(ply.metadata["_ply_raw"]["face"]["data"]["drilled"].astype(bool), drilled)
+    assert np.allclose(ply.vertices, moved.vertices)

@@ -24,7 +24,7 @@ from bgm_viewer.layers import (  # noqa: E402
     ViewTransform,
     WavefrontLayer,
 )
-from bgm_viewer.palette import GEOZONE_PALETTE, LAYER_COLOURS  # noqa: E402
+from bgm_viewer.palette import GEOZONE_PALETTE, LAYER_COLOURS, lighten  # noqa: E402
 from bgm_viewer.scene import Scene  # noqa: E402
 from bgm_viewer.testing import small_model  # noqa: E402
 from core.geometry.grid import Grid  # noqa: E402
@@ -182,6 +182,33 @@ def test_surface_layer_from_triangles():
     (item,) = layer.build(ViewTransform(2.0, 0.0))
     assert item.mesh.n_cells == 4 and item.mesh.points[:, 2].max() == 2.0
     assert item.style["opacity"] == pytest.approx(0.6)
+
+
+def test_surface_layer_shades_undrilled_faces_lighter():
+    """Faces in ground no bench bracketed are drawn apart, in the geozone's colour lightened, and said in the legend."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    colour = (200, 40, 40)
+    drilled = np.array([True, True, False, True])
+    layer = SurfaceLayer([("a", v, f)], {"a": colour}, drilled=lambda: [drilled])
+    items = layer.build(ViewTransform(1.0, 0.0))
+    assert [it.mesh.n_cells for it in items] == [3, 1]
+    assert items[0].style["color"] == colour and items[1].style["color"] == lighten(colour, 0.55)
+    assert ("predicted (lighter shade)", LAYER_COLOURS["predicted"]) in layer.legend()
+    whole = SurfaceLayer([("a", v, f)], {"a": colour}, drilled=[np.ones(4, bool)])
+    assert len(whole.build(ViewTransform(1.0, 0.0))) == 1 and len(whole.legend()) == 1
+
+
+def test_scene_shades_the_surface_below_the_deepest_bench(model):
+    """The pipeline's surfaces: what lies below the deepest bench is shaded as predicted, what the benches bracket is not."""
+    res = model.result
+    scene = build_scene(model.holes, res, model.selection, visible=["surfaces"])
+    layer = scene["surfaces"]
+    deepest = float(model.holes.bench_levels_m[-1])
+    for (_, v, f), drilled in zip(layer.meshes, layer.drilled, strict=True):
+        z = v[f].mean(axis=1)[:, 2]
+        assert not drilled[z < deepest - 0.1].any()
+        assert drilled.any()
 
 
 def test_scene_from_pipeline(model):

@@ -353,7 +353,9 @@ def _write_ply(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
 
     The header is ASCII (the PLY format's): a geozone named in another script
     (``minério``) is written in its comment with escapes (``min\\xe9rio``).
+    The mesh's face flags (:func:`face_flags`) follow each face's indices as ``uchar`` properties.
     """
+    flags = face_flags(mesh, len(faces))
     header = (
         "ply\nformat binary_little_endian 1.0\n"
         f"comment BGM geozone surface {_ascii_line(name)}\n"
@@ -361,33 +363,53 @@ def _write_ply(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
         + f"element vertex {len(vertices)}\n"
         "property double x\nproperty double y\nproperty double z\n"
         f"element face {len(faces)}\n"
-        "property list uchar int vertex_indices\n"
-        "end_header\n"
+        "property list uchar int vertex_indices\n" + "".join(f"property uchar {k}\n" for k in flags) + "end_header\n"
     ).encode("ascii")
     if len(vertices) >= 2**31:
         raise BGMInputError("too many vertices for PLY int indices")
-    face_rec = np.empty(len(faces), dtype=[("n", "u1"), ("v", "<i4", (3,))])
+    face_rec = np.empty(len(faces), dtype=[("n", "u1"), ("v", "<i4", (3,))] + [(k, "u1") for k in flags])
     face_rec["n"] = 3
     face_rec["v"] = faces
+    for k, values in flags.items():
+        face_rec[k] = values
     with open(tmp, "wb") as fh:
         fh.write(header)
         fh.write(np.ascontiguousarray(vertices, dtype="<f8").tobytes())
         fh.write(face_rec.tobytes())
 
 
+def face_flags(mesh, n_faces: int) -> dict[str, np.ndarray]:
+    """The mesh's boolean face attributes (``drilled``: :func:`core.model.surfaces.drilled_faces`) as 0/1 bytes.
+
+    Written per face where the format has a place for it (PLY, VTP), so mine software can
+    tell the surface in drilled ground from the depth trend carried beyond it.
+    """
+    attributes = getattr(mesh, "face_attributes", None) or {}
+    return {
+        str(k): np.asarray(v, np.uint8)
+        for k, v in attributes.items()
+        if str(k).isidentifier() and np.asarray(v).dtype == bool and np.shape(v) == (n_faces,)
+    }
+
+
 def _write_vtp(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
-    """VTK XML PolyData, raw appended binary, Float64 points, Int64 connectivity."""
+    """VTK XML PolyData, raw appended binary, Float64 points, Int64 connectivity, face flags as UInt8 cell data."""
+    flags = face_flags(mesh, len(faces))
     blocks = [
         np.ascontiguousarray(vertices, dtype="<f8").tobytes(),
         np.ascontiguousarray(faces, dtype="<i8").ravel().tobytes(),
         (np.arange(1, len(faces) + 1, dtype="<i8") * 3).tobytes(),
-    ]
+    ] + [values.tobytes() for values in flags.values()]
     offsets = []
     pos = 0
     for b in blocks:
         offsets.append(pos)
         pos += 8 + len(b)
     name_xml = _xml_escape(_one_line(name))
+    cell_data = "".join(
+        f'        <DataArray type="UInt8" Name="{k}" format="appended" offset="{offsets[3 + i]}"/>\n'
+        for i, k in enumerate(flags)
+    )
     head = (
         '<?xml version="1.0"?>\n'
         '<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n'
@@ -395,7 +417,8 @@ def _write_vtp(tmp: Path, vertices, faces, name, mesh, units: str = "") -> None:
         f"    <!-- BGM geozone surface: {name_xml.replace('--', '- -')}{f', units {_xml_escape(units)}' if units else ''} -->\n"
         f'    <Piece NumberOfPoints="{len(vertices)}" NumberOfVerts="0" NumberOfLines="0" '
         f'NumberOfStrips="0" NumberOfPolys="{len(faces)}">\n'
-        "      <Points>\n"
+        + (f"      <CellData>\n{cell_data}      </CellData>\n" if flags else "")
+        + "      <Points>\n"
         '        <DataArray type="Float64" Name="Points" NumberOfComponents="3" '
         f'format="appended" offset="{offsets[0]}"/>\n'
         "      </Points>\n"

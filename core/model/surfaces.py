@@ -71,6 +71,8 @@ MAX_VOXELS = 60_000_000
 
 __all__ = [
     "DEFAULT_CELLS_ACROSS",
+    "drilled_faces",
+    "faces_drilled_by",
     "drop_small_bodies",
     "mesh_summary",
     "surface_from_sections",
@@ -362,6 +364,66 @@ def mesh_summary(mesh: trimesh.Trimesh) -> dict:
     }
 
 
+def drilled_faces(
+    mesh: trimesh.Trimesh,
+    bench_levels_m: Sequence[float],
+    drilled_areas: Sequence,
+    reach_m: float,
+) -> np.ndarray:
+    """Which faces of a surface lie in drilled ground (bool per face).
+
+    A face is drilled where the benches on both sides of it drilled within
+    ``reach_m`` of it: at a bench level, that bench; between two benches, both
+    of them. Elsewhere the surface is the depth trend carried into ground no
+    bench bracketed (section "Contour Prediction"): below the deepest bench,
+    and where a pit narrowing with depth left ground under an upper bench's
+    drilling that the next bench did not drill (the "curtains" hanging under
+    an upper bench's edge). A viewer shades those faces as predicted.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The surface, in the frame of the benches (local metres).
+    bench_levels_m : (b,) float
+        Bench elevations, top first.
+    drilled_areas : sequence of b polygons
+        Each bench's drilled area (``Blastholes.drilled_area``).
+    reach_m : float
+        How far past a bench's drilled area a face still counts as drilled:
+        a contour along a frontier runs up to a hole spacing past its holes.
+
+    Returns
+    -------
+    (f,) bool
+    """
+    levels = np.asarray(bench_levels_m, float)
+    if not len(mesh.faces) or not len(levels):
+        return np.zeros(len(mesh.faces), bool)
+    centre = mesh.triangles_center
+    # Faces within a hair of a bench (its cap, its section) belong to that bench alone.
+    tol = 1e-3 * (float(np.ptp(levels)) or 1.0)
+    above = np.clip(np.searchsorted(-levels, -(centre[:, 2] - tol), side="right") - 1, 0, None)
+    below = np.searchsorted(-levels, -(centre[:, 2] + tol), side="left")
+    drilled = below < len(levels)
+    for k, area in enumerate(drilled_areas):
+        ask = drilled & ((above == k) | (below == k))
+        if not ask.any():
+            continue
+        reach = shapely.buffer(area, reach_m) if area is not None and not area.is_empty else None
+        inside = shapely.contains_xy(reach, centre[ask, 0], centre[ask, 1]) if reach is not None else False
+        drilled[np.flatnonzero(ask)] &= inside
+    return drilled
+
+
+def faces_drilled_by(holes, mesh: trimesh.Trimesh) -> np.ndarray:
+    """:func:`drilled_faces` of ``mesh`` (local metres) with the benches and drilling of ``holes`` (a ``Blastholes``).
+
+    A contour along a drilling frontier runs up to half a spacing past the discs of a bench's drilled area.
+    """
+    areas = [holes.drilled_area(k) for k in range(len(holes.bench_levels_m))]
+    return drilled_faces(mesh, holes.bench_levels_m, areas, 0.5 * holes.hole_spacing_m)
+
+
 def volume_above(mesh: trimesh.Trimesh, z_m: float) -> float:
     """The volume of a closed mesh above the plane ``z = z_m`` (cubic metres).
 
@@ -382,7 +444,7 @@ def to_input_frame(mesh: trimesh.Trimesh, origin_xy: tuple[float, float], metres
 
     ``x = x_local / metres_per_unit + origin_x``, ``y`` likewise,
     ``z = z_local / metres_per_unit``. Computed in float64; the vertices are
-    not merged or reordered, so faces are unchanged. A non-positive scale
+    not merged or reordered, so faces and their attributes are unchanged. A non-positive scale
     would mirror the mesh and is refused.
 
     Note the result's volume and area are in input units (cubed / squared).
@@ -398,7 +460,9 @@ def to_input_frame(mesh: trimesh.Trimesh, origin_xy: tuple[float, float], metres
     out[:, 0] = v[:, 0] / mpu + ox
     out[:, 1] = v[:, 1] / mpu + oy
     out[:, 2] = v[:, 2] / mpu
-    return trimesh.Trimesh(vertices=out, faces=np.array(mesh.faces), process=False)
+    moved = trimesh.Trimesh(vertices=out, faces=np.array(mesh.faces), process=False)
+    moved.face_attributes.update({k: np.array(a) for k, a in mesh.face_attributes.items()})  # e.g. "drilled"
+    return moved
 
 
 # --------------------------------------------------------------------------- helpers
