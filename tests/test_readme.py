@@ -49,3 +49,15 @@ def test_every_option_the_readme_shows_is_one_the_command_takes(words):
     options = {o for p in command.params for o in (*p.opts, *p.secondary_opts)}
     shown = {w for w in words[1:] if w.startswith("--")}
     assert shown <= options, sorted(shown - options)
+
+
+def test_the_readme_commands_name_geozones_of_the_kennecott_table(kennecott_csv):
+    """The command lines' labels are Kennecott's (the README's `holes.csv`): `bgm suggest ... --geozone
+    3310,3320` stopped with "geozone '3320' is not in holes.csv" on the table it was written from."""
+    import pandas as pd
+
+    present = set(pd.read_csv(kennecott_csv, usecols=["lookup_domain"])["lookup_domain"].astype(str))
+    for words in _command_lines():
+        for flag, value in zip(words, words[1:], strict=False):
+            if flag == "--geozone":
+                assert set(value.split(",")) <= present, (words[0], value)
