@@ -61,3 +61,13 @@ def test_the_readme_commands_name_geozones_of_the_kennecott_table(kennecott_csv)
         for flag, value in zip(words, words[1:], strict=False):
             if flag == "--geozone":
                 assert set(value.split(",")) <= present, (words[0], value)
+
+
+def test_bgm_help_says_what_is_predicted_in_the_readmes_words():
+    """`bgm --help` promised "slope predictions" (the paper's phrase); to a mine geologist a slope is a
+    pit wall. The README's "a prediction below the deepest bench" is what the model gives."""
+    from core.cli import app
+
+    said = str(app.info.help)
+    assert "below the deepest bench" in _readme() and "below the deepest bench" in said
+    assert "slope" not in said
