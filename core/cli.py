@@ -96,7 +96,7 @@ from core.errors import BGMInputError, listing, quoted
 
 app = typer.Typer(
     name="bgm",
-    help="Boundary Geometry Modeler: geozone boundaries, surfaces and slope predictions from labelled blastholes.",
+    help="Boundary Geometry Modeler: geozone boundaries, surfaces and predictions below the deepest bench from labelled blastholes.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
