@@ -85,6 +85,10 @@ MISSING_ELEVATION_BENCHES = 3.0
 #: bench is drilled on a pattern of about its height (1.8 hole spacings on the demo, 2.2 on Kennecott, 1.0-2.9 on the
 #: synthetic drillings), so this is three benches of 3.3 spacings (Kennecott's floor is 11.9 spacings above 0).
 MISSING_ELEVATION_SPACINGS = 10.0
+#: A small group of holes at any elevation, beside one bench (or two) and more than this many of its hole spacings from
+#: it, is no bench (mistyped: RL 150 or 15000 for 1500): ten benches (:data:`FAR_LEVEL_BENCHES`) of the same 3.3
+#: spacings, the rule for groups beside several benches measured by the pattern (:data:`MISSING_ELEVATION_SPACINGS`).
+FAR_GROUP_SPACINGS = FAR_LEVEL_BENCHES * MISSING_ELEVATION_SPACINGS / MISSING_ELEVATION_BENCHES
 #: A single cluster of elevations thicker than this many hole spacings is not one bench.
 MAX_BENCH_THICKNESS_SPACINGS = 5.0
 #: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
@@ -566,17 +570,20 @@ def blastholes_from_table(
         raise BGMInputError(f"{source or 'the input'} has only {len(labels)} hole(s); BGM needs at least 3")
 
     zin = coords["z"]
-    levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=np.column_stack([coords["x"], coords["y"]]))
+    xy_in = np.column_stack([coords["x"], coords["y"]])
+    levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=xy_in)
     _note_missing_elevations(zin, notes)
-    _left_out_off_bench(notes, zin, off, levels_in, height_in, lines, given=bench_height is not None)
-    far = _far_holes(np.column_stack([coords["x"], coords["y"]]), bench, ~off)
+    # A single bench's far groups lie beyond FAR_GROUP_SPACINGS of its own pattern (see _far_beside_one_bench).
+    reach = FAR_GROUP_SPACINGS * median_hole_spacing(xy_in[~off]) if len(levels_in) == 1 and off.any() else np.inf
+    _left_out_off_bench(notes, zin, off, levels_in, height_in, lines, given=bench_height is not None, reach=reach)
+    far = _far_holes(xy_in, bench, ~off)
     where = f"lie more than {FAR_HOLE_SPACINGS:g} hole spacings from every other hole of their bench"
     _left_out(notes, far, lines, where, "x, y missing or mistyped")
 
     unit = _guess_unit(
         height_in,
         length_unit,
-        lambda: median_hole_spacing(np.column_stack([coords["x"], coords["y"]])[~off], bench[~off]),
+        lambda: median_hole_spacing(xy_in[~off], bench[~off]),
     )
     mpu = FEET_TO_METRES if unit == "ft" else 1.0
     keep = ~off & ~far
@@ -628,13 +635,14 @@ def _left_out_off_bench(
     height: float,
     lines: np.ndarray,
     given: bool,
+    reach: float = np.inf,
 ) -> None:
     """Warn of the off-bench holes left out: those far above or below every bench (elevations missing or
     mistyped), then the strays between or beside the benches.
 
     Beside several benches the far ones lie more than a bench height beyond the top or the bottom one. A
-    single bench has no bench height: its far ones sit exactly at 0 or -9999 (:data:`MISSING_ELEVATIONS`),
-    the others off the elevations of its holes. 300 holes at 0 beside one bench at 685 were said to lie
+    single bench has no bench height: its far ones sit exactly at 0 or -9999 (:data:`MISSING_ELEVATIONS`) or
+    more than ``reach`` from it (mistyped: 150 for 1500), the others off the elevations of its holes. 300 holes at 0 beside one bench at 685 were said to lie
     "more than 30% of a bench height from every bench level", a height it does not have. When ten or more
     far ones sit at one elevation they may be a bench of their own, which a bench height keeps: said, unless
     one was ``given``.
@@ -655,13 +663,16 @@ def _left_out_off_bench(
         Each hole's data line.
     given : bool
         Whether the bench height was given.
+    reach : float
+        Beside a single bench, how far (input units) a group at any elevation lies to be no bench (see
+        :data:`FAR_GROUP_SPACINGS`).
     """
     if len(levels) >= 2:
         outside = off & ((z < levels.min() - height) | (z > levels.max() + height))
         where = f"lie more than a bench height above or below every bench, at z {_far_values(z[outside])}"
         strays = f"lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from every bench level"
     else:
-        outside = off & np.isin(z, list(MISSING_ELEVATIONS))
+        outside = off & (np.isin(z, list(MISSING_ELEVATIONS)) | (np.abs(z - levels[0]) > reach))
         where = f"lie far above or below the only bench (at z {levels[0]:g}), at z {_far_values(z[outside])}"
         on = z[~off]
         strays = (
@@ -1223,7 +1234,8 @@ def _far_off_elevations(
     RL 0 next to the others. A group more than ten bench heights from the others (a second pit in the same
     table) is set apart too: its holes are then named in a warning, or the table refused when they are many.
     With no bench height to measure by (one bench and a group at 0, two clusters in all), the group at 0 or
-    -9999 is judged by the bench's hole spacing (see :func:`_missing_beside_one_bench`).
+    -9999 is judged by the bench's hole spacing (see :func:`_missing_beside_one_bench`), and so is a small group
+    at any other elevation (see :func:`_far_beside_one_bench`).
 
     Parameters
     ----------
@@ -1261,6 +1273,7 @@ def _far_off_elevations(
         if bench_height is None and len(gaps) < 2:
             if spacing is not None:
                 apart += _missing_beside_one_bench(parts, min_count, spacing)
+                apart += _far_beside_one_bench(parts, median, spacing)
             break
         # The widest gap left out: it may be the one to the group being judged (two benches, 300 holes at 0).
         height = bench_height or float(np.median(np.sort(gaps)[:-1]))
@@ -1324,6 +1337,48 @@ def _missing_beside_one_bench(
         return []
     reach = MISSING_ELEVATION_SPACINGS * holes_apart
     return [parts[k] for k in groups if abs(float(np.median(bench)) - float(parts[k][0])) > reach]
+
+
+def _far_beside_one_bench(
+    parts: list[np.ndarray], median: float, spacing: Callable[[np.ndarray], float]
+) -> list[np.ndarray]:
+    """Small groups of holes at any elevation far above or below the bench (or two) beside them (``[]`` when none).
+
+    One bench at RL 1500 and 6 holes typed at RL 150 or 15000 read as two benches 1350 units apart (with a
+    warning on the unit only), or had the table refused as elevations "spread continuously"; two benches and
+    such a group read as three. Beside several benches their own gaps measure how far a group is (see
+    :func:`_far_off_elevations`); beside one or two there is no bench height to trust (the one gap may be the
+    group's), but the bench's drilling pattern says how high a bench is. Walking up and down from the median
+    elevation's bench, the groups beyond a step of more than :data:`FAR_GROUP_SPACINGS` of its hole spacings
+    (ten benches of 3.3 spacings) are no bench when they hold at most :data:`MAX_OFF_BENCH_SHARE` of the holes
+    on their side: a bench a few benches below is a bench height or a few away, and a larger group far off (two
+    benches exported from a deep pit) stays the bench it may be.
+
+    Parameters
+    ----------
+    parts : list of (k,) float
+        Sorted elevations, one cluster per bench or group (ascending).
+    median : float
+        The median elevation: its bench is never set apart, and its hole spacing measures the reach.
+    spacing : callable
+        A cluster's elevations -> the hole spacing of its holes (input units, NaN when not measurable).
+
+    Returns
+    -------
+    list of (k,) float
+        The groups' elevations, or nothing.
+    """
+    home = next(k for k, p in enumerate(parts) if p[0] <= median <= p[-1])  # the parts hold every elevation
+    holes_apart = spacing(parts[home])
+    if not (np.isfinite(holes_apart) and holes_apart > 0):
+        return []
+    centres = np.array([float(np.median(p)) for p in parts])
+    steps = np.flatnonzero(np.diff(centres) > FAR_GROUP_SPACINGS * holes_apart)
+    low = max([k + 1 for k in steps if k < home], default=0)
+    high = min([k for k in steps if k >= home], default=len(parts) - 1)
+    n_holes = sum(len(p) for p in parts)
+    sides = [parts[:low], parts[high + 1 :]]
+    return [p for side in sides if sum(len(p) for p in side) <= MAX_OFF_BENCH_SHARE * n_holes for p in side]
 
 
 def _far_values(z: np.ndarray) -> str:
