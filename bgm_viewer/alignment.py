@@ -94,6 +94,43 @@ def same_place(outline: BaseGeometry, components: Sequence[BaseGeometry]) -> int
     return hits[0] if set(inside) <= set(hits) else None
 
 
+def place_unplaced(overrides: Sequence[AlignmentOverride], outlines: PairOutlines) -> list[AlignmentOverride]:
+    """The overrides not yet placed (read from a project file) placed on the components their numbers name in
+    ``outlines``; the others, and those whose bench pair is not at hand, as they are.
+
+    A project's overrides name components by number, under the project's parameters. Placed by
+    :func:`relocate_overrides` on the first run that reaches them, they named the components of that
+    run's parameters: a slider moved before it renumbered them, and an override landed on another body.
+    Placed first on the components of the parameters they were numbered under (``outlines``), they then
+    follow their bodies to the run's components by their outlines, as after any slider.
+
+    Parameters
+    ----------
+    overrides : sequence of AlignmentOverride
+        Placed (:class:`PlacedOverride` with an outline) or not.
+    outlines : callable
+        ``outlines(geozone, source_z)`` under the parameters the overrides' numbers were given under
+        (see :data:`PairOutlines`).
+
+    Returns
+    -------
+    list
+        New objects for those placed here; ``overrides`` is not modified.
+    """
+    out: list[AlignmentOverride] = []
+    for original in overrides:
+        pair = None
+        if not (isinstance(original, PlacedOverride) and original.source_outline is not None):
+            pair = outlines(original.geozone, original.source_z)
+        if pair is None:
+            out.append(original)
+            continue
+        o = copy.deepcopy(PlacedOverride.of(original))
+        o.place(*pair)
+        out.append(o)
+    return out
+
+
 def relocate_overrides(
     overrides: Sequence[AlignmentOverride], outlines: PairOutlines, *, unit: str
 ) -> tuple[list, list[str]]:

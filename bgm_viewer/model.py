@@ -167,6 +167,9 @@ class PipelineInputs:
     min_body_holes: int = 0
     #: How many times the user had changed the overrides when the run began (see :class:`Relocation`).
     override_edits: int = 0
+    #: The parameters the overrides' numbers were given under (``None``: the run's own); a project's, opened
+    #: and not yet placed by a run, when a slider moved since (see :func:`bgm_viewer.alignment.place_unplaced`).
+    placed_params: ModelParameters | None = None
 
 
 @dataclass
@@ -328,21 +331,34 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
     """
     from core.io.project import same_elevation
 
-    from .alignment import relocate_overrides
+    from .alignment import PairOutlines, place_unplaced, relocate_overrides
 
     session, res = run.session, run.res
     if session.project is None or not session.project.overrides:
         return
     holes = session.holes
 
-    def outlines(geozone: str, source_z: float):
-        k = next((k for k in range(holes.n_benches - 1) if same_elevation(holes.bench_z_input(k), source_z)), None)
-        if k is None or k not in fresh or k + 1 not in fresh:
-            return None
-        m = res.min_component_holes
-        return tuple([c.polygon for c in modelled_contours(res.contours.get(b, []), geozone, b, m)] for b in (k, k + 1))
+    def pair_outlines(contours: Callable[[int], list], min_holes: int) -> PairOutlines:
+        def outlines(geozone: str, source_z: float):
+            z = holes.bench_z_input
+            k = next((k for k in range(holes.n_benches - 1) if same_elevation(z(k), source_z)), None)
+            if k is None or k not in fresh or k + 1 not in fresh:
+                return None
+            return tuple([c.polygon for c in modelled_contours(contours(b), geozone, b, min_holes)] for b in (k, k + 1))
 
-    overrides, notes = relocate_overrides(session.project.overrides, outlines, unit=holes.frame.length_unit)
+        return outlines
+
+    overrides = session.project.overrides
+    placed = run.inputs.placed_params
+    if placed is not None and placed != session.params:
+        # Overrides opened from a project are numbered under its parameters: placed on those components first
+        # (stored, or traced once), they follow their bodies to this run's numbers below, never its numbers.
+        under = session.updated(params=placed)
+        overrides = place_unplaced(
+            overrides, pair_outlines(lambda b: under.bench_contours(b, run.progress), placed.min_component_holes)
+        )
+    now = pair_outlines(lambda b: res.contours.get(b, []), res.min_component_holes)
+    overrides, notes = relocate_overrides(overrides, now, unit=holes.frame.length_unit)
     run.session = session.updated(project=replace(session.project, overrides=overrides))
     before = res.relocated.notes if res.relocated is not None else []
     followed = res.relocated.followed if res.relocated is not None else _follow_selection(run, overrides)
@@ -734,6 +750,7 @@ class ViewerModel:
             float(self.min_body_volume_m3),
             int(self.min_body_holes),
             self._override_edits,
+            self._placed_params,
         )
 
     def source_z_input(self) -> float:

@@ -375,6 +375,54 @@ def test_a_few_holes_at_rl_0_beside_a_single_bench_are_named_as_missing_elevatio
     assert len(holes.xy) == 34
 
 
+@pytest.mark.parametrize("typed", [150.0, 15000.0])
+@pytest.mark.parametrize("n_per_bench", [24, 40])
+@pytest.mark.parametrize("units", ["m", "ft"])
+def test_a_small_group_mistyped_far_from_a_single_bench_is_left_out_and_named(tmp_path, typed, n_per_bench, units):
+    """A bench at RL 1500 with 6 holes typed at RL 150 or 15000 (neither 0 nor -9999) read as two benches 1350 units
+    apart, or had the table refused as elevations 'spread continuously'; in feet too (pattern and levels / 0.3048)."""
+    table = small_table(n_per_bench=n_per_bench, benches=(1500.0,))
+    if units == "ft":
+        table[["EAST", "NORTH", "RL"]] /= 0.3048
+    alone = table.iloc[6:]
+    table.loc[:5, "RL"] = typed / (0.3048 if units == "ft" else 1.0)
+    with pytest.warns(BGMWarning) as caught:
+        holes = read_blastholes(write(tmp_path, table))
+    expected = read_blastholes(write(tmp_path, alone, name="alone.csv"))
+    assert holes.n_benches == 1 and np.array_equal(holes.bench_levels_m, expected.bench_levels_m)
+    assert np.array_equal(holes.xy, expected.xy) and len(holes.xy) == n_per_bench - 6
+    said = [str(w.message) for w in caught]
+    assert any(
+        m.startswith("6 hole(s) lie far above or below the only bench (at z ")
+        and "(data line(s) 2, 3, 4, 5, 6, 7): elevations missing (written as 0 or -9999) or mistyped?" in m
+        for m in said
+    ), said
+
+
+def test_a_small_group_mistyped_far_from_two_benches_is_no_third_bench(tmp_path):
+    """Two benches and 6 holes typed at RL 150 read as three benches (the group was a bench being opened)."""
+    table = small_table(benches=(1500.0, 1490.0))
+    table.loc[:5, "RL"] = 150.0
+    with pytest.warns(
+        BGMWarning, match=r"6 hole\(s\) lie more than a bench height above or below every bench, at z 150"
+    ):
+        holes = read_blastholes(write(tmp_path, table))
+    assert np.allclose(holes.bench_levels_m, [1500.0, 1490.0], atol=0.5) and len(holes.xy) == 74
+
+
+@pytest.mark.parametrize("levels", [(1500.0, 1200.0), (1500.0, 1460.0)])
+def test_a_real_bench_far_below_or_a_few_benches_below_stays_a_bench(tmp_path, levels):
+    """Real benches are no far group: two benches of a deep pit 300 m apart (as many holes each), or a small bench
+    four bench heights below the only other (12 holes of 52, 7 hole spacings) read as two benches, nothing left out."""
+    table = small_table(benches=levels)
+    if levels[1] == 1460.0:
+        table = table.drop(index=table.index[table.RL < 1470.0][12:])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)  # the unit is guessed from the bench height
+        holes = read_blastholes(write(tmp_path, table))
+    assert np.allclose(holes.bench_levels_m, levels, atol=0.5) and len(holes.xy) == len(table)
+
+
 def test_a_hole_far_from_every_other_of_its_bench_is_left_out(tmp_path):
     """A hole with x, y written as 0 (missing) on the mine grid was modelled: the demo's g0 surface grew from
     4.0e6 to 1.7e12 m³, and the build suggested no hole and evaluated nothing, without a word."""

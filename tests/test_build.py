@@ -381,6 +381,58 @@ def test_every_file_of_a_build_or_prediction_in_feet_says_feet(built_in_feet):
     assert json.loads((model / "g1" / "surface.stl.json").read_text())["units"] == "ft"
 
 
+def test_a_geologists_file_follows_its_geozone_when_the_folder_is_named_differently(small_mine_csv, tmp_path):
+    """Carried by folder name, ``g1/notes.txt`` of a build of g1 alone was put beside g1's folder ``g1-<hash>/`` by a
+    build of g1 and G1 (labels that differ in case get distinct folders), in a folder of no geozone; so was
+    ``g1-<hash>/notes.txt`` by a later build of g1 alone (``g1/``). It goes by the geozone's label, and the warning
+    says where; a geozone not built keeps its folder and its label for the next build."""
+    from core.model.build import geozone_folders
+
+    path, table = small_mine_csv
+    twins = tmp_path / "twins.csv"
+    table.assign(geozone=table.geozone.replace({"g2": "G1"})).to_csv(twins, index=False)
+    hashed = geozone_folders(["g1", "G1"])
+    out = tmp_path / "model"
+    bgm("build", twins, "--out", out, "--geozone", "g1")
+    (out / "g1" / "notes.txt").write_text("bench 1180: check the contact")
+
+    proc = bgm("build", twins, "--out", out, "--geozone", "g1,G1")
+    assert (out / hashed["g1"] / "notes.txt").read_text() == "bench 1180: check the contact"
+    assert not (out / "g1").exists()
+    assert (
+        f"g1/notes.txt; those of g1/ went into {hashed['g1']}/, the folder of geozone 'g1' in this build" in proc.stderr
+    )
+
+    bgm("build", twins, "--out", out, "--geozone", "G1")  # g1 not built: its folder kept, with its label
+    assert (out / hashed["g1"] / "notes.txt").exists()
+    assert json.loads((out / "summary.json").read_text())["kept_geozones"] == {hashed["g1"]: "g1"}
+    bgm("build", twins, "--out", out, "--geozone", "g1")
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["g1"]
+    assert (out / "g1" / "notes.txt").read_text() == "bench 1180: check the contact"
+
+
+def test_a_carried_file_goes_to_its_geozones_folder_of_this_build():
+    """By the label each folder had, into the folder the label has now; an unbuilt geozone's folder is kept, renamed
+    where a built geozone's folder now differs from it only by case (one folder on a case-insensitive disk)."""
+    from pathlib import Path
+
+    from core.model.build import carried_places, geozone_folders, kept_folders
+
+    previous = {"ox": "ox", "OX-1": "OX", "sulph": "sulph"}
+    carried = [Path("ox", "notes.txt"), Path("OX-1", "a.dxf"), Path("sulph", "s")]
+    folders = geozone_folders(["ox", "OX"])
+    places = carried_places(carried, previous, folders)
+    assert places == {
+        Path("ox", "notes.txt"): Path(folders["ox"], "notes.txt"),
+        Path("OX-1", "a.dxf"): Path(folders["OX"], "a.dxf"),
+        Path("sulph", "s"): Path("sulph", "s"),
+    }
+    assert kept_folders(places, previous, folders) == {"sulph": "sulph"}
+    alone = carried_places([Path("OX", "a.dxf")], {"OX": "OX"}, geozone_folders(["ox"]))
+    assert alone[Path("OX", "a.dxf")].parts[0].startswith("OX-")
+    assert carried_places([Path("x", "n")], {}, folders) == {Path("x", "n"): Path("x", "n")}  # no label: as it was
+
+
 def test_a_builds_predicted_sections_carry_what_bgm_predict_gives_for_the_same_section(built_in_feet):
     """`bgm predict` gave each section's area (area_ft2); the build's prediction.geojson, the same section, had none."""
     built = json.loads((built_in_feet / "model" / "g1" / "prediction.geojson").read_text())["features"][0]

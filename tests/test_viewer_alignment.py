@@ -260,3 +260,55 @@ def test_the_selection_follows_the_corrected_component_when_it_is_renumbered():
     _run(model, "correspondence")
     assert [(o.source, o.translation) for o in model.overrides] == [(1, (4.0, -2.0))]
     np.testing.assert_allclose(model.result.correspondence.translations[1], (4.0, -2.0), atol=1e-9)
+
+
+def _three_bodies_holes():
+    """:func:`bgm_viewer.testing.small_holes`' mine with two more g1 bodies on the top bench pair: a large one near
+    the main body (B), one g1 hole in two on a ring around it, and a small one in the opposite corner (C).
+
+    Without isolated holes kept, the contact holes are voted away and B joins the main body: g1's sources are
+    [B and main, C]; with them kept (``keep_isolated_holes``), [B, main, C], largest first. Ticking the box
+    renumbers C from 1 to 2, and number 1 is then the main body.
+    """
+    from core.io.blastholes import blastholes_from_table
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    t = sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4)
+    d = np.hypot(t.x - t.x.min() - 25, t.y - t.y.max() + 25)
+    t.loc[(d < 20) & (t.geozone == "g0"), "geozone"] = "g1"
+    ring = np.flatnonzero((d >= 20) & (d < 23) & (t.geozone == "g0") & (t.z > t.z.max() - 5))
+    t.loc[t.index[ring[::2]], "geozone"] = "g1"
+    t.loc[(np.hypot(t.x - t.x.max() + 20, t.y - t.y.min() - 20) < 11) & (t.geozone == "g0"), "geozone"] = "g1"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return blastholes_from_table(t, length_unit="m", source="small mine with three g1 bodies")
+
+
+def test_an_override_opened_from_a_project_stays_on_its_body_when_a_slider_renumbers_before_the_first_run(tmp_path):
+    """A project's overrides name components by number; opened, they were placed by those numbers by the first run
+    that finished, under whatever parameters it had. Ticking "keep isolated holes" before then (the run of the
+    project's parameters cancelled) renumbered g1's sources and C's override landed on the main body. Placed
+    under the project's parameters, it follows its body to its new number by its outline, as a slider's run does."""
+    from bgm_viewer.model import ViewerModel
+    from core.model.pipeline import modelled_contours
+
+    holes = _three_bodies_holes()
+    model = ViewerModel(holes, cache=False)
+    model.select("g1", 0, 1)
+    _run(model, "contours")
+    sources = [c.polygon for c in model.result.pair.sources]
+    assert len(sources) == 2 and sources[1].centroid.x > 40.0  # C, in the corner
+    model.set_translation(3.0, -2.0)
+    _run(model, "correspondence")
+    path = tmp_path / "p.bgm.json"
+    model.save_project(path)
+
+    opened = ViewerModel(holes, cache=False)
+    opened.load_project(path)
+    step = opened.set_param("keep_isolated_holes", True)  # before any run under the project's parameters ends
+    _run(opened, step)
+    now = modelled_contours(opened.result.contours[0], "g1", 0, opened.params.min_component_holes)
+    assert len(now) == 3 and now[2].polygon.centroid.x > 40.0  # C renumbered 1 -> 2; 1 is the main body
+    assert [(o.source, o.translation) for o in opened.overrides] == [(2, (3.0, -2.0))], "on another body"
+    assert any("source 1 is now 2" in n or "is 2" in n for n in opened.override_notes), opened.override_notes
+    np.testing.assert_allclose(opened.result.correspondence.translations[2], (3.0, -2.0), atol=1e-9)

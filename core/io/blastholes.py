@@ -85,6 +85,10 @@ MISSING_ELEVATION_BENCHES = 3.0
 #: bench is drilled on a pattern of about its height (1.8 hole spacings on the demo, 2.2 on Kennecott, 1.0-2.9 on the
 #: synthetic drillings), so this is three benches of 3.3 spacings (Kennecott's floor is 11.9 spacings above 0).
 MISSING_ELEVATION_SPACINGS = 10.0
+#: A small group of holes at any elevation, beside one bench (or two) and more than this many of its hole spacings from
+#: it, is no bench (mistyped: RL 150 or 15000 for 1500): ten benches (:data:`FAR_LEVEL_BENCHES`) of the same 3.3
+#: spacings, the rule for groups beside several benches measured by the pattern (:data:`MISSING_ELEVATION_SPACINGS`).
+FAR_GROUP_SPACINGS = FAR_LEVEL_BENCHES * MISSING_ELEVATION_SPACINGS / MISSING_ELEVATION_BENCHES
 #: A single cluster of elevations thicker than this many hole spacings is not one bench.
 MAX_BENCH_THICKNESS_SPACINGS = 5.0
 #: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
@@ -547,16 +551,17 @@ def blastholes_from_table(
     length_unit: str | None = None,
     source: str = "",
 ) -> Blastholes:
-    """:func:`read_blastholes` on a table already in memory."""
+    """:func:`read_blastholes` on a table already in memory.
+
+    In steps: the columns and coordinates (:func:`_table_coordinates`), the labels, the benches and the holes
+    left out off them or far from their bench (each named in a warning), the unit and the local frame
+    (:func:`_kept_holes`), then duplicates merged and the hole spacing measured (:func:`_measure_spacing`).
+    Warnings are given here (their ``stacklevel`` counts from this function).
+    """
     if len(table) == 0:
         raise BGMInputError(f"{source or 'the input'} has a header but no rows")
     lines = data_lines(table)
-    delimiter = table.attrs.get("delimiter")
-    cols = table_columns(list(table.columns), x, y, z, geozone)
-    table = table[list(cols.values())].copy()
-    table.columns = list(cols.values())
-    coords = {role: _coordinates(table[cols[role]], cols[role], role, delimiter, lines) for role in ("x", "y", "z")}
-    _refuse_degrees(coords["x"], coords["y"], source)
+    table, cols, coords = _table_coordinates(table, x, y, z, geozone, lines, source)
     notes: list[str] = []
     _warn_depth_column(cols["z"], notes)
     labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], lines, notes)
@@ -566,20 +571,66 @@ def blastholes_from_table(
         raise BGMInputError(f"{source or 'the input'} has only {len(labels)} hole(s); BGM needs at least 3")
 
     zin = coords["z"]
-    levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=np.column_stack([coords["x"], coords["y"]]))
+    xy_in = np.column_stack([coords["x"], coords["y"]])
+    levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=xy_in)
     _note_missing_elevations(zin, notes)
-    _left_out_off_bench(notes, zin, off, levels_in, height_in, lines, given=bench_height is not None)
-    far = _far_holes(np.column_stack([coords["x"], coords["y"]]), bench, ~off)
+    # A single bench's far groups lie beyond FAR_GROUP_SPACINGS of its own pattern (see _far_beside_one_bench).
+    reach = FAR_GROUP_SPACINGS * median_hole_spacing(xy_in[~off]) if len(levels_in) == 1 and off.any() else np.inf
+    _left_out_off_bench(notes, zin, off, levels_in, height_in, lines, given=bench_height is not None, reach=reach)
+    far = _far_holes(xy_in, bench, ~off)
     where = f"lie more than {FAR_HOLE_SPACINGS:g} hole spacings from every other hole of their bench"
     _left_out(notes, far, lines, where, "x, y missing or mistyped")
 
     unit = _guess_unit(
         height_in,
         length_unit,
-        lambda: median_hole_spacing(np.column_stack([coords["x"], coords["y"]])[~off], bench[~off]),
+        lambda: median_hole_spacing(xy_in[~off], bench[~off]),
     )
-    mpu = FEET_TO_METRES if unit == "ft" else 1.0
     keep = ~off & ~far
+    holes = _kept_holes(coords, labels, hole_id, bench, levels_in, height_in, keep, unit, source, notes)
+    holes = _deduplicate(holes, lines[keep])
+    holes.lost_geozones = _lost_geozones(labels, labels[keep], holes.geozone)
+    _measure_spacing(holes, source)
+    _check_spacing(holes, given=bool(length_unit))
+    holes.unit_guess = _unit_guess_note(unit, length_unit, height_in)
+    return holes
+
+
+def _table_coordinates(
+    table: pd.DataFrame,
+    x: str | None,
+    y: str | None,
+    z: str | None,
+    geozone: str | None,
+    lines: np.ndarray,
+    source: str,
+) -> tuple[pd.DataFrame, dict[str, str], dict[str, np.ndarray]]:
+    """The table's columns BGM reads (by role, see :func:`table_columns`), those columns alone, and x, y, z as
+    numbers (input units); refused when x, y are degrees (see :func:`_refuse_degrees`)."""
+    delimiter = table.attrs.get("delimiter")
+    cols = table_columns(list(table.columns), x, y, z, geozone)
+    table = table[list(cols.values())].copy()
+    table.columns = list(cols.values())
+    coords = {role: _coordinates(table[cols[role]], cols[role], role, delimiter, lines) for role in ("x", "y", "z")}
+    _refuse_degrees(coords["x"], coords["y"], source)
+    return table, cols, coords
+
+
+def _kept_holes(
+    coords: dict[str, np.ndarray],
+    labels: np.ndarray,
+    hole_id: np.ndarray | None,
+    bench: np.ndarray,
+    levels_in: np.ndarray,
+    height_in: float,
+    keep: np.ndarray,
+    unit: str,
+    source: str,
+    notes: list[str],
+) -> Blastholes:
+    """The holes ``keep`` (on a bench, near the others of theirs) in a local frame in metres, centred on their
+    median position (rounded to a whole unit); the hole spacing not measured yet (NaN)."""
+    mpu = FEET_TO_METRES if unit == "ft" else 1.0
     frame = LocalFrame(
         origin_x=float(np.round(np.median(coords["x"][keep]))),
         origin_y=float(np.round(np.median(coords["y"][keep]))),
@@ -587,9 +638,9 @@ def blastholes_from_table(
         length_unit=unit,
     )
     xy = frame.to_local(coords["x"], coords["y"])
-    holes = Blastholes(
+    return Blastholes(
         xy=xy[keep],
-        z=frame.z_to_local(zin)[keep],
+        z=frame.z_to_local(coords["z"])[keep],
         geozone=labels[keep],
         bench=bench[keep],
         bench_levels_m=frame.z_to_local(levels_in),
@@ -600,24 +651,29 @@ def blastholes_from_table(
         source=source,
         notes=notes,
     )
-    holes = _deduplicate(holes, lines[keep])
-    holes.lost_geozones = _lost_geozones(labels, labels[keep], holes.geozone)
+
+
+def _measure_spacing(holes: Blastholes, source: str) -> None:
+    """Set the holes' spacing (see :func:`median_hole_spacing`); refused when no bench has two distinct holes."""
     holes.hole_spacing_m = median_hole_spacing(holes.xy, holes.bench)
     if not np.isfinite(holes.hole_spacing_m) or holes.hole_spacing_m <= 0:
         raise BGMInputError(
             f"cannot measure the hole spacing of {source or 'the input'}: no bench has two distinct holes"
         )
-    _check_spacing(holes, given=bool(length_unit))
+
+
+def _unit_guess_note(unit: str, length_unit: str | None, height_in: float) -> str:
+    """What :attr:`Blastholes.unit_guess` says of a unit not given (``""`` when given, or beyond doubt)."""
     if unit == "ft" and not length_unit:
-        holes.unit_guess = f"feet guessed from the {height_in:.4g}-unit bench height: give --units m if not"
-    elif not length_unit and not np.isfinite(height_in):  # nothing to tell metres from feet by: say so
-        holes.unit_guess = "metres assumed: a single bench has no bench height to tell feet by: give --units ft if not"
-    elif not length_unit and METRIC_BENCH_MAX < height_in < 25.0:
-        holes.unit_guess = (
+        return f"feet guessed from the {height_in:.4g}-unit bench height: give --units m if not"
+    if not length_unit and not np.isfinite(height_in):  # nothing to tell metres from feet by: say so
+        return "metres assumed: a single bench has no bench height to tell feet by: give --units ft if not"
+    if not length_unit and METRIC_BENCH_MAX < height_in < 25.0:
+        return (
             f"metres guessed from the {height_in:.4g}-unit bench height, above metric benches (5-20 m) "
             "and below imperial ones (30-60 ft): give --units ft if not"
         )
-    return holes
+    return ""
 
 
 def _left_out_off_bench(
@@ -628,13 +684,14 @@ def _left_out_off_bench(
     height: float,
     lines: np.ndarray,
     given: bool,
+    reach: float = np.inf,
 ) -> None:
     """Warn of the off-bench holes left out: those far above or below every bench (elevations missing or
     mistyped), then the strays between or beside the benches.
 
     Beside several benches the far ones lie more than a bench height beyond the top or the bottom one. A
-    single bench has no bench height: its far ones sit exactly at 0 or -9999 (:data:`MISSING_ELEVATIONS`),
-    the others off the elevations of its holes. 300 holes at 0 beside one bench at 685 were said to lie
+    single bench has no bench height: its far ones sit exactly at 0 or -9999 (:data:`MISSING_ELEVATIONS`) or
+    more than ``reach`` from it (mistyped: 150 for 1500), the others off the elevations of its holes. 300 holes at 0 beside one bench at 685 were said to lie
     "more than 30% of a bench height from every bench level", a height it does not have. When ten or more
     far ones sit at one elevation they may be a bench of their own, which a bench height keeps: said, unless
     one was ``given``.
@@ -655,13 +712,16 @@ def _left_out_off_bench(
         Each hole's data line.
     given : bool
         Whether the bench height was given.
+    reach : float
+        Beside a single bench, how far (input units) a group at any elevation lies to be no bench (see
+        :data:`FAR_GROUP_SPACINGS`).
     """
     if len(levels) >= 2:
         outside = off & ((z < levels.min() - height) | (z > levels.max() + height))
         where = f"lie more than a bench height above or below every bench, at z {_far_values(z[outside])}"
         strays = f"lie more than {OFF_BENCH_FRACTION:.0%} of a bench height from every bench level"
     else:
-        outside = off & np.isin(z, list(MISSING_ELEVATIONS))
+        outside = off & (np.isin(z, list(MISSING_ELEVATIONS)) | (np.abs(z - levels[0]) > reach))
         where = f"lie far above or below the only bench (at z {levels[0]:g}), at z {_far_values(z[outside])}"
         on = z[~off]
         strays = (
@@ -1088,62 +1148,114 @@ def detect_benches(
     zs = np.sort(z)
     if zs[-1] == zs[0]:
         return np.array([zs[0]]), np.zeros(len(z), int), np.nan, np.zeros(len(z), bool)
-    clusters = _elevation_clusters(zs)
     min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
+    clusters = _split_hidden_benches(_bench_clusters(zs, min_count), min_count, z, xy)
+    apart = _far_off_holes(z, zs, clusters, min_count, bench_height, xy)
+    if apart.any():
+        return _benches_without(z, apart, bench_height, xy)
+    big = [c for c in clusters if len(c) >= min_count]
+    if bench_height is None:
+        _refuse_tiny_levels(zs, clusters)
+        if len(big) < 2:
+            return _single_bench(z, xy)
+    levels = _levels_of(z, zs, big, [c for c in clusters if 3 <= len(c) < min_count], bench_height)
+    return _on_levels(z, levels, bench_height, xy)
+
+
+def _bench_clusters(zs: np.ndarray, min_count: int) -> list[np.ndarray]:
+    """Sorted elevations split into clusters at the gaps between benches, ascending (see :func:`_elevation_clusters`).
+
+    A few holes far off the rest (a typo: RL 0, -9999, 6849.3 for 684.93) made the widest gap, next to which no gap
+    between benches was wide: while only one cluster holds ``min_count`` holes, it is split on its own gaps (the
+    few stay clusters of their own, off-bench holes).
+    """
+    clusters = _elevation_clusters(zs)
     big = [c for c in clusters if len(c) >= min_count]
     while len(big) == 1 and len(clusters) > 1:
-        # A few holes far off the rest (a typo: RL 0, -9999, 6849.3 for 684.93) made the widest gap, next to which
-        # no gap between benches was wide: the benches are split apart without them (they stay off-bench holes).
         i = next(i for i, c in enumerate(clusters) if len(c) >= min_count)
         inner = _elevation_clusters(clusters[i])
         if len(inner) == 1:
             break
         clusters = [*clusters[:i], *inner, *clusters[i + 1 :]]
         big = [c for c in clusters if len(c) >= min_count]
-    clusters = _split_hidden_benches(clusters, min_count, z, xy)
-    big = [c for c in clusters if len(c) >= min_count]
+    return clusters
+
+
+def _far_off_holes(
+    z: np.ndarray,
+    zs: np.ndarray,
+    clusters: list[np.ndarray],
+    min_count: int,
+    bench_height: float | None,
+    xy: np.ndarray | None,
+) -> np.ndarray:
+    """The holes of the groups far above or below the benches (see :func:`_far_off_elevations`), (n,) bool.
+
+    ``zs`` is ``z`` sorted, ``clusters`` its clusters; ``xy`` measures a cluster's hole spacing (none without).
+    """
     spacing = None if xy is None else (lambda part: median_hole_spacing(xy[(z >= part[0]) & (z <= part[-1])]))
-    apart = np.isin(z, _far_off_elevations(clusters, min_count, zs[len(zs) // 2], bench_height, spacing))
-    if apart.any():
-        # Many holes far off (300 of the demo's 11,211 at RL 0) are a cluster of their own, whose gap hid every gap
-        # between the benches: all seven were read as one at 664.8 m. The benches are found without them.
-        if apart.mean() > MAX_OFF_BENCH_SHARE:
-            # Without a bench height the far-off group was judged by the hole spacing, or against the others' own
-            # height: one given says how far apart the benches are drilled, and keeps a real bench that far off.
-            hint = "; if they are a bench of their own, give --bench-height" if bench_height is None else ""
-            raise BGMInputError(
-                f"z does not form benches: {int(apart.sum())} of {len(z)} holes ({apart.mean():.0%}) have elevations "
-                f"far off the benches (at {_far_values(z[apart])}; the others from {np.min(z[~apart]):g} to "
-                f"{np.max(z[~apart]):g}): too many to leave out as missing (written as 0 or -9999) "
-                f"or mistyped; fill in their elevations or drop those rows{hint}"
-            )
-        levels, found, height, off = detect_benches(z[~apart], bench_height, None if xy is None else xy[~apart])
-        bench, off_all = np.full(len(z), -1), apart.copy()
-        bench[~apart], off_all[~apart] = found, off
-        return levels, bench, height, off_all
-    if bench_height is None:
-        if len(clusters) >= 2 and max(len(c) for c in clusters) < 3:
-            raise BGMInputError(
-                f"z falls on {len(clusters)} levels ({zs[-1]:g} to {zs[0]:g}) of at most "
-                f"{max(len(c) for c in clusters)} hole(s) each; BGM needs at least 3 holes a bench"
-            )
-        if len(big) < 2:
-            return _single_bench(z, xy)
-        levels = _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
-    elif len(big) >= 2:
+    return np.isin(z, _far_off_elevations(clusters, min_count, zs[len(zs) // 2], bench_height, spacing))
+
+
+def _benches_without(
+    z: np.ndarray, apart: np.ndarray, bench_height: float | None, xy: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """:func:`detect_benches` of the holes not ``apart``, those apart off-bench; refused when they are too many.
+
+    Many holes far off (300 of the demo's 11,211 at RL 0) are a cluster of their own, whose gap hid every gap
+    between the benches: all seven were read as one at 664.8 m. The benches are found without them.
+    """
+    if apart.mean() > MAX_OFF_BENCH_SHARE:
+        # Without a bench height the far-off group was judged by the hole spacing, or against the others' own
+        # height: one given says how far apart the benches are drilled, and keeps a real bench that far off.
+        hint = "; if they are a bench of their own, give --bench-height" if bench_height is None else ""
+        raise BGMInputError(
+            f"z does not form benches: {int(apart.sum())} of {len(z)} holes ({apart.mean():.0%}) have elevations "
+            f"far off the benches (at {_far_values(z[apart])}; the others from {np.min(z[~apart]):g} to "
+            f"{np.max(z[~apart]):g}): too many to leave out as missing (written as 0 or -9999) "
+            f"or mistyped; fill in their elevations or drop those rows{hint}"
+        )
+    levels, found, height, off = detect_benches(z[~apart], bench_height, None if xy is None else xy[~apart])
+    bench, off_all = np.full(len(z), -1), apart.copy()
+    bench[~apart], off_all[~apart] = found, off
+    return levels, bench, height, off_all
+
+
+def _refuse_tiny_levels(zs: np.ndarray, clusters: list[np.ndarray]) -> None:
+    """Refuse elevations on several levels of fewer than 3 holes each: no bench BGM can model."""
+    if len(clusters) >= 2 and max(len(c) for c in clusters) < 3:
+        raise BGMInputError(
+            f"z falls on {len(clusters)} levels ({zs[-1]:g} to {zs[0]:g}) of at most "
+            f"{max(len(c) for c in clusters)} hole(s) each; BGM needs at least 3 holes a bench"
+        )
+
+
+def _levels_of(
+    z: np.ndarray, zs: np.ndarray, big: list[np.ndarray], small: list[np.ndarray], bench_height: float | None
+) -> np.ndarray:
+    """The bench levels (ascending): the clusters' (``big`` ones, and ``small`` ones far enough from them, see
+    :func:`_bench_levels`), or a ladder of the given height over one continuous spread of elevations."""
+    if bench_height is None or len(big) >= 2:
         # The collars form benches by themselves: their levels stand, and a
         # given height only has to agree with them (a grid of it from the top
         # would move every level the height is off, and drop holes).
-        levels = _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
-        _refuse_disagreeing_height(levels, float(bench_height))
-    else:
-        # One continuous spread of elevations: the given height groups it into benches.
-        if np.ptp(zs) / bench_height > MAX_BENCHES:
-            raise BGMInputError(
-                f"bench height {bench_height:g} would cut the elevations ({zs[0]:g} to {zs[-1]:g}) into more "
-                f"than {MAX_BENCHES} benches; give the bench height in the input's units"
-            )
-        levels = _ladder(zs, _densest_elevation(z, float(bench_height)), float(bench_height))
+        levels = _bench_levels(big, small)
+        if bench_height is not None:
+            _refuse_disagreeing_height(levels, float(bench_height))
+        return levels
+    # One continuous spread of elevations: the given height groups it into benches.
+    if np.ptp(zs) / bench_height > MAX_BENCHES:
+        raise BGMInputError(
+            f"bench height {bench_height:g} would cut the elevations ({zs[0]:g} to {zs[-1]:g}) into more "
+            f"than {MAX_BENCHES} benches; give the bench height in the input's units"
+        )
+    return _ladder(zs, _densest_elevation(z, float(bench_height)), float(bench_height))
+
+
+def _on_levels(
+    z: np.ndarray, levels: np.ndarray, bench_height: float | None, xy: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Each hole on its level (see :func:`detect_benches`' returns); refused when too many lie between levels."""
     levels, bench, off = _assign_levels(z, levels)
     if bench_height is not None and xy is not None:
         _refuse_merged_benches(z, bench, levels, xy, float(bench_height))
@@ -1223,7 +1335,8 @@ def _far_off_elevations(
     RL 0 next to the others. A group more than ten bench heights from the others (a second pit in the same
     table) is set apart too: its holes are then named in a warning, or the table refused when they are many.
     With no bench height to measure by (one bench and a group at 0, two clusters in all), the group at 0 or
-    -9999 is judged by the bench's hole spacing (see :func:`_missing_beside_one_bench`).
+    -9999 is judged by the bench's hole spacing (see :func:`_missing_beside_one_bench`), and so is a small group
+    at any other elevation (see :func:`_far_beside_one_bench`).
 
     Parameters
     ----------
@@ -1261,6 +1374,7 @@ def _far_off_elevations(
         if bench_height is None and len(gaps) < 2:
             if spacing is not None:
                 apart += _missing_beside_one_bench(parts, min_count, spacing)
+                apart += _far_beside_one_bench(parts, median, spacing)
             break
         # The widest gap left out: it may be the one to the group being judged (two benches, 300 holes at 0).
         height = bench_height or float(np.median(np.sort(gaps)[:-1]))
@@ -1324,6 +1438,48 @@ def _missing_beside_one_bench(
         return []
     reach = MISSING_ELEVATION_SPACINGS * holes_apart
     return [parts[k] for k in groups if abs(float(np.median(bench)) - float(parts[k][0])) > reach]
+
+
+def _far_beside_one_bench(
+    parts: list[np.ndarray], median: float, spacing: Callable[[np.ndarray], float]
+) -> list[np.ndarray]:
+    """Small groups of holes at any elevation far above or below the bench (or two) beside them (``[]`` when none).
+
+    One bench at RL 1500 and 6 holes typed at RL 150 or 15000 read as two benches 1350 units apart (with a
+    warning on the unit only), or had the table refused as elevations "spread continuously"; two benches and
+    such a group read as three. Beside several benches their own gaps measure how far a group is (see
+    :func:`_far_off_elevations`); beside one or two there is no bench height to trust (the one gap may be the
+    group's), but the bench's drilling pattern says how high a bench is. Walking up and down from the median
+    elevation's bench, the groups beyond a step of more than :data:`FAR_GROUP_SPACINGS` of its hole spacings
+    (ten benches of 3.3 spacings) are no bench when they hold at most :data:`MAX_OFF_BENCH_SHARE` of the holes
+    on their side: a bench a few benches below is a bench height or a few away, and a larger group far off (two
+    benches exported from a deep pit) stays the bench it may be.
+
+    Parameters
+    ----------
+    parts : list of (k,) float
+        Sorted elevations, one cluster per bench or group (ascending).
+    median : float
+        The median elevation: its bench is never set apart, and its hole spacing measures the reach.
+    spacing : callable
+        A cluster's elevations -> the hole spacing of its holes (input units, NaN when not measurable).
+
+    Returns
+    -------
+    list of (k,) float
+        The groups' elevations, or nothing.
+    """
+    home = next(k for k, p in enumerate(parts) if p[0] <= median <= p[-1])  # the parts hold every elevation
+    holes_apart = spacing(parts[home])
+    if not (np.isfinite(holes_apart) and holes_apart > 0):
+        return []
+    centres = np.array([float(np.median(p)) for p in parts])
+    steps = np.flatnonzero(np.diff(centres) > FAR_GROUP_SPACINGS * holes_apart)
+    low = max([k + 1 for k in steps if k < home], default=0)
+    high = min([k for k in steps if k >= home], default=len(parts) - 1)
+    n_holes = sum(len(p) for p in parts)
+    sides = [parts[:low], parts[high + 1 :]]
+    return [p for side in sides if sum(len(p) for p in side) <= MAX_OFF_BENCH_SHARE * n_holes for p in side]
 
 
 def _far_values(z: np.ndarray) -> str:

@@ -251,9 +251,10 @@ def build(
     what each counts.
 
     ``out_dir`` is replaced whole, but for what a geologist put in a previous
-    model's geozone folders (:func:`user_files`): carried over to the same
-    place in the new model, geozone built this time or not, with a
-    :class:`~core.errors.BGMWarning` naming them.
+    model's geozone folders (:func:`user_files`): carried over into the same
+    geozone's folder in the new model (by its label, whatever the folder is
+    named this time, see :func:`carried_places`), geozone built this time or
+    not, with a :class:`~core.errors.BGMWarning` naming them and where they went.
 
     Returns the summary that ``report.md`` and ``summary.json`` hold.
     """
@@ -265,6 +266,8 @@ def build(
     wanted = holes.check_geozones(geozones)
     folders = geozone_folders(wanted)
     carried = user_files(out_dir)
+    previous = previous_geozones(out_dir)
+    places = carried_places(carried, previous, folders)
     with replaced_folder(out_dir) as staging:
         ctx = BuildContext(
             ModelSession(holes, params, project, StageStore(cache)),
@@ -275,19 +278,31 @@ def build(
             evaluate,
             folders,
             dxf_layer_names(holes.geozones),  # a geozone's layer whichever geozones are built
-            kept_folders(carried, folders),
+            kept_folders(places, previous, folders),
         )
         summary = _build_into(ctx, wanted, progress, workers, scheduler)
         # Into the staging folder, before the swap: an interrupted build leaves them in the previous model.
-        carry_over(out_dir, staging, carried)
+        carry_over(out_dir, staging, places)
     if carried:
         warnings.warn(
             f"kept {len(carried)} file{'s' if len(carried) > 1 else ''} of yours that bgm build does not write, "
-            f"carried over into the new model in {str(out_dir)!r}: {listing(p.as_posix() for p in carried)}",
+            f"carried over into the new model in {str(out_dir)!r}: {listing(p.as_posix() for p in carried)}"
+            + _moved_folders(places, previous),
             BGMWarning,
             stacklevel=2,
         )
     return summary
+
+
+def _moved_folders(places: dict[Path, Path], previous: dict[str, str]) -> str:
+    """Where carried files went when their geozone's folder is named differently in this build ("" if nowhere)."""
+    moves = sorted(
+        {(rel.parts[0], target.parts[0]) for rel, target in places.items() if rel.parts[0] != target.parts[0]}
+    )
+    return "".join(
+        f"; those of {old}/ went into {new}/, the folder of geozone {quoted(previous[old])} in this build"
+        for old, new in moves
+    )
 
 
 def write_section_dxf(features: list[dict], z_key: str, path: Path, layers: dict | None = None) -> None:
@@ -358,8 +373,10 @@ def _build_into(ctx: BuildContext, wanted: list[str], progress, workers, schedul
         "evaluation": None if table is None else table.round(4).to_dict(orient="records"),
         "evaluation_note": note,
         "formats": {f: FORMAT_NOTES[f] for f in ctx.formats},
-        # Folders of geozones not built this time that hold the geologist's files: the next build's to keep.
-        "kept_folders": ctx.kept_folders,
+        # Folders of geozones not built this time that hold the geologist's files: the next build's to keep,
+        # with their geozones, by which the next build carries the files into each geozone's folder.
+        "kept_folders": sorted(ctx.kept_folders),
+        "kept_geozones": {f: g for f, g in sorted(ctx.kept_folders.items()) if g is not None},
     }
     text = json.dumps(_finite(summary), indent=1, default=json_default, allow_nan=False)
     atomic_write_text(out_dir / "summary.json", text)
@@ -457,18 +474,75 @@ def user_files(out_dir: Path) -> list[Path]:
     return found
 
 
-def kept_folders(carried: list[Path], folders: dict[str, str]) -> list[str]:
-    """The folders of ``carried`` files that no geozone of this build writes (see :func:`user_files`), sorted."""
-    return sorted({p.parts[0] for p in carried} - set(folders.values()))
+def previous_geozones(out_dir: Path) -> dict[str, str]:
+    """The geozone label of each folder of the previous model in ``out_dir``, as its ``summary.json`` records them.
+
+    Built geozones' folders (``folder``, or the name builds before folders were recorded gave a ``geozone``),
+    and the folders kept for geozones not built (``kept_geozones``). Empty when ``out_dir`` holds no model.
+    """
+    try:
+        summary = json.loads((Path(out_dir) / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(summary, dict):
+        return {}
+    labels: dict[str, str] = {}
+    geozones = summary.get("geozones")
+    for g in geozones if isinstance(geozones, list) else []:
+        if isinstance(g, dict) and isinstance(g.get("geozone"), str):
+            folder = g.get("folder")
+            labels[folder if isinstance(folder, str) and folder else _legacy_folder(g["geozone"])] = g["geozone"]
+    kept = summary.get("kept_geozones")
+    for folder, label in (kept if isinstance(kept, dict) else {}).items():
+        if isinstance(label, str):
+            labels.setdefault(folder, label)
+    return labels
 
 
-def carry_over(out_dir: Path, staging: Path, carried: list[Path]) -> None:
-    """Copy the ``carried`` entries of ``out_dir`` to the same relative paths under ``staging``, byte for byte.
+def carried_places(carried: list[Path], previous: dict[str, str], folders: dict[str, str]) -> dict[Path, Path]:
+    """Where each ``carried`` entry goes in the new model (paths relative to the model): into its geozone's folder.
+
+    A folder is named for a label among the labels built (:func:`geozone_folders`): ``ox`` alone is ``ox/``,
+    beside ``OX`` it is ``ox-<hash>/``, and a build of ``ox`` alone after one of both names it ``ox/`` again. Carried
+    by folder name, the geologist's ``notes.txt`` of ``ox`` landed in a folder of no geozone beside the new one.
+    Carried by the label the previous model recorded for the folder (``previous``, see :func:`previous_geozones`),
+    it goes into that geozone's folder of this build (``folders``); a geozone not built keeps its folder, renamed
+    as :func:`geozone_folders` distinguishes labels when a built geozone's folder now has its name but for case
+    (the two would be one folder on a case-insensitive disk). Two entries sent to one place stay where they were.
+    """
+    built = {f.casefold() for f in folders.values()}
+    places: dict[Path, Path] = {}
+    for rel in carried:
+        folder = rel.parts[0]
+        label = previous.get(folder)
+        if label is not None and label in folders:
+            folder = folders[label]
+        elif label is not None and folder.casefold() in built:
+            folder = f"{_folder_base(label)}-{hashlib.sha1(label.encode()).hexdigest()[:8]}"
+        places[rel] = Path(folder, *rel.parts[1:])
+    sent = Counter(places.values())
+    return {rel: rel if sent[target] > 1 else target for rel, target in places.items()}
+
+
+def kept_folders(places: dict[Path, Path], previous: dict[str, str], folders: dict[str, str]) -> dict[str, str | None]:
+    """The folders carried entries go to that no geozone of this build writes, with their geozone (None: unknown).
+
+    See :func:`carried_places`; ``previous`` maps the previous model's folders to their labels.
+    """
+    kept: dict[str, str | None] = {}
+    for rel, target in places.items():
+        if target.parts[0] not in folders.values():
+            kept[target.parts[0]] = previous.get(rel.parts[0])
+    return kept
+
+
+def carry_over(out_dir: Path, staging: Path, places: dict[Path, Path]) -> None:
+    """Copy each entry of ``out_dir`` in ``places`` to its place under ``staging``, byte for byte.
 
     Links are copied as links, and modification times kept, so the files are as the geologist left them.
     """
-    for rel in carried:
-        source, target = Path(out_dir) / rel, Path(staging) / rel
+    for rel, place in places.items():
+        source, target = Path(out_dir) / rel, Path(staging) / place
         target.parent.mkdir(exist_ok=True)
         try:
             if source.is_dir() and not source.is_symlink():
@@ -541,8 +615,9 @@ class BuildContext:
     folders: dict = field(default_factory=dict)  #: geozone label -> its folder (see :func:`geozone_folders`)
     #: Geozone label -> its layer in every DXF of the build (:func:`core.io.export.dxf_layer_names` of the input's).
     layers: dict = field(default_factory=dict)
-    #: Folders of geozones not built this time kept for the geologist's files in them (:func:`kept_folders`).
-    kept_folders: list = field(default_factory=list)
+    #: Folders of geozones not built this time kept for the geologist's files in them, with their geozone
+    #: (:func:`kept_folders`).
+    kept_folders: dict = field(default_factory=dict)
 
 
 #: Set once per worker process by _init_worker: a build's context, or the session whose benches are extracted.
