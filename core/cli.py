@@ -100,6 +100,11 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    # Help in the plain layout: typer 0.29's Rich layout prints a value placeholder after every flag
+    # (--no-cache <bool>, --help <bool>), and a geologist who typed --keep-isolated true got "unexpected
+    # extra argument (true)". The plain layout shows a flag as it is typed (no value) and every other
+    # option's placeholder, for every command, add-ons' too; it also reads no markup in the help texts.
+    rich_markup_mode=None,
 )
 
 ASSETS = Path(__file__).resolve().parent.parent / "assets"
