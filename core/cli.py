@@ -100,6 +100,11 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    # Help in the plain layout: typer 0.29's Rich layout prints a value placeholder after every flag
+    # (--no-cache <bool>, --help <bool>), and a geologist who typed --keep-isolated true got "unexpected
+    # extra argument (true)". The plain layout shows a flag as it is typed (no value) and every other
+    # option's placeholder, for every command, add-ons' too; it also reads no markup in the help texts.
+    rich_markup_mode=None,
 )
 
 ASSETS = Path(__file__).resolve().parent.parent / "assets"
@@ -709,11 +714,19 @@ def evaluate(
     input: InputArg,
     geozone: GeozoneOpt,
     out: Annotated[Path, typer.Option("--out", help="Folder for the table (CSV) and plot (PNG).")] = Path("evaluation"),
+    project: ProjectOpt = None,
     no_cache: NoCacheOpt = False,
     *,
     table: TableOptions,
 ) -> None:
-    """Precision and recall of predictions below withheld benches, against nil, linear and implicit references."""
+    """Precision and recall of predictions below withheld benches, against nil, linear and implicit references.
+
+    With --project the model scored is the one the project makes (its
+    parameters and manual alignment overrides), as bgm build --project
+    evaluates it. The references take nothing from the overrides or the
+    model's parameters; parameters of the contours stage change the contours
+    every method starts from and is scored on.
+    """
     from core.io.atomic import atomic_write_text, check_output, make_folder
     from core.model.build import load_truth, predictor_from_model
     from core.model.evaluation import (
@@ -730,13 +743,13 @@ def evaluate(
     names = ("evaluation_rows.csv", "evaluation.csv", "precision_recall.png")
     check_output(out, folder=True)
     for name in names:
-        _outputs(out / name, input)
+        _outputs(out / name, input, project)  # nor the project file
     holes = table.read(input)
     geozone = holes.check_one_geozone(given, "bgm evaluate")
     if holes.n_benches < 3:
         raise BGMInputError(f"{input} has {holes.n_benches} bench(es); evaluation needs at least three")
     truth = load_truth(input, holes)
-    session = _session(holes, None, [geozone], "evaluate", no_cache)
+    session = _session(holes, project, [geozone], "evaluate", no_cache)
     start = time.perf_counter()
     contours = session.geozone_contours(geozone)
     with progress_bar(f"model {geozone[:40]}", "bench pairs") as update:

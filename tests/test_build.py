@@ -14,6 +14,7 @@ from shapely.geometry import shape
 from test_cli import bgm
 
 from core.io.atomic import atomic_write_text
+from core.io.project import AlignmentOverride, Project, save_project
 from core.model.build import truth_sidecar
 from core.synthetic.blobs import make_mine, sample_blastholes
 
@@ -500,3 +501,40 @@ def test_a_rebuild_keeps_the_files_a_geologist_added_to_a_geozone_folder(small_m
     for rel, data in mine.items():
         assert (out / rel).read_bytes() == data, rel
     assert (out / "g1" / "morph.json").read_bytes() == built_morph
+
+
+def test_evaluate_scores_the_model_a_project_makes_and_refuses_another_tables_project(small_mine_csv, tmp_path):
+    """`bgm evaluate` had no --project: a geologist's corrections could not be scored against withheld benches.
+
+    The project's parameters make the model scored (no evidence carried past the drilling here), as a
+    build with the project scores it; the references are the same rows. A project made on another table, its override naming a component this
+    table's bench does not have, is refused in one line, as `bgm correspond --project` refuses it.
+    """
+    path, _ = small_mine_csv
+    project = tmp_path / "p.json"
+    save_project(Project(parameters={"frontier_reach_spacings": 0}), project)
+    bgm("evaluate", path, "--geozone", "g1", "--out", tmp_path / "plain")
+    bgm("evaluate", path, "--geozone", "g1", "--out", tmp_path / "project", "--project", project)
+    plain, tuned = (pd.read_csv(tmp_path / f / "evaluation_rows.csv") for f in ("plain", "project"))
+    assert list(plain.columns) == list(tuned.columns) and len(plain) == len(tuned)
+
+    def of(rows, methods):
+        return rows[rows["method"].isin(methods)].reset_index(drop=True)
+
+    pd.testing.assert_frame_equal(of(plain, {"nil", "linear", "implicit"}), of(tuned, {"nil", "linear", "implicit"}))
+    assert not np.allclose(of(plain, {"model"})["p_area"], of(tuned, {"model"})["p_area"])
+    bgm("build", path, "--geozone", "g1", "--out", tmp_path / "model", "--project", project, "--workers", "1")
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "model" / "evaluation_rows.csv"), tuned)  # a build's scores
+
+    other = tmp_path / "other.json"
+    override = AlignmentOverride("g1", 685.0, source=3, translation=(2.0, 1.0))  # the top bench of g1 has one body
+    save_project(Project(overrides=[override], input_path="elsewhere/holes.csv"), other)
+    proc = bgm("evaluate", path, "--geozone", "g1", "--out", tmp_path / "other", "--project", other, check=False)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert "saved for elsewhere/holes.csv" in proc.stderr  # the warning every --project command gives
+    (error,) = [line for line in proc.stderr.splitlines() if line.startswith("bgm: error:")]
+    assert "names source component 3, but the upper bench has 1 component" in error
+    assert not (tmp_path / "other").exists()
+    other.write_text('{"format": "bgm-project", "version": 1, "overr')  # a project cut short
+    proc = bgm("evaluate", path, "--geozone", "g1", "--out", tmp_path / "other", "--project", other, check=False)
+    assert proc.returncode == 2 and "corrupt" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr

@@ -260,3 +260,65 @@ def test_an_output_that_is_the_next_option_is_refused(tmp_path):
     )
     assert run.returncode == 2 and "looks like an option: was --out's value left out?" in run.stderr
     assert not (tmp_path / "--no-cache").exists()
+
+
+def _commands() -> dict:
+    """Every ``bgm`` command as typer builds it, the viewer's ``view`` too (as its entry point adds it)."""
+    import typer.main
+
+    from bgm_viewer.cli_hooks import register
+    from core import cli
+
+    if "view" not in {c.name for c in cli.app.registered_commands}:
+        register(cli.app)
+    return typer.main.get_command(cli.app).commands  # type: ignore[attr-defined]
+
+
+def _flags(command) -> list:
+    return [p for p in command.params if getattr(p, "is_flag", False)]
+
+
+def test_no_help_shows_a_value_after_a_flag():
+    """typer 0.29 printed `--keep-isolated <bool>`, `--no-cache <bool>`, even `--help <bool>`: a geologist
+    typed `--keep-isolated true` and got "Got unexpected extra argument(s) (true)"."""
+    import re
+
+    from typer.testing import CliRunner
+
+    from core import cli
+
+    commands = _commands()
+    for args in ([], *([name] for name in commands)):
+        said = CliRunner().invoke(cli.app, [*args, "--help"], prog_name="bgm", terminal_width=200)
+        assert said.exit_code == 0 and "Usage: bgm" in said.output, (args, said.output)
+        assert "<bool>" not in said.output, (args, said.output)
+        command = commands[args[0]] if args else None
+        names = [(p.opts, p.secondary_opts) for p in _flags(command)] if command else []
+        for opts, negative in [*names, (["--help"], [])]:
+            # the flag (and its negative) then the description: nothing between them to type
+            shown = " / ".join([*opts, *negative])
+            assert re.search(rf"^  {re.escape(shown)}(  |\n)", said.output, re.M), (args, shown, said.output)
+    # an option that takes a value still says what it takes
+    said = CliRunner().invoke(cli.app, ["contours", "--help"], prog_name="bgm", terminal_width=200).output
+    assert "--out <path>" in said and "--search-radius <float>" in said
+
+
+def test_every_documented_flag_is_given_without_a_value():
+    """The flags the README and --help name take no value: the word after one is the next argument."""
+    commands = _commands()
+    documented = {
+        "contours": {"--keep-isolated", "--no-cache"},
+        "predict": {"--force", "--no-cache"},
+        "demo": {"--view", "--no-view", "--no-cache"},
+        **{name: {"--no-cache"} for name in ("correspond", "morph", "evaluate", "build", "suggest", "view")},
+    }
+    for name, command in commands.items():
+        flags = {o: (p, True) for p in _flags(command) for o in p.opts}
+        flags |= {o: (p, False) for p in _flags(command) for o in p.secondary_opts}
+        assert documented.get(name, set()) <= set(flags), (name, sorted(flags))
+        for opt, (param, value) in flags.items():
+            parser = command.make_parser(command.context_class(command, info_name=name))
+            values, rest, _ = parser.parse_args([opt, "holes.csv"])
+            # the next word is the table (or left over where a command takes none), never the flag's value
+            others = [*rest, *(v for k, v in values.items() if k != param.name)]
+            assert values[param.name] is value and "holes.csv" in others, (name, opt, values, rest)
