@@ -518,7 +518,7 @@ def carried_places(carried: list[Path], previous: dict[str, str], folders: dict[
         if label is not None and label in folders:
             folder = folders[label]
         elif label is not None and folder.casefold() in built:
-            folder = f"{_folder_base(label)}-{hashlib.sha1(label.encode()).hexdigest()[:8]}"
+            folder = _hashed_folder(label)
         places[rel] = Path(folder, *rel.parts[1:])
     sent = Counter(places.values())
     return {rel: rel if sent[target] > 1 else target for rel, target in places.items()}
@@ -573,10 +573,19 @@ def geozone_folders(labels: list[str]) -> dict[str, str]:
     folders = {}
     for g, base in bases.items():
         kept = base == g and clean[g.casefold()] == 1 and g.casefold() not in taken and not _RESERVED.fullmatch(g)
-        folders[g] = base if kept else f"{base}-{hashlib.sha1(g.encode()).hexdigest()[:8]}"
+        folders[g] = base if kept else _hashed_folder(g)
     if len({f.casefold() for f in folders.values()}) < len(folders):  # 8 hex digits clashed: use them all
         folders = {g: f"{bases[g]}-{hashlib.sha1(g.encode()).hexdigest()}" for g in labels}
     return folders
+
+
+def _hashed_folder(label: str) -> str:
+    """The folder of a label told apart from its look-alikes: its base, then 8 hex digits of its SHA-1 (``ox-1a2b3c4d``).
+
+    One rule for :func:`geozone_folders` and :func:`carried_places`: a kept folder renamed by the one is the
+    folder the other gives the label.
+    """
+    return f"{_folder_base(label)}-{hashlib.sha1(label.encode()).hexdigest()[:8]}"
 
 
 def _folder_base(label: str) -> str:
