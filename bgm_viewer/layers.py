@@ -793,4 +793,5 @@ def _surface_mesh(pts: np.ndarray, faces: np.ndarray, item: int) -> pv.PolyData:
 
 
 def _surface_style(rgb) -> dict:
+    """How a part of a surface is drawn (keyword arguments of ``Plotter.add_mesh``): flat-shaded, pickable."""
     return {"color": rgb, "smooth_shading": False, "show_scalar_bar": False, "scalars": None, "pickable": True}
