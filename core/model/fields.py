@@ -82,6 +82,9 @@ class BenchFields:
     height_m : float or None
         The bench height of the benches this is a view of (:meth:`through`);
         None: the median of its own (:attr:`bench_height_m`).
+    reach_spacings : float or None
+        How far past its drilled area a bench's evidence reaches at most, in
+        hole spacings (``weight`` is ``exp(-spacings off)``); None: not known.
     """
 
     grid: Grid
@@ -93,6 +96,7 @@ class BenchFields:
     observed: np.ndarray | None = None
     min_dip_deg: float | None = None
     height_m: float | None = None
+    reach_spacings: float | None = None
 
     def measured(self) -> BenchFields:
         """The benches' signed distances as their holes showed them (``observed``).
@@ -343,6 +347,7 @@ def bench_fields(
         np.array(dist),
         np.array(weight),
         np.array([drilled[k] for k in benches]),
+        reach_spacings=reach_m / hole_spacing_m,
     )
 
 

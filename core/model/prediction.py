@@ -175,10 +175,14 @@ def undrilled_extension(model: GeozoneModel, z_m: float, hole_spacing_m: float) 
         return MultiPolygon()
     # The bound depends only on which benches lie at or below: made once for all sections between two benches.
     n_below = int(at_or_below.sum())
+    # At the deepest bench's level the trend reaches past every bench's drilling, as it does below it: a bench
+    # drilled over part of the pit (its first blast patterns) lost there the ground past the bench above's
+    # drilling that the benches above alone predicted (see core.model.movement.reaching_bench).
+    deepest = n_below == 1 and bench_at(fields.z_m, z_m) == len(fields.z_m) - 1
     bound = memoised(
         fields,
-        ("undrilled bound", len(fields.z_m), hole_spacing_m, n_below),
-        lambda: _undrilled_bound(fields, n_below, hole_spacing_m),
+        ("undrilled bound", len(fields.z_m), hole_spacing_m, n_below, deepest),
+        lambda: _undrilled_bound(fields, n_below, hole_spacing_m, beyond_drilling=deepest),
     )
     if bound is None:
         return MultiPolygon()
@@ -212,15 +216,20 @@ def with_undrilled_extension(region, model: GeozoneModel, z_m: float, hole_spaci
     return as_multipolygon(region.union(MultiPolygon(kept)))
 
 
-def _undrilled_bound(fields: BenchFields, n_below: int, hole_spacing_m: float) -> np.ndarray | None:
-    """Where :func:`undrilled_extension` may reach, as a signed distance: inside what the upper benches drilled,
-    outside what the lowest ``n_below`` benches drilled (half a spacing in from its edge); None if nowhere."""
+def _undrilled_bound(
+    fields: BenchFields, n_below: int, hole_spacing_m: float, beyond_drilling: bool = False
+) -> np.ndarray | None:
+    """Where :func:`undrilled_extension` may reach, as a signed distance: inside what the upper benches drilled
+    (anywhere, ``beyond_drilling``), outside what the lowest ``n_below`` benches drilled (half a spacing in from
+    its edge); None if nowhere."""
     below = fields.drilled[-n_below:].any(axis=0)
     above = fields.drilled[:-n_below].any(axis=0)
     if not (above & ~below).any():
         return None
     h = fields.grid.cell_size_m
     outside_below = (ndimage.distance_transform_edt(~below) - ndimage.distance_transform_edt(below)) * h
+    if beyond_drilling:
+        return outside_below + 0.5 * hole_spacing_m
     inside_above = (ndimage.distance_transform_edt(above) - ndimage.distance_transform_edt(~above)) * h
     return np.minimum(outside_below + 0.5 * hole_spacing_m, inside_above)
 
