@@ -1233,3 +1233,30 @@ def test_ground_no_bench_drilled_takes_the_deepest_bench_whose_evidence_reaches_
     )
     assert reaching_bench(fields).tolist() == [[1, 0, 2]]
     assert reaching_bench(replace(fields, reach_spacings=None)).tolist() == [[2, 2, 2]]
+
+
+def test_a_partly_drilled_deepest_bench_does_not_stop_the_rest_of_a_moving_strip():
+    """The first holes of a bench say how its drilled part moved; the rest goes on as the benches above carried it.
+
+    A strip moving 8 m a bench, whose south end stops on the new bench, where its first holes were drilled.
+    Read from the first holes alone, the last movement disagreed with the one before, the strip's movement was
+    carried nowhere, and its north part, which the new bench had not drilled, was held where the bench above
+    left it (folds, tuning seed 2, 15% of the bench drilled: one geozone's mean carried movement 2.0 -> 0.0 m).
+    """
+    from core.model.session import ModelSession
+
+    sections = [shapely.box(40.0 + 8.0 * k, -10.0, 80.0 + 8.0 * k, 200.0) for k in range(4)]
+    held, moved = shapely.box(64.0, -10.0, 104.0, 40.0), shapely.box(72.0, 40.0, 112.0, 200.0)
+    full = _bench_table([*sections, held.union(moved)])
+    above = _bench_table(sections)
+    local_x, local_y = full.xy[:, 0], full.xy[:, 1]
+    partly = full.subset((full.bench < 4) | (local_y < local_y.min() + 40.0))  # the south end's first patterns
+    z_new = float(full.bench_levels_m[4])
+    north = shapely.box(-1e4, local_y.min() + 60.0, 1e4, 1e4)
+
+    def east_edge_in_the_north(holes) -> float:
+        return ModelSession(holes).predict("a", [z_new])[z_new].intersection(north).bounds[2] - local_x.min()
+
+    from_above = east_edge_in_the_north(above)
+    assert from_above > 108.0  # carried on past the bench above's 104 m
+    assert east_edge_in_the_north(partly) > from_above - 3.0
