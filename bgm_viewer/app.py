@@ -1281,7 +1281,7 @@ class MainWindow(QtWidgets.QMainWindow):
         """
         from core.io.export import build_formats, dxf_layer_names, export_all
         from core.model.build import geozone_folders
-        from core.model.surfaces import faces_drilled_by, to_input_frame
+        from core.model.surfaces import surface_as_written
 
         self._check_up_to_date()
         surfaces = {g: m for g, m in self.model.result.built.items() if self.scene.view.shows(g)}
@@ -1297,8 +1297,7 @@ class MainWindow(QtWidgets.QMainWindow):
                 progress(f"exporting the surface of geozone {g} ({i + 1} of {len(surfaces)})", i / len(surfaces))
                 gdir = Path(folder) / names[g]
                 gdir.mkdir(parents=True, exist_ok=True)
-                moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
-                moved.face_attributes["drilled"] = faces_drilled_by(self.model.holes, mesh)
+                moved = surface_as_written(mesh, self.model.holes)
                 out[g] = export_all(
                     moved, gdir, "surface", build_formats(), name=g, layer=layers[g], units=f.length_unit
                 )
@@ -1359,7 +1358,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def export_surface(self, path) -> None:
         from core.io.export import dxf_layer_names, export_surface
-        from core.model.surfaces import faces_drilled_by, to_input_frame
+        from core.model.surfaces import surface_as_written
 
         self._check_up_to_date()
         mesh = self.model.result.surface
@@ -1368,8 +1367,7 @@ class MainWindow(QtWidgets.QMainWindow):
         f, g = self.model.holes.frame, self.model.selection.geozone
         # its DXF layer as bgm build names it: two labels alike once made R12-safe ("ore 1", "ore_1") had one
         layer = dxf_layer_names(self.model.holes.geozones)[g]
-        moved = to_input_frame(mesh, (f.origin_x, f.origin_y), f.metres_per_unit)
-        moved.face_attributes["drilled"] = faces_drilled_by(self.model.holes, mesh)
+        moved = surface_as_written(mesh, self.model.holes)
         export_surface(moved, path, name=g, layer=layer, units=f.length_unit)
         self._said(f"exported the surface of geozone {g} to {Path(path).resolve()}")
 

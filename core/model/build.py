@@ -959,15 +959,14 @@ def write_sampling(session: ModelSession, model: GeozoneModel, predictions: dict
 def _write_surface(summary: GeozoneSummary, model: GeozoneModel, ctx: BuildContext, gdir: Path) -> None:
     """The geozone's closed surface in every format; its figures (or why there is none) go into ``summary``."""
     from core.io.export import export_all
-    from core.model.surfaces import faces_drilled_by, mesh_summary, to_input_frame, volume_above
+    from core.model.surfaces import mesh_summary, surface_as_written, volume_above
 
     holes = ctx.session.holes
     mpu = holes.frame.metres_per_unit
     try:
-        mesh = ctx.session.surface(model.geozone, model).copy()
-        mesh.face_attributes["drilled"] = faces_drilled_by(holes, mesh)  # as the viewer shades it
+        mesh = ctx.session.surface(model.geozone, model)
         info = mesh_summary(mesh)
-        surface = to_input_frame(mesh, (holes.frame.origin_x, holes.frame.origin_y), mpu)
+        surface = surface_as_written(mesh, holes)
         exported = export_all(
             surface,
             gdir,

@@ -73,6 +73,7 @@ __all__ = [
     "DEFAULT_CELLS_ACROSS",
     "drilled_faces",
     "faces_drilled_by",
+    "surface_as_written",
     "drop_small_bodies",
     "mesh_summary",
     "surface_from_sections",
@@ -422,6 +423,15 @@ def faces_drilled_by(holes, mesh: trimesh.Trimesh) -> np.ndarray:
     """
     areas = [holes.drilled_area(k) for k in range(len(holes.bench_levels_m))]
     return drilled_faces(mesh, holes.bench_levels_m, areas, 0.5 * holes.hole_spacing_m)
+
+
+def surface_as_written(mesh: trimesh.Trimesh, holes) -> trimesh.Trimesh:
+    """``mesh`` (local metres) as ``bgm build`` and the viewer write it: in the input's coordinates, each face
+    flagged ``drilled`` (:func:`faces_drilled_by`, as the viewer shades it)."""
+    frame = holes.frame
+    written = to_input_frame(mesh, (frame.origin_x, frame.origin_y), frame.metres_per_unit)
+    written.face_attributes["drilled"] = faces_drilled_by(holes, mesh)
+    return written
 
 
 def volume_above(mesh: trimesh.Trimesh, z_m: float) -> float:
