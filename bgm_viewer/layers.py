@@ -344,10 +344,6 @@ class ContoursLayer(Layer):
         """From :class:`core.extraction.contours.Contour` objects."""
         return cls([(c.geozone, c.bench_z_m, c.polygon) for c in contours], colours, **kw)
 
-    def set_items(self, items) -> None:
-        self.items = [(str(g), float(z), p) for g, z, p in items]
-        self._emit("data")
-
     def colour_of(self, geozone: str) -> RGB:
         c = self.colours.get(geozone, (200, 200, 200))
         return lighten(c, 0.55) if self.predicted else c
@@ -758,11 +754,6 @@ class SurfaceLayer(Layer):
     def from_trimesh(cls, items: Iterable[tuple[str, Any]], colours=None, **kw) -> SurfaceLayer:
         """From ``(geozone, trimesh.Trimesh)`` pairs (``core.model.surfaces.surface_from_sections``)."""
         return cls([(g, m.vertices, m.faces) for g, m in items], colours, **kw)
-
-    def set_meshes(self, meshes) -> None:
-        self.meshes = [(str(g), np.asarray(v, float), np.asarray(f, np.int64)) for g, v, f in meshes]
-        self._drilled = None
-        self._emit("data")
 
     def _build(self, view):
         items = []

@@ -28,12 +28,6 @@ def internal_stencil(n: int, alpha: float, beta: float) -> np.ndarray:
     return row
 
 
-def internal_matrix(n: int, alpha: float, beta: float) -> np.ndarray:
-    """Cyclic pentadiagonal internal-energy matrix ``A`` (dense; for inspection and tests)."""
-    row = internal_stencil(n, alpha, beta)
-    return np.stack([np.roll(row, i) for i in range(n)])
-
-
 def resample_closed(points: np.ndarray, n: int) -> np.ndarray:
     """Resample a closed polyline to ``n`` points evenly spaced in arc length."""
     closed = np.vstack([points, points[:1]])

@@ -81,11 +81,6 @@ class DrillPattern:
         (ax, ay), (bx, by) = self.along_m, self.across_m
         return float(abs(ax * by - ay * bx) / self.spacing_m)
 
-    @property
-    def azimuth_rad(self) -> float:
-        """Direction of the rows from the +x axis, in ``[0, pi)``."""
-        return float(np.mod(np.arctan2(self.along_m[1], self.along_m[0]), np.pi))
-
     def lattice(self) -> np.ndarray:
         """``[along, across]`` as the columns of a 2 x 2 matrix."""
         return np.column_stack([self.along_m, self.across_m])

@@ -236,7 +236,13 @@ class _NarrowBand:
 def _band_step(
     flat: np.ndarray, band: _NarrowBand, speed_b: np.ndarray, pos_b: np.ndarray, dt: float, h: float
 ) -> np.ndarray:
-    """New values of the band cells after one Godunov upwind step (see :func:`upwind_gradient_norm`)."""
+    """New values of the band cells after one Godunov upwind step of ``d phi/dt = F |grad phi|``.
+
+    ``phi`` is positive inside. Where ``F > 0`` (front moving outward) ``|grad phi|^2
+    = min(D-x,0)^2 + max(D+x,0)^2 + (same in y)``; where ``F < 0`` the roles of
+    ``min`` and ``max`` swap (Osher & Sethian scheme for ``psi = -phi``). Edge cells
+    are their own neighbours (zero flux).
+    """
     v = flat[band.idx]
     dmx = v - flat[band.left]
     dpx = flat[band.right] - v
@@ -249,23 +255,6 @@ def _band_step(
     pos = mnx * mnx + mxpx * mxpx + mny * mny + mxpy * mxpy
     neg = mxx * mxx + mnpx * mnpx + mxy * mxy + mnpy * mnpy
     return v + (dt / h) * speed_b * np.sqrt(np.where(pos_b, pos, neg))
-
-
-def upwind_gradient_norm(phi: np.ndarray, speed_positive: np.ndarray, cell_size_m: float) -> np.ndarray:
-    """Godunov upwind ``|grad phi|`` for ``d phi/dt = F |grad phi|``, phi positive inside.
-
-    Where ``F > 0`` (front moving outward) ``|grad phi|^2 = min(D-x,0)^2 +
-    max(D+x,0)^2 + (same in y)``; where ``F < 0`` the roles of ``min`` and
-    ``max`` swap (Osher & Sethian scheme for ``psi = -phi``). Zero-flux edges.
-    """
-    P = np.pad(phi, 1, mode="edge")
-    dx = np.diff(P[1:-1, :], axis=1)  # (rows, cols + 1): D-x = dx[:, :-1], D+x = dx[:, 1:]
-    dy = np.diff(P[:, 1:-1], axis=0)
-    ax, bx = np.minimum(dx, 0.0) ** 2, np.maximum(dx, 0.0) ** 2
-    ay, by = np.minimum(dy, 0.0) ** 2, np.maximum(dy, 0.0) ** 2
-    pos = ax[:, :-1] + bx[:, 1:] + ay[:-1, :] + by[1:, :]
-    neg = bx[:, :-1] + ax[:, 1:] + by[:-1, :] + ay[1:, :]
-    return np.sqrt(np.where(speed_positive, pos, neg)) / cell_size_m
 
 
 # ---------------------------------------------------------------------------

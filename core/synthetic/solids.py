@@ -69,11 +69,6 @@ class DippingLayer:
     right_m: float
     growth_per_m: float = 0.0
 
-    def width_at(self, z_m: float) -> float:
-        """Plan width of the layer at ``z_m`` (metres; 0 where it has pinched out)."""
-        grow = 0.5 * self.growth_per_m * (self.z_ref_m - z_m)
-        return max(self.left_m + grow, 0.0) + max(self.right_m + grow, 0.0)
-
     def section(self, z_m: float) -> Polygon | MultiPolygon:
         depth = self.z_ref_m - z_m
         line = LineString(_moved(self.trace_m, self.velocity, depth))
