@@ -178,8 +178,8 @@ def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelPa
 
     Each bench pair is modelled from its two benches only, so the pair
     ``(k-1, k)`` of the full model is what a model built on benches ``0..k``
-    would have: no withheld label leaks in. Only the hole spacing is the whole
-    table's, not that of benches ``0..k``; against ``bgm predict`` run on the
+    would have: no withheld label leaks in. But the hole spacing (and so the
+    grids) is the whole table's, not that of benches ``0..k``; against ``bgm predict`` run on the
     table cut at bench ``k`` (strips and folds, held-out seed 7001, every
     bench, 40 predictions) the F1 differs by -1.3 to +3.4 points a case and
     +0.1 on average.
