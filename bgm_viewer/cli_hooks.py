@@ -84,7 +84,7 @@ def view(
         ),
     ] = None,
     camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
-    geozone: Annotated[list[str] | None, typer.Option("--geozone", help="Geozone to select.", metavar="<str>")] = None,
+    geozone: Annotated[list[str] | None, typer.Option("--geozone", help="Geozone to select.")] = None,
     bench: Annotated[int | None, typer.Option(help=BENCH_HELP)] = None,
     exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
     no_cache: Annotated[

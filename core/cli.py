@@ -94,7 +94,84 @@ import typer
 
 from core.errors import BGMInputError, listing, quoted
 
+#: What an option's value is, in the words of the help (``--x <column>``), by the option's name; an
+#: option not named here shows its own name (``--geozone <geozone>``), or ``<path>`` for a file or folder.
+_PLACEHOLDERS = {
+    "x": "<column>",
+    "y": "<column>",
+    "z": "<column>",
+    "geozone_column": "<column>",
+    "units": "<m|ft>",
+    "bench_height": "<height>",
+    "search_radius": "<radius>",
+    "band_probability": "<probability>",
+    "workers": "<count>",
+    "budget": "<holes>",
+    "scheduler": "<address>",
+    "camera": "<view>",
+    "bench": "<index>",
+    "exaggeration": "<factor>",
+}
+
+
+def placeholder(option: typer.core.TyperOption) -> str:
+    """The placeholder ``--help`` shows after an option that takes a value, in a geologist's words.
+
+    typer 0.29 shows the option's Python type (``--geozone <list[str]>``, ``--x <str>``): a
+    repeatable option read as a list to type, a column name as a "str". An option an add-on
+    gave a placeholder of its own keeps it.
+    """
+    if option.metavar is not None:
+        return option.metavar
+    name = option.name or ""
+    if name in _PLACEHOLDERS:
+        return _PLACEHOLDERS[name]
+    if option.type_descriptor.is_path:
+        return "<path>"
+    return f"<{name.replace('_', '-')}>"
+
+
+class _PlainArgument(typer.core.TyperArgument):
+    """A command's argument as click writes it: ``INPUT`` (required) or ``[INPUT]``, without a type.
+
+    typer 0.29 wrote a required argument ``{input}`` in the usage line (``Usage: bgm build
+    [OPTIONS] {input}``), which reads as a literal to type, and ``input <path>`` below it.
+    """
+
+    def get_usage_pieces(self, ctx):
+        name = (self.name or "").upper()
+        return [(name if self.required else f"[{name}]") + ("..." if self.nargs != 1 else "")]
+
+    def display_type_rich(self, ctx):
+        return None  # the argument's help says what it is (a table, a folder)
+
+
+class _PlainHelpGroup(typer.core.TyperGroup):
+    """The ``bgm`` group: every command's help in plain words, add-ons' commands too (see :func:`plain_help`)."""
+
+    def __init__(self, **attrs):
+        super().__init__(**attrs)
+        for command in self.commands.values():
+            plain_help(command)
+
+
+def plain_help(command) -> None:
+    """Give ``command``'s arguments and options the usage line and placeholders a geologist reads.
+
+    In one place for every command (the engine's and add-ons', which typer builds into the
+    ``bgm`` group): arguments as ``INPUT`` (:class:`_PlainArgument`), options' values as
+    :func:`placeholder` says.
+    """
+    for param in command.params:
+        if type(param) is typer.core.TyperArgument:
+            param.__class__ = _PlainArgument  # same fields; only how its help is written differs
+            param.metavar = (param.name or "").upper()  # and click's messages: "Missing argument 'INPUT'"
+        elif isinstance(param, typer.core.TyperOption) and not (param.is_flag or param.count):
+            param.metavar = placeholder(param)
+
+
 app = typer.Typer(
+    cls=_PlainHelpGroup,
     name="bgm",
     help="Boundary Geometry Modeler: geozone boundaries, surfaces and predictions below the deepest bench from labelled blastholes.",
     no_args_is_help=True,
@@ -118,9 +195,7 @@ InputArg = Annotated[
 # A list, so that a repeated --geozone is refused (_given_once), not silently the last one given.
 GeozoneOpt = Annotated[
     list[str],
-    typer.Option(
-        "--geozone", help="Geozone to model (as written in the input, e.g. 3310).", metavar="<str>", show_default=False
-    ),
+    typer.Option("--geozone", help="Geozone to model (as written in the input, e.g. 3310).", show_default=False),
 ]
 ProjectOpt = Annotated[
     Path | None,

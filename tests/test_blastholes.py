@@ -583,3 +583,35 @@ def test_a_unit_nothing_tells_is_said_to_be_assumed(tmp_path, benches):
     assert holes.frame.length_unit == "m" and "metres" in holes.unit_guess and "--units ft" in holes.unit_guess
     assert read_blastholes(path, length_unit="m").unit_guess == ""
     assert read_blastholes(path, length_unit="ft").read_options == {"length_unit": "ft"}  # what a project saves
+
+
+def _pattern(nx: int, ny: int, z: float, spacing: float = 6.0) -> pd.DataFrame:
+    """A bench of ``nx`` by ``ny`` holes ``spacing`` apart at elevation ``z``, two geozones side by side."""
+    xs, ys = np.meshgrid(spacing * np.arange(nx), spacing * np.arange(ny))
+    xs, ys = xs.ravel(), ys.ravel()
+    return pd.DataFrame({"x": xs, "y": ys, "z": z, "geozone": np.where(xs < spacing * nx / 2, "a", "b")})
+
+
+def test_a_sparse_bench_below_a_single_bench_is_read_as_a_bench_with_a_warning():
+    """8 holes 40 m below a bench of 40, on its pattern, were refused as elevations "spread continuously ...
+    with no gap between benches": too few for a bench of their own (10), and no bench height beside one bench.
+    They are a bench opened or sampled sparsely: read as one, and said."""
+    from core.io.blastholes import blastholes_from_table
+
+    table = pd.concat([_pattern(8, 5, 100.0), _pattern(4, 2, 60.0)], ignore_index=True)
+    with pytest.warns(BGMWarning, match=r"few holes .* 8 at z 60"):
+        holes = blastholes_from_table(table, source="t.csv")
+    assert [holes.bench_z_input(k) for k in range(holes.n_benches)] == [100.0, 60.0]
+    assert np.bincount(holes.bench).tolist() == [40, 8]
+    assert any("8 at z 60" in note for note in holes.notes)
+    # On another pattern (30 m apart against the bench's 6) they are no bench it drilled: refused, saying what to do.
+    other = pd.concat([_pattern(8, 5, 100.0), _pattern(4, 2, 60.0, spacing=30.0)], ignore_index=True)
+    with pytest.raises(BGMInputError, match=r"8 hole\(s\) at z 60.*not drilled on its hole pattern.*--bench-height"):
+        blastholes_from_table(other, source="t.csv")
+    given = blastholes_from_table(other, source="t.csv", bench_height=10.0)  # as the message says
+    assert [given.bench_z_input(k) for k in range(given.n_benches)] == [100.0, 60.0]
+    # Within a bench's spread a few holes stay off-bench holes of that bench, as before.
+    near = pd.concat([_pattern(20, 10, 100.0), _pattern(3, 2, 97.0)], ignore_index=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        assert blastholes_from_table(near, source="t.csv").n_benches == 1

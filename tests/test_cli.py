@@ -300,7 +300,36 @@ def test_no_help_shows_a_value_after_a_flag():
             assert re.search(rf"^  {re.escape(shown)}(  |\n)", said.output, re.M), (args, shown, said.output)
     # an option that takes a value still says what it takes
     said = CliRunner().invoke(cli.app, ["contours", "--help"], prog_name="bgm", terminal_width=200).output
-    assert "--out <path>" in said and "--search-radius <float>" in said
+    assert "--out <path>" in said and "--search-radius <radius>" in said
+
+
+def test_help_says_what_to_type_in_plain_words():
+    """typer 0.29 wrote `Usage: bgm build [OPTIONS] {input}` and `--geozone <list[str]>`, `--x <str>`:
+    a literal in braces and a programmer's types. Every command's help now reads as click writes it
+    (`INPUT`, `[INPUT]` when it may be left out) with placeholders named for what is typed."""
+    import re
+
+    from typer.testing import CliRunner
+
+    from core import cli
+
+    commands = _commands()
+    for name, command in commands.items():
+        said = CliRunner().invoke(cli.app, [name, "--help"], prog_name="bgm", terminal_width=200).output
+        usage = said.splitlines()[0]
+        takes_input = any(p.name == "input" for p in command.params)
+        if takes_input:
+            assert usage in (f"Usage: bgm {name} [OPTIONS] INPUT", f"Usage: bgm {name} [OPTIONS] [INPUT]"), said
+            assert re.search(r"^  INPUT  ", said, re.M), said  # the argument without a type after it
+        else:
+            assert usage == f"Usage: bgm {name} [OPTIONS]", said
+        # no Python type names anywhere a value is asked for
+        assert not re.search(r"<(str|int|float|bool|list\[[^>]*\])>|\{input\}", said), (name, said)
+    build = CliRunner().invoke(cli.app, ["build", "--help"], prog_name="bgm", terminal_width=200).output
+    assert "Usage: bgm build [OPTIONS] INPUT" in build
+    assert "--geozone <geozone>" in build and "--x <column>" in build and "--units <m|ft>" in build
+    view = CliRunner().invoke(cli.app, ["view", "--help"], prog_name="bgm", terminal_width=200).output
+    assert "Usage: bgm view [OPTIONS] [INPUT]" in view and "--geozone <geozone>" in view
 
 
 def test_every_documented_flag_is_given_without_a_value():

@@ -1260,3 +1260,37 @@ def test_a_partly_drilled_deepest_bench_does_not_stop_the_rest_of_a_moving_strip
     from_above = east_edge_in_the_north(above)
     assert from_above > 108.0  # carried on past the bench above's 104 m
     assert east_edge_in_the_north(partly) > from_above - 3.0
+
+
+@pytest.mark.parametrize("cancel_at", [1, 6])
+def test_a_cancelled_trend_leaves_no_bench_pair_movements_in_the_memo(cancel_at):
+    """The viewer's cancel (a :class:`core.threads.Cancelled` from ``progress``) stops a trend mid-way.
+
+    Its bench pairs' movements (three grids a pair, kept only while a trend is made) stayed in the memo of
+    fields the session keeps until another trend of them was made. Nothing of the trend nor its movements
+    is left; what is kept is whole, and the trend made afterwards is the one made without a cancel.
+    """
+    from core.model.extrapolation import depth_trend
+    from core.model.fields import OBSERVED_MEMO
+    from core.model.movement import MOVEMENTS_MEMO
+    from core.threads import Cancelled
+
+    sections = [Point(60.0 + 8.0 * k, 80.0).buffer(30.0 + 2.0 * k) for k in range(5)]
+    fields = _section_fields(sections, [shapely.box(0, 0, 200, 160)] * 5)
+    movements_then = []
+
+    def cancel(done, total):
+        if done >= cancel_at:
+            movements_then.append(len(fields.memo.get(MOVEMENTS_MEMO, {})))
+            raise Cancelled()
+
+    with pytest.raises(Cancelled):
+        depth_trend(fields, 10.0, 6.0, cancel)
+    assert movements_then and movements_then[0] > 0  # cancelled while movements were kept
+    assert MOVEMENTS_MEMO not in fields.memo and MOVEMENTS_MEMO not in fields.memo.get(OBSERVED_MEMO, {})
+    assert not [key for key in fields.memo if key[0] == "trend"]
+    fresh = _section_fields(sections, [shapely.box(0, 0, 200, 160)] * 5)
+    np.testing.assert_array_equal(
+        depth_trend(fields, 10.0, 6.0).field(455.0), depth_trend(fresh, 10.0, 6.0).field(455.0)
+    )
+    assert MOVEMENTS_MEMO not in fields.memo

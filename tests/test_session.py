@@ -220,17 +220,21 @@ def test_a_surface_whose_caller_cancels_it_stops_at_that_step_and_stores_nothing
     model = first.geozone_model("g1")
     whole = first.surface("g1", model, progress=functools.partial(_tell, told))
     pairs = len(model.pairs)
-    assert told[:pairs] == [(done, pairs + 1) for done in range(1, pairs + 1)]  # the pairs
-    below = told.index((pairs + 1, pairs + 1))  # the sections below the deepest bench made
+    # One series (core.model.progress.Stages): the model (given here), the sections, the mesh, a third each.
+    fraction = [done / total for done, total in told]
+    assert fraction == sorted(fraction) and fraction[-1] == 1.0
+    assert fraction[:pairs] == pytest.approx([1 / 3 + 1 / 9 * done / pairs for done in range(1, pairs + 1)], abs=1e-3)
+    # the sections below the deepest bench made: the second of the sections' three parts
+    below = next(i for i, f in enumerate(fraction) if f >= 1 / 3 + 2 / 9 - 1e-3)
     assert below > pairs + 4  # their own steps before: the depth trend's backtests, each elevation
-    assert told[-2:] == [(1, 2), (2, 2)]  # the mesh closed, then its specks dropped
-    closing = told.index((0, 2))
-    assert told[closing:-2] == [(0, 2), (0, 2)]  # closing it: before its try, after the try's marching cubes
-    sdfs = [i for i, step in enumerate(told) if step[0] == 1 and i > below and step[1] != 2]
-    assert len(sdfs) == 2  # the first section trended, the first section's signed distance
+    assert fraction[-2:] == pytest.approx([11 / 12, 1.0], abs=1e-3)  # the mesh closed, then its specks dropped
+    # closing it: before its try, after the try's marching cubes (half the mesh's third: the distances made)
+    closing = len(told) - 4
+    assert fraction[closing:-2] == pytest.approx([5 / 6] * 2, abs=1e-3)
+    sdfs = next(i for i, f in enumerate(fraction) if f > 2 / 3 + 1e-4)  # the first section's signed distance
 
     # in the pairs, the predictions below, the trend, the distances, marching cubes, the mesh
-    for steps in (1, pairs + 1, below + 2, sdfs[1] + 1, closing + 1, len(told) - 1):
+    for steps in (1, pairs + 1, below + 2, sdfs + 1, closing + 1, len(told) - 1):
         session = _session(holes, tmp_path / f"cancelled-{steps}")
         zone = session.geozone_model("g1")
         seen: list[tuple[int, int]] = []
@@ -253,7 +257,11 @@ def test_a_prediction_whose_caller_cancels_it_stops_at_that_step_and_stores_noth
     first = _session(holes, tmp_path / "whole")
     told: list[tuple[int, int]] = []
     whole = first.predict("g1", z, first.geozone_model("g1"), progress=functools.partial(_tell, told))
-    assert told[-len(z) :] == [(done, len(z)) for done in range(1, len(z) + 1)]  # each elevation, at the end
+    # One series (core.model.progress.Stages): the model (given here), then the prediction: its depth trend's
+    # backtests, then each elevation, at the end.
+    fraction = [done / total for done, total in told]
+    assert fraction == sorted(fraction)
+    assert fraction[-len(z) :] == pytest.approx([0.75 + 0.25 * done / len(z) for done in range(1, len(z) + 1)])
     trend = len(told) - len(z)
     assert trend >= 3  # the depth trend's backtests, before the first elevation below
 
@@ -631,3 +639,24 @@ def test_a_dyke_one_hole_wide_across_a_wide_pit_is_one_body_not_a_string_of_bead
     assert mesh.is_watertight and mesh.is_winding_consistent
     assert len(mesh.split(only_watertight=False)) == 1
     assert mesh.volume == pytest.approx(dyke.area * 30.0, rel=0.02)
+
+
+def test_a_surfaces_and_a_predictions_progress_never_goes_back(holes, tmp_path):
+    """A surface's stages (the model's pairs, the sections, the prediction below the deepest bench between
+    its depth trend's backtests, the sections' signed distances, the mesh) each counted their own steps into
+    the same ``progress(done, total)``: 9 of 9, then 0 of 2; an elevation's 1 of 4 between the backtests'
+    5 of 6. A bar on it went back and forth. Each stage now has its own share of one series."""
+    for geozone in sorted(set(holes.geozone.tolist())):
+        surface: list[tuple[int, int]] = []
+        _session(holes, tmp_path / f"surface-{geozone}").surface(geozone, progress=functools.partial(_tell, surface))
+        z = [holes.below_deepest_m(f) for f in (0.5, 1.0)]
+        prediction: list[tuple[int, int]] = []  # afresh: the model's pairs and the depth trend's backtests too
+        _session(holes, tmp_path / f"predict-{geozone}").predict(
+            geozone, z, progress=functools.partial(_tell, prediction)
+        )
+        for told in (surface, prediction):
+            fraction = [done / total for done, total in told]
+            assert len(fraction) > 5 and fraction[-1] == 1.0, (geozone, told)
+            backs = [(a, b) for a, b in zip(fraction, fraction[1:]) if b < a]
+            assert not backs, (geozone, backs)
+            assert len({total for _, total in told}) == 1, (geozone, told)  # one series, one total

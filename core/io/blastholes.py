@@ -29,7 +29,7 @@ from __future__ import annotations
 import re
 import unicodedata
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
@@ -91,6 +91,9 @@ MISSING_ELEVATION_SPACINGS = 10.0
 FAR_GROUP_SPACINGS = FAR_LEVEL_BENCHES * MISSING_ELEVATION_SPACINGS / MISSING_ELEVATION_BENCHES
 #: A single cluster of elevations thicker than this many hole spacings is not one bench.
 MAX_BENCH_THICKNESS_SPACINGS = 5.0
+#: A group of holes too few for a bench of their own, beside a single bench, is a sparsely drilled bench when
+#: their hole spacing is within this factor of the bench's (its pattern; see ``_sparse_benches_beside_one``).
+SPARSE_BENCH_SPACING_RATIO = 1.5
 #: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
 BENCH_HEIGHT_TOLERANCE = 0.03
 #: More benches than this from an explicit bench height is a unit mistake.
@@ -573,6 +576,9 @@ def blastholes_from_table(
     zin = coords["z"]
     xy_in = np.column_stack([coords["x"], coords["y"]])
     levels_in, bench, height_in, off = detect_benches(zin, bench_height, xy=xy_in)
+    sparse = None if bench_height is not None else sparse_bench_note(bench, levels_in)
+    if sparse:
+        _note(notes, sparse, stacklevel=3)
     _note_missing_elevations(zin, notes)
     # A single bench's far groups lie beyond FAR_GROUP_SPACINGS of its own pattern (see _far_beside_one_bench).
     reach = FAR_GROUP_SPACINGS * median_hole_spacing(xy_in[~off]) if len(levels_in) == 1 and off.any() else np.inf
@@ -1148,7 +1154,7 @@ def detect_benches(
     zs = np.sort(z)
     if zs[-1] == zs[0]:
         return np.array([zs[0]]), np.zeros(len(z), int), np.nan, np.zeros(len(z), bool)
-    min_count = min(max(10, int(0.01 * len(z))), max(3, len(z) // 4))
+    min_count = min_bench_holes(len(z))
     clusters = _split_hidden_benches(_bench_clusters(zs, min_count), min_count, z, xy)
     apart = _far_off_holes(z, zs, clusters, min_count, bench_height, xy)
     if apart.any():
@@ -1157,9 +1163,87 @@ def detect_benches(
     if bench_height is None:
         _refuse_tiny_levels(zs, clusters)
         if len(big) < 2:
-            return _single_bench(z, xy)
+            small = [c for c in clusters if 3 <= len(c) < min_count]
+            sparse = _sparse_benches_beside_one(z, big, small, xy)
+            return _single_bench(z, xy, small if big else []) if sparse is None else _on_levels(z, sparse, None, xy)
     levels = _levels_of(z, zs, big, [c for c in clusters if 3 <= len(c) < min_count], bench_height)
     return _on_levels(z, levels, bench_height, xy)
+
+
+def min_bench_holes(n_holes: int) -> int:
+    """Holes a cluster of elevations needs to be a bench on its own, among ``n_holes``: 1% of them, or 10.
+
+    Fewer holes on a level are a bench only beside benches that measure a bench height (see
+    :func:`_bench_levels`), or beside a single bench as :func:`_sparse_benches_beside_one` says.
+    """
+    return min(max(10, int(0.01 * n_holes)), max(3, n_holes // 4))
+
+
+def _sparse_benches_beside_one(
+    z: np.ndarray, big: list[np.ndarray], small: list[np.ndarray], xy: np.ndarray | None
+) -> np.ndarray | None:
+    """The levels of one bench and the sparsely drilled benches beside it (ascending), or None when there are none.
+
+    A bench of 40 holes and 8 holes 40 m below it, on the same pattern, was refused as elevations "spread
+    continuously ... with no gap between benches": 8 holes are under the 10 a level needs to be a bench on its
+    own (:func:`min_bench_holes`), and beside one bench no bench height says how far a bench lies (see
+    :func:`_bench_levels`). Such a group is a bench opened or sampled sparsely when it sits on a level of its
+    own (no thicker than a bench may be, :data:`MAX_BENCH_THICKNESS_SPACINGS` hole spacings), farther from the
+    bench than the bench's holes may spread, and its holes are drilled on the bench's pattern (their spacing
+    within :data:`SPARSE_BENCH_SPACING_RATIO` of it). Only tables read otherwise as elevations spread
+    continuously are read so: a few holes within a bench's spread stay off-bench holes of that bench.
+    """
+    if xy is None or len(big) != 1 or not small:
+        return None
+    on = (z >= big[0][0]) & (z <= big[0][-1])
+    spacing = _collar_spacing(xy[on])
+    thickness = float(np.percentile(z, 95) - np.percentile(z, 5))
+    if not spacing > 0 or thickness <= MAX_BENCH_THICKNESS_SPACINGS * spacing:
+        return None  # one bench reads as it did (:func:`_single_bench`)
+    reach = MAX_BENCH_THICKNESS_SPACINGS * spacing
+    levels = [_level(big[0])]
+    for c in small:
+        holes = (z >= c[0]) & (z <= c[-1])
+        own = _collar_spacing(xy[holes])
+        if (
+            np.ptp(c) > reach
+            or abs(float(np.median(c)) - float(np.median(big[0]))) <= reach
+            or not (own > 0 and 1 / SPARSE_BENCH_SPACING_RATIO <= own / spacing <= SPARSE_BENCH_SPACING_RATIO)
+        ):
+            return None  # not a bench on the pattern: refused as before, with what to do
+        levels.append(_level(c))
+    return np.sort(np.array(levels))
+
+
+def sparse_bench_note(bench: np.ndarray, levels: np.ndarray) -> str | None:
+    """What to say of benches read with fewer holes than a bench needs on its own, beside a single full one.
+
+    Said whenever :func:`_sparse_benches_beside_one` read them (so never of a table read otherwise):
+    the geologist learns that those few holes carry a whole bench of the model.
+
+    Parameters
+    ----------
+    bench : (n,) int
+        Each hole's bench (-1 off the benches).
+    levels : (b,) float
+        The benches' levels (input units), as :func:`detect_benches` returns them.
+
+    Returns
+    -------
+    str or None
+        The warning, or None when no bench is so sparse.
+    """
+    counts = np.bincount(bench[bench >= 0], minlength=len(levels))
+    needed = min_bench_holes(int(np.sum(bench >= 0)))
+    sparse = [k for k in range(len(levels)) if counts[k] < needed]
+    if len(levels) < 2 or int(np.sum(counts >= needed)) != 1 or not sparse:
+        return None
+    said = ", ".join(f"{counts[k]} at z {levels[k]:g}" for k in sparse)
+    return (
+        f"{'a bench' if len(sparse) == 1 else 'benches'} of few holes read beside the bench at z "
+        f"{levels[int(np.argmax(counts))]:g} ({int(counts.max())} holes): {said}, on its hole pattern; "
+        "the model takes each as a whole bench (drop those rows if they are no bench)"
+    )
 
 
 def _bench_clusters(zs: np.ndarray, min_count: int) -> list[np.ndarray]:
@@ -1512,6 +1596,8 @@ def _refuse_disagreeing_height(levels: np.ndarray, bench_height: float) -> None:
 def _elevation_clusters(zs: np.ndarray) -> list[np.ndarray]:
     """Sorted elevations split at the gaps between benches."""
     gaps = np.diff(zs)
+    if not (gaps > 0).any():  # one exact level (a bench's RL): nothing to split, and no typical step to measure
+        return [zs]
     # A gap between benches is wide next to the widest gap and far wider than
     # the typical step between sorted elevations (which rounding can make
     # all equal on a single bench).
@@ -1632,12 +1718,25 @@ def _refuse_merged_benches(z, bench, levels, xy, bench_height: float) -> None:
             )
 
 
-def _single_bench(z: np.ndarray, xy: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-    """One bench at the median elevation; refused when the elevations are spread far thicker than a bench."""
+def _single_bench(
+    z: np.ndarray, xy: np.ndarray | None, groups: Sequence[np.ndarray] = ()
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """One bench at the median elevation; refused when the elevations are spread far thicker than a bench.
+
+    ``groups``: the levels beside the bench too few holes to be benches of their own, and not on its pattern
+    (:func:`_sparse_benches_beside_one`): a refusal names them and what to do, not a spread "with no gap".
+    """
     level = float(np.median(z))
     thickness = float(np.percentile(z, 95) - np.percentile(z, 5))
     if xy is not None and len(xy) >= 2:
         spacing = _collar_spacing(xy)
+        if thickness > MAX_BENCH_THICKNESS_SPACINGS * spacing and groups:
+            said = ", ".join(f"{len(g)} hole(s) at z {_level(g):g}" for g in groups)
+            raise BGMInputError(
+                f"z does not form benches: one level holds enough holes for a bench, and beside it {said}, "
+                "too few for a bench of their own and not drilled on its hole pattern; give "
+                "--bench-height if they are benches, or drop those rows if their elevations are mistyped"
+            )
         if thickness > MAX_BENCH_THICKNESS_SPACINGS * spacing:
             spacings = f"{thickness / spacing:.0f} hole spacings" if spacing > 0 else "every collar repeated"
             raise BGMInputError(

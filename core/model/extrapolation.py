@@ -46,6 +46,7 @@ from core.model.movement import (
     geozone_persistence,
     outline_movement,
 )
+from core.model.progress import Stages
 from core.model.trend import TRANSPORT_SMOOTHING_SPACINGS, DepthTrend, sliding_bias, with_shared_transport
 from core.threads import Progress
 
@@ -163,16 +164,27 @@ def depth_trend(
     elevations ask for the same trend. ``progress(done, total)`` is told each
     step of its backtests (:func:`with_backtested_dip`'s bench pairs and
     dips, :func:`chosen_persistence`'s and :func:`carried_precision`'s bench
-    pairs): a large geozone's trend takes seconds (Kennecott's 3026: 1-6 s),
+    pairs), as one series that never goes back (:class:`core.model.progress.Stages`: the
+    trend's backtests, then its confirmation): a large geozone's trend takes seconds (Kennecott's 3026: 1-6 s),
     and a :class:`core.threads.Cancelled` it raises stops it at that step. What
     is kept then is whole: the backtests of the pairs done (each rests on its
-    benches alone), never the trend.
+    benches alone), never the trend, nor the bench pairs' movements made for it
+    (:func:`dropped_movements`).
     """
 
+    # Its dips' and ways' backtests, then the carried precision's, each counting its own pairs: one series.
+    stages = Stages(progress, 2)
+
     def compute() -> DepthTrend:
-        trend = _trend(fields, bench_height_m, hole_spacing_m, progress=progress)
-        trend = _older_evidence_carried_as_then(fields, trend, bench_height_m, hole_spacing_m)
-        return _confirmed(fields, trend, bench_height_m, hole_spacing_m, progress)
+        try:
+            trend = _trend(fields, bench_height_m, hole_spacing_m, progress=stages.stage(0))
+            trend = _older_evidence_carried_as_then(fields, trend, bench_height_m, hole_spacing_m)
+        except BaseException:
+            # A cancelled trend (the viewer's newer request, Ctrl-C) is not made: its movements, three grids
+            # a pair, stayed in the memo of fields the session keeps, until another trend of them was made.
+            dropped_movements(fields)
+            raise
+        return _confirmed(fields, trend, bench_height_m, hole_spacing_m, stages.stage(1))
 
     return memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)
 
@@ -223,10 +235,26 @@ def _confirmed(
     The movements (three grids a pair, in the memo and in the observed benches' memo) are kept only while a
     trend is made. ``progress`` goes to :func:`carried_precision`.
     """
-    confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision, progress)
+    try:
+        confirmed = carried_precision(fields, bench_height_m, hole_spacing_m, trend.carried_precision, progress)
+    finally:
+        dropped_movements(fields)  # made, or cancelled: the movements are not needed again
+    return trend.replaced(carried_precision=confirmed)  # shares the trend's arrays and its transport's fits
+
+
+def dropped_movements(fields: BenchFields) -> None:
+    """Drop the bench pairs' movements from ``fields.memo`` and its observed benches' memo.
+
+    They are kept only while a trend is made (:data:`MOVEMENTS_MEMO`): three grids a pair, a geozone's
+    whole column of them held as long as the session keeps its fields.
+
+    Parameters
+    ----------
+    fields : BenchFields
+        The fields whose memo (shared with their :meth:`~BenchFields.through` views) held them.
+    """
     fields.memo.pop(MOVEMENTS_MEMO, None)
     fields.memo.get(OBSERVED_MEMO, {}).pop(MOVEMENTS_MEMO, None)
-    return trend.replaced(carried_precision=confirmed)  # shares the trend's arrays and its transport's fits
 
 
 #: The shallower dip a geozone's own benches may choose instead of :data:`MIN_DIP_DEG`

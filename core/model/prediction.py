@@ -27,6 +27,7 @@ from core.geometry.sdf import boundary_distance
 from core.model.extrapolation import depth_trend, depth_trend_region
 from core.model.fields import BenchFields, memoised
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
+from core.model.progress import Stages
 from core.morph.trajectories import normalised_arc_length
 from core.threads import Progress
 
@@ -250,9 +251,10 @@ def predict_geozone(
     neighbourhoods (the transport's smoothing, the distance cap); ``params``
     is unused (kept for callers).
 
-    ``progress(done, total)`` is told as each elevation is predicted
-    (``total``: the elevations) and, the first time the depth trend is
-    needed, each step of its backtests (:func:`depth_trend`): below the
+    ``progress(done, total)`` is told, as one series that never goes back
+    (:class:`core.model.progress.Stages`), each step of the depth trend's
+    backtests the first time it is needed (:func:`depth_trend`), then each
+    elevation predicted: below the
     deepest bench a large geozone takes seconds (Kennecott's 3026: 1-6 s), and
     a :class:`core.threads.Cancelled` it raises stops the prediction at that
     step, nothing of it returned.
@@ -265,6 +267,10 @@ def predict_geozone(
     levels = fields.z_m
     height = fields.bench_height_m
     beyond: dict[bool, BenchFields] = {}  # the fields extrapolated down (True) or up, one view each
+    # The depth trend's backtests (made at the first elevation off the benches), then the elevations: told as one
+    # series that never goes back, not the elevations' 1 of 4 between the backtests' 5 of 6.
+    stages = Stages(progress, 2)
+    trend_progress, progress = stages.stage(0), stages.stage(1)
     for z in z_m:
         at = bench_at(levels, z)
         if at is not None:
@@ -273,7 +279,7 @@ def predict_geozone(
             down = bool(z < levels[-1])
             if down not in beyond:
                 beyond[down] = fields if down else fields.reversed()
-            out[z] = depth_trend_region(beyond[down], height, hole_spacing_m, z, progress)
+            out[z] = depth_trend_region(beyond[down], height, hole_spacing_m, z, trend_progress)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             region = MultiPolygon()

@@ -118,3 +118,43 @@ class GeozoneSteps:
         if self.progress is not None:
             total = max(self.pairs + 1 + len(self.after), self.done)
             self.progress(f"{name} of {geozone_stage(self.geozone)}", self.done, total)
+
+
+class Stages:
+    """One ``progress(done, total)`` told over several stages, each its own share, never going back.
+
+    A surface is made in stages (the geozone's model, its sections, the mesh), and each
+    stage counted its own steps into the same callback: its sections 9 of 9, then the
+    mesh's 0 of 2, the prediction's elevations 1 of 4 between its depth trend's
+    backtests 5 of 6: a bar on it went back and forth. Here stage ``k`` of ``n`` is told
+    as ``k/n`` of the whole plus its own fraction of ``1/n``, and nothing told is less
+    than what was told before (a stage whose own steps start again, as a depth trend's
+    backtests do for each dip, holds the bar where it was). Every call is passed on,
+    so a :class:`core.threads.Cancelled` raised by ``progress`` still stops each step.
+
+    Parameters
+    ----------
+    progress : callable or None
+        ``progress(done, total)``; None says nothing.
+    stages : int
+        How many stages share it.
+    """
+
+    #: Steps of each stage in what is told (``done`` and ``total`` stay whole numbers).
+    STEPS_PER_STAGE = 1000
+
+    def __init__(self, progress: Callable[[int, int], None] | None, stages: int):
+        self.progress, self.stages, self.told = progress, max(int(stages), 1), 0
+
+    def stage(self, k: int) -> Callable[[int, int], None] | None:
+        """The ``progress(done, total)`` of stage ``k`` (from 0); None when there is nothing to tell."""
+        if self.progress is None:
+            return None
+        return lambda done, total: self._tell(k, done, total)
+
+    def _tell(self, k: int, done: int, total: int) -> None:
+        own = min(max(done / total, 0.0), 1.0) if total > 0 else 1.0
+        whole = self.STEPS_PER_STAGE * self.stages
+        self.told = max(self.told, min(round(self.STEPS_PER_STAGE * (k + own)), whole))
+        assert self.progress is not None  # stage() hands out no callback without one
+        self.progress(self.told, whole)

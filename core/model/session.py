@@ -52,6 +52,7 @@ from core.model.pipeline import (
     morph_instance,
 )
 from core.model.prediction import predict_geozone, regions_between, with_undrilled_extension
+from core.model.progress import Stages
 from core.threads import Progress, on_threads
 
 #: Iso-contours per bench interval used to build surfaces.
@@ -478,12 +479,13 @@ class ModelSession:
         prediction's steps (each elevation, the depth trend's backtests); a
         :class:`core.threads.Cancelled` it raises stops it there, and nothing of it is stored.
         """
-        model = model or self.geozone_model(geozone, progress=progress)
+        stages = Stages(progress, 2)  # the model, then the prediction: one series that never goes back
+        model = model or self.geozone_model(geozone, progress=stages.stage(0))
         z_m = [float(z) for z in z_m]
         key = content_key("prediction", self._model_key(model), z_m, stage_values(self.params, "prediction"))
         spacing_m = self.holes.hole_spacing_m
         return self.store.get(
-            "prediction", key, lambda: predict_geozone(model, z_m, spacing_m, self.params, progress=progress)
+            "prediction", key, lambda: predict_geozone(model, z_m, spacing_m, self.params, progress=stages.stage(1))
         )
 
     def surface(self, geozone: str, model: GeozoneModel | None = None, progress: Progress | None = None):
@@ -502,7 +504,8 @@ class ModelSession:
         """
         from core.model.surfaces import surface_from_sections
 
-        model = model or self.geozone_model(geozone, progress=progress)
+        stages = Stages(progress, 3)  # the model, its sections, the mesh: one series that never goes back
+        model = model or self.geozone_model(geozone, progress=stages.stage(0))
         key = content_key(
             "surface",
             self._model_key(model),
@@ -511,12 +514,12 @@ class ModelSession:
         )
 
         def compute():
-            sections = surface_sections(model, self.holes, self.params, progress=progress)
+            sections = surface_sections(model, self.holes, self.params, progress=stages.stage(1))
             cell = surface_cell_size(model, self.holes, self.params.surface_max_cells)
             # What the holes showed is at least about a spacing wide: on a grid coarsened past half a spacing
             # (a geozone across a wide pit) a dyke one hole wide is narrower than a cell, and no morph speck.
             return surface_from_sections(
-                sections, cell_size_m=cell, min_width_m=0.5 * self.holes.hole_spacing_m, progress=progress
+                sections, cell_size_m=cell, min_width_m=0.5 * self.holes.hole_spacing_m, progress=stages.stage(2)
             )
 
         return self.store.get("surface", key, compute)
@@ -551,12 +554,13 @@ def surface_sections(
 
     ``progress(done, total)`` is told as each bench pair's sections are made, then the
     steps of the sections below the deepest bench (:func:`predict_geozone`: each
-    elevation, the depth trend's backtests), then once they are all made (``total``:
-    the pairs and one), then as each section takes in the depth trend (``total``:
-    the sections). Seconds on a large
+    elevation, the depth trend's backtests), then as each section takes in the depth
+    trend: each a third of one series that never goes back (:class:`core.model.progress.Stages`). Seconds on a large
     geozone (Kennecott's 3026: 3 s); a :class:`core.threads.Cancelled` it raises stops
     them there.
     """
+    stages = Stages(progress, 3)  # the pairs' sections, those below the deepest, the trend taken in
+    progress = stages.stage(0)
     sections = []
     for i, p in enumerate(model.pairs):
         if p.correspondence is None:
@@ -570,7 +574,7 @@ def surface_sections(
         if i + 1 < len(model.pairs) and model.pairs[i + 1].upper != p.lower:
             sections.append((p.target_z_m, as_multipolygon(model.region_at_bench(p.lower))))
         if progress:
-            progress(i + 1, len(model.pairs) + 1)
+            progress(i + 1, len(model.pairs))
     if not model.pairs:
         return sections
     last = model.pairs[-1]
@@ -580,10 +584,11 @@ def surface_sections(
     for upper, lower in zip(levels[last.lower : -1], levels[last.lower + 1 :]):
         sections.extend((float(upper + f * (lower - upper)), MultiPolygon()) for f in np.linspace(0.25, 1.0, 4))
     zs = [holes.below_deepest_m(f) for f in np.linspace(0.25, below_fraction, 4)]
-    sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params, progress=progress).items())
-    if progress:
-        progress(len(model.pairs) + 1, len(model.pairs) + 1)
-    trended = []
+    below = stages.stage(1)
+    sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params, progress=below).items())
+    if below:
+        below(1, 1)
+    trended, progress = [], stages.stage(2)
     for z, r in sections:
         trended.append((z, with_undrilled_extension(r, model, z, holes.hole_spacing_m)))
         if progress:

@@ -56,6 +56,7 @@ from skimage import measure
 from core.errors import BGMInputError
 from core.geometry.grid import Grid, as_multipolygon, union_bounds
 from core.geometry.sdf import region_signed_distance
+from core.model.progress import Stages
 from core.threads import Progress
 
 #: Default number of cells along the longer horizontal side of the sections.
@@ -119,10 +120,10 @@ def surface_from_sections(
         narrower than a cell there, but it is what the holes showed.
     progress : callable, optional
         ``progress(done, total)``, told as each section's signed distance is
-        computed (``total``: the sections), then as the mesh is closed and
-        its specks are dropped (``total``: 2), and ``(0, 2)`` at the steps of
-        closing it (the volume filled, each marching cubes done, each
-        smoothed try). A large geozone's surface takes a second or two; a
+        computed (the first half), then as the mesh is closed and its specks
+        are dropped (the second), and at the steps of closing it (the volume
+        filled, each marching cubes done, each smoothed try): one series that
+        never goes back (:class:`core.model.progress.Stages`). A large geozone's surface takes a second or two; a
         :class:`core.threads.Cancelled` it raises stops it at that step.
 
     Returns
@@ -152,16 +153,18 @@ def surface_from_sections(
             f"the surface grid would have {n_vox:,} voxels (more than {MAX_VOXELS:,}); "
             f"use a larger cell size than {grid.cell_size_m:g} m or a larger z spacing"
         )
-    vol = _sdf_volume(regions, grid, src, progress)
+    stages = Stages(progress, 2)  # the sections' signed distances, then the mesh: a bar never goes back
+    vol = _sdf_volume(regions, grid, src, stages.stage(0))
     # Closing the mesh takes up to half a second on Kennecott (marching cubes, trimesh's checks, tried
     # again smoothed where it must): told between its steps, with none of the mesh's two steps done.
-    mesh = _closed_mesh(vol, grid, z_levels, functools.partial(progress, 0, 2) if progress else None)
-    if progress:
-        progress(1, 2)
+    mesh_done = stages.stage(1)
+    mesh = _closed_mesh(vol, grid, z_levels, functools.partial(mesh_done, 0, 2) if mesh_done else None)
+    if mesh_done:
+        mesh_done(1, 2)
     voxel_m3 = grid.cell_size_m**2 * float(np.median(np.diff(z_levels)))
     mesh = _without_specks(mesh, voxel_m3)
-    if progress:
-        progress(2, 2)
+    if mesh_done:
+        mesh_done(2, 2)
     return mesh
 
 
