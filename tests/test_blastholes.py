@@ -592,6 +592,24 @@ def _pattern(nx: int, ny: int, z: float, spacing: float = 6.0) -> pd.DataFrame:
     return pd.DataFrame({"x": xs, "y": ys, "z": z, "geozone": np.where(xs < spacing * nx / 2, "a", "b")})
 
 
+def test_a_bench_far_below_two_others_leaves_the_bench_height_theirs():
+    """Two benches 10 m apart and a sparse bench 40 m below them: the bench height was the median gap, 25, no
+    gap of theirs, and said to look like feet. The 40 m gap is four benches of 10; irregular benches keep the
+    median gap."""
+    from core.io.blastholes import blastholes_from_table
+
+    table = pd.concat([_pattern(8, 5, 100.0), _pattern(8, 5, 90.0), _pattern(4, 2, 50.0)], ignore_index=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)  # nothing to say: metres, three benches on a 10 m ladder
+        holes = blastholes_from_table(table, source="t.csv")
+    assert holes.bench_height_m == pytest.approx(10.0)
+    assert [holes.bench_z_input(k) for k in range(holes.n_benches)] == [100.0, 90.0, 50.0]
+    from core.io.blastholes import typical_bench_height
+
+    assert typical_bench_height(np.array([100.0, 90.0, 75.0])) == pytest.approx(12.5)  # 10 then 15: the median
+    assert typical_bench_height(np.array([0.0, 15.1, 30.3, 45.3])) == pytest.approx(15.1)  # regular: the median
+
+
 def test_a_sparse_bench_below_a_single_bench_is_read_as_a_bench_with_a_warning():
     """8 holes 40 m below a bench of 40, on its pattern, were refused as elevations "spread continuously ...
     with no gap between benches": too few for a bench of their own (10), and no bench height beside one bench.

@@ -1349,7 +1349,7 @@ def _on_levels(
             f"({', '.join(f'{v:g}' for v in levels[:8])}{'...' if len(levels) > 8 else ''}); "
             "BGM needs samples grouped by bench"
         )
-    height = float(bench_height) if bench_height is not None else float(np.median(-np.diff(levels)))
+    height = float(bench_height) if bench_height is not None else typical_bench_height(levels)
     return levels, bench, (height if len(levels) >= 2 else np.nan), off
 
 
@@ -1572,13 +1572,45 @@ def _far_values(z: np.ndarray) -> str:
     return listing([f"{v:g}" for v in values], 4) if len(values) <= 6 else f"{values[0]:g} to {values[-1]:g}"
 
 
+def typical_bench_height(levels: np.ndarray) -> float:
+    """The step between successive bench levels, counting a gap of whole benches not drilled as that many steps.
+
+    The median gap between levels, unless it matches no gap while one gap divides every other into whole
+    steps: two benches 10 m apart and a bench 40 m below them (three benches between not drilled) have gaps
+    10 and 40, whose median, 25, is no bench height of theirs (and read as a feet table's); 10 divides both.
+    Irregular benches (10 m, then 15 m) keep the median, as do regular ones.
+
+    Parameters
+    ----------
+    levels : (b,) float
+        The bench levels, in either order (input units).
+
+    Returns
+    -------
+    float
+        The bench height (input units; NaN for fewer than two levels).
+    """
+    gaps = np.abs(np.diff(np.asarray(levels, float)))
+    if not len(gaps):
+        return float("nan")
+    median = float(np.median(gaps))
+    tolerance = BENCH_HEIGHT_TOLERANCE
+    if np.any(np.abs(gaps - median) <= tolerance * gaps):
+        return median
+    for step in np.sort(gaps):
+        whole = np.round(gaps / step)
+        if step > 0 and np.all(np.abs(gaps - whole * step) <= tolerance * whole * step):
+            return float(np.median(gaps / whole))
+    return median
+
+
 def _refuse_disagreeing_height(levels: np.ndarray, bench_height: float) -> None:
     """Refuse a given bench height other than the one between the collars' own levels (ascending ``levels``).
 
     The measured height is the median distance between successive levels;
     it agrees within :data:`BENCH_HEIGHT_TOLERANCE` of the given height.
     """
-    measured = float(np.median(np.diff(levels)))
+    measured = typical_bench_height(levels)
     if abs(measured - bench_height) <= BENCH_HEIGHT_TOLERANCE * bench_height:
         return
     # A height several times the levels' gap would merge benches: say so, as _refuse_merged_benches does.
@@ -1626,7 +1658,7 @@ def _bench_levels(big: list[np.ndarray], small: list[np.ndarray]) -> np.ndarray:
     of a typical bench height from every bench; nearer, it is stray holes.
     """
     centres = np.array([float(np.median(c)) for c in big])
-    height = float(np.median(np.diff(centres)))
+    height = typical_bench_height(centres)
     levels = np.array([_level(c) for c in big])
     k = np.round((centres - centres[0]) / height)
     if len(big) >= 3 and len(np.unique(k)) == len(k):
