@@ -1302,3 +1302,33 @@ def test_the_first_holes_evidence_past_their_drilling_does_not_replace_what_the_
     assert next_rows.sum() > 20
     xy = full.xy[next_rows]
     assert shapely.contains_xy(region, xy[:, 0], xy[:, 1]).all()
+
+
+def test_a_partly_drilled_deepest_bench_does_not_stop_what_older_benches_saw_last_where_the_bench_above_did_not_drill():
+    """Ground the bench above the deepest did not drill goes on as the benches down to the one that saw it carried it.
+
+    A strip moving 8 m a bench; the bench above the new one drilled its south half only, and the new bench's
+    first holes, further south, found the strip's end stopped. Read on them, the last movement disagreed with
+    the one before and was carried nowhere; the north, last seen two benches up, was held where that bench
+    left it, 16 m short (folds, tuning seed 2, a 15% strip drilled: 93.6 F1 on the held-back holes from the
+    benches above alone, 86.4 with the first holes: the bench above had not drilled the fold's west limb).
+    """
+    from core.model.session import ModelSession
+
+    sections = [shapely.box(40.0 + 8.0 * k, -10.0, 80.0 + 8.0 * k, 200.0) for k in range(4)]
+    held, moved = shapely.box(64.0, -10.0, 104.0, 40.0), shapely.box(72.0, 40.0, 112.0, 200.0)
+    full = _bench_table([*sections, held.union(moved)])
+    design_y = full.xy[:, 1] - _design_to_local(full)[1]
+    above_drilled = (full.bench < 3) | ((full.bench == 3) & (design_y < 100.0))
+    above = full.subset(above_drilled)
+    partly = full.subset(above_drilled | ((full.bench == 4) & (design_y < 40.0)))  # the south end's first patterns
+    z_new = float(full.bench_levels_m[4])
+
+    def east_edge_in_the_north(holes) -> float:
+        shift = _design_to_local(holes)
+        north = shapely.box(-1e4, 120.0 + shift[1], 1e4, 1e4)
+        return ModelSession(holes).predict("a", [z_new])[z_new].intersection(north).bounds[2] - shift[0]
+
+    from_above = east_edge_in_the_north(above)
+    assert from_above > 104.0  # carried on two benches past the 96 m where bench 2 left it (the truth: 112 m)
+    assert east_edge_in_the_north(partly) > from_above - 3.0
