@@ -1235,6 +1235,22 @@ def test_ground_no_bench_drilled_takes_the_deepest_bench_whose_evidence_reaches_
     assert reaching_bench(replace(fields, reach_spacings=None)).tolist() == [[2, 2, 2]]
 
 
+def test_a_benchs_fringe_past_its_drilling_is_no_observation_of_ground_a_bench_above_drilled():
+    """A cell a bench above drilled is last observed by the deepest bench that drilled it, not by a fringe."""
+    from core.geometry.grid import Grid
+    from core.model.fields import BenchFields
+    from core.model.movement import last_observations
+
+    grid = Grid(0.0, 0.0, 1.0, (1, 4))
+    off_spacings = np.array([[[0.0, 0.0, 0.0, 0.3]], [[0.0, 0.3, 3.0, 0.3]]])  # top bench first
+    drilled = off_spacings == 0.0
+    fields = BenchFields(grid, np.array([20.0, 10.0]), np.zeros((2, 1, 4)), np.exp(-off_spacings), drilled)
+    last, before = last_observations(fields)
+    # drilled by both; in the lower bench's fringe but drilled above; drilled above only; in both fringes
+    assert last.tolist() == [[1, 0, 0, 1]]
+    assert before.tolist() == [[0, -1, -1, 0]]
+
+
 def test_a_partly_drilled_deepest_bench_does_not_stop_the_rest_of_a_moving_strip():
     """The first holes of a bench say how its drilled part moved; the rest goes on as the benches above carried it.
 
@@ -1294,3 +1310,59 @@ def test_a_cancelled_trend_leaves_no_bench_pair_movements_in_the_memo(cancel_at)
         depth_trend(fields, 10.0, 6.0).field(455.0), depth_trend(fresh, 10.0, 6.0).field(455.0)
     )
     assert MOVEMENTS_MEMO not in fields.memo
+
+
+def test_the_first_holes_evidence_past_their_drilling_does_not_replace_what_the_bench_above_drilled():
+    """Just past a partly drilled bench's first holes, the ground the bench above drilled keeps that bench's evidence.
+
+    A body whose south end lies at the same place on every bench, the new bench's first patterns drilled up to it
+    (none of their holes in it). Past its drilled area a bench's evidence is its nearest holes' carried on, and
+    within 0.7 spacings of it (1.4 past its outermost holes) it counted as observed: there the first holes' "not
+    the geozone" replaced the bench above's drilled body, and the next row of the pattern, in the body, was
+    predicted outside it (widening, tuning seed 2, 40% of the bench drilled in a strip: 86.0 -> 76.0 F1 on the
+    held-back holes against the benches above alone).
+    """
+    from core.model.session import ModelSession
+
+    body = shapely.box(40.0, 44.0, 160.0, 200.0)  # its south end between two rows of the pattern
+    full = _bench_table([body] * 5)
+    shift = _design_to_local(full)
+    design_y = full.xy[:, 1] - shift[1]
+    partly = full.subset((full.bench < 4) | (design_y < 44.0))  # the new bench's first rows, all south of the body
+    z_new = float(full.bench_levels_m[4])
+    region = ModelSession(partly).predict("a", [z_new])[z_new]
+    design_x = full.xy[:, 0] - shift[0]
+    next_rows = (full.bench == 4) & (design_y > 44.0) & (design_y < 53.0) & (design_x > 50.0) & (design_x < 150.0)
+    assert next_rows.sum() > 20
+    xy = full.xy[next_rows]
+    assert shapely.contains_xy(region, xy[:, 0], xy[:, 1]).all()
+
+
+def test_a_partly_drilled_deepest_bench_does_not_stop_what_older_benches_saw_last_where_the_bench_above_did_not_drill():
+    """Ground the bench above the deepest did not drill goes on as the benches down to the one that saw it carried it.
+
+    A strip moving 8 m a bench; the bench above the new one drilled its south half only, and the new bench's
+    first holes, further south, found the strip's end stopped. Read on them, the last movement disagreed with
+    the one before and was carried nowhere; the north, last seen two benches up, was held where that bench
+    left it, 16 m short (folds, tuning seed 2, a 15% strip drilled: 93.6 F1 on the held-back holes from the
+    benches above alone, 86.4 with the first holes: the bench above had not drilled the fold's west limb).
+    """
+    from core.model.session import ModelSession
+
+    sections = [shapely.box(40.0 + 8.0 * k, -10.0, 80.0 + 8.0 * k, 200.0) for k in range(4)]
+    held, moved = shapely.box(64.0, -10.0, 104.0, 40.0), shapely.box(72.0, 40.0, 112.0, 200.0)
+    full = _bench_table([*sections, held.union(moved)])
+    design_y = full.xy[:, 1] - _design_to_local(full)[1]
+    above_drilled = (full.bench < 3) | ((full.bench == 3) & (design_y < 100.0))
+    above = full.subset(above_drilled)
+    partly = full.subset(above_drilled | ((full.bench == 4) & (design_y < 40.0)))  # the south end's first patterns
+    z_new = float(full.bench_levels_m[4])
+
+    def east_edge_in_the_north(holes) -> float:
+        shift = _design_to_local(holes)
+        north = shapely.box(-1e4, 120.0 + shift[1], 1e4, 1e4)
+        return ModelSession(holes).predict("a", [z_new])[z_new].intersection(north).bounds[2] - shift[0]
+
+    from_above = east_edge_in_the_north(above)
+    assert from_above > 104.0  # carried on two benches past the 96 m where bench 2 left it (the truth: 112 m)
+    assert east_edge_in_the_north(partly) > from_above - 3.0
