@@ -230,7 +230,24 @@ def test_a_build_stopped_by_kill_leaves_no_worker_running(small_csv, tmp_path, s
         assert not [p.name for p in tmp_path.iterdir() if ".bgm-" in p.name]
 
 
-def test_an_interrupt_python_can_only_print_is_raised_again_without_a_traceback(capsys, monkeypatch):
+@pytest.fixture
+def ctrl_c_handled():
+    """SIGINT handled as ``bgm`` handles it while a command runs (``core.cli._on_ctrl_c``).
+
+    The interrupt is raised again by simulating SIGINT (``_thread.interrupt_main``), which does nothing
+    where SIGINT is ignored: a test run started in the background of a script inherits it ignored, and
+    Python then installs no handler of its own.
+    """
+    import core.cli as cli
+
+    previous = signal.signal(signal.SIGINT, cli._on_ctrl_c)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_an_interrupt_python_can_only_print_is_raised_again_without_a_traceback(capsys, monkeypatch, ctrl_c_handled):
     """SIGTERM landing in a fork hook or a finalizer (logging's lock release as a build forks its workers)
     printed "Exception ignored" and a traceback, and the interrupt was lost there: it is raised again,
     quietly. Anything else Python can only print is printed as before."""
@@ -256,7 +273,7 @@ def test_an_interrupt_python_can_only_print_is_raised_again_without_a_traceback(
     assert "boom" in capsys.readouterr().err
 
 
-def test_an_interrupt_raised_again_is_not_lost_in_the_hook_on_a_loaded_machine(monkeypatch):
+def test_an_interrupt_raised_again_is_not_lost_in_the_hook_on_a_loaded_machine(monkeypatch, ctrl_c_handled):
     """The interrupt was raised again from a 10 ms timer counted from the timer's own start: where starting a
     thread took longer (a loaded machine; CI failed so), it fired inside the hook, still in ``start()``, and was
     lost there as unraisable. The hook now returns first, and the interrupt comes after."""
