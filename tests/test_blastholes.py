@@ -610,6 +610,23 @@ def test_a_bench_far_below_two_others_leaves_the_bench_height_theirs():
     assert typical_bench_height(np.array([0.0, 15.1, 30.3, 45.3])) == pytest.approx(15.1)  # regular: the median
 
 
+def test_the_models_bench_height_is_the_readers_beside_a_bench_not_drilled():
+    """The model's fields measured their own bench height as the median gap: 25 for levels 100, 90 and 50, where
+    the reader says 10; how far a boundary may move a bench and every trend's keys rest on it."""
+    from core.geometry.grid import Grid
+    from core.model.fields import BenchFields
+
+    shape = (1, 2)
+    fields = BenchFields(
+        Grid(0.0, 0.0, 1.0, shape),
+        np.array([100.0, 90.0, 50.0]),
+        np.zeros((3, *shape)),
+        np.ones((3, *shape)),
+        np.ones((3, *shape), bool),
+    )
+    assert fields.bench_height_m == pytest.approx(10.0)
+
+
 def test_a_sparse_bench_below_a_single_bench_is_read_as_a_bench_with_a_warning():
     """8 holes 40 m below a bench of 40, on its pattern, were refused as elevations "spread continuously ...
     with no gap between benches": too few for a bench of their own (10), and no bench height beside one bench.

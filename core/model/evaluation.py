@@ -37,7 +37,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from core.geometry.grid import Grid, as_multipolygon
 from core.geometry.sdf import signed_distance
 from core.io.atomic import atomic_path
-from core.io.blastholes import Blastholes
+from core.io.blastholes import Blastholes, typical_bench_height
 from core.model.implicit import fit_implicit_rbf
 
 #: The paper's prediction depths, as fractions of the bench height (1.25 m steps of a 10 m bench).
@@ -367,7 +367,7 @@ def evaluate_geozone(
     regions_by_bench = bench_regions(holes, geozone, contours)
     height = holes.bench_height_m
     if not np.isfinite(height):
-        height = float(np.median(-np.diff(levels))) if n > 1 else np.nan
+        height = typical_bench_height(levels)
     rows: list[dict] = []
     ks = list(range(1, n - 1))
     for done, k in enumerate(ks, start=1):

@@ -25,6 +25,7 @@ from shapely.geometry import MultiPolygon
 
 from core.geometry.grid import Grid
 from core.geometry.sdf import boundary_distance
+from core.io.blastholes import typical_bench_height
 
 #: Signed distances are capped at this many hole spacings: a boundary far away
 #: says nothing about how the one nearby moves, and a cell at the cap is not moved
@@ -128,7 +129,9 @@ class BenchFields:
 
     @property
     def bench_height_m(self) -> float:
-        """The median height between successive benches (metres, positive in either order; 1 with one bench).
+        """The height between successive benches as the reader measures it (metres, positive in either order;
+        1 with one bench): :func:`core.io.blastholes.typical_bench_height`, a gap of benches not drilled counting
+        as that many steps.
 
         A view of the first benches (:meth:`through`) keeps the height of all of them: the results kept in
         the memo are keyed by it, and on uneven benches (Kennecott's heights differ by up to 5%) each view's
@@ -136,7 +139,7 @@ class BenchFields:
         """
         if self.height_m is not None:
             return self.height_m
-        return float(np.median(np.abs(np.diff(self.z_m)))) if len(self.z_m) > 1 else 1.0
+        return typical_bench_height(self.z_m) if len(self.z_m) > 1 else 1.0
 
     @property
     def upwards(self) -> bool:
