@@ -916,7 +916,7 @@ def _run_build(holes, out, geozone, project, truth, workers=None, scheduler=None
 @reads_table
 def build(
     input: InputArg,
-    out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-out"),
+    out: Annotated[Path, typer.Option("--out", help="Folder for the results.")] = Path("bgm-out"),
     geozone: Annotated[
         list[str] | None,
         typer.Option("--geozone", help="Geozones to model (repeat, or separate with commas; default all)."),
@@ -946,7 +946,7 @@ def build(
 
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option("--out", help="Folder to write everything into.")] = Path("bgm-demo"),
+    out: Annotated[Path, typer.Option("--out", help="Folder for the results.")] = Path("bgm-demo"),
     view: Annotated[
         bool, typer.Option(help="Open the 3D viewer on the result (needs the viewer installed and a display).")
     ] = False,
