@@ -1278,6 +1278,59 @@ def test_a_partly_drilled_deepest_bench_does_not_stop_the_rest_of_a_moving_strip
     assert east_edge_in_the_north(partly) > from_above - 3.0
 
 
+def test_the_first_holes_do_not_hold_back_the_ground_beside_them_where_it_moved_as_they_did():
+    """Along a partly drilled bench's first holes, the older ground's boundary is carried as far as beside them.
+
+    A boundary moving 6 m a bench (the truth at 64 m on the new bench), whose south half the new bench's first
+    patterns drilled. The older ground's movement is fitted over three spacings, and the first holes' cells,
+    held where they were seen, counted there as ground that does not move: the north half's boundary lagged
+    along their edge (60.9-63.0 m from 2 to 12 m north of it; 64.3-66.5 with the fix). The first holes moved
+    from the bench above as the ground beside them, so their cells now move as it does in its fit.
+    """
+    from core.model.session import ModelSession
+
+    full = _bench_table([shapely.box(-10.0, -10.0, 40.0 + 6.0 * k, 200.0) for k in range(5)])
+    design_y = full.xy[:, 1] - _design_to_local(full)[1]
+    partly = full.subset((full.bench < 4) | (design_y < 100.0))  # the south half's first patterns
+    z_new = float(full.bench_levels_m[4])
+    shift = _design_to_local(partly)
+    region = ModelSession(partly).predict("a", [z_new])[z_new]
+
+    def east_edge(y_m: float) -> float:
+        band = shapely.box(-1e4, y_m + shift[1], 1e4, y_m + 1.0 + shift[1])
+        return region.intersection(band).bounds[2] - shift[0]
+
+    edges = [east_edge(y_m) for y_m in range(102, 113, 2)]  # from 2 to 12 m north of the first holes
+    assert min(edges) > 63.0 and max(edges) < 67.0  # the truth 64 m, the benches above alone 64.5 m
+
+
+def test_the_first_holes_keep_their_zero_where_they_did_not_move_as_the_ground_beside_them():
+    """Where the first holes' movement from the bench above disagrees with the older ground's, their zero stays.
+
+    Filling every first hole's cell with the older ground's movement cost pods and fold hinges, where movement
+    does not hold across the seam (see :meth:`core.model.trend.DepthTrend._seam_filled`).
+    """
+    from core.geometry.grid import Grid
+
+    grid = Grid(0.0, 0.0, 1.0, (120, 120))
+    rows, cols = np.indices(grid.shape, dtype=float)
+    f_last = 60.0 - cols  # inside to the west of x = 60 m
+    first_holes = rows < 60
+    z_last = np.where(first_holes, 100.0, 110.0)  # the bench above saw the north half last
+    carried = np.full(grid.shape, 6.0)
+
+    def north_edge_beside_the_seam(own_rate_m: float) -> int:
+        rate = np.where(first_holes, own_rate_m, 6.0)
+        trend = DepthTrend(
+            grid, 100.0, 10.0, f_last, z_last, rate, carried, 15.0, 1.0, f_last, np.ones(grid.shape, bool)
+        )
+        return int((trend.field(100.0)[61] > 0).sum())
+
+    assert north_edge_beside_the_seam(6.0) == 66  # moved as the ground beside them: carried the whole 6 m
+    assert north_edge_beside_the_seam(5.0) == 66  # within a spacing (5 m) of it
+    assert north_edge_beside_the_seam(-6.0) < 66  # receded: their zero is kept, as before
+
+
 @pytest.mark.parametrize("cancel_at", [1, 6])
 def test_a_cancelled_trend_leaves_no_bench_pair_movements_in_the_memo(cancel_at):
     """The viewer's cancel (a :class:`core.threads.Cancelled` from ``progress``) stops a trend mid-way.
