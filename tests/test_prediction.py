@@ -1278,18 +1278,11 @@ def test_a_partly_drilled_deepest_bench_does_not_stop_the_rest_of_a_moving_strip
     assert east_edge_in_the_north(partly) > from_above - 3.0
 
 
-def test_the_first_holes_do_not_hold_back_the_ground_beside_them_where_it_moved_as_they_did():
-    """Along a partly drilled bench's first holes, the older ground's boundary is carried as far as beside them.
-
-    A boundary moving 6 m a bench (the truth at 64 m on the new bench), whose south half the new bench's first
-    patterns drilled. The older ground's movement is fitted over three spacings, and the first holes' cells,
-    held where they were seen, counted there as ground that does not move: the north half's boundary lagged
-    along their edge (60.9-63.0 m from 2 to 12 m north of it; 64.3-66.5 with the fix). The first holes moved
-    from the bench above as the ground beside them, so their cells now move as it does in its fit.
-    """
+def _east_edge_beside_the_south_half(sections, extent=(200.0, 160.0)):
+    """The section predicted at the fifth bench's level with only its south half drilled: its east edge at y (m)."""
     from core.model.session import ModelSession
 
-    full = _bench_table([shapely.box(-10.0, -10.0, 40.0 + 6.0 * k, 200.0) for k in range(5)])
+    full = _bench_table(sections, extent=extent)
     design_y = full.xy[:, 1] - _design_to_local(full)[1]
     partly = full.subset((full.bench < 4) | (design_y < 100.0))  # the south half's first patterns
     z_new = float(full.bench_levels_m[4])
@@ -1300,6 +1293,19 @@ def test_the_first_holes_do_not_hold_back_the_ground_beside_them_where_it_moved_
         band = shapely.box(-1e4, y_m + shift[1], 1e4, y_m + 1.0 + shift[1])
         return region.intersection(band).bounds[2] - shift[0]
 
+    return east_edge
+
+
+def test_the_first_holes_do_not_hold_back_the_ground_beside_them_where_it_moved_as_they_did():
+    """Along a partly drilled bench's first holes, the older ground's boundary is carried as far as beside them.
+
+    A boundary moving 6 m a bench (the truth at 64 m on the new bench), whose south half the new bench's first
+    patterns drilled. The older ground's movement is fitted over three spacings, and the first holes' cells,
+    held where they were seen, counted there as ground that does not move: the north half's boundary lagged
+    along their edge (60.9-63.0 m from 2 to 12 m north of it; 64.3-66.5 with the fix). The first holes moved
+    from the bench above as the ground beside them, so their cells now move as it does in its fit.
+    """
+    east_edge = _east_edge_beside_the_south_half([shapely.box(-10.0, -10.0, 40.0 + 6.0 * k, 200.0) for k in range(5)])
     edges = [east_edge(y_m) for y_m in range(102, 113, 2)]  # from 2 to 12 m north of the first holes
     assert min(edges) > 63.0 and max(edges) < 67.0  # the truth 64 m, the benches above alone 64.5 m
 
@@ -1339,22 +1345,15 @@ def test_the_ground_beside_the_first_holes_moves_a_bench_where_its_boundary_move
     m north of them its east edge lay 4.0-7.1 m past the truth (the benches above alone: within 0.4 m). Fetched from
     the bench above's section at their cells, it lies within 1.5 m.
     """
-    from core.model.session import ModelSession
 
     def inside_of(c_m: float) -> shapely.Polygon:  # x + y < c_m
         return shapely.Polygon([(-1000.0, -1000.0), (c_m + 1000.0, -1000.0), (-1000.0, c_m + 1000.0)])
 
     c_m = [200.0 + 6.0 * np.sqrt(2.0) * k for k in range(5)]
-    full = _bench_table([inside_of(c) for c in c_m], extent=(200.0, 200.0))
-    design_y = full.xy[:, 1] - _design_to_local(full)[1]
-    partly = full.subset((full.bench < 4) | (design_y < 100.0))  # the south half's first patterns
-    z_new = float(full.bench_levels_m[4])
-    shift = _design_to_local(partly)
-    region = ModelSession(partly).predict("a", [z_new])[z_new]
+    east_edge = _east_edge_beside_the_south_half([inside_of(c) for c in c_m], extent=(200.0, 200.0))
 
     def east_edge_past_the_truth(y_m: float) -> float:
-        band = shapely.box(-1e4, y_m + shift[1], 1e4, y_m + 1.0 + shift[1])
-        return region.intersection(band).bounds[2] - shift[0] - (c_m[4] - y_m - 0.5)
+        return east_edge(y_m) - (c_m[4] - y_m - 0.5)
 
     past = [east_edge_past_the_truth(y_m) for y_m in range(102, 111, 2)]
     assert max(np.abs(past)) < 2.5
