@@ -206,7 +206,7 @@ def _older_evidence_carried_as_then(
     # Not only the bench above's cells: where it did not drill (benches that do not nest, a pushback), the rest
     # of the new bench was last seen further up and was held where that bench left it (folds, tuning seed 2, a
     # 15% strip drilled: 93.6 F1 on the held-back holes from the benches above alone, 86.4 with the first holes).
-    older_seen = np.abs(trend.z_last - fields.z_m[-1]) >= 1e-6 * bench_height_m
+    older_seen = ~trend.seen_by_deepest
     if not older_seen.any():
         return trend
     then = _trend(fields.through(float(fields.z_m[-2])), bench_height_m, hole_spacing_m)
@@ -588,8 +588,7 @@ def _evidence_prior(fields: BenchFields, bench_height_m: float, continuity: floa
     Their growth still carries on with the continuity (pods lost 0.3 / 0.6 F1
     points at half / one bench when it did not, held-out seeds).
     """
-    at_deepest = ((fields.distance[-1] > 0) & fields.drilled[-1]).any()
-    if continuity == 1.0 and not at_deepest and lens_sized(fields, bench_height_m):
+    if continuity == 1.0 and not _found_on_deepest(fields) and lens_sized(fields, bench_height_m):
         return LENS_PRIOR_SHARE
     return continuity
 

@@ -182,7 +182,7 @@ class DepthTrend:
         """
         if self.transport_smoothing_m <= 0 or abs(z_m - self.z_ref_m) > 1e-6 * self.bench_height_m:
             return None
-        older = ~self._seen_by_deepest
+        older = ~self.seen_by_deepest
         if not older.any() or older.all():
             return None
         nearest = tuple(ndimage.distance_transform_edt(~older, return_distances=False, return_indices=True))
@@ -239,7 +239,7 @@ class DepthTrend:
         return stale & (self.carried_precision**benches < STALE_EVIDENCE_PROBABILITY)
 
     @cached_property
-    def _seen_by_deepest(self) -> np.ndarray:
+    def seen_by_deepest(self) -> np.ndarray:
         """Cells the deepest bench saw last (its drilling): the first holes, where it is drilled over part of the pit."""
         return np.abs(self.z_last - self.z_ref_m) < 1e-6 * self.bench_height_m
 
@@ -260,7 +260,7 @@ class DepthTrend:
         """
         if self.f_above is None:
             return None
-        at_deepest = self._seen_by_deepest
+        at_deepest = self.seen_by_deepest
         along_m = self.transport_smoothing_m
         above = smoothed_section(self.f_above, self.grid.cell_size_m, self.section_smoothing_m, along_m)
         return np.where(at_deepest, above, self.f_last)
