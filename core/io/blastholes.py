@@ -1607,8 +1607,8 @@ def typical_bench_height(levels: np.ndarray) -> float:
 def _refuse_disagreeing_height(levels: np.ndarray, bench_height: float) -> None:
     """Refuse a given bench height other than the one between the collars' own levels (ascending ``levels``).
 
-    The measured height is the median distance between successive levels;
-    it agrees within :data:`BENCH_HEIGHT_TOLERANCE` of the given height.
+    The measured height is :func:`typical_bench_height` of the levels (a gap of
+    benches not drilled counting as that many steps); it agrees within :data:`BENCH_HEIGHT_TOLERANCE` of the given height.
     """
     measured = typical_bench_height(levels)
     if abs(measured - bench_height) <= BENCH_HEIGHT_TOLERANCE * bench_height:
