@@ -283,7 +283,8 @@ class TableOptions:
             length_unit=self.units,
         )
         guess = f" ({holes.unit_guess})" if holes.unit_guess else ""
-        _say(f"{holes.source}: {len(holes.xy)} holes, {len(holes.geozones)} geozones, {_benches(holes)}{guess}")
+        geozones = f"{len(holes.geozones)} geozone{'s' if len(holes.geozones) != 1 else ''}"
+        _say(f"{holes.source}: {len(holes.xy)} holes, {geozones}, {_benches(holes)}{guess}")
         return holes
 
 

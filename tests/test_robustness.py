@@ -401,7 +401,8 @@ def test_one_geozone_everywhere(table, tmp_path):
     path = tmp_path / "ore.csv"
     table.assign(geozone="ore").to_csv(path, index=False)
     out = tmp_path / "o.geojson"
-    succeeds(bgm("contours", path, "--out", out))
+    proc = succeeds(bgm("contours", path, "--out", out))
+    assert "holes, 1 geozone, 3 benches" in proc.stderr, proc.stderr  # not "1 geozones"
     feats = features(out)
     check_polygons(feats)
     assert {f["properties"]["geozone"] for f in feats} == {"ore"}
