@@ -1479,3 +1479,94 @@ def test_a_partly_drilled_deepest_bench_does_not_stop_what_older_benches_saw_las
     from_above = east_edge_in_the_north(above)
     assert from_above > 104.0  # carried on two benches past the 96 m where bench 2 left it (the truth: 112 m)
     assert east_edge_in_the_north(partly) > from_above - 3.0
+
+
+def _pushed_back_table(north_of_m: float, body_depth_m: float, benches=6, push_m=80.0, width_m=120.0, spacing=6.0):
+    """Each bench's pit ``push_m`` east of the one above (a pushback: ground no bench above drilled), 160 m N-S.
+
+    Geozone ``a`` is a band from ``north_of_m`` (moving 3 m north a bench) ``body_depth_m`` northwards, across
+    every bench from west to east: a body that goes on into each pushback.
+    """
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    frames = []
+    for k in range(benches):
+        rows = np.arange(0.0, 160.0, spacing * np.sqrt(3) / 2)
+        xs = np.arange(push_m * k, push_m * k + width_m, spacing)
+        xy = np.array([(x + (i % 2) * spacing / 2, y) for i, y in enumerate(rows) for x in xs])
+        south = north_of_m + 3.0 * k
+        inside = (xy[:, 1] >= south) & (xy[:, 1] <= south + body_depth_m)
+        label = np.where(inside, "a", "host")
+        frames.append(
+            pd.DataFrame({"x": xy[:, 0] + 650_000, "y": xy[:, 1] + 7_400_000, "z": 500.0 - 10 * k, "geozone": label})
+        )
+    return blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
+
+
+def _next_bench_in_new_ground(holes, known_benches):
+    """The model (of every bench) predicting the bench below the first ``known_benches`` as the evaluation does
+    (:func:`predictor_from_model`, with the known benches' holes), that of fields alone, and the next bench's
+    holes in ground no known bench drilled (local xy, labelled ``a``)."""
+    from core.model.pipeline import GeozoneModel
+
+    params = ModelParameters()
+    model = model_geozone(holes, "a", params=params)
+    deepest = float(holes.bench_levels_m[known_benches - 1])
+    z = float(holes.bench_levels_m[known_benches])
+    known = holes.subset(holes.bench < known_benches)
+    predicted = predictor_from_model(model, holes, params)(known, "a", [z])[z]
+    partial = GeozoneModel(
+        "a",
+        [c for c in model.contours if c.bench < known_benches],
+        [p for p in model.pairs if p.lower < known_benches],
+        model.minor,
+        fields=model.fields.through(deepest),
+    )
+    trend_only = predict_geozone(partial, [z], holes.hole_spacing_m)[z]
+    on = holes.on_bench(known_benches)
+    xy, label = holes.xy[on], holes.geozone[on] == "a"
+    new = xy[:, 0] > known.xy[:, 0].max() + 0.5 * holes.hole_spacing_m
+    return predicted, trend_only, xy[new], label[new]
+
+
+def _holes_f1(region, xy, label) -> float:
+    inside = shapely.contains_xy(region, xy[:, 0], xy[:, 1])
+    return 2 * np.sum(inside & label) / (np.sum(inside) + np.sum(label))
+
+
+def test_a_body_that_went_on_into_each_pushback_is_predicted_going_on_into_the_next():
+    # The band fills the pit's north half: each pushback, 80 m wide (past the reach of the benches' evidence,
+    # 10 spacings), found it going on throughout, as the implicit model had it from the benches above and the
+    # depth trend only as far as its evidence reached (Kennecott's 2310 from bench 3). The geozone's backtests
+    # choose the implicit model in the new ground: F1 0.85 on the next bench's new ground with the trend alone.
+    holes = _pushed_back_table(60.0, 200.0)
+    predicted, trend_only, xy, label = _next_bench_in_new_ground(holes, 5)
+    assert label.sum() > 150
+    assert _holes_f1(predicted, xy, label) > 0.93
+    assert _holes_f1(predicted, xy, label) > _holes_f1(trend_only, xy, label) + 0.05
+
+
+def test_where_the_pushbacks_found_the_depth_trend_better_its_section_is_kept():
+    # A band 60 m deep: the implicit model's section thinned past the drilling and the trend's did not, in
+    # every pushback's backtest; the prediction is the trend's, to the vertex.
+    holes = _pushed_back_table(60.0, 60.0)
+    predicted, trend_only, xy, label = _next_bench_in_new_ground(holes, 5)
+    assert label.sum() > 100
+    assert predicted.equals(trend_only)
+
+
+@pytest.mark.parametrize(
+    ("errors", "chosen"),
+    [
+        ([(4, 4, 0), (323, 309, 98)], True),  # Kennecott's 2310 from bench 3: 14 holes fewer wrong of 98, 1.4 sd
+        ([(166, 164, 174)], False),  # its 3026 from bench 2: 2 of 174, chance
+        ([(0, 0, 0)], False),  # no hole where the two disagreed
+        ([(3, 0, 3), (0, 3, 3)], False),  # pairs that cancel
+    ],
+)
+def test_the_implicit_model_is_chosen_in_new_ground_only_where_its_backtests_beat_chance(errors, chosen):
+    from core.model.new_ground import implicit_chosen
+
+    assert implicit_chosen(errors) is chosen

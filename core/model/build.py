@@ -195,7 +195,7 @@ def predictor_from_model(model: GeozoneModel, holes: Blastholes, params: ModelPa
             model.minor,
             fields=None if model.fields is None else model.fields.through(float(holes.bench_levels_m[k])),
         )
-        return predict_geozone(partial, list(z_targets_m), holes.hole_spacing_m, params)
+        return predict_geozone(partial, list(z_targets_m), holes.hole_spacing_m, params, holes=known)
 
     return predict
 

@@ -102,6 +102,18 @@ class ImplicitRBF:
         rr, cc = np.mgrid[0:rows, 0:cols] / step
         return ndimage.map_coordinates(values, [rr, cc], order=1, mode="nearest")
 
+    def at(self, xy: np.ndarray, z_m: float) -> np.ndarray:
+        """The implicit function at the points ``xy`` (``(n, 2)`` local metres) at elevation ``z_m`` (positive inside).
+
+        Evaluated at the points themselves, not on :meth:`field`'s coarse cells: a backtest on a bench's
+        holes asks for a few hundred points, not a grid.
+        """
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        if self.interpolator is None or not len(xy):
+            return np.full(len(xy), self.constant)
+        points = np.column_stack([xy, np.full(len(xy), z_m * self.z_scale)])
+        return self._at(points).reshape(-1)
+
     def _at(self, points: np.ndarray) -> np.ndarray:
         """The interpolant at ``points``; without a depth trend anywhere if some neighbourhood lies on one bench.
 

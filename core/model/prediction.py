@@ -24,8 +24,10 @@ from shapely.geometry import LinearRing, MultiPolygon, Polygon
 
 from core.geometry.grid import as_multipolygon
 from core.geometry.sdf import boundary_distance
+from core.io.blastholes import Blastholes
 from core.model.extrapolation import depth_trend, depth_trend_region
 from core.model.fields import BenchFields, memoised
+from core.model.new_ground import known_holes, with_implicit_in_new_ground
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.model.progress import Stages
 from core.morph.trajectories import normalised_arc_length
@@ -236,7 +238,12 @@ def _undrilled_bound(
 
 
 def predict_geozone(
-    model: GeozoneModel, z_m: list[float], hole_spacing_m: float, params=None, progress: Progress | None = None
+    model: GeozoneModel,
+    z_m: list[float],
+    hole_spacing_m: float,
+    params=None,
+    progress: Progress | None = None,
+    holes: Blastholes | None = None,
 ) -> dict[float, MultiPolygon]:
     """The geozone's region at each elevation (metres): at, between, below or above the benches.
 
@@ -249,7 +256,9 @@ def predict_geozone(
     over every bench, so a geozone that pinched out above the deepest bench is
     predicted absent below it. ``hole_spacing_m`` sets the trend's
     neighbourhoods (the transport's smoothing, the distance cap); ``params``
-    is unused (kept for callers).
+    is unused (kept for callers). With the table's ``holes`` (the known benches'), below the deepest bench the
+    ground no known bench drilled takes the implicit model's section where the geozone's own benches chose it
+    (:func:`core.model.new_ground.with_implicit_in_new_ground`); without them, the depth trend's throughout.
 
     ``progress(done, total)`` is told, as one series that never goes back
     (:class:`core.model.progress.Stages`), each step of the depth trend's
@@ -267,6 +276,8 @@ def predict_geozone(
     levels = fields.z_m
     height = fields.bench_height_m
     beyond: dict[bool, BenchFields] = {}  # the fields extrapolated down (True) or up, one view each
+    # The holes of the benches the fields know: the implicit model's, in new ground below the deepest bench.
+    known = None if holes is None else known_holes(holes, model.geozone).down_to(float(levels[-1]))
     # The depth trend's backtests (made at the first elevation off the benches), then the elevations: told as one
     # series that never goes back, not the elevations' 1 of 4 between the backtests' 5 of 6.
     stages = Stages(progress, 2)
@@ -280,6 +291,8 @@ def predict_geozone(
             if down not in beyond:
                 beyond[down] = fields if down else fields.reversed()
             out[z] = depth_trend_region(beyond[down], height, hole_spacing_m, z, trend_progress)
+            if down and known is not None:
+                out[z] = with_implicit_in_new_ground(out[z], fields, known, z, height, hole_spacing_m)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             region = MultiPolygon()

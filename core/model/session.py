@@ -485,7 +485,9 @@ class ModelSession:
         key = content_key("prediction", self._model_key(model), z_m, stage_values(self.params, "prediction"))
         spacing_m = self.holes.hole_spacing_m
         return self.store.get(
-            "prediction", key, lambda: predict_geozone(model, z_m, spacing_m, self.params, progress=stages.stage(1))
+            "prediction",
+            key,
+            lambda: predict_geozone(model, z_m, spacing_m, self.params, progress=stages.stage(1), holes=self.holes),
         )
 
     def surface(self, geozone: str, model: GeozoneModel | None = None, progress: Progress | None = None):
@@ -585,7 +587,7 @@ def surface_sections(
         sections.extend((float(upper + f * (lower - upper)), MultiPolygon()) for f in np.linspace(0.25, 1.0, 4))
     zs = [holes.below_deepest_m(f) for f in np.linspace(0.25, below_fraction, 4)]
     below = stages.stage(1)
-    sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params, progress=below).items())
+    sections.extend(predict_geozone(model, zs, holes.hole_spacing_m, params, progress=below, holes=holes).items())
     if below:
         below(1, 1)
     trended, progress = [], stages.stage(2)
