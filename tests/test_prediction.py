@@ -1570,3 +1570,17 @@ def test_the_implicit_model_is_chosen_in_new_ground_only_where_its_backtests_bea
     from core.model.new_ground import implicit_chosen
 
     assert implicit_chosen(errors) is chosen
+
+
+def test_the_implicit_model_in_new_ground_reaches_no_further_than_the_pushbacks_did():
+    # Each pushback drilled 78 m past the pit above it (its furthest hole from the drilled area); the grid reaches
+    # 24 m further (the holes' extent and its margin), where the implicit model is its degree-1 drift alone, 100 m
+    # and more from any hole of the known benches. Its section stops where the geozone's own pushbacks stopped.
+    from shapely.geometry import box
+
+    holes = _pushed_back_table(60.0, 200.0)
+    predicted, _, _, _ = _next_bench_in_new_ground(holes, 5)
+    drilled_east_m = holes.xy[holes.bench < 5][:, 0].max() + 0.75 * holes.hole_spacing_m
+    past_m = [shapely.intersection(predicted, box(drilled_east_m + d, -1e3, 1e3, 1e3)).area for d in (60.0, 80.0)]
+    assert past_m[0] > 1000.0  # it does go on into the new ground, past the benches' own evidence
+    assert past_m[1] < 20.0  # a sliver along the grid's edge at most (without the bound: 2,400 m2)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
+from scipy import ndimage
 from shapely.geometry import MultiPolygon
 
 from core.geometry.grid import as_multipolygon
@@ -104,6 +105,32 @@ def implicit_model(holes: KnownHoles) -> ImplicitRBF:
 def new_ground(fields: BenchFields) -> np.ndarray:
     """The cells of ``fields.grid`` that no known bench drilled."""
     return np.logical_not(np.any(fields.drilled, axis=0))
+
+
+def within_m(fields: BenchFields, reach_m: float) -> np.ndarray:
+    """The cells within ``reach_m`` of some known bench's drilling."""
+    drilled = np.any(fields.drilled, axis=0)
+    if not drilled.any():
+        return np.ones(fields.grid.shape, bool)
+    return ndimage.distance_transform_edt(~drilled) * fields.grid.cell_size_m <= reach_m
+
+
+def pushback_m(fields: BenchFields, holes: KnownHoles, j: int) -> float:
+    """How far past the drilling of the benches down to ``j`` bench ``j + 1`` drilled (metres, its furthest hole).
+
+    Kept in ``fields.memo``: it rests on the benches down to ``j + 1`` only.
+    """
+
+    def compute() -> float:
+        on = holes.where(holes.on_level(float(fields.z_m[j + 1])))
+        drilled = np.any(fields.drilled[: j + 1], axis=0)
+        if not len(on.xy) or not drilled.any():
+            return 0.0
+        off_m = ndimage.distance_transform_edt(~drilled) * fields.grid.cell_size_m
+        rc = fields.grid.nearest_cells(on.xy)
+        return float(off_m[rc[:, 0], rc[:, 1]].max())
+
+    return memoised(fields, ("pushback", j), compute)
 
 
 def pair_errors(
@@ -187,7 +214,14 @@ def with_implicit_in_new_ground(
         return as_multipolygon(region)
 
     def compute() -> MultiPolygon:
-        new = new_ground(fields)
+        # Only as far past the drilling as the geozone's pushbacks reached (or its benches' evidence does): beyond,
+        # the implicit model is its degree-1 drift alone, which drew Kennecott's 2310 up to 230 m from any hole,
+        # out to the grid's edge, where no bench had ever drilled so far out.
+        reach_m = max(
+            (fields.reach_spacings or 0.0) * hole_spacing_m,
+            *(pushback_m(fields, holes, j) for j in range(len(fields.z_m) - 1)),
+        )
+        new = new_ground(fields) & within_m(fields, reach_m)
         if not new.any():
             return as_multipolygon(region)
         # Evaluated in the new ground only (its coarse cells there, :meth:`ImplicitRBF.field`): over a whole
