@@ -39,6 +39,7 @@ from core.geometry.sdf import signed_distance
 from core.io.atomic import atomic_path
 from core.io.blastholes import Blastholes, typical_bench_height
 from core.model.implicit import fit_implicit_rbf
+from core.model.new_ground import implicit_model, known_holes
 
 #: The paper's prediction depths, as fractions of the bench height (1.25 m steps of a 10 m bench).
 DEFAULT_FRACTIONS: tuple[float, ...] = tuple(i / 8 for i in range(1, 9))
@@ -375,7 +376,7 @@ def evaluate_geozone(
         if targets:
             regions = {float(levels[j]): regions_by_bench[j] for j in range(k + 1)}
             z_targets = [z for _, _, z in targets]
-            methods = _predictors(holes, geozone, k, regions, z_targets, model_predictor, references, grid, height)
+            methods = _predictors(holes, geozone, k, regions, z_targets, model_predictor, references, grid)
             # Each prediction is scored by area and, on real data, on the holes: computed once.
             methods = {name: lru_cache(maxsize=None)(predict) for name, predict in methods.items()}
             observed = regions_by_bench[k + 1]
@@ -416,11 +417,9 @@ def _predictors(
     model_predictor: ModelPredictor | None,
     references: Sequence[str],
     grid: Grid,
-    height_m: float,
 ) -> dict[str, Callable[[float], MultiPolygon]]:
     """Each method's section at an elevation, knowing only benches ``0..k`` (``regions``, by elevation)."""
-    known_mask = holes.bench <= k
-    known = holes.subset(known_mask)
+    known = holes.subset(holes.bench <= k)
     methods: dict[str, Callable[[float], MultiPolygon]] = {}
     if model_predictor is not None:
         methods["model"] = partial(_lookup, model_predictor(known, geozone, list(z_targets)))
@@ -429,9 +428,9 @@ def _predictors(
     if "linear" in references:
         methods["linear"] = LinearSDF(regions, grid).region
     if "implicit" in references:
-        inside = (holes.geozone == geozone)[known_mask]
-        # The spacing it was tuned with, the nearest neighbour's: the engine's lowered it 2.0 / 3.2 F1 points.
-        model = fit_implicit_rbf(known.xy, known.z, inside, bench=known.bench, bench_height_m=height_m)
+        # The one the engine takes in new ground where a geozone's pushbacks chose it (core.model.new_ground), on
+        # the spacing it was tuned with, the nearest neighbour's: the engine's lowered it 2.0 / 3.2 F1 points.
+        model = implicit_model(known_holes(known, geozone))
         # Evaluated only where it is scored, the next bench's drilled area: it was a fifth of a Kennecott build.
         methods["implicit"] = partial(model.region, grid=grid, where=holes.drilled_area(k + 1))
     return methods

@@ -92,8 +92,8 @@ def with_true_linear(truth):
     """Score :data:`TRUE_LINEAR` beside the methods, from ``truth(geozone, z_m)``, in this process meanwhile."""
     predictors = evaluation._predictors
 
-    def also_true_linear(holes, geozone, k, regions, z_targets, model, references, grid, height_m):
-        methods = predictors(holes, geozone, k, regions, z_targets, model, references, grid, height_m)
+    def also_true_linear(holes, geozone, k, regions, z_targets, model, references, grid):
+        methods = predictors(holes, geozone, k, regions, z_targets, model, references, grid)
         last_two = sorted(regions)[:2]  # elevations fall with depth: the two deepest known
         methods[TRUE_LINEAR] = LinearSDF({z: truth(geozone, z) for z in last_two}, grid).region
         return methods
