@@ -1584,3 +1584,27 @@ def test_the_implicit_model_in_new_ground_reaches_no_further_than_the_pushbacks_
     past_m = [shapely.intersection(predicted, box(drilled_east_m + d, -1e3, 1e3, 1e3)).area for d in (60.0, 80.0)]
     assert past_m[0] > 1000.0  # it does go on into the new ground, past the benches' own evidence
     assert past_m[1] < 20.0  # a sliver along the grid's edge at most (without the bound: 2,400 m2)
+
+
+def test_a_partly_drilled_deepest_bench_takes_the_implicit_model_in_its_new_ground_as_below_it():
+    # The body went on into every pushback (as above). The new bench's first patterns are a strip along the pit's
+    # south wall, across its pushback, in the host; the rest of the pushback, 80 m east of the bench above's
+    # drilling, is undrilled. It is the deepest bench's own undrilled rest, which was the depth trend's alone
+    # (F1 0.85 there) where one bench below the deepest the geozone's pushbacks chose the implicit model.
+    from core.model.session import ModelSession, surface_sections
+
+    holes = _pushed_back_table(60.0, 200.0)
+    z_new = float(holes.bench_levels_m[5])
+    x, y = holes.xy[:, 0], holes.xy[:, 1]
+    first = (holes.bench == 5) & (y < y.min() + 20.0)  # the south wall's first patterns
+    partly = holes.subset((holes.bench < 5) | first)
+    rest = (holes.bench == 5) & ~first & (y > y.min() + 20.0 + holes.hole_spacing_m)
+    new = rest & (x > x[holes.bench < 5].max() + 0.5 * holes.hole_spacing_m)
+    xy, label = holes.xy[new], holes.geozone[new] == "a"
+    session = ModelSession(partly)
+    with_first = session.predict("a", [z_new])[z_new]
+    assert label.sum() > 150
+    assert _holes_f1(with_first, xy, label) > 0.93
+    # The surface's section at that level is the prediction's: what the viewer draws is what is exported.
+    section = dict(surface_sections(session.geozone_model("a"), partly, session.params))[z_new]
+    assert section.symmetric_difference(with_first).area < 1.0

@@ -204,7 +204,7 @@ def implicit_in_new_ground(
 def with_implicit_in_new_ground(
     region, fields: BenchFields, holes: KnownHoles, z_m: float, bench_height_m: float, hole_spacing_m: float
 ) -> MultiPolygon:
-    """``region`` (the model's section at ``z_m``, below the deepest bench) with the implicit model's in new ground.
+    """``region`` (the model's section at ``z_m``, at or below the deepest bench) with the implicit model's in new ground.
 
     Where the geozone's benches chose it (:func:`implicit_in_new_ground`): in the ground no known bench drilled
     (:func:`new_ground`) the implicit model's section of the known benches' holes, elsewhere ``region``.

@@ -27,7 +27,7 @@ from core.geometry.sdf import boundary_distance
 from core.io.blastholes import Blastholes
 from core.model.extrapolation import depth_trend, depth_trend_region
 from core.model.fields import BenchFields, memoised
-from core.model.new_ground import known_holes, with_implicit_in_new_ground
+from core.model.new_ground import KnownHoles, known_holes, with_implicit_in_new_ground
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.model.progress import Stages
 from core.morph.trajectories import normalised_arc_length
@@ -219,6 +219,24 @@ def with_undrilled_extension(region, model: GeozoneModel, z_m: float, hole_spaci
     return as_multipolygon(region.union(MultiPolygon(kept)))
 
 
+def with_undrilled_ground(
+    region, model: GeozoneModel, z_m: float, hole_spacing_m: float, known: KnownHoles | None
+) -> MultiPolygon:
+    """``region`` (a section at ``z_m``) completed where the benches at or below ``z_m`` did not drill.
+
+    :func:`with_undrilled_extension` there; at the deepest bench's level, with the known benches' ``known``
+    holes, the ground no bench drilled then takes the implicit model's section where the geozone's pushbacks
+    chose it, as below the deepest bench (:func:`core.model.new_ground.with_implicit_in_new_ground`). A bench
+    drilled over part of the pit (its first blast patterns) is the deepest: without this its undrilled rest was
+    the depth trend's alone, and lost what the implicit model gave one bench below the bench above.
+    """
+    region = with_undrilled_extension(region, model, z_m, hole_spacing_m)
+    fields = model.fields
+    if known is None or fields is None or bench_at(fields.z_m, z_m) != len(fields.z_m) - 1:
+        return region
+    return with_implicit_in_new_ground(region, fields, known, z_m, fields.bench_height_m, hole_spacing_m)
+
+
 def _undrilled_bound(
     fields: BenchFields, n_below: int, hole_spacing_m: float, beyond_drilling: bool = False
 ) -> np.ndarray | None:
@@ -285,7 +303,7 @@ def predict_geozone(
     for z in z_m:
         at = bench_at(levels, z)
         if at is not None:
-            out[z] = with_undrilled_extension(model.region_at_bench(at), model, z, hole_spacing_m)
+            out[z] = with_undrilled_ground(model.region_at_bench(at), model, z, hole_spacing_m, known)
         elif z < levels[-1] or z > levels[0]:
             down = bool(z < levels[-1])
             if down not in beyond:

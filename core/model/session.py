@@ -40,6 +40,7 @@ from core.io.blastholes import Blastholes
 from core.io.cache import MISSING, StageCache, content_key, engine_fingerprint
 from core.io.project import Project, check_override_components, overrides_for
 from core.model.fields import BenchFields
+from core.model.new_ground import known_holes
 from core.model.parameters import ModelParameters, stage_values
 from core.model.pipeline import (
     BenchPair,
@@ -51,7 +52,7 @@ from core.model.pipeline import (
     morph,
     morph_instance,
 )
-from core.model.prediction import predict_geozone, regions_between, with_undrilled_extension
+from core.model.prediction import predict_geozone, regions_between, with_undrilled_ground
 from core.model.progress import Stages
 from core.threads import Progress, on_threads
 
@@ -552,7 +553,9 @@ def surface_sections(
     bench where the predictions below the deepest bench carried it on. Where
     the geozone's pairs end above the deepest bench, the sections run on below
     the deepest as every other geozone's do, empty but for that trend: a body
-    absent from benches that drilled its ground closes above them.
+    absent from benches that drilled its ground closes above them. At the deepest
+    bench's level the ground no bench drilled is as :func:`predict_geozone` has it
+    there (:func:`core.model.prediction.with_undrilled_ground`).
 
     ``progress(done, total)`` is told as each bench pair's sections are made, then the
     steps of the sections below the deepest bench (:func:`predict_geozone`: each
@@ -591,8 +594,9 @@ def surface_sections(
     if below:
         below(1, 1)
     trended, progress = [], stages.stage(2)
+    known = known_holes(holes, model.geozone).down_to(float(levels[-1]))
     for z, r in sections:
-        trended.append((z, with_undrilled_extension(r, model, z, holes.hole_spacing_m)))
+        trended.append((z, with_undrilled_ground(r, model, z, holes.hole_spacing_m, known)))
         if progress:
             progress(len(trended), len(sections))
     return trended
