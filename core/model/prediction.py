@@ -274,8 +274,8 @@ def predict_geozone(
     over every bench, so a geozone that pinched out above the deepest bench is
     predicted absent below it. ``hole_spacing_m`` sets the trend's
     neighbourhoods (the transport's smoothing, the distance cap); ``params``
-    is unused (kept for callers). With the table's ``holes`` (the known benches'), below the deepest bench the
-    ground no known bench drilled takes the implicit model's section where the geozone's own benches chose it
+    is unused (kept for callers). With the table's ``holes`` (the known benches'), at and below the deepest bench
+    the ground no known bench drilled takes the implicit model's section where the geozone's own benches chose it
     (:func:`core.model.new_ground.with_implicit_in_new_ground`); without them, the depth trend's throughout.
 
     ``progress(done, total)`` is told, as one series that never goes back
