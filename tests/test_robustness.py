@@ -9,10 +9,13 @@ Click error) or exit 3 (``bgm: internal error``).
 from __future__ import annotations
 
 import codecs
+import gzip
+import io
 import json
 import subprocess
 import sys
 import warnings
+import zipfile
 from pathlib import Path
 
 import clirun
@@ -170,6 +173,33 @@ def _write_bytes(data: bytes):
     return make
 
 
+#: A table's text large enough that its compressed stream spans many deflate blocks.
+_TABLE_TEXT = "".join(
+    f"{650000 + 5.3 * i:.2f},{7400000 + 3.1 * (i % 97):.2f},{685 - 10 * (i % 3)},g{i % 4}\n" for i in range(4000)
+)
+_TABLE_TEXT = ("x,y,z,geozone\n" + _TABLE_TEXT).encode()
+
+
+def _zipped(flag_bits: int = 0) -> bytes:
+    """The table in a zip archive, its member marked encrypted when ``flag_bits`` has bit 0."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("holes.csv", _TABLE_TEXT)
+    data = bytearray(buf.getvalue())
+    data[6] |= flag_bits  # the local header's flags, then the central directory's
+    data[data.find(b"PK\x01\x02") + 8] |= flag_bits
+    return bytes(data)
+
+
+def _damaged(data: bytes, at: float = 0.5) -> bytes:
+    """``data`` with 40 bytes inverted ``at`` its length: a disk or transfer error inside the stream."""
+    out = bytearray(data)
+    start = int(len(out) * at)
+    for i in range(start, start + 40):
+        out[i] ^= 0xFF
+    return bytes(out)
+
+
 BAD_FILES = {
     "missing file": (lambda p: p.parent / "nope.csv", ("does not exist",)),
     "empty file": (_write_bytes(b""), ("is empty",)),
@@ -181,6 +211,20 @@ BAD_FILES = {
         ("as Parquet",),
     ),
     "binary junk": (_write_bytes(bytes(range(256)) * 8), ("cannot read",)),
+    # Archives as a download or a copy that did not finish, or a disk error, leaves them.
+    "zip cut short": (
+        lambda p: _write_bytes(_zipped()[:300])(p.with_suffix(".zip")),
+        ("zip archive is damaged or incomplete",),
+    ),
+    "zip damaged inside": (
+        lambda p: _write_bytes(_damaged(_zipped(), 0.3))(p.with_suffix(".zip")),
+        ("compressed data is damaged",),
+    ),
+    "gzip damaged inside": (
+        lambda p: _write_bytes(_damaged(gzip.compress(_TABLE_TEXT), 0.3))(p.with_suffix(".csv.gz")),
+        ("compressed data is damaged",),
+    ),
+    "zip encrypted": (lambda p: _write_bytes(_zipped(0x1))(p.with_suffix(".zip")), ("encrypted",)),
     "UTF-16 text": (
         lambda p: (p.write_text("x,y,z,geozone\n1,2,3,a\n4,5,6,b\n", encoding="utf-16"), p)[1],
         ("not UTF-8",),
