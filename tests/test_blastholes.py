@@ -571,6 +571,24 @@ def test_columns_named_with_their_unit_are_found(tmp_path, names):
     assert holes.n_benches == 3 and holes.geozones == ["2210", "3310"]
 
 
+@pytest.mark.parametrize("name", ["hole_id", "Hole ID", "HOLE-ID", "HoleID", "BHID", "Hole Name"])
+def test_hole_identifiers_are_found_however_the_column_is_written(tmp_path, name):
+    """``Hole ID`` (Vulcan, Excel), ``BHID`` (Datamine): the holes keep their names, not row numbers.
+
+    Missed, every hole named in a message or a file (``isolated_hole_ids``, a
+    planned pattern's ``pattern_hole``) was a row number a geologist could take for an identifier.
+    """
+    from core.io.uncertainty_export import read_pattern
+
+    table = small_table()
+    ids = [f"P{i:04d}" for i in range(len(table))]
+    holes = read_blastholes(write(tmp_path, table.assign(**{name: ids})))
+    assert holes.hole_id is not None and list(holes.hole_id) == ids
+    pattern = table[table.RL < 85][["EAST", "NORTH"]].assign(**{name: ids[: int((table.RL < 85).sum())]})
+    _, labels, _ = read_pattern(write(tmp_path, pattern, "pattern.csv"), holes)
+    assert labels == list(pattern[name])
+
+
 def test_decimal_commas_with_dots_grouping_thousands(tmp_path):
     """European spreadsheets write mine-grid coordinates ``7.400.517,77``: read as 7400517.77, not refused."""
     table = small_table()

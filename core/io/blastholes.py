@@ -106,8 +106,11 @@ MAX_OWN_LABEL_SHARE = 0.5
 MIN_HOLES_FOR_ID_CHECK = 20
 #: Geozone labels (any case) that spell a missing value in common exports (R, SQL, Excel, no-data codes).
 MISSING_LABELS = frozenset({"na", "n/a", "#n/a", "nan", "null", "none", "-99", "-999", "-9999"})
-#: Column names (any case) taken as the hole identifier.
-HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id")
+#: Column names taken as the hole identifier, compared by :func:`is_hole_id_column` (any case, spaces,
+#: underscores, hyphens and dots ignored): ``Hole ID``, ``HOLE_ID``, ``hole-id``, Datamine's ``BHID``.
+HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id", "bhid", "holename", "holeno", "holenumber", "blastholeid")
+#: What :func:`is_hole_id_column` leaves out of a name before comparing it.
+_NAME_SEPARATORS = re.compile(r"[\s_.\-]+")
 #: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
 NUMBER_LABEL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,3})?")
 #: A label whose integer part has leading zeros (``010``, ``-007.5``): a code, not a number.
@@ -407,6 +410,17 @@ def column_key(name: str) -> str:
     return UNIT_SUFFIX.sub("", str(name).strip()).lower()
 
 
+def is_hole_id_column(name: str) -> bool:
+    """Whether a column named ``name`` holds the hole identifiers (:data:`HOLE_ID_NAMES`).
+
+    Mine software writes the name many ways (``Hole ID``, ``HOLE_ID``, ``HoleID``,
+    ``BHID``): compared with the separators left out, so that none of them is
+    missed and the holes named by row number instead, with nothing saying so.
+    """
+    key = _NAME_SEPARATORS.sub("", str(name).strip().lower())
+    return key in {_NAME_SEPARATORS.sub("", n) for n in HOLE_ID_NAMES}
+
+
 def table_columns(columns: list[str], x=None, y=None, z=None, geozone=None) -> dict[str, str]:
     """Column of each role (x, y, z, geozone and, when present, hole_id)."""
     columns = [str(c) for c in columns]
@@ -418,7 +432,7 @@ def table_columns(columns: list[str], x=None, y=None, z=None, geozone=None) -> d
     }
     if len(set(cols.values())) < 4:
         raise BGMInputError(f"one column is used for two roles: {cols}")
-    hole = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES and c not in cols.values()), None)
+    hole = next((c for c in columns if is_hole_id_column(c) and c not in cols.values()), None)
     if hole is not None:
         cols["hole_id"] = hole
     return cols
