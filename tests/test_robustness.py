@@ -694,6 +694,35 @@ def test_interrupted_geojson_write_keeps_the_previous_file(base_csv, tmp_path, m
     assert sorted(p.name for p in tmp_path.iterdir()) == ["contours.geojson"]
 
 
+@pytest.mark.parametrize("command", ["contours", "build"])
+def test_a_full_disk_is_said_in_one_line_and_leaves_the_previous_output(base_csv, tmp_path, monkeypatch, command):
+    """A disk that fills up while BGM writes (or a quota, a share gone read-only) is the user's to fix.
+
+    It was ``bgm: internal error: OSError: [Errno 28] No space left on device`` (exit 3, as a bug).
+    Now one line names the file and the reason (exit 2), and the previous output is as it was.
+    """
+    import errno
+    import os
+
+    out = tmp_path / ("contours.geojson" if command == "contours" else "model")
+    if command == "contours":
+        out.write_text("previous result\n")
+
+    def disk_full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # where a full disk shows on NFS and some others
+
+    monkeypatch.setattr(os, "fsync", disk_full)
+    args = ("--workers", "1") if command == "build" else ()
+    line = fails_cleanly(bgm(command, base_csv, "--out", out, *args), "cannot write", "no space left on device")
+    monkeypatch.undo()
+    if command == "contours":
+        assert str(out) in line and out.read_text() == "previous result\n"
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["contours.geojson"]
+    else:  # named where it was going, not in BGM's staging folder, and nothing left behind
+        assert f"{out / 'contours.geojson'}" in line and "nothing was written" in line
+        assert list(tmp_path.iterdir()) == []
+
+
 def test_interrupt_during_json_dump_keeps_the_previous_file(base_csv, tmp_path, monkeypatch):
     """Same through ``correspond`` (atomic_write_text), interrupting while the JSON is encoded."""
     from typer.testing import CliRunner
