@@ -589,6 +589,33 @@ def test_hole_identifiers_are_found_however_the_column_is_written(tmp_path, name
     assert labels == list(pattern[name])
 
 
+def _feet_table_of_20_ft_benches(names) -> pd.DataFrame:
+    """Holes 18 ft apart on benches 20 ft high: by the bench height alone, metres (5-20 m benches)."""
+    table = small_table(benches=(5000.0, 4980.0, 4960.0)).assign(EAST=lambda t: t.EAST * 3, NORTH=lambda t: t.NORTH * 3)
+    return table.rename(columns=dict(zip(["EAST", "NORTH", "RL"], names)))
+
+
+@pytest.mark.parametrize("names", [("Easting (ft)", "Northing (ft)", "RL (ft)"), ("X_FT", "Y_FT", "Z_FT")])
+def test_a_unit_the_columns_are_named_in_is_the_tables_unit(tmp_path, names):
+    """``Easting (ft)``: the table says it is in feet, and is read in feet, whatever its bench height.
+
+    Read as metres, its areas (``area_m2``), volumes and files were labelled metres, 3.28 times off.
+    """
+    path = write(tmp_path, _feet_table_of_20_ft_benches(names))
+    holes = read_blastholes(path)
+    assert holes.frame.length_unit == "ft" and not holes.unit_guess
+    assert holes.bench_height_m == pytest.approx(20 * 0.3048, rel=0.02)
+    # --units overrides the names, with a word that they say otherwise.
+    with pytest.warns(BGMWarning, match="named .* in ft: read in m as given"):
+        assert read_blastholes(path, length_unit="m").frame.length_unit == "m"
+
+
+def test_columns_named_in_different_units_are_refused(tmp_path):
+    path = write(tmp_path, _feet_table_of_20_ft_benches(("X (ft)", "Y (ft)", "RL (m)")))
+    with pytest.raises(BGMInputError, match=r"named in different length units .*'RL \(m\)' in m"):
+        read_blastholes(path)
+
+
 def test_decimal_commas_with_dots_grouping_thousands(tmp_path):
     """European spreadsheets write mine-grid coordinates ``7.400.517,77``: read as 7400517.77, not refused."""
     table = small_table()

@@ -602,9 +602,10 @@ def blastholes_from_table(
     where = f"lie more than {FAR_HOLE_SPACINGS:g} hole spacings from every other hole of their bench"
     _left_out(notes, far, lines, where, "x, y missing or mistyped")
 
+    named = unit_in_names(cols, length_unit, notes)
     unit = _guess_unit(
         height_in,
-        length_unit,
+        length_unit or named,
         lambda: median_hole_spacing(xy_in[~off], bench[~off]),
     )
     keep = ~off & ~far
@@ -613,8 +614,46 @@ def blastholes_from_table(
     holes.lost_geozones = _lost_geozones(labels, labels[keep], holes.geozone)
     _measure_spacing(holes, source)
     _check_spacing(holes, given=bool(length_unit))
-    holes.unit_guess = _unit_guess_note(unit, length_unit, height_in)
+    holes.unit_guess = _unit_guess_note(unit, length_unit or named, height_in)
     return holes
+
+
+def unit_in_names(cols: dict[str, str], length_unit: str | None = None, notes: list[str] | None = None) -> str | None:
+    """The length unit the x, y and z columns' names state (``Easting (ft)``, ``RL_ft``), None where none does.
+
+    A table whose columns say feet is in feet, whatever its bench height: 20 ft benches
+    with holes 18 ft apart read as metres by the bench height alone (:func:`_guess_unit`),
+    and every area, volume and file came out labelled metres. ``length_unit`` (``--units``)
+    given overrides the names, with a warning (in ``notes``) where they say otherwise.
+
+    Raises
+    ------
+    BGMInputError
+        The names state different units (``X (m)`` and ``RL (ft)``) and no ``--units`` is given.
+    """
+    said = {}
+    for role in ("x", "y", "z"):
+        found = UNIT_SUFFIX.search(str(cols[role]).strip())
+        if found:
+            letters = re.sub(r"[^a-z]", "", found.group(0).lower())
+            said[role] = "ft" if letters in ("ft", "feet") else "m"
+    units = set(said.values())
+    named = ", ".join(f"{quoted(cols[r])} in {u}" for r, u in said.items())
+    if length_unit:
+        if units - {unit_name(length_unit)}:
+            _note(
+                notes if notes is not None else [],
+                f"--units {length_unit} given, but the columns are named {named}: "
+                f"read in {unit_name(length_unit)} as given",
+                stacklevel=4,
+            )
+        return None
+    if len(units) > 1:
+        raise BGMInputError(
+            f"the columns are named in different length units ({named}); x, y and z must be in one unit: "
+            "convert them, or give --units if the names are wrong"
+        )
+    return units.pop() if units else None
 
 
 def _table_coordinates(
