@@ -616,6 +616,20 @@ def test_columns_named_in_different_units_are_refused(tmp_path):
         read_blastholes(path)
 
 
+@pytest.mark.parametrize("given", [None, "EAST"])
+def test_two_columns_of_one_name_are_refused_not_the_first_read(tmp_path, given):
+    """A collar's and a toe's ``EAST`` joined into one export: the first was read without a word.
+
+    The message said to choose one with ``--x``, which names both; it says to rename them now.
+    """
+    table = small_table()
+    text = table.assign(TOE=table.EAST + 3.0).to_csv(index=False).replace("TOE", "EAST", 1)
+    path = tmp_path / "twice.csv"
+    path.write_text(text)
+    with pytest.raises(BGMInputError, match=r"2 columns named 'EAST' \(columns 1, 5\).*rename"):
+        read_blastholes(path, x=given)
+
+
 def test_decimal_commas_with_dots_grouping_thousands(tmp_path):
     """European spreadsheets write mine-grid coordinates ``7.400.517,77``: read as 7400517.77, not refused."""
     table = small_table()

@@ -390,6 +390,7 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
             raise BGMInputError(
                 f"column {quoted(explicit)} given for {role} is not in the table; columns are: {listing(columns)}"
             )
+        _refuse_one_name_twice(columns, matches[0], role)
         return matches[0]
     aliases = COLUMN_ALIASES[role]
     matches = [c for c in columns if column_key(c) in aliases]
@@ -398,11 +399,31 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
             f"no {role} column: looked for {', '.join(aliases)} (any case); columns are: "
             f"{listing(columns)}; name it with {COLUMN_OPTIONS[role]} COLUMN"
         )
+    _refuse_one_name_twice(columns, matches[0], role)
     if len(matches) > 1:
         raise BGMInputError(
             f"ambiguous {role} column: {listing(map(repr, matches))} could all be {role}; choose one with {COLUMN_OPTIONS[role]} COLUMN"
         )
     return matches[0]
+
+
+def _refuse_one_name_twice(columns: list[str], name: str, role: str) -> None:
+    """Refuse a table with two columns of the name ``role`` is read from (a collar's and a toe's ``X``).
+
+    No option can choose between them (``--x X`` names both), and the first was read without
+    a word: the message says to rename one, not to name it with an option.
+
+    Raises
+    ------
+    BGMInputError
+        ``name`` heads more than one column.
+    """
+    at = [i + 1 for i, c in enumerate(columns) if c == name]
+    if len(at) > 1:
+        raise BGMInputError(
+            f"the table has {len(at)} columns named {quoted(name)} (columns {listing(map(str, at))}), "
+            f"which could all be {role}: rename them so that one is {role}"
+        )
 
 
 def column_key(name: str) -> str:
