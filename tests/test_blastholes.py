@@ -630,6 +630,21 @@ def test_two_columns_of_one_name_are_refused_not_the_first_read(tmp_path, given)
         read_blastholes(path, x=given)
 
 
+def test_mine_grid_coordinates_stored_as_32_bit_floats_are_warned_about(tmp_path):
+    """A Parquet file of float32 northings near 7,400,000 holds them in 0.5-unit steps: said, not read silently.
+
+    Local coordinates in float32 (steps of a thousandth of a unit) are read without a word.
+    """
+    table = small_table().assign(NORTH=lambda t: (t.NORTH + 7_400_000.0).astype("float32"))
+    table.to_parquet(tmp_path / "grid.parquet")
+    with pytest.warns(BGMWarning, match=r"'NORTH' \(y\) is stored as 32-bit floats.*steps of 0\.5 units"):
+        read_blastholes(tmp_path / "grid.parquet")
+    small_table().astype({"EAST": "float32", "NORTH": "float32"}).to_parquet(tmp_path / "local.parquet")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BGMWarning)
+        read_blastholes(tmp_path / "local.parquet")
+
+
 def test_decimal_commas_with_dots_grouping_thousands(tmp_path):
     """European spreadsheets write mine-grid coordinates ``7.400.517,77``: read as 7400517.77, not refused."""
     table = small_table()

@@ -603,6 +603,7 @@ def blastholes_from_table(
     table, cols, coords = _table_coordinates(table, x, y, z, geozone, lines, source)
     notes: list[str] = []
     _warn_depth_column(cols["z"], notes)
+    _warn_single_precision(table, cols, notes)
     labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], lines, notes)
     hole_id = table[cols["hole_id"]].astype(str).to_numpy(dtype=object) if "hole_id" in cols else None
 
@@ -899,6 +900,35 @@ def _note(notes: list[str], msg: str, stacklevel: int) -> None:
     """A repair or doubt about the input: kept in the holes' ``notes`` and warned about."""
     notes.append(msg)
     warnings.warn(msg, BGMWarning, stacklevel=stacklevel)
+
+
+#: A coordinate stored with a coarser step than this (input units) at its largest value is warned about:
+#: finer steps are within a collar survey's own error (a few centimetres), coarser ones move holes visibly.
+COORDINATE_STEP_MAX = 0.1
+
+
+def _warn_single_precision(table: pd.DataFrame, cols: dict[str, str], notes: list[str]) -> None:
+    """Warn of x, y or z stored as 32-bit floats (a Parquet ``float``) too coarse at their magnitude.
+
+    A float32 holds 24 bits: mine-grid northings near 7,445,000 are then stored in steps
+    of 0.5 units, every hole moved by up to a quarter of a unit before BGM reads it (the
+    demo's top benches read a hole spacing of 5.51 m, not 5.46 m), with nothing saying so. Nothing can be
+    recovered from the file: the warning says to write it as 64-bit floats.
+    """
+    for role in ("x", "y", "z"):
+        column = table[cols[role]]
+        if not (pd.api.types.is_float_dtype(column) and column.dtype.itemsize < 8 and len(column)):
+            continue
+        largest = float(np.nanmax(np.abs(column.to_numpy(dtype=float))))
+        step = float(np.spacing(column.dtype.type(largest)))
+        if step > COORDINATE_STEP_MAX:
+            _note(
+                notes,
+                f"column {quoted(cols[role])} ({role}) is stored as {8 * column.dtype.itemsize}-bit floats, which "
+                f"near {largest:,.0f} hold positions only in steps of {step:g} units: write it as 64-bit floats "
+                "(double) for holes where they were drilled",
+                stacklevel=4,
+            )
 
 
 def _warn_depth_column(column: str, notes: list[str]) -> None:
