@@ -570,6 +570,10 @@ def _model(input, geozone, project, stages, table: TableOptions, command: str, n
     start = time.perf_counter()
     with progress_bar(f"{stages[-1]} {geozone[:40]}", "bench pairs") as update:
         model = session.geozone_model(geozone, stages=stages, progress=update)
+    if not model.pairs:  # else "pairs": 0 alone, and the user left to guess why
+        from core.model.build import no_pair_note
+
+        _say(f"bgm: note: geozone {geozone} is {no_pair_note(holes, geozone, session.params.min_component_holes)}")
     return session, geozone, model, time.perf_counter() - start
 
 

@@ -344,6 +344,18 @@ def test_unknown_geozone_for_correspond_and_morph(base_csv, tmp_path):
         fails_cleanly(bgm(command, base_csv, "--geozone", "3310", "--out", tmp_path / "o.json"), "'3310'", "present")
 
 
+@pytest.mark.parametrize("command", ["correspond", "morph"])
+def test_a_geozone_with_no_bench_pair_says_why(table, tmp_path, command):
+    """A geozone of one hole (a lone assay of its own label): ``"pairs": 0`` came with no word of why."""
+    t = table.astype({"geozone": object}).copy()
+    t.loc[t.index[0], "geozone"] = "lonely"
+    path = tmp_path / "lonely.csv"
+    t.to_csv(path, index=False)
+    proc = succeeds(bgm(command, path, "--geozone", "lonely", "--out", tmp_path / "o.json"))
+    assert json.loads(proc.stdout)["pairs"] == 0
+    assert "bgm: note: geozone lonely is on one bench, never in a component of 3 or more holes" in proc.stderr
+
+
 ONE_GEOZONE = {
     "correspond": ("--out", "o.json"),
     "morph": ("--out", "o.json"),
