@@ -449,7 +449,9 @@ def _outputs(out: Path, input: Path, *others, folder: bool = False, what: str = 
     from core.io.atomic import check_output
     from core.model.build import truth_sidecar
 
-    sidecar = None if str(input) == "-" else truth_sidecar(Path(input))
+    # An input with no file name ("/", ".", or an empty argument, which typer reads as ".") is a folder, said
+    # so by the reader; it has no sidecar beside it (pathlib refuses to name one: an internal error).
+    sidecar = None if str(input) == "-" or not Path(input).name else truth_sidecar(Path(input))
     check_output(out, [input, sidecar, *others], folder=folder, what=what)
 
 

@@ -344,6 +344,17 @@ def test_unknown_geozone_for_correspond_and_morph(base_csv, tmp_path):
         fails_cleanly(bgm(command, base_csv, "--geozone", "3310", "--out", tmp_path / "o.json"), "'3310'", "present")
 
 
+@pytest.mark.parametrize("given", ["", ".", "/"])
+@pytest.mark.parametrize("command", ["contours", "build", "predict"])
+def test_an_input_with_no_file_name_is_said_to_be_a_folder(tmp_path, command, given):
+    """``bgm build "$TABLE"`` with the variable unset, or a folder: was ``internal error: ValueError: PosixPath('.')
+    has an empty name`` (exit 3)."""
+    more = {"predict": ("--geozone", "g1", "--elevations", "600")}.get(command, ())
+    out = tmp_path / ("o" if command == "build" else "o.geojson")
+    fails_cleanly(bgm(command, given, "--out", out, *more), "is a directory, not a CSV or Parquet file")
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("command", ["correspond", "morph"])
 def test_a_geozone_with_no_bench_pair_says_why(table, tmp_path, command):
     """A geozone of one hole (a lone assay of its own label): ``"pairs": 0`` came with no word of why."""
