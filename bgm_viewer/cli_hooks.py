@@ -21,6 +21,7 @@ input or project; the CLI reports them in one line.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -114,20 +115,45 @@ def view(
         if input is None:
             raise BGMInputError("--x, --y, --z, --geozone-column, --bench-height and --units need an input table")
         source = table.read(input)  # columns, bench height or units named on the command line
-    code = view_command(
-        source,
-        project,
-        screenshot,
-        layers,
-        camera,
-        geozone=selected,
-        bench=bench,
-        vertical_exaggeration=exaggeration,
-        cache=not no_cache,
-    )
+    with screenshot_progress() if screenshot else contextlib.nullcontext() as progress:
+        code = view_command(
+            source,
+            project,
+            screenshot,
+            layers,
+            camera,
+            geozone=selected,
+            bench=bench,
+            vertical_exaggeration=exaggeration,
+            cache=not no_cache,
+            progress=progress,
+        )
     if screenshot:
         typer.echo(f"wrote {screenshot}", err=True)
     raise typer.Exit(code or 0)
+
+
+@contextlib.contextmanager
+def screenshot_progress():
+    """``progress(message, fraction)`` for a screenshot's run, said as every command says its steps.
+
+    A screenshot of the surfaces runs the whole pipeline (16 s on the demo, minutes on a
+    large table) and said nothing until ``wrote``: in batch it looked hung. Its steps go
+    through :func:`core.cli.progress_bar` (a bar on a terminal, a line a step otherwise) in
+    percent of the run, which never goes back (the viewer's fractions order the selected
+    items first, not always rising).
+    """
+    from core.cli import progress_bar
+
+    with progress_bar("screenshot", "percent") as update:
+        furthest = [0]
+
+        def progress(message: str, fraction: float) -> None:
+            # 100 is the run's end alone ("done"): its last surface, at 100 too, said the same twice.
+            furthest[0] = max(furthest[0], min(100 if message == "done" else 99, round(100 * fraction)))
+            update(furthest[0], 100, message)
+
+        yield progress
 
 
 def view_command(
@@ -141,8 +167,11 @@ def view_command(
     bench: int | None = None,
     vertical_exaggeration: float | None = None,
     cache: bool = True,
+    progress=None,
 ) -> int:
     """Render ``screenshot`` off-screen (no Qt, no display) and return 0, or open the window and return its exit code.
+
+    ``progress(message, fraction)`` is told the screenshot's steps (:func:`screenshot_progress`).
 
     Errors in the options, input or project are :class:`core.errors.BGMInputError`, for the CLI to report.
     """
@@ -177,6 +206,7 @@ def view_command(
             bench=bench,
             vertical_exaggeration=vertical_exaggeration,
             cache=cache,
+            progress=progress,
         )
         return 0
     if geozone is not None or bench is not None:

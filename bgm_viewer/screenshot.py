@@ -72,12 +72,15 @@ def scene_image(
         plotter.close()
 
 
-def model_scene(model: ViewerModel, layers=None, *, run: bool = True) -> Scene:
-    """Run what the requested layers need and build their scene."""
+def model_scene(model: ViewerModel, layers=None, *, run: bool = True, progress=None) -> Scene:
+    """Run what the requested layers need and build their scene.
+
+    ``progress(message, fraction)`` is told each step of the run (:func:`bgm_viewer.model.compute`'s).
+    """
     names = parse_layers(layers)
     if run and names:
         until = STEPS[max(STEPS.index(_NEEDS[n]) for n in names)]
-        model.run(until=until)
+        model.run(until=until, progress=progress)
     return build_scene(
         model.holes, model.result, model.selection, visible=names, vertical_exaggeration=model.vertical_exaggeration
     )
@@ -98,6 +101,7 @@ def render_screenshot(
     legend: bool = True,
     model: ViewerModel | None = None,
     cache: bool = True,
+    progress=None,
 ) -> Path:
     """Render the viewer scene of ``holes_or_path`` to ``out_png``; returns the path.
 
@@ -116,6 +120,9 @@ def render_screenshot(
     vertical_exaggeration : float, optional
     cache : bool
         Reuse (and keep) stage results on disk (see :mod:`core.io.cache`).
+    progress : callable, optional
+        ``progress(message, fraction)``, told each step of the pipeline run for the layers (the
+        surfaces of every geozone take a minute on a large table; see :func:`model_scene`).
     """
     if model is None:
         model = ViewerModel(holes_or_path, cache=cache)
@@ -125,7 +132,7 @@ def render_screenshot(
             model.select(geozone, bench, component)
         if vertical_exaggeration:
             model.vertical_exaggeration = float(vertical_exaggeration)
-        scene = model_scene(model, layers)
+        scene = model_scene(model, layers, progress=progress)
     else:
         scene = build_scene(
             model.holes,

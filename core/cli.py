@@ -449,7 +449,9 @@ def _outputs(out: Path, input: Path, *others, folder: bool = False, what: str = 
     from core.io.atomic import check_output
     from core.model.build import truth_sidecar
 
-    sidecar = None if str(input) == "-" else truth_sidecar(Path(input))
+    # An input with no file name ("/", ".", or an empty argument, which typer reads as ".") is a folder, said
+    # so by the reader; it has no sidecar beside it (pathlib refuses to name one: an internal error).
+    sidecar = None if str(input) == "-" or not Path(input).name else truth_sidecar(Path(input))
     check_output(out, [input, sidecar, *others], folder=folder, what=what)
 
 
@@ -570,6 +572,10 @@ def _model(input, geozone, project, stages, table: TableOptions, command: str, n
     start = time.perf_counter()
     with progress_bar(f"{stages[-1]} {geozone[:40]}", "bench pairs") as update:
         model = session.geozone_model(geozone, stages=stages, progress=update)
+    if not model.pairs:  # else "pairs": 0 alone, and the user left to guess why
+        from core.model.build import no_pair_note
+
+        _say(f"bgm: note: geozone {geozone} is {no_pair_note(holes, geozone, session.params.min_component_holes)}")
     return session, geozone, model, time.perf_counter() - start
 
 

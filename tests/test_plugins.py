@@ -59,6 +59,37 @@ def test_bgm_view_renders_a_screenshot(tmp_path):
     assert png.stat().st_size > 10_000 and f"wrote {png}" in proc.stderr
 
 
+def test_a_screenshot_in_batch_says_how_far_it_is_as_it_goes(tmp_path):
+    """A screenshot of the surfaces runs the whole pipeline (16 s on the demo) and said nothing until
+    "wrote": in batch it looked hung. Each step is a line now, flushed while it runs, never going back."""
+    pytest.importorskip("pyvista")
+    import os
+    import re
+
+    from core.synthetic.blobs import make_mine, sample_blastholes
+
+    csv = tmp_path / "mine.csv"
+    sample_blastholes(make_mine(seed=3, n_benches=3, extent_m=(140.0, 100.0), n_pods=1), seed=4).to_csv(
+        csv, index=False
+    )
+    png = tmp_path / "view.png"
+    args = ["view", str(csv), "--screenshot", str(png), "--layers", "surfaces", "--no-cache"]
+    env = {k: v for k, v in os.environ.items() if k != "BGM_PROGRESS"}  # a pipe: a line a step
+    proc = subprocess.Popen([sys.executable, "-c", BGM_WITH_VIEWER, *args], stderr=subprocess.PIPE, env=env)
+    lines, running = [], None
+    for line in proc.stderr:
+        lines.append(line.decode().removesuffix("\n"))
+        if running is None and line.startswith(b"bgm: progress: "):
+            running = proc.poll() is None
+    assert proc.wait(timeout=600) == 0, lines
+    assert running, lines  # the first line came while it ran, not with its end
+    steps = [re.fullmatch(r"bgm: progress: (\d+)/100 percent \((.+), \d+\.\d s\)", line) for line in lines[:-1]]
+    assert all(steps) and len(steps) >= 5, lines
+    done = [int(m[1]) for m in steps]
+    assert done == sorted(done) and done[-1] == 100 and done.count(100) == 1, lines
+    assert any("surface" in m[2] for m in steps) and lines[-1] == f"wrote {png}", lines
+
+
 def test_bgm_view_without_qt_and_pyvista_says_what_to_install(tmp_path):
     hide = "import sys; [sys.modules.__setitem__(m, None) for m in ('pyvista', 'qtpy', 'pyvistaqt', 'vtk')]; "
     for args in (["view", "--screenshot", str(tmp_path / "x.png")], ["view"]):

@@ -9,10 +9,13 @@ Click error) or exit 3 (``bgm: internal error``).
 from __future__ import annotations
 
 import codecs
+import gzip
+import io
 import json
 import subprocess
 import sys
 import warnings
+import zipfile
 from pathlib import Path
 
 import clirun
@@ -170,6 +173,33 @@ def _write_bytes(data: bytes):
     return make
 
 
+#: A table's text large enough that its compressed stream spans many deflate blocks.
+_TABLE_TEXT = "".join(
+    f"{650000 + 5.3 * i:.2f},{7400000 + 3.1 * (i % 97):.2f},{685 - 10 * (i % 3)},g{i % 4}\n" for i in range(4000)
+)
+_TABLE_TEXT = ("x,y,z,geozone\n" + _TABLE_TEXT).encode()
+
+
+def _zipped(flag_bits: int = 0) -> bytes:
+    """The table in a zip archive, its member marked encrypted when ``flag_bits`` has bit 0."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("holes.csv", _TABLE_TEXT)
+    data = bytearray(buf.getvalue())
+    data[6] |= flag_bits  # the local header's flags, then the central directory's
+    data[data.find(b"PK\x01\x02") + 8] |= flag_bits
+    return bytes(data)
+
+
+def _damaged(data: bytes, at: float = 0.5) -> bytes:
+    """``data`` with 40 bytes inverted ``at`` its length: a disk or transfer error inside the stream."""
+    out = bytearray(data)
+    start = int(len(out) * at)
+    for i in range(start, start + 40):
+        out[i] ^= 0xFF
+    return bytes(out)
+
+
 BAD_FILES = {
     "missing file": (lambda p: p.parent / "nope.csv", ("does not exist",)),
     "empty file": (_write_bytes(b""), ("is empty",)),
@@ -181,6 +211,20 @@ BAD_FILES = {
         ("as Parquet",),
     ),
     "binary junk": (_write_bytes(bytes(range(256)) * 8), ("cannot read",)),
+    # Archives as a download or a copy that did not finish, or a disk error, leaves them.
+    "zip cut short": (
+        lambda p: _write_bytes(_zipped()[:300])(p.with_suffix(".zip")),
+        ("zip archive is damaged or incomplete",),
+    ),
+    "zip damaged inside": (
+        lambda p: _write_bytes(_damaged(_zipped(), 0.3))(p.with_suffix(".zip")),
+        ("compressed data is damaged",),
+    ),
+    "gzip damaged inside": (
+        lambda p: _write_bytes(_damaged(gzip.compress(_TABLE_TEXT), 0.3))(p.with_suffix(".csv.gz")),
+        ("compressed data is damaged",),
+    ),
+    "zip encrypted": (lambda p: _write_bytes(_zipped(0x1))(p.with_suffix(".zip")), ("encrypted",)),
     "UTF-16 text": (
         lambda p: (p.write_text("x,y,z,geozone\n1,2,3,a\n4,5,6,b\n", encoding="utf-16"), p)[1],
         ("not UTF-8",),
@@ -298,6 +342,29 @@ def test_output_path_that_is_a_directory(base_csv, tmp_path):
 def test_unknown_geozone_for_correspond_and_morph(base_csv, tmp_path):
     for command in ("correspond", "morph"):
         fails_cleanly(bgm(command, base_csv, "--geozone", "3310", "--out", tmp_path / "o.json"), "'3310'", "present")
+
+
+@pytest.mark.parametrize("given", ["", ".", "/"])
+@pytest.mark.parametrize("command", ["contours", "build", "predict"])
+def test_an_input_with_no_file_name_is_said_to_be_a_folder(tmp_path, command, given):
+    """``bgm build "$TABLE"`` with the variable unset, or a folder: was ``internal error: ValueError: PosixPath('.')
+    has an empty name`` (exit 3)."""
+    more = {"predict": ("--geozone", "g1", "--elevations", "600")}.get(command, ())
+    out = tmp_path / ("o" if command == "build" else "o.geojson")
+    fails_cleanly(bgm(command, given, "--out", out, *more), "is a directory, not a CSV or Parquet file")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("command", ["correspond", "morph"])
+def test_a_geozone_with_no_bench_pair_says_why(table, tmp_path, command):
+    """A geozone of one hole (a lone assay of its own label): ``"pairs": 0`` came with no word of why."""
+    t = table.astype({"geozone": object}).copy()
+    t.loc[t.index[0], "geozone"] = "lonely"
+    path = tmp_path / "lonely.csv"
+    t.to_csv(path, index=False)
+    proc = succeeds(bgm(command, path, "--geozone", "lonely", "--out", tmp_path / "o.json"))
+    assert json.loads(proc.stdout)["pairs"] == 0
+    assert "bgm: note: geozone lonely is on one bench, never in a component of 3 or more holes" in proc.stderr
 
 
 ONE_GEOZONE = {
@@ -648,6 +715,35 @@ def test_interrupted_geojson_write_keeps_the_previous_file(base_csv, tmp_path, m
     assert not written["tmp"].exists()
     assert out.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["contours.geojson"]
+
+
+@pytest.mark.parametrize("command", ["contours", "build"])
+def test_a_full_disk_is_said_in_one_line_and_leaves_the_previous_output(base_csv, tmp_path, monkeypatch, command):
+    """A disk that fills up while BGM writes (or a quota, a share gone read-only) is the user's to fix.
+
+    It was ``bgm: internal error: OSError: [Errno 28] No space left on device`` (exit 3, as a bug).
+    Now one line names the file and the reason (exit 2), and the previous output is as it was.
+    """
+    import errno
+    import os
+
+    out = tmp_path / ("contours.geojson" if command == "contours" else "model")
+    if command == "contours":
+        out.write_text("previous result\n")
+
+    def disk_full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # where a full disk shows on NFS and some others
+
+    monkeypatch.setattr(os, "fsync", disk_full)
+    args = ("--workers", "1") if command == "build" else ()
+    line = fails_cleanly(bgm(command, base_csv, "--out", out, *args), "cannot write", "no space left on device")
+    monkeypatch.undo()
+    if command == "contours":
+        assert str(out) in line and out.read_text() == "previous result\n"
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["contours.geojson"]
+    else:  # named where it was going, not in BGM's staging folder, and nothing left behind
+        assert f"{out / 'contours.geojson'}" in line and "nothing was written" in line
+        assert list(tmp_path.iterdir()) == []
 
 
 def test_interrupt_during_json_dump_keeps_the_previous_file(base_csv, tmp_path, monkeypatch):

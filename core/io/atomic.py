@@ -32,6 +32,25 @@ from core.errors import BGMInputError
 #: Marks the staging and retired folders of :func:`replaced_folder` (``.<name>.bgm-staging-<pid>-<random>``).
 STAGING_TAG = ".bgm-staging-"
 RETIRED_TAG = ".bgm-old-"
+#: A write that failed for want of room or rights where it goes (a full disk, a quota, a file system
+#: gone read-only, a failing disk): the user's to fix, said in one line, not reported as a bug in BGM.
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG, errno.EACCES, errno.EPERM})
+
+
+class OutputError(BGMInputError):
+    """A file that could not be written where it goes, for a reason of the storage (:data:`STORAGE_ERRNOS`).
+
+    Parameters
+    ----------
+    path : Path
+        The file that was being written.
+    reason : str
+        The system's words for it (``No space left on device``).
+    """
+
+    def __init__(self, path: Path, reason: str, aside: str = ""):
+        super().__init__(f"cannot write {str(path)!r}: {reason}{aside}")
+        self.path, self.reason = path, reason
 
 
 @contextlib.contextmanager
@@ -65,9 +84,11 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
             os.fsync(fh.fileno())
         os.chmod(tmp, _mode_for(path))
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+        if isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS:  # the disk filled up while writing
+            raise OutputError(path, exc.strerror or str(exc)) from None
         raise
 
 
@@ -174,9 +195,29 @@ def replaced_folder(out_dir: str | os.PathLike) -> Iterator[Path]:
         os.chmod(staging, out.stat().st_mode & 0o7777 if out.is_dir() else 0o777 & ~_umask())
         yield staging
         _swap_in(staging, out)
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(staging, ignore_errors=True)
+        if isinstance(exc, OutputError | OSError):
+            _raise_storage_error(exc, staging, out)
         raise
+
+
+def _raise_storage_error(exc: OSError | OutputError, staging: Path, out: Path) -> None:
+    """Raise :class:`OutputError` for a folder's file the storage refused, named where it was going.
+
+    The staging folder is BGM's own and gone by now: the message names the file in ``out``,
+    and says that ``out`` is as it was. Returns (for the caller to raise ``exc``) otherwise.
+    """
+    if isinstance(exc, OutputError):
+        where, reason = exc.path, exc.reason
+    elif exc.errno in STORAGE_ERRNOS:
+        where, reason = Path(exc.filename) if exc.filename else staging, exc.strerror or str(exc)
+    else:
+        return
+    with contextlib.suppress(ValueError):
+        where = out / Path(where).absolute().relative_to(staging.absolute())
+    kept = "the folder was left as it was" if out.exists() else "nothing was written"
+    raise OutputError(where, reason, f" ({kept})") from None
 
 
 # --------------------------------------------------------------------------- helpers

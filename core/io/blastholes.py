@@ -106,8 +106,11 @@ MAX_OWN_LABEL_SHARE = 0.5
 MIN_HOLES_FOR_ID_CHECK = 20
 #: Geozone labels (any case) that spell a missing value in common exports (R, SQL, Excel, no-data codes).
 MISSING_LABELS = frozenset({"na", "n/a", "#n/a", "nan", "null", "none", "-99", "-999", "-9999"})
-#: Column names (any case) taken as the hole identifier.
-HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id")
+#: Column names taken as the hole identifier, compared by :func:`is_hole_id_column` (any case, spaces,
+#: underscores, hyphens and dots ignored): ``Hole ID``, ``HOLE_ID``, ``hole-id``, Datamine's ``BHID``.
+HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id", "bhid", "holename", "holeno", "holenumber", "blastholeid")
+#: What :func:`is_hole_id_column` leaves out of a name before comparing it.
+_NAME_SEPARATORS = re.compile(r"[\s_.\-]+")
 #: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
 NUMBER_LABEL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,3})?")
 #: A label whose integer part has leading zeros (``010``, ``-007.5``): a code, not a number.
@@ -387,6 +390,7 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
             raise BGMInputError(
                 f"column {quoted(explicit)} given for {role} is not in the table; columns are: {listing(columns)}"
             )
+        _refuse_one_name_twice(columns, matches[0], role)
         return matches[0]
     aliases = COLUMN_ALIASES[role]
     matches = [c for c in columns if column_key(c) in aliases]
@@ -395,6 +399,7 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
             f"no {role} column: looked for {', '.join(aliases)} (any case); columns are: "
             f"{listing(columns)}; name it with {COLUMN_OPTIONS[role]} COLUMN"
         )
+    _refuse_one_name_twice(columns, matches[0], role)
     if len(matches) > 1:
         raise BGMInputError(
             f"ambiguous {role} column: {listing(map(repr, matches))} could all be {role}; choose one with {COLUMN_OPTIONS[role]} COLUMN"
@@ -402,9 +407,39 @@ def find_column(columns: list[str], role: str, explicit: str | None = None) -> s
     return matches[0]
 
 
+def _refuse_one_name_twice(columns: list[str], name: str, role: str) -> None:
+    """Refuse a table with two columns of the name ``role`` is read from (a collar's and a toe's ``X``).
+
+    No option can choose between them (``--x X`` names both), and the first was read without
+    a word: the message says to rename one, not to name it with an option.
+
+    Raises
+    ------
+    BGMInputError
+        ``name`` heads more than one column.
+    """
+    at = [i + 1 for i, c in enumerate(columns) if c == name]
+    if len(at) > 1:
+        raise BGMInputError(
+            f"the table has {len(at)} columns named {quoted(name)} (columns {listing(map(str, at))}), "
+            f"which could all be {role}: rename them so that one is {role}"
+        )
+
+
 def column_key(name: str) -> str:
     """A column name as compared with :data:`COLUMN_ALIASES`: trimmed, lower case, a length unit ending it dropped."""
     return UNIT_SUFFIX.sub("", str(name).strip()).lower()
+
+
+def is_hole_id_column(name: str) -> bool:
+    """Whether a column named ``name`` holds the hole identifiers (:data:`HOLE_ID_NAMES`).
+
+    Mine software writes the name many ways (``Hole ID``, ``HOLE_ID``, ``HoleID``,
+    ``BHID``): compared with the separators left out, so that none of them is
+    missed and the holes named by row number instead, with nothing saying so.
+    """
+    key = _NAME_SEPARATORS.sub("", str(name).strip().lower())
+    return key in {_NAME_SEPARATORS.sub("", n) for n in HOLE_ID_NAMES}
 
 
 def table_columns(columns: list[str], x=None, y=None, z=None, geozone=None) -> dict[str, str]:
@@ -418,7 +453,7 @@ def table_columns(columns: list[str], x=None, y=None, z=None, geozone=None) -> d
     }
     if len(set(cols.values())) < 4:
         raise BGMInputError(f"one column is used for two roles: {cols}")
-    hole = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES and c not in cols.values()), None)
+    hole = next((c for c in columns if is_hole_id_column(c) and c not in cols.values()), None)
     if hole is not None:
         cols["hole_id"] = hole
     return cols
@@ -568,6 +603,7 @@ def blastholes_from_table(
     table, cols, coords = _table_coordinates(table, x, y, z, geozone, lines, source)
     notes: list[str] = []
     _warn_depth_column(cols["z"], notes)
+    _warn_single_precision(table, cols, notes)
     labels = _geozone_labels(table[cols["geozone"]], cols["geozone"], lines, notes)
     hole_id = table[cols["hole_id"]].astype(str).to_numpy(dtype=object) if "hole_id" in cols else None
 
@@ -588,9 +624,10 @@ def blastholes_from_table(
     where = f"lie more than {FAR_HOLE_SPACINGS:g} hole spacings from every other hole of their bench"
     _left_out(notes, far, lines, where, "x, y missing or mistyped")
 
+    named = unit_in_names(cols, length_unit, notes)
     unit = _guess_unit(
         height_in,
-        length_unit,
+        length_unit or named,
         lambda: median_hole_spacing(xy_in[~off], bench[~off]),
     )
     keep = ~off & ~far
@@ -599,8 +636,46 @@ def blastholes_from_table(
     holes.lost_geozones = _lost_geozones(labels, labels[keep], holes.geozone)
     _measure_spacing(holes, source)
     _check_spacing(holes, given=bool(length_unit))
-    holes.unit_guess = _unit_guess_note(unit, length_unit, height_in)
+    holes.unit_guess = _unit_guess_note(unit, length_unit or named, height_in)
     return holes
+
+
+def unit_in_names(cols: dict[str, str], length_unit: str | None = None, notes: list[str] | None = None) -> str | None:
+    """The length unit the x, y and z columns' names state (``Easting (ft)``, ``RL_ft``), None where none does.
+
+    A table whose columns say feet is in feet, whatever its bench height: 20 ft benches
+    with holes 18 ft apart read as metres by the bench height alone (:func:`_guess_unit`),
+    and every area, volume and file came out labelled metres. ``length_unit`` (``--units``)
+    given overrides the names, with a warning (in ``notes``) where they say otherwise.
+
+    Raises
+    ------
+    BGMInputError
+        The names state different units (``X (m)`` and ``RL (ft)``) and no ``--units`` is given.
+    """
+    said = {}
+    for role in ("x", "y", "z"):
+        found = UNIT_SUFFIX.search(str(cols[role]).strip())
+        if found:
+            letters = re.sub(r"[^a-z]", "", found.group(0).lower())
+            said[role] = "ft" if letters in ("ft", "feet") else "m"
+    units = set(said.values())
+    named = ", ".join(f"{quoted(cols[r])} in {u}" for r, u in said.items())
+    if length_unit:
+        if units - {unit_name(length_unit)}:
+            _note(
+                notes if notes is not None else [],
+                f"--units {length_unit} given, but the columns are named {named}: "
+                f"read in {unit_name(length_unit)} as given",
+                stacklevel=4,
+            )
+        return None
+    if len(units) > 1:
+        raise BGMInputError(
+            f"the columns are named in different length units ({named}); x, y and z must be in one unit: "
+            "convert them, or give --units if the names are wrong"
+        )
+    return units.pop() if units else None
 
 
 def _table_coordinates(
@@ -825,6 +900,35 @@ def _note(notes: list[str], msg: str, stacklevel: int) -> None:
     """A repair or doubt about the input: kept in the holes' ``notes`` and warned about."""
     notes.append(msg)
     warnings.warn(msg, BGMWarning, stacklevel=stacklevel)
+
+
+#: A coordinate stored with a coarser step than this (input units) at its largest value is warned about:
+#: finer steps are within a collar survey's own error (a few centimetres), coarser ones move holes visibly.
+COORDINATE_STEP_MAX = 0.1
+
+
+def _warn_single_precision(table: pd.DataFrame, cols: dict[str, str], notes: list[str]) -> None:
+    """Warn of x, y or z stored as 32-bit floats (a Parquet ``float``) too coarse at their magnitude.
+
+    A float32 holds 24 bits: mine-grid northings near 7,445,000 are then stored in steps
+    of 0.5 units, every hole moved by up to a quarter of a unit before BGM reads it (the
+    demo's top benches read a hole spacing of 5.51 m, not 5.46 m), with nothing saying so. Nothing can be
+    recovered from the file: the warning says to write it as 64-bit floats.
+    """
+    for role in ("x", "y", "z"):
+        column = table[cols[role]]
+        if not (pd.api.types.is_float_dtype(column) and column.dtype.itemsize < 8 and len(column)):
+            continue
+        largest = float(np.nanmax(np.abs(column.to_numpy(dtype=float))))
+        step = float(np.spacing(column.dtype.type(largest)))
+        if step > COORDINATE_STEP_MAX:
+            _note(
+                notes,
+                f"column {quoted(cols[role])} ({role}) is stored as {8 * column.dtype.itemsize}-bit floats, which "
+                f"near {largest:,.0f} hold positions only in steps of {step:g} units: write it as 64-bit floats "
+                "(double) for holes where they were drilled",
+                stacklevel=4,
+            )
 
 
 def _warn_depth_column(column: str, notes: list[str]) -> None:

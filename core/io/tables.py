@@ -27,6 +27,7 @@ import re
 import sys
 import warnings
 import zipfile
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -45,6 +46,9 @@ MAGIC = {
     b"PK\x03\x04": "zip",
     b"\xd0\xcf\x11\xe0": "xls",
 }
+#: What reading a damaged archive raises past its first bytes: a gzip or zip member whose deflate stream is
+#: corrupt raises zlib.error (no OSError), a zip cut short BadZipFile, a gzip cut short EOFError.
+DAMAGED = (zlib.error, zipfile.BadZipFile, gzip.BadGzipFile, EOFError, lzma.LZMAError)
 #: Lines before the header starting with one of these are comments.
 COMMENT_PREFIXES = ("#", "//", "%")
 #: A line before the header naming the delimiter, as Excel writes and reads it (``sep=;``).
@@ -99,12 +103,15 @@ def read_table(path: str | Path, choose: ColumnChooser | None = None) -> pd.Data
     if kind == "parquet":
         return _read_parquet(name, data, choose)
     opener = _opener(name, data, kind)
-    with opener() as fh:
-        head = fh.read(8)
-    if head.startswith(b"PAR1"):  # a compressed Parquet file
+    try:  # the damage of an archive shows wherever its stream is read, not only in its first bytes
         with opener() as fh:
-            return _read_parquet(name, fh.read(), choose)
-    return _read_csv(name, opener, choose)
+            head = fh.read(8)
+        if head.startswith(b"PAR1"):  # a compressed Parquet file
+            with opener() as fh:
+                return _read_parquet(name, fh.read(), choose)
+        return _read_csv(name, opener, choose)
+    except DAMAGED as exc:
+        raise BGMInputError(f"cannot read {name}: the compressed data is damaged ({_one_line(exc)})") from None
 
 
 def data_lines(frame: pd.DataFrame) -> np.ndarray:
@@ -184,14 +191,15 @@ def _kind(name: str, data: Path | bytes) -> str:
     if kind == "xls":
         raise BGMInputError(f"cannot read {name}: it is an Excel workbook; save the sheet as CSV")
     if kind == "zip":
-        with zipfile.ZipFile(data if isinstance(data, Path) else io.BytesIO(data)) as z:
-            members = [m for m in z.namelist() if not m.endswith("/") and not m.startswith("__MACOSX")]
-        if any(m.startswith("xl/") for m in members):
+        members = _zip_members(name, data)
+        if any(m.filename.startswith("xl/") for m in members):
             raise BGMInputError(f"cannot read {name}: it is an Excel workbook; save the sheet as CSV")
         if len(members) != 1:
             raise BGMInputError(
                 f"cannot read {name}: a zip archive must hold exactly one table, it holds {len(members)}"
             )
+        if members[0].flag_bits & 0x1:  # zipfile would ask for a password it has no way to be given
+            raise BGMInputError(f"cannot read {name}: the zip archive is encrypted; extract the table first")
     if kind == "zstd":
         try:
             import zstandard  # noqa: F401
@@ -203,6 +211,25 @@ def _kind(name: str, data: Path | bytes) -> str:
     if kind == "csv" and suffix in (".parquet", ".pq"):
         warnings.warn(f"{name} is named {suffix} but is not Parquet; reading it as CSV text", BGMWarning, stacklevel=4)
     return kind
+
+
+def _zip_members(name: str, data: Path | bytes) -> list[zipfile.ZipInfo]:
+    """The files a zip archive holds (folders and macOS resource forks left out).
+
+    Raises
+    ------
+    BGMInputError
+        The archive cannot be opened: cut short (a download or copy that did not finish,
+        which loses the directory at its end) or damaged.
+    """
+    try:
+        with zipfile.ZipFile(data if isinstance(data, Path) else io.BytesIO(data)) as z:
+            infos = z.infolist()
+    except (zipfile.BadZipFile, EOFError, ValueError) as exc:
+        raise BGMInputError(
+            f"cannot read {name}: the zip archive is damaged or incomplete ({_one_line(exc)})"
+        ) from None
+    return [i for i in infos if not i.filename.endswith("/") and not i.filename.startswith("__MACOSX")]
 
 
 def _opener(name: str, data: Path | bytes, kind: str) -> Callable[[], io.BufferedIOBase]:

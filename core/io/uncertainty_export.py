@@ -204,7 +204,8 @@ def read_pattern(
     The table (CSV or Parquet, read as the blasthole table is) needs x and y
     columns, found by the same names (``x/east/easting/mid_x``, ``y/north/northing/mid_y``,
     any case); a ``z`` column gives the bench's elevation (input units, the
-    median), a ``hole_id`` column the identifiers (else the data line numbers).
+    median), a ``hole_id`` column (``Hole ID``, ``BHID``: :func:`~core.io.blastholes.is_hole_id_column`)
+    the identifiers (else the data line numbers).
     A hole listed again at the same position is kept once, with a warning.
     ``reach_spacings`` is the ``frontier_reach_spacings`` in effect (the
     model's default if None): how far from the blastholes a pattern may lie.
@@ -219,7 +220,7 @@ def read_pattern(
         (the patterns of several benches).
     """
     from core.errors import BGMInputError
-    from core.io.blastholes import COLUMN_ALIASES, HOLE_ID_NAMES, coordinate_values, find_column
+    from core.io.blastholes import COLUMN_ALIASES, coordinate_values, find_column, is_hole_id_column
     from core.io.tables import data_lines, read_table
 
     table = read_table(path)
@@ -247,7 +248,7 @@ def read_pattern(
         values[role] = number
     xy = holes.frame.to_local(values["x"], values["y"])
     _refuse_far_pattern(path, xy, holes, reach_spacings)
-    ids = next((c for c in columns if c.strip().lower() in HOLE_ID_NAMES), None)
+    ids = next((c for c in columns if is_hole_id_column(c)), None)
     labels = table[ids].astype(str).tolist() if ids is not None else [str(n) for n in data_lines(table)]
     z = _pattern_level(path, values["z"], holes) if "z" in values else None
     keep = _distinct_positions(path, values["x"], values["y"], data_lines(table))

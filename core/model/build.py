@@ -862,11 +862,7 @@ def build_geozone(ctx: BuildContext, g: str, progress=None) -> tuple[GeozoneSumm
     )
     rows = None
     if not model.pairs:
-        benches = len(set(holes.bench[holes.geozone == g].tolist()))
-        summary.note = (
-            f"on {'one bench' if benches == 1 else f'{benches} benches'}, never in a component of "
-            f"{params.min_component_holes} or more holes: no bench pair to model"
-        )
+        summary.note = no_pair_note(holes, g, params.min_component_holes)
         summary.seconds = time.perf_counter() - tg
         return summary, rows
     steps.step(FIELDS_STEP)  # made by geozone_model after its last pair
@@ -1195,3 +1191,16 @@ def _markdown_table(table: pd.DataFrame) -> str:
                 cells.append("" if not np.isfinite(v) else f"{100 * v:.1f}")
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join([head, rule, *rows])
+
+
+def no_pair_note(holes, geozone: str, min_component_holes: int) -> str:
+    """Why a geozone has no bench pair to model: ``on 3 benches, never in a component of 3 or more holes: ...``.
+
+    Said by ``bgm build`` (the report's note) and by the commands that model one geozone,
+    which wrote ``"pairs": []`` with no word of why.
+    """
+    benches = len(set(holes.bench[holes.geozone == geozone].tolist()))
+    return (
+        f"on {'one bench' if benches == 1 else f'{benches} benches'}, never in a component of "
+        f"{min_component_holes} or more holes: no bench pair to model"
+    )
