@@ -47,6 +47,7 @@ from core.errors import BGMWarning
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 from core.io.cache import StageCache
+from core.io.reporting import hole_name
 from core.model.parameters import (
     PARAMETER,
     PARAMETERS,
@@ -803,7 +804,7 @@ class ViewerModel:
         """A hole's id, geozone, bench elevation (input units) and the input's other columns (grade...)."""
         h = self.holes
         info: dict[str, object] = {
-            "hole": str(h.hole_id[i]) if h.hole_id is not None else f"#{i}",
+            "hole": hole_name(h, i),
             "geozone": str(h.geozone[i]),
             f"bench ({h.frame.length_unit})": h.bench_z_input(int(h.bench[i])),
         }

@@ -757,3 +757,28 @@ def test_a_sparse_bench_below_a_single_bench_is_read_as_a_bench_with_a_warning()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BGMWarning)
         assert blastholes_from_table(near, source="t.csv").n_benches == 1
+
+
+def test_holes_of_a_table_without_ids_are_named_by_the_file_line_they_were_read_from(tmp_path):
+    # Without an id column a hole was named by its place among the kept holes (plus one), which is not its row
+    # once a hole is left out or merged above it: the contours' isolated holes and the viewer pointed at the
+    # wrong rows. Here a duplicate (line 3) and a hole far off every bench (line 4) come first.
+    from core.io.reporting import hole_ids, hole_name
+
+    xs, ys = np.meshgrid(np.arange(0.0, 60.0, 6.0), np.arange(0.0, 60.0, 6.0))
+    grid = np.column_stack([xs.ravel(), ys.ravel()])
+    rows = [(x, y, z, "a" if x < 30 else "b") for z in (100.0, 90.0, 80.0) for x, y in grid]
+    rows = [rows[0], rows[0], (0.0, 0.0, 300.0, "a"), *rows[1:]]
+    path = tmp_path / "holes.csv"
+    pd.DataFrame(rows, columns=["x", "y", "z", "geozone"]).to_csv(path, index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = read_blastholes(path)
+    assert holes.hole_id is None and len(holes.xy) == len(rows) - 2
+    table = pd.read_csv(path)
+    for k in (0, 1, 57, len(holes.xy) - 1):
+        x, y = holes.frame.to_input(holes.xy[k : k + 1])[0]
+        z = holes.frame.z_to_input(holes.z[k])
+        first = np.flatnonzero(np.isclose(table.x, x) & np.isclose(table.y, y) & np.isclose(table.z, z))[0]
+        assert hole_ids(holes, np.array([k])) == [first + 2]  # the header is line 1
+        assert hole_name(holes, k) == f"line {first + 2}"

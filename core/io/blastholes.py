@@ -216,6 +216,11 @@ class Blastholes:
         Labels the table holds none of whose holes were kept (label -> why: all
         left out, or all merged into another geozone's coincident holes), so a
         request for one is told why it is missing, not that it is not in the table.
+    data_line : (n,) int or None
+        The file line each hole was read from, as warnings name them; None for
+        holes not read from a file. What names a hole where the table has no id
+        column (:func:`core.io.reporting.hole_ids`): a hole's place among the kept
+        holes is not its row once holes are left out or merged.
     """
 
     xy: np.ndarray
@@ -232,6 +237,7 @@ class Blastholes:
     unit_guess: str = ""
     read_options: dict = field(default_factory=dict)
     lost_geozones: dict = field(default_factory=dict)
+    data_line: np.ndarray | None = None
     _drilled: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -369,6 +375,7 @@ class Blastholes:
             unit_guess=self.unit_guess,
             read_options=dict(self.read_options),
             lost_geozones=dict(self.lost_geozones),
+            data_line=None if self.data_line is None else self.data_line[keep],
         )
 
 
@@ -632,6 +639,7 @@ def blastholes_from_table(
     )
     keep = ~off & ~far
     holes = _kept_holes(coords, labels, hole_id, bench, levels_in, height_in, keep, unit, source, notes)
+    holes.data_line = np.asarray(lines, dtype=np.int64)[keep]
     holes = _deduplicate(holes, lines[keep])
     holes.lost_geozones = _lost_geozones(labels, labels[keep], holes.geozone)
     _measure_spacing(holes, source)

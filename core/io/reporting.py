@@ -91,11 +91,24 @@ def prediction_feature(region, holes: Blastholes, geozone: str, z: float) -> dic
 
 
 def hole_ids(holes: Blastholes, index: np.ndarray) -> list:
-    """Hole ids of the given holes as written in the input (row numbers, 1-based, where it has none)."""
+    """Hole ids of the given holes as written in the input; where it has none, the file line each was read from.
+
+    The file lines are those the reading warnings name (:attr:`Blastholes.data_line`), so a hole can be found in
+    the file; a table built in memory (no lines) numbers its holes from 1.
+    """
     index = np.asarray(index, int)
     if holes.hole_id is None:
+        if holes.data_line is not None:
+            return [int(v) for v in holes.data_line[index]]
         return [int(i) + 1 for i in index]
     return [str(v) for v in holes.hole_id[index]]
+
+
+def hole_name(holes: Blastholes, i: int) -> str:
+    """How a geologist finds hole ``i`` in the input: its id, else ``line N`` (its file line, :func:`hole_ids`)."""
+    if holes.hole_id is None and holes.data_line is not None:
+        return f"line {int(holes.data_line[i])}"
+    return str(hole_ids(holes, np.array([i]))[0]) if holes.hole_id is not None else f"#{int(i) + 1}"
 
 
 def containment(contour: Contour, holes: Blastholes) -> dict:
