@@ -118,7 +118,11 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
         ]
         if len(bh[0]) != len(bh[1]) or not np.array_equal(bh[0], bh[1]):
             out.add("blastholes")
-    if result.selected_contour(selection) is not previous.selected_contour(selection):
+    # The fields on screen are those of the component ``previous`` was drawn for. Asked of ``previous`` with the
+    # new selection, another component of the same bench (one object in both results) seemed unchanged: the
+    # edge map, GVF and snake of the component selected before stayed on screen under the new one.
+    drawn = previous.selection if previous.selection is not None else selection
+    if result.selected_contour(selection) is not previous.selected_contour(drawn):
         out |= {"edge map", "GVF", "snake"}
     if result.morph is not previous.morph:
         out |= {"wavefront", "trajectories", "selected components"}

@@ -535,3 +535,28 @@ def test_a_superseded_run_stops_inside_the_selected_geozones_predictions_and_sto
     assert sorted((z, p.wkb) for _, z, p in again.predicted) == sorted(
         (z, p.wkb) for z, region in fresh.items() for p in region.geoms
     )
+
+
+def test_selecting_another_component_of_the_bench_draws_its_own_edge_map_gvf_and_snake():
+    """g1's corner body (component 1) selected after its main body (component 0) on the same bench: the run
+    shares the bench's contours, so the refresh found "the selected contour" unchanged in both results and kept
+    the edge map, GVF and snake of component 0 on screen under component 1."""
+    from bgm_viewer.builders import refresh_scene
+    from bgm_viewer.model import ViewerModel, compute
+    from bgm_viewer.testing import two_bodies_holes
+
+    model = ViewerModel(two_bodies_holes(), cache=False)
+    model.select("g1", 0, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(until="morph")
+        scene = build_scene(model.holes, model.result, model.selection, visible=["snake", "edge map", "GVF"])
+        step = model.select(component=1)
+        for _, _, result in compute(model.inputs(), model.result, step, until="morph"):
+            refresh_scene(scene, model.holes, result, model.selection, previous=model.result)
+            model.set_result(result)
+    fields = model.result.selected_contour(model.selection).fields
+    first = model.result.sources(model.selection)[0].fields
+    assert not np.array_equal(fields.snake_history_m[-1], first.snake_history_m[-1])  # two bodies, two snakes
+    assert np.array_equal(scene["snake"].history[-1], fields.snake_history_m[-1])
+    assert scene["edge map"].edge_map is fields.edge_map and scene["GVF"].gvf is fields.gvf
