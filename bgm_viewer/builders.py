@@ -183,7 +183,29 @@ def _why_no_contour(holes, result: PipelineResult, sel: Selection) -> str:
         return f"{where} has no component of {result.min_component_holes} or more holes ({on_bench} hole(s) in all)"
     if sel.component >= n:
         return f"{where} has {n} component(s): source component {sel.component} does not exist"
+    if _too_small_for_a_snake(result, sel):
+        n_holes = len(result.sources(sel)[sel.component].holes)
+        return (
+            f"source component {sel.component} of {where} ({n_holes} holes) is too small for a snake:"
+            " its contour is the outline of its holes, with no edge map, GVF or snake"
+        )
     return f"the fields of source component {sel.component} of {where} are not computed yet"
+
+
+def _too_small_for_a_snake(result: PipelineResult, sel: Selection) -> bool:
+    """Whether the selected component has no fields because extraction ran no snake on it (not because they are
+    still to come).
+
+    A part too small for a snake keeps its outline and gets no edge map, GVF or snake
+    (:func:`core.extraction.contours.snake_contour`). The bench's fields are computed once
+    another component of the geozone there has them, or the run is done (it computes them
+    before the other benches): "not computed yet" then stayed in the status bar for good.
+    """
+    contour = result.selected_contour(sel)
+    if contour is None or contour.fields is not None:
+        return False
+    own = [c for c in result.contours.get(sel.bench, []) if c.geozone == sel.geozone]
+    return result.complete or any(c.fields is not None for c in own)
 
 
 #: Why nothing between benches is drawn for an input of one bench (it never will be: no bench below).
