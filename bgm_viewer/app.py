@@ -312,6 +312,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self.undo_action.setShortcut(QtGui.QKeySequence.StandardKey.Undo)
         self.undo_action.triggered.connect(self.undo)
         e.addAction(self.undo_action)
+        self.redo_action = QtGui.QAction("&Redo alignment", self)
+        self.redo_action.setShortcut(QtGui.QKeySequence.StandardKey.Redo)
+        self.redo_action.triggered.connect(self.redo)
+        e.addAction(self.redo_action)
         v = self.menuBar().addMenu("&View")
         for cam, key in (("iso", "I"), ("top", "T"), ("front", "F"), ("side", "S")):
             v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam), QtGui.QKeySequence(f"Ctrl+{key}"))
@@ -546,6 +550,7 @@ class MainWindow(QtWidgets.QMainWindow):
             ("Lock", self.lock_current),
             ("Clear", self.clear_override),
             ("Undo", self.undo),
+            ("Redo", self.redo),
         ):
             b = QtWidgets.QPushButton(text)
             b.clicked.connect(fn)
@@ -843,11 +848,21 @@ class MainWindow(QtWidgets.QMainWindow):
             self._undo_note = "; ".join(self.model.override_notes)
             self.request(stage, immediate=True)
 
+    def redo(self) -> None:
+        """Bring back what the last Undo took back (Edit > Redo, the panel's Redo)."""
+        stage = self.model.redo()
+        if stage is None:
+            self.statusBar().showMessage("nothing to redo", 5000)
+            return
+        self._undo_note = "; ".join(self.model.override_notes)
+        self.request(stage, immediate=True)
+
     def _connect_model(self) -> None:
         self.model.dirty_changed.connect(self._update_title)
         self.model.dirty_changed.connect(self._arm_autosave)
         self.model.overrides_changed.connect(self._on_overrides)
         self.model.params_changed.connect(self._show_params)
+        self.model.params_changed.connect(self._on_overrides)  # a parameter changed: nothing left to redo
         self.model.selection_changed.connect(self._show_component)
         self._on_overrides()  # a new model has nothing to undo: Edit > Undo was left enabled, doing nothing
 
@@ -870,6 +885,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _on_overrides(self) -> None:
         self.undo_action.setEnabled(self.model.can_undo)
+        self.redo_action.setEnabled(self.model.can_redo)
 
     def _update_title(self, *_) -> None:
         name = Path(self.model.project_path).name if self.model.project_path else "untitled project"
@@ -1439,6 +1455,7 @@ selects its geozone (and bench pair and component)</td></tr>
 <tr><td><b>Shift + left drag</b></td><td>move the selected source component on its bench</td></tr>
 <tr><td><b>Ctrl + arrows</b></td><td>nudge the selected source by the step of the alignment panel</td></tr>
 <tr><td><b>Ctrl+Z</b></td><td>undo the last alignment change</td></tr>
+<tr><td><b>Ctrl+Shift+Z / Ctrl+Y</b></td><td>redo what Undo took back</td></tr>
 <tr><td><b>Ctrl+I / T / F / S</b></td><td>camera: iso, top, front, side</td></tr>
 <tr><td><b>Ctrl+0</b></td><td>fit the visible data</td></tr>
 <tr><td><b>Ctrl+O / Ctrl+S</b></td><td>open blastholes / save the project</td></tr>

@@ -206,6 +206,8 @@ class UndoStep:
     params: ModelParameters | None = None
     #: The user's edits count when a run changed the overrides (see :meth:`ViewerModel._push_run_undo`).
     edits: int = -1
+    #: Of a step Redo brings back: the parameters its overrides were placed under (``None``: those of the moment).
+    placed_params: ModelParameters | None = None
 
 
 Progress = tuple[str, float, PipelineResult]
@@ -701,6 +703,8 @@ class ViewerModel:
         self.min_body_holes = 0
         self.overrides: list = []  # bgm_viewer.alignment.PlacedOverride
         self._undo: list[UndoStep] = []
+        #: What Undo took back, for Redo (latest last); a new change empties it.
+        self._redo: list[UndoStep] = []
         self._override_edits = 0  # changes the user made to the overrides (see Relocation)
         #: The parameters the overrides were placed under (by the last run taken, or an edit).
         self._placed_params = self.params
@@ -844,6 +848,8 @@ class ViewerModel:
         params = parameters_from_dict({name: value}, self.params)
         if params != self.params:
             self.params = params
+            # the overrides Undo took back were placed under the parameters before: Redo would misplace them
+            self._redo.clear()
             self.dirty = True
             self.params_changed.emit()
         return step_of(name)
@@ -903,9 +909,13 @@ class ViewerModel:
         return o
 
     def _push_undo(self, params: ModelParameters | None = None, edits: int = -1) -> None:
-        """Keep the overrides as they are for Undo (and ``params``, before a run's change; see :class:`UndoStep`)."""
+        """Keep the overrides as they are for Undo (and ``params``, before a run's change; see :class:`UndoStep`).
+
+        A new change: what Undo took back before it can no longer be redone on top of it.
+        """
         self._undo.append(UndoStep(copy.deepcopy(self.overrides), params, edits))
         del self._undo[:-50]
+        self._redo.clear()
 
     def _push_run_undo(self, edits: int) -> None:
         """Keep the overrides and the parameters they were placed under, before a run moves or drops overrides.
@@ -1059,6 +1069,15 @@ class ViewerModel:
     def can_undo(self) -> bool:
         return bool(self._undo)
 
+    @property
+    def can_redo(self) -> bool:
+        return bool(self._redo)
+
+    def _now(self, like: UndoStep) -> UndoStep:
+        """The overrides as they are, to go back to from a step like ``like`` (the parameters too, for a run's)."""
+        params = None if like.params is None else self.params
+        return UndoStep(copy.deepcopy(self.overrides), params, like.edits, self._placed_params)
+
     def undo(self) -> str | None:
         """Restore the overrides before the last change; returns the step to re-run.
 
@@ -1070,6 +1089,7 @@ class ViewerModel:
         if not self._undo:
             return None
         undone = self._undo.pop()
+        self._redo.append(self._now(undone))
         self.overrides = undone.overrides
         self._override_edits += 1
         step = "correspondence"
@@ -1083,12 +1103,34 @@ class ViewerModel:
         self.overrides_changed.emit()
         return step
 
-    def _restore_params(self, params: ModelParameters) -> str:
+    def redo(self) -> str | None:
+        """Bring back the overrides (and parameters) the last Undo took back; returns the step to re-run.
+
+        Without it, an Undo pressed once too often lost the alignment it undid for good: the
+        geologist had to make it again. A new change (an edit, a parameter) empties what can be redone.
+        """
+        if not self._redo:
+            return None
+        redone = self._redo.pop()
+        self._undo.append(self._now(redone))
+        self.overrides = copy.deepcopy(redone.overrides)
+        self._override_edits += 1
+        step = "correspondence"
+        self.override_notes = []
+        if redone.params is not None and redone.params != self.params:
+            step = min(step, self._restore_params(redone.params, "Redo"), key=STEPS.index)
+        if redone.placed_params is not None:
+            self._placed_params = redone.placed_params  # the overrides are placed as they were before the Undo
+        self.dirty = True
+        self.overrides_changed.emit()
+        return step
+
+    def _restore_params(self, params: ModelParameters, action: str = "Undo") -> str:
         """Set the parameters back to ``params``, saying so in :attr:`override_notes`; returns the step to re-run."""
         names = [p.name for p in PARAMETERS if parameter_value(params, p.name) != parameter_value(self.params, p.name)]
         values = ", ".join(self._shown_value(params, n) for n in names)
         self.override_notes = [
-            f"Undo brought back the alignment overrides and the parameters they were placed under: {values}"
+            f"{action} brought back the alignment overrides and the parameters they were placed under: {values}"
         ]
         self.params = self._placed_params = params
         self.params_changed.emit()
@@ -1212,6 +1254,7 @@ class ViewerModel:
         self.overrides = [PlacedOverride.of(o) for o in proj.overrides]
         self._override_edits += 1
         self._undo.clear()
+        self._redo.clear()
         self.overrides_changed.emit()
 
     # -- autosave ----------------------------------------------------------------------

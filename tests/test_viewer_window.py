@@ -150,6 +150,28 @@ def test_undo_is_offered_only_when_there_is_something_to_undo(window, qtbot, tmp
     assert not window.model.can_undo and not window.undo_action.isEnabled()
 
 
+def test_redo_brings_back_an_undone_nudge_and_is_offered_only_then(window, qtbot):
+    """Edit > Redo (Ctrl+Shift+Z) and the panel's Redo: an Undo pressed once too often lost the nudge for good."""
+    assert not window.redo_action.isEnabled()
+    window.redo()
+    assert window.statusBar().currentMessage() == "nothing to redo"
+    window.nudge(2.0, 1.0)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    nudged = window.model.current_translation_m()
+    window.undo_action.trigger()
+    assert window.redo_action.isEnabled() and not window.undo_action.isEnabled()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.redo_action.trigger()
+    assert not window.redo_action.isEnabled() and window.undo_action.isEnabled()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), nudged, atol=1e-6)
+    assert "locked" in window.translation_label.text()
+    window.undo()
+    window.param_controls["snake_max_iterations"].slider.setValue(10)  # a new change: nothing left to redo
+    assert not window.redo_action.isEnabled()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+
+
 def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
     """A Shift + left drag in the 3D view moves the selected source by the dragged distance."""
     from bgm_viewer.scene import world_to_pixels
