@@ -1170,6 +1170,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._connect_model()
         with self.renderer.batch():
             refresh_scene(self.scene, model.holes, model.result, model.selection, deferred=True)
+            # the new input's coordinates and units on the axes and scale bar (they kept the first input's);
+            # once its layers replace the old input's, which would be drawn again for nothing
+            self.scene.set_input(model.holes.frame, float(np.max(model.holes.bench_levels_m)))
         self._fill_selection()
         # the sliders' units and ranges follow the input: build them again
         old = self._param_dock

@@ -715,6 +715,35 @@ def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp
     assert window.surface_scope.currentText() == "all but the host rock (zg0)"
 
 
+def test_another_input_opened_is_labelled_in_its_own_coordinates_and_units(window, qtbot, tmp_path):
+    """After File > Open of a table in feet on another mine grid, the axes and the scale bar were still those of
+    the first input: its eastings, northings and elevations, in metres."""
+    from core.io.blastholes import FEET_TO_METRES
+
+    h = small_holes()
+    feet = pd.DataFrame(
+        {
+            "x": h.xy[:, 0] / FEET_TO_METRES + 10_000,
+            "y": h.xy[:, 1] / FEET_TO_METRES + 20_000,
+            "z": h.z / FEET_TO_METRES,
+            "geozone": h.geozone,
+        }
+    )
+    feet.to_csv(tmp_path / "feet.csv", index=False)
+    window.open_input(tmp_path / "feet.csv")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    axes = window.plotter.renderer.cube_axes_actor
+    assert "(ft)" in axes.GetXTitle() and "(ft)" in axes.GetZTitle()
+    lo, hi = axes.GetXAxisRange()
+    assert lo <= feet.x.min() + 1 and hi >= feet.x.max() - 1 and hi - lo < 1.2 * (feet.x.max() - feet.x.min()) + 50
+    lo, hi = axes.GetYAxisRange()
+    assert lo <= feet.y.min() + 1 and hi >= feet.y.max() - 1
+    benches_ft = window.model.holes.frame.z_to_input(window.model.holes.bench_levels_m)
+    z_lo, z_hi = axes.GetZAxisRange()
+    assert z_lo <= benches_ft.min() + 1 and z_hi >= benches_ft.max() - 1
+    assert window.renderer._ruler.GetTitle().endswith(" ft")
+
+
 def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeypatch, tmp_path):
     """File > Open project: check_project's warnings (an override of a geozone or bench the
     input lacks is not used) went to stderr only, and the geologist thought it applied."""
