@@ -212,7 +212,16 @@ class MainWindow(QtWidgets.QMainWindow):
     #: The next bench's band and suggested holes, computed in the worker thread, are drawn.
     nextBenchShown = Signal()
 
-    def __init__(self, model: ViewerModel | None = None, *, debounce_ms: int = 150, auto_run: bool = True):
+    def __init__(
+        self, model: ViewerModel | None = None, *, debounce_ms: int = 150, auto_run: bool = True, restore: bool = True
+    ):
+        """The window on ``model``, run at once (``auto_run``).
+
+        ``restore``: once the window is up, offer to restore work an earlier session autosaved
+        (:meth:`offer_restore`). ``False`` for a window no one answers (the window gallery, the
+        benchmarks): its modal question blocked them for good, and a restore put someone's
+        unsaved work in their pictures.
+        """
         super().__init__()
         from pyvistaqt import QtInteractor
 
@@ -285,7 +294,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.request("contours", immediate=True)
         # Once the window is up (the question shows over it): work an earlier session autosaved and never saved.
         # (A timer of the window's own: one of the application's would call it on a window closed already.)
-        self._single_shot(0, self.offer_restore).start()
+        if restore:
+            self._single_shot(0, self.offer_restore).start()
 
     # ------------------------------------------------------------------ building
     def _single_shot(self, interval_ms: int, slot) -> QtCore.QTimer:

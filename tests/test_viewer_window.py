@@ -396,6 +396,26 @@ def test_the_window_picture_holds_the_rendered_view_and_the_docks(qtbot, tmp_pat
     assert img[:, : WINDOW_SIZE[0] // 6].mean() > 150
 
 
+def test_the_window_gallery_asks_no_one_to_restore_a_tables_autosave(qtbot, monkeypatch, tmp_path):
+    """`xvfb-run python -m bgm_viewer.window_gallery` on a table the viewer had autosaved (a session that ended
+    without saving) put the modal "Restore unsaved work?" over the window: no one answers it there, and the
+    gallery waited for good. It asks nothing now, and the autosave stays for the geologist's next session."""
+    from bgm_viewer.window_gallery import window_picture
+
+    h = small_holes()
+    table = pd.DataFrame({"x": h.xy[:, 0], "y": h.xy[:, 1], "z": h.z, "geozone": h.geozone})
+    table.to_csv(tmp_path / "holes.csv", index=False)
+    earlier = ViewerModel(tmp_path / "holes.csv", cache=False)
+    earlier.set_param("snake_max_iterations", 100)
+    autosave = earlier.autosave(now=earlier.clock() + 60)  # an earlier session's work, never saved
+    assert autosave is not None and autosave.is_file()
+    asked = []
+    monkeypatch.setattr(QtWidgets.QMessageBox, "question", lambda *a, **k: asked.append(a[1:3]))
+    window_picture(tmp_path / "holes.csv", ("blastholes", "contours"), tmp_path / "window.png")
+    assert asked == [] and (tmp_path / "window.png").is_file()
+    assert autosave.is_file()
+
+
 def test_the_window_opens_on_what_the_command_line_asked_for(qtbot):
     """`bgm view --geozone --bench --layers --camera --exaggeration` chose a screenshot's view and not the window's."""
     from qtpy.QtCore import Qt
