@@ -43,7 +43,7 @@ import numpy as np
 import trimesh
 from psygnal import Signal
 
-from core.errors import BGMWarning
+from core.errors import BGMInputError, BGMWarning
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 from core.io.cache import StageCache
@@ -577,10 +577,29 @@ def load_holes(source=None, read_options: dict | None = None) -> Blastholes:
 
 
 def project_input(project_path) -> str | None:
-    """The input a project file names, resolved against the project's folder (``None`` if it names none)."""
+    """The input a project file names, resolved against the project's folder (``None`` if it names none).
+
+    Raises
+    ------
+    BGMInputError
+        If that table is not there (moved, renamed, or read from standard input): the reader said only
+        "input file ... does not exist", with nothing to tell the geologist it came from the project
+        or how to open the project on the table where it is now.
+    """
     from core.io.project import load_project, saved_input
 
-    path = saved_input(load_project(project_path), project_path)
+    project = load_project(project_path)
+    path = saved_input(project, project_path)
+    if path is not None and not path.exists():
+        where = (
+            "a table read from standard input"
+            if project.input_path == "-"
+            else f"the table {project.input_path}, which is not at {path} (moved or renamed?)"
+        )
+        raise BGMInputError(
+            f"project file {project_path} was saved for {where}: open the table with the project, as"
+            f" bgm view TABLE --project {project_path}"
+        )
     return None if path is None else str(path)
 
 

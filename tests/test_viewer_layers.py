@@ -377,6 +377,25 @@ def test_a_project_saved_in_another_folder_finds_its_input(tmp_path, monkeypatch
         assert Path(project_input(project)).resolve() == (tmp_path / "holes.csv").resolve()
 
 
+def test_a_project_whose_table_was_moved_says_so_and_how_to_open_it(tmp_path):
+    """File > Open project (or `bgm view --project p.json`) after the table was renamed: "input file
+    '.../holes.csv' does not exist", nothing saying the name came from the project nor how to open it."""
+    from pathlib import Path
+
+    from bgm_viewer.model import ViewerModel, project_input
+    from core.errors import BGMInputError
+
+    table = tmp_path / "holes.csv"
+    table.write_text(Path(__file__).parents[1].joinpath("assets/demo_blastholes.csv").read_text())
+    ViewerModel(table).save_project(tmp_path / "p.json")
+    table.rename(tmp_path / "holes-2024.csv")
+    with pytest.raises(BGMInputError) as caught:
+        project_input(tmp_path / "p.json")
+    said = str(caught.value)
+    assert "p.json was saved for the table holes.csv" in said and "moved or renamed" in said
+    assert f"bgm view TABLE --project {tmp_path / 'p.json'}" in said
+
+
 @pytest.mark.parametrize("stage", ["selected geozone's model", "other geozones' surfaces"])
 def test_a_superseded_run_stops_inside_a_geozones_model_at_its_next_bench_pair(stage, monkeypatch):
     """A run checked for a newer request only between its steps; a geozone's model is one step (every bench
