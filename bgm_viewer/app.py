@@ -245,6 +245,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._failure: str | None = None
         #: What the last Undo did, said when its run is done (the run's progress would hide it before).
         self._undo_note = ""
+        #: The selection and translation last put in the dx, dy boxes (see _show_translation).
+        self._boxes_show: tuple | None = None
         self._request_time = 0.0
         self._started = 0.0
         self.last_run_seconds = float("nan")
@@ -1136,6 +1138,12 @@ class MainWindow(QtWidgets.QMainWindow):
         self._start_next_bench()
 
     def _show_translation(self) -> None:
+        """Show the selected source's translation, and put it in the dx, dy boxes when it is a new one.
+
+        Every result of a run came here: a run lasts seconds (tens on a large pit) and a dx, dy the
+        geologist was typing meanwhile was set back to the translation shown, then applied by Apply.
+        The boxes now change only when the translation shown (or the component) does.
+        """
         t = self.model.current_translation_m()
         if t is None:
             self.translation_label.setText("-")
@@ -1144,6 +1152,10 @@ class MainWindow(QtWidgets.QMainWindow):
         lock = " (locked)" if locked is not None and locked.translation is not None else ""
         tx, ty = t[0] / self._mpu, t[1] / self._mpu
         self.translation_label.setText(f"{tx:.2f}, {ty:.2f}{lock}")
+        shown = (self.model.selection, tx, ty)
+        if shown == self._boxes_show:
+            return
+        self._boxes_show = shown
         for s, v in ((self.dx_spin, tx), (self.dy_spin, ty)):
             s.blockSignals(True)
             s.setValue(v)

@@ -117,6 +117,24 @@ def test_manual_alignment_save_reload_and_undo(window, qtbot, tmp_path):
     np.testing.assert_allclose(window.model.current_translation_m(), want, atol=1e-6)
 
 
+def test_a_translation_being_typed_is_not_set_back_by_a_run_under_way(window, qtbot):
+    """A run lasts seconds (tens on a large pit), and each of its results put the translation shown back in the
+    dx, dy boxes: what the geologist was typing meanwhile was lost, and Apply locked the automatic translation."""
+    auto = window.model.current_translation_m()
+    window.dx_spin.setValue(auto[0] + 7.0)  # typed while the run below goes on
+    window.dy_spin.setValue(auto[1] - 3.0)
+    typed = (window.dx_spin.value(), window.dy_spin.value())
+    window.request("surface", immediate=True)  # a run whose results leave the translation as it was
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert (window.dx_spin.value(), window.dy_spin.value()) == typed
+    window.apply_translation()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), typed, atol=1e-6)
+    window.undo()  # a new translation shown: the boxes show it
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose((window.dx_spin.value(), window.dy_spin.value()), auto, atol=0.006)
+
+
 def test_undo_of_an_override_a_slider_dropped_sets_the_slider_back(window, qtbot):
     """Undo brings back the slider value the override was made under, shown on the slider, and says so."""
     window._select(geozone="g2", bench=0, component=0)
