@@ -247,6 +247,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._undo_note = ""
         #: The selection and translation last put in the dx, dy boxes (see _show_translation).
         self._boxes_show: tuple | None = None
+        #: The model whose unsaved work the user discarded to open another file: its autosave goes once that
+        #: file is open (see _confirm_discard).
+        self._discarded: ViewerModel | None = None
         self._request_time = 0.0
         self._started = 0.0
         self.last_run_seconds = float("nan")
@@ -1184,6 +1187,9 @@ class MainWindow(QtWidgets.QMainWindow):
         return notes
 
     def _replace_model(self, model: ViewerModel) -> None:
+        if self._discarded is self.model:  # its work was discarded for this file: no longer offered
+            self._discarded.discard_autosave()
+        self._discarded = None
         self._cancel()
         self._pending_step = self._queued_step = None
         self._failure = None  # the new input's run says its own
@@ -1215,19 +1221,22 @@ class MainWindow(QtWidgets.QMainWindow):
         self.request("contours", immediate=True)
 
     def open_input_dialog(self) -> None:
-        if not self._confirm_discard():
+        if not self._confirm_discard(opening=True):
             return
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(
-            self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
-        )
-        if not path:
-            return
-        from .read_options import ReadOptionsDialog
+        try:
+            path, _ = QtWidgets.QFileDialog.getOpenFileName(
+                self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
+            )
+            if not path:
+                return
+            from .read_options import ReadOptionsDialog
 
-        # starts from how the current input was read: the next table of the same mine reads the same way
-        dialog = ReadOptionsDialog(self, path, self.model.holes.read_options)
-        if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
-            self._guard(lambda: self._tell(self.open_input(path, dialog.options())))
+            # starts from how the current input was read: the next table of the same mine reads the same way
+            dialog = ReadOptionsDialog(self, path, self.model.holes.read_options)
+            if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
+                self._guard(lambda: self._tell(self.open_input(path, dialog.options())))
+        finally:
+            self._discarded = None  # cancelled, or the file failed to open: the work stays, and its autosave
 
     def open_project(self, path) -> list[str]:
         """Open a project and its input; returns what they warned of (overrides or parameters left unused)."""
@@ -1255,11 +1264,16 @@ class MainWindow(QtWidgets.QMainWindow):
             QtWidgets.QMessageBox.warning(self, "BGM viewer", "\n\n".join(notes))
 
     def open_project_dialog(self) -> None:
-        if not self._confirm_discard():
+        if not self._confirm_discard(opening=True):
             return
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Open project", "", "BGM project (*.json);;All files (*)")
-        if path:
-            self._guard(lambda: self._tell(self.open_project(path)))
+        try:
+            path, _ = QtWidgets.QFileDialog.getOpenFileName(
+                self, "Open project", "", "BGM project (*.json);;All files (*)"
+            )
+            if path:
+                self._guard(lambda: self._tell(self.open_project(path)))
+        finally:
+            self._discarded = None  # cancelled, or the project failed to open: the work stays, and its autosave
 
     def save_project(self, ask: bool = False) -> bool:
         path = self.model.project_path
@@ -1431,8 +1445,13 @@ class MainWindow(QtWidgets.QMainWindow):
             return False
 
     # ------------------------------------------------------------------ closing
-    def _confirm_discard(self) -> bool:
-        """Ask what to do with unsaved changes; ``True`` to go on."""
+    def _confirm_discard(self, opening: bool = False) -> bool:
+        """Ask what to do with unsaved changes; ``True`` to go on.
+
+        ``opening``: another file is to be opened. Discarded then, the autosave goes once it is open
+        (:meth:`_replace_model`): deleted at once, a file dialog cancelled or a table that failed to
+        open left the work in the window, unsaved and no longer autosaved.
+        """
         if not self.model.dirty:
             return True
         answer = QtWidgets.QMessageBox.question(
@@ -1447,7 +1466,10 @@ class MainWindow(QtWidgets.QMainWindow):
         if answer == QtWidgets.QMessageBox.StandardButton.Save:
             return self.save_project()
         if answer == QtWidgets.QMessageBox.StandardButton.Discard:
-            self.model.discard_autosave()  # discarded on purpose: not offered again at the next opening
+            if opening:
+                self._discarded = self.model
+            else:
+                self.model.discard_autosave()  # discarded on purpose: not offered again at the next opening
             return True
         return False
 

@@ -950,6 +950,53 @@ def test_a_table_opened_in_feet_with_its_geozone_column_named_reopens_so_from_it
     assert window.model.holes.bench_height_m == pytest.approx(10 * 0.3048)
 
 
+@pytest.mark.parametrize("opened", ["cancelled", "a bad table", "another table"])
+def test_unsaved_work_discarded_to_open_a_file_keeps_its_autosave_until_the_file_is_open(
+    qtbot, monkeypatch, tmp_path, opened
+):
+    """File > Open blastholes, Discard, then the file dialog cancelled (or a table that fails to open): the
+    autosave was deleted at Discard while the work stayed in the window, unsaved, and a crash then lost it."""
+    from bgm_viewer import read_options
+
+    h = small_holes()
+    table = pd.DataFrame({"x": h.xy[:, 0], "y": h.xy[:, 1], "z": h.z, "geozone": h.geozone})
+    table.to_csv(tmp_path / "holes.csv", index=False)
+    table.drop(columns="geozone").to_csv(tmp_path / "bad.csv", index=False)
+    table.to_csv(tmp_path / "other.csv", index=False)
+    win = MainWindow(ViewerModel(tmp_path / "holes.csv", cache=False), debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        win.set_param("snake_max_iterations", 100)
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+        autosave = win.model.autosave_path
+        win.model.autosave(now=win.model.clock() + 60)  # written now, unless the window's timer did already
+        assert autosave is not None and autosave.is_file()
+        worked = win.model
+        chosen = {
+            "cancelled": "",
+            "a bad table": str(tmp_path / "bad.csv"),
+            "another table": str(tmp_path / "other.csv"),
+        }
+        said = []
+        monkeypatch.setattr(
+            QtWidgets.QMessageBox, "question", lambda *a, **k: QtWidgets.QMessageBox.StandardButton.Discard
+        )
+        monkeypatch.setattr(QtWidgets.QMessageBox, "warning", lambda parent, title, text, *a: said.append(text))
+        monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (chosen[opened], ""))
+        monkeypatch.setattr(read_options.ReadOptionsDialog, "exec", lambda d: QtWidgets.QDialog.DialogCode.Accepted)
+        win.open_input_dialog()
+        if opened == "another table":  # discarded on purpose: not offered again
+            assert win.model is not worked and not autosave.exists()
+        else:
+            assert win.model is worked and win.model.dirty and autosave.is_file()
+            assert said == ([] if opened == "cancelled" else [said[0]]) and (not said or "geozone" in said[0])
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+    finally:
+        win.model.dirty = False
+        win.close()
+
+
 def test_the_next_bench_is_computed_off_the_windows_thread_and_a_stale_one_is_not_drawn(window, qtbot, monkeypatch):
     """Showing the uncertainty or suggested-holes layer ran core's band of the next bench (1-3.5 s on Kennecott)
     on the window's thread: the window froze. It runs in a worker thread now, said in the status bar, drawn when
