@@ -212,7 +212,16 @@ class MainWindow(QtWidgets.QMainWindow):
     #: The next bench's band and suggested holes, computed in the worker thread, are drawn.
     nextBenchShown = Signal()
 
-    def __init__(self, model: ViewerModel | None = None, *, debounce_ms: int = 150, auto_run: bool = True):
+    def __init__(
+        self, model: ViewerModel | None = None, *, debounce_ms: int = 150, auto_run: bool = True, restore: bool = True
+    ):
+        """The window on ``model``, run at once (``auto_run``).
+
+        ``restore``: once the window is up, offer to restore work an earlier session autosaved
+        (:meth:`offer_restore`). ``False`` for a window no one answers (the window gallery, the
+        benchmarks): its modal question blocked them for good, and a restore put someone's
+        unsaved work in their pictures.
+        """
         super().__init__()
         from pyvistaqt import QtInteractor
 
@@ -236,6 +245,11 @@ class MainWindow(QtWidgets.QMainWindow):
         self._failure: str | None = None
         #: What the last Undo did, said when its run is done (the run's progress would hide it before).
         self._undo_note = ""
+        #: The selection and translation last put in the dx, dy boxes (see _show_translation).
+        self._boxes_show: tuple | None = None
+        #: The model whose unsaved work the user discarded to open another file: its autosave goes once that
+        #: file is open (see _confirm_discard).
+        self._discarded: ViewerModel | None = None
         self._request_time = 0.0
         self._started = 0.0
         self.last_run_seconds = float("nan")
@@ -285,7 +299,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.request("contours", immediate=True)
         # Once the window is up (the question shows over it): work an earlier session autosaved and never saved.
         # (A timer of the window's own: one of the application's would call it on a window closed already.)
-        self._single_shot(0, self.offer_restore).start()
+        if restore:
+            self._single_shot(0, self.offer_restore).start()
 
     # ------------------------------------------------------------------ building
     def _single_shot(self, interval_ms: int, slot) -> QtCore.QTimer:
@@ -312,6 +327,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self.undo_action.setShortcut(QtGui.QKeySequence.StandardKey.Undo)
         self.undo_action.triggered.connect(self.undo)
         e.addAction(self.undo_action)
+        self.redo_action = QtGui.QAction("&Redo alignment", self)
+        self.redo_action.setShortcut(QtGui.QKeySequence.StandardKey.Redo)
+        self.redo_action.triggered.connect(self.redo)
+        e.addAction(self.redo_action)
         v = self.menuBar().addMenu("&View")
         for cam, key in (("iso", "I"), ("top", "T"), ("front", "F"), ("side", "S")):
             v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam), QtGui.QKeySequence(f"Ctrl+{key}"))
@@ -546,6 +565,7 @@ class MainWindow(QtWidgets.QMainWindow):
             ("Lock", self.lock_current),
             ("Clear", self.clear_override),
             ("Undo", self.undo),
+            ("Redo", self.redo),
         ):
             b = QtWidgets.QPushButton(text)
             b.clicked.connect(fn)
@@ -843,11 +863,21 @@ class MainWindow(QtWidgets.QMainWindow):
             self._undo_note = "; ".join(self.model.override_notes)
             self.request(stage, immediate=True)
 
+    def redo(self) -> None:
+        """Bring back what the last Undo took back (Edit > Redo, the panel's Redo)."""
+        stage = self.model.redo()
+        if stage is None:
+            self.statusBar().showMessage("nothing to redo", 5000)
+            return
+        self._undo_note = "; ".join(self.model.override_notes)
+        self.request(stage, immediate=True)
+
     def _connect_model(self) -> None:
         self.model.dirty_changed.connect(self._update_title)
         self.model.dirty_changed.connect(self._arm_autosave)
         self.model.overrides_changed.connect(self._on_overrides)
         self.model.params_changed.connect(self._show_params)
+        self.model.params_changed.connect(self._on_overrides)  # a parameter changed: nothing left to redo
         self.model.selection_changed.connect(self._show_component)
         self._on_overrides()  # a new model has nothing to undo: Edit > Undo was left enabled, doing nothing
 
@@ -870,6 +900,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _on_overrides(self) -> None:
         self.undo_action.setEnabled(self.model.can_undo)
+        self.redo_action.setEnabled(self.model.can_redo)
 
     def _update_title(self, *_) -> None:
         name = Path(self.model.project_path).name if self.model.project_path else "untitled project"
@@ -1110,6 +1141,12 @@ class MainWindow(QtWidgets.QMainWindow):
         self._start_next_bench()
 
     def _show_translation(self) -> None:
+        """Show the selected source's translation, and put it in the dx, dy boxes when it is a new one.
+
+        Every result of a run came here: a run lasts seconds (tens on a large pit) and a dx, dy the
+        geologist was typing meanwhile was set back to the translation shown, then applied by Apply.
+        The boxes now change only when the translation shown (or the component) does.
+        """
         t = self.model.current_translation_m()
         if t is None:
             self.translation_label.setText("-")
@@ -1118,6 +1155,10 @@ class MainWindow(QtWidgets.QMainWindow):
         lock = " (locked)" if locked is not None and locked.translation is not None else ""
         tx, ty = t[0] / self._mpu, t[1] / self._mpu
         self.translation_label.setText(f"{tx:.2f}, {ty:.2f}{lock}")
+        shown = (self.model.selection, tx, ty)
+        if shown == self._boxes_show:
+            return
+        self._boxes_show = shown
         for s, v in ((self.dx_spin, tx), (self.dy_spin, ty)):
             s.blockSignals(True)
             s.setValue(v)
@@ -1146,6 +1187,9 @@ class MainWindow(QtWidgets.QMainWindow):
         return notes
 
     def _replace_model(self, model: ViewerModel) -> None:
+        if self._discarded is self.model:  # its work was discarded for this file: no longer offered
+            self._discarded.discard_autosave()
+        self._discarded = None
         self._cancel()
         self._pending_step = self._queued_step = None
         self._failure = None  # the new input's run says its own
@@ -1154,6 +1198,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._connect_model()
         with self.renderer.batch():
             refresh_scene(self.scene, model.holes, model.result, model.selection, deferred=True)
+            # the new input's coordinates and units on the axes and scale bar (they kept the first input's);
+            # once its layers replace the old input's, which would be drawn again for nothing
+            self.scene.set_input(model.holes.frame, float(np.max(model.holes.bench_levels_m)))
         self._fill_selection()
         # the sliders' units and ranges follow the input: build them again
         old = self._param_dock
@@ -1174,19 +1221,22 @@ class MainWindow(QtWidgets.QMainWindow):
         self.request("contours", immediate=True)
 
     def open_input_dialog(self) -> None:
-        if not self._confirm_discard():
+        if not self._confirm_discard(opening=True):
             return
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(
-            self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
-        )
-        if not path:
-            return
-        from .read_options import ReadOptionsDialog
+        try:
+            path, _ = QtWidgets.QFileDialog.getOpenFileName(
+                self, "Open blastholes", "", "Blasthole tables (*.csv *.txt *.parquet *.pq);;All files (*)"
+            )
+            if not path:
+                return
+            from .read_options import ReadOptionsDialog
 
-        # starts from how the current input was read: the next table of the same mine reads the same way
-        dialog = ReadOptionsDialog(self, path, self.model.holes.read_options)
-        if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
-            self._guard(lambda: self._tell(self.open_input(path, dialog.options())))
+            # starts from how the current input was read: the next table of the same mine reads the same way
+            dialog = ReadOptionsDialog(self, path, self.model.holes.read_options)
+            if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
+                self._guard(lambda: self._tell(self.open_input(path, dialog.options())))
+        finally:
+            self._discarded = None  # cancelled, or the file failed to open: the work stays, and its autosave
 
     def open_project(self, path) -> list[str]:
         """Open a project and its input; returns what they warned of (overrides or parameters left unused)."""
@@ -1214,11 +1264,16 @@ class MainWindow(QtWidgets.QMainWindow):
             QtWidgets.QMessageBox.warning(self, "BGM viewer", "\n\n".join(notes))
 
     def open_project_dialog(self) -> None:
-        if not self._confirm_discard():
+        if not self._confirm_discard(opening=True):
             return
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Open project", "", "BGM project (*.json);;All files (*)")
-        if path:
-            self._guard(lambda: self._tell(self.open_project(path)))
+        try:
+            path, _ = QtWidgets.QFileDialog.getOpenFileName(
+                self, "Open project", "", "BGM project (*.json);;All files (*)"
+            )
+            if path:
+                self._guard(lambda: self._tell(self.open_project(path)))
+        finally:
+            self._discarded = None  # cancelled, or the project failed to open: the work stays, and its autosave
 
     def save_project(self, ask: bool = False) -> bool:
         path = self.model.project_path
@@ -1390,8 +1445,13 @@ class MainWindow(QtWidgets.QMainWindow):
             return False
 
     # ------------------------------------------------------------------ closing
-    def _confirm_discard(self) -> bool:
-        """Ask what to do with unsaved changes; ``True`` to go on."""
+    def _confirm_discard(self, opening: bool = False) -> bool:
+        """Ask what to do with unsaved changes; ``True`` to go on.
+
+        ``opening``: another file is to be opened. Discarded then, the autosave goes once it is open
+        (:meth:`_replace_model`): deleted at once, a file dialog cancelled or a table that failed to
+        open left the work in the window, unsaved and no longer autosaved.
+        """
         if not self.model.dirty:
             return True
         answer = QtWidgets.QMessageBox.question(
@@ -1406,7 +1466,10 @@ class MainWindow(QtWidgets.QMainWindow):
         if answer == QtWidgets.QMessageBox.StandardButton.Save:
             return self.save_project()
         if answer == QtWidgets.QMessageBox.StandardButton.Discard:
-            self.model.discard_autosave()  # discarded on purpose: not offered again at the next opening
+            if opening:
+                self._discarded = self.model
+            else:
+                self.model.discard_autosave()  # discarded on purpose: not offered again at the next opening
             return True
         return False
 
@@ -1439,6 +1502,7 @@ selects its geozone (and bench pair and component)</td></tr>
 <tr><td><b>Shift + left drag</b></td><td>move the selected source component on its bench</td></tr>
 <tr><td><b>Ctrl + arrows</b></td><td>nudge the selected source by the step of the alignment panel</td></tr>
 <tr><td><b>Ctrl+Z</b></td><td>undo the last alignment change</td></tr>
+<tr><td><b>Ctrl+Shift+Z / Ctrl+Y</b></td><td>redo what Undo took back</td></tr>
 <tr><td><b>Ctrl+I / T / F / S</b></td><td>camera: iso, top, front, side</td></tr>
 <tr><td><b>Ctrl+0</b></td><td>fit the visible data</td></tr>
 <tr><td><b>Ctrl+O / Ctrl+S</b></td><td>open blastholes / save the project</td></tr>

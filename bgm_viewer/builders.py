@@ -118,7 +118,11 @@ def _changed(result: PipelineResult, previous: PipelineResult | None, selection:
         ]
         if len(bh[0]) != len(bh[1]) or not np.array_equal(bh[0], bh[1]):
             out.add("blastholes")
-    if result.selected_contour(selection) is not previous.selected_contour(selection):
+    # The fields on screen are those of the component ``previous`` was drawn for. Asked of ``previous`` with the
+    # new selection, another component of the same bench (one object in both results) seemed unchanged: the
+    # edge map, GVF and snake of the component selected before stayed on screen under the new one.
+    drawn = previous.selection if previous.selection is not None else selection
+    if result.selected_contour(selection) is not previous.selected_contour(drawn):
         out |= {"edge map", "GVF", "snake"}
     if result.morph is not previous.morph:
         out |= {"wavefront", "trajectories", "selected components"}
@@ -179,7 +183,29 @@ def _why_no_contour(holes, result: PipelineResult, sel: Selection) -> str:
         return f"{where} has no component of {result.min_component_holes} or more holes ({on_bench} hole(s) in all)"
     if sel.component >= n:
         return f"{where} has {n} component(s): source component {sel.component} does not exist"
+    if _too_small_for_a_snake(result, sel):
+        n_holes = len(result.sources(sel)[sel.component].holes)
+        return (
+            f"source component {sel.component} of {where} ({n_holes} holes) is too small for a snake:"
+            " its contour is the outline of its holes, with no edge map, GVF or snake"
+        )
     return f"the fields of source component {sel.component} of {where} are not computed yet"
+
+
+def _too_small_for_a_snake(result: PipelineResult, sel: Selection) -> bool:
+    """Whether the selected component has no fields because extraction ran no snake on it (not because they are
+    still to come).
+
+    A part too small for a snake keeps its outline and gets no edge map, GVF or snake
+    (:func:`core.extraction.contours.snake_contour`). The bench's fields are computed once
+    another component of the geozone there has them, or the run is done (it computes them
+    before the other benches): "not computed yet" then stayed in the status bar for good.
+    """
+    contour = result.selected_contour(sel)
+    if contour is None or contour.fields is not None:
+        return False
+    own = [c for c in result.contours.get(sel.bench, []) if c.geozone == sel.geozone]
+    return result.complete or any(c.fields is not None for c in own)
 
 
 #: Why nothing between benches is drawn for an input of one bench (it never will be: no bench below).

@@ -43,7 +43,7 @@ import numpy as np
 import trimesh
 from psygnal import Signal
 
-from core.errors import BGMWarning
+from core.errors import BGMInputError, BGMWarning
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 from core.io.cache import StageCache
@@ -207,6 +207,8 @@ class UndoStep:
     params: ModelParameters | None = None
     #: The user's edits count when a run changed the overrides (see :meth:`ViewerModel._push_run_undo`).
     edits: int = -1
+    #: Of a step Redo brings back: the parameters its overrides were placed under (``None``: those of the moment).
+    placed_params: ModelParameters | None = None
 
 
 Progress = tuple[str, float, PipelineResult]
@@ -576,10 +578,29 @@ def load_holes(source=None, read_options: dict | None = None) -> Blastholes:
 
 
 def project_input(project_path) -> str | None:
-    """The input a project file names, resolved against the project's folder (``None`` if it names none)."""
+    """The input a project file names, resolved against the project's folder (``None`` if it names none).
+
+    Raises
+    ------
+    BGMInputError
+        If that table is not there (moved, renamed, or read from standard input): the reader said only
+        "input file ... does not exist", with nothing to tell the geologist it came from the project
+        or how to open the project on the table where it is now.
+    """
     from core.io.project import load_project, saved_input
 
-    path = saved_input(load_project(project_path), project_path)
+    project = load_project(project_path)
+    path = saved_input(project, project_path)
+    if path is not None and not path.exists():
+        where = (
+            "a table read from standard input"
+            if project.input_path == "-"
+            else f"the table {project.input_path}, which is not at {path} (moved or renamed?)"
+        )
+        raise BGMInputError(
+            f"project file {project_path} was saved for {where}: open the table with the project, as"
+            f" bgm view TABLE --project {project_path}"
+        )
     return None if path is None else str(path)
 
 
@@ -702,6 +723,8 @@ class ViewerModel:
         self.min_body_holes = 0
         self.overrides: list = []  # bgm_viewer.alignment.PlacedOverride
         self._undo: list[UndoStep] = []
+        #: What Undo took back, for Redo (latest last); a new change empties it.
+        self._redo: list[UndoStep] = []
         self._override_edits = 0  # changes the user made to the overrides (see Relocation)
         #: The parameters the overrides were placed under (by the last run taken, or an edit).
         self._placed_params = self.params
@@ -845,6 +868,8 @@ class ViewerModel:
         params = parameters_from_dict({name: value}, self.params)
         if params != self.params:
             self.params = params
+            # the overrides Undo took back were placed under the parameters before: Redo would misplace them
+            self._redo.clear()
             self.dirty = True
             self.params_changed.emit()
         return step_of(name)
@@ -904,9 +929,13 @@ class ViewerModel:
         return o
 
     def _push_undo(self, params: ModelParameters | None = None, edits: int = -1) -> None:
-        """Keep the overrides as they are for Undo (and ``params``, before a run's change; see :class:`UndoStep`)."""
+        """Keep the overrides as they are for Undo (and ``params``, before a run's change; see :class:`UndoStep`).
+
+        A new change: what Undo took back before it can no longer be redone on top of it.
+        """
         self._undo.append(UndoStep(copy.deepcopy(self.overrides), params, edits))
         del self._undo[:-50]
+        self._redo.clear()
 
     def _push_run_undo(self, edits: int) -> None:
         """Keep the overrides and the parameters they were placed under, before a run moves or drops overrides.
@@ -1060,6 +1089,15 @@ class ViewerModel:
     def can_undo(self) -> bool:
         return bool(self._undo)
 
+    @property
+    def can_redo(self) -> bool:
+        return bool(self._redo)
+
+    def _now(self, like: UndoStep) -> UndoStep:
+        """The overrides as they are, to go back to from a step like ``like`` (the parameters too, for a run's)."""
+        params = None if like.params is None else self.params
+        return UndoStep(copy.deepcopy(self.overrides), params, like.edits, self._placed_params)
+
     def undo(self) -> str | None:
         """Restore the overrides before the last change; returns the step to re-run.
 
@@ -1071,6 +1109,7 @@ class ViewerModel:
         if not self._undo:
             return None
         undone = self._undo.pop()
+        self._redo.append(self._now(undone))
         self.overrides = undone.overrides
         self._override_edits += 1
         step = "correspondence"
@@ -1084,12 +1123,34 @@ class ViewerModel:
         self.overrides_changed.emit()
         return step
 
-    def _restore_params(self, params: ModelParameters) -> str:
+    def redo(self) -> str | None:
+        """Bring back the overrides (and parameters) the last Undo took back; returns the step to re-run.
+
+        Without it, an Undo pressed once too often lost the alignment it undid for good: the
+        geologist had to make it again. A new change (an edit, a parameter) empties what can be redone.
+        """
+        if not self._redo:
+            return None
+        redone = self._redo.pop()
+        self._undo.append(self._now(redone))
+        self.overrides = copy.deepcopy(redone.overrides)
+        self._override_edits += 1
+        step = "correspondence"
+        self.override_notes = []
+        if redone.params is not None and redone.params != self.params:
+            step = min(step, self._restore_params(redone.params, "Redo"), key=STEPS.index)
+        if redone.placed_params is not None:
+            self._placed_params = redone.placed_params  # the overrides are placed as they were before the Undo
+        self.dirty = True
+        self.overrides_changed.emit()
+        return step
+
+    def _restore_params(self, params: ModelParameters, action: str = "Undo") -> str:
         """Set the parameters back to ``params``, saying so in :attr:`override_notes`; returns the step to re-run."""
         names = [p.name for p in PARAMETERS if parameter_value(params, p.name) != parameter_value(self.params, p.name)]
         values = ", ".join(self._shown_value(params, n) for n in names)
         self.override_notes = [
-            f"Undo brought back the alignment overrides and the parameters they were placed under: {values}"
+            f"{action} brought back the alignment overrides and the parameters they were placed under: {values}"
         ]
         self.params = self._placed_params = params
         self.params_changed.emit()
@@ -1213,6 +1274,7 @@ class ViewerModel:
         self.overrides = [PlacedOverride.of(o) for o in proj.overrides]
         self._override_edits += 1
         self._undo.clear()
+        self._redo.clear()
         self.overrides_changed.emit()
 
     # -- autosave ----------------------------------------------------------------------

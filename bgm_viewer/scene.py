@@ -107,6 +107,16 @@ class Scene:
         if value != self._view.vertical_exaggeration:
             self._set_view(vertical_exaggeration=value)
 
+    def set_input(self, frame: LocalFrame, z_ref: float) -> None:
+        """Label the view in another input's coordinates and units (``frame``), exaggerated about ``z_ref`` metres.
+
+        The scene outlives an input (File > Open): kept, the frame of the first one labelled the
+        axes and the scale bar of the next in its origin and units (a table in feet in metres).
+        """
+        self.frame = frame
+        self._view = replace(self._view, z_ref=float(z_ref))
+        self.changed.emit(None, "view")  # one redraw, and the bearings labelled again even where nothing moved
+
     def _set_view(self, **changes) -> None:
         view = replace(self._view, **changes)
         if view != self._view:
@@ -416,7 +426,9 @@ class SceneRenderer:
         if not self.show_bearings:
             return
         bounds = self.data_bounds()
-        key = None if bounds is None else tuple(np.round(bounds, 3)) + (self.scene.vertical_exaggeration,)
+        # the frame too: another input's data may be drawn where the last one's were, in other units
+        frame = self.scene.frame
+        key = None if bounds is None else (*np.round(bounds, 3), self.scene.vertical_exaggeration, frame)
         if key == self._bearings_shown:
             return
         self._bearings_shown = key

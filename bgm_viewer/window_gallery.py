@@ -43,7 +43,9 @@ def window_picture(source, layers, out_png: Path, timeout_s: float = 900.0) -> P
     app = QtWidgets.QApplication.instance() or QtWidgets.QApplication([])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        win = MainWindow(ViewerModel(str(source) if isinstance(source, str | Path) else source), debounce_ms=0)
+        model = ViewerModel(str(source) if isinstance(source, str | Path) else source)
+        # no one answers a restore question here: it blocked the gallery for good when the table had an autosave
+        win = MainWindow(model, debounce_ms=0, restore=False)
         win.resize(*WINDOW_SIZE)
         win.show()
         if not win.wait_idle(timeout_s):

@@ -211,6 +211,48 @@ def test_undo_returns_the_earliest_step_of_the_parameters_it_brings_back(model):
     assert model.undo() == "correspondence" and model.params == before and shown == [3]
 
 
+def test_redo_brings_back_what_undo_took_back_and_a_new_change_empties_it(model):
+    """There was no Redo: an Undo pressed once too often lost the alignment it undid, to be made again by hand."""
+    auto = model.current_translation_m()
+    _run(model, model.set_translation(auto[0] + 4.0, auto[1] - 2.0))
+    _run(model, model.set_association(0, True))
+    made = [(o.source, o.translation, dict(o.associate)) for o in model.overrides]
+    _run(model, model.undo())
+    _run(model, model.undo())
+    assert model.overrides == [] and model.can_redo
+    np.testing.assert_allclose(model.current_translation_m(), auto, atol=1e-9)
+    _run(model, model.redo())
+    np.testing.assert_allclose(model.current_translation_m(), (auto[0] + 4.0, auto[1] - 2.0), atol=1e-9)
+    assert model.redo() == "correspondence" and not model.can_redo
+    assert [(o.source, o.translation, dict(o.associate)) for o in model.overrides] == made
+    assert model.dirty and model.redo() is None  # nothing more to redo
+    model.undo()
+    model.nudge(1.0, 0.0)  # a new change: what was undone before it cannot be redone on top of it
+    assert not model.can_redo and model.redo() is None
+    model.undo()
+    model.set_param("snake_max_iterations", 10)  # the parameters the undone overrides were placed under changed
+    assert not model.can_redo
+
+
+def test_redo_of_an_undo_that_brought_back_the_parameters_sets_them_as_they_were(model):
+    """Undo of an override a slider dropped brings back the slider values it was placed under; Redo goes back to
+    the slider values the geologist chose, the override dropped, and Undo again works as the first time."""
+    before = _override_dropped_by_two_sliders(model)
+    chosen = model.params
+    _run(model, model.undo())
+    assert model.params == before and len(model.overrides) == 1
+    step = model.redo()
+    assert step == "snake" and model.params == chosen and model.overrides == []
+    assert any("Redo" in n and "smallest modelled component 20" in n for n in model.override_notes), (
+        model.override_notes
+    )
+    _run(model, step)
+    assert model.overrides == [] and model.to_project().parameters["min_component_holes"] == 20
+    _run(model, model.undo())
+    assert model.params == before and [(o.source, o.translation) for o in model.overrides] == [(0, (2.0, -1.0))]
+    np.testing.assert_allclose(model.result.correspondence.translations[0], (2.0, -1.0), atol=1e-9)
+
+
 def test_a_parameter_that_does_not_exist_is_refused_at_once_naming_it_and_the_parameters():
     """``set_param("gvf_muu", ...)`` set nothing and raised a bare ``KeyError`` after; a project saved
     between the two kept a change the geologist thought was made."""

@@ -93,6 +93,25 @@ def test_an_empty_layer_says_why(model):
     assert "no holes" in reasons["snake"] and absent[0] in reasons["snake"]
 
 
+def test_a_component_too_small_for_a_snake_says_so_not_that_its_fields_are_to_come():
+    """g1's corner body of six holes, with contours smoothed over three spacings, keeps its holes' outline: no
+    snake is run on it. Once the run was done the status bar still said its fields were "not computed yet"."""
+    from bgm_viewer.testing import two_bodies_holes
+
+    model = ViewerModel(two_bodies_holes(), cache=False)
+    model.set_param("smoothing_spacings", 3.0)
+    model.select("g1", 0, 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(until="morph")
+    assert model.result.complete and model.result.selected_contour(model.selection).fields is None
+    scene = build_scene(model.holes, model.result, model.selection, visible=["snake", "edge map", "GVF"])
+    reasons = empty_layer_reasons(scene, model.holes, model.result, model.selection)
+    assert set(reasons) == {"snake", "edge map", "GVF"}
+    for why in reasons.values():
+        assert "too small for a snake" in why and "6 holes" in why and "not computed yet" not in why
+
+
 def test_screenshot_of_an_empty_layer_says_why_on_stderr(tmp_path, capsys):
     holes = small_holes()
     g, k = next((g, k) for k in range(holes.n_benches - 1) for g in holes.geozones if not len(holes.on_bench(k, g)))

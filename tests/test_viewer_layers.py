@@ -377,6 +377,25 @@ def test_a_project_saved_in_another_folder_finds_its_input(tmp_path, monkeypatch
         assert Path(project_input(project)).resolve() == (tmp_path / "holes.csv").resolve()
 
 
+def test_a_project_whose_table_was_moved_says_so_and_how_to_open_it(tmp_path):
+    """File > Open project (or `bgm view --project p.json`) after the table was renamed: "input file
+    '.../holes.csv' does not exist", nothing saying the name came from the project nor how to open it."""
+    from pathlib import Path
+
+    from bgm_viewer.model import ViewerModel, project_input
+    from core.errors import BGMInputError
+
+    table = tmp_path / "holes.csv"
+    table.write_text(Path(__file__).parents[1].joinpath("assets/demo_blastholes.csv").read_text())
+    ViewerModel(table).save_project(tmp_path / "p.json")
+    table.rename(tmp_path / "holes-2024.csv")
+    with pytest.raises(BGMInputError) as caught:
+        project_input(tmp_path / "p.json")
+    said = str(caught.value)
+    assert "p.json was saved for the table holes.csv" in said and "moved or renamed" in said
+    assert f"bgm view TABLE --project {tmp_path / 'p.json'}" in said
+
+
 @pytest.mark.parametrize("stage", ["selected geozone's model", "other geozones' surfaces"])
 def test_a_superseded_run_stops_inside_a_geozones_model_at_its_next_bench_pair(stage, monkeypatch):
     """A run checked for a newer request only between its steps; a geozone's model is one step (every bench
@@ -535,3 +554,28 @@ def test_a_superseded_run_stops_inside_the_selected_geozones_predictions_and_sto
     assert sorted((z, p.wkb) for _, z, p in again.predicted) == sorted(
         (z, p.wkb) for z, region in fresh.items() for p in region.geoms
     )
+
+
+def test_selecting_another_component_of_the_bench_draws_its_own_edge_map_gvf_and_snake():
+    """g1's corner body (component 1) selected after its main body (component 0) on the same bench: the run
+    shares the bench's contours, so the refresh found "the selected contour" unchanged in both results and kept
+    the edge map, GVF and snake of component 0 on screen under component 1."""
+    from bgm_viewer.builders import refresh_scene
+    from bgm_viewer.model import ViewerModel, compute
+    from bgm_viewer.testing import two_bodies_holes
+
+    model = ViewerModel(two_bodies_holes(), cache=False)
+    model.select("g1", 0, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run(until="morph")
+        scene = build_scene(model.holes, model.result, model.selection, visible=["snake", "edge map", "GVF"])
+        step = model.select(component=1)
+        for _, _, result in compute(model.inputs(), model.result, step, until="morph"):
+            refresh_scene(scene, model.holes, result, model.selection, previous=model.result)
+            model.set_result(result)
+    fields = model.result.selected_contour(model.selection).fields
+    first = model.result.sources(model.selection)[0].fields
+    assert not np.array_equal(fields.snake_history_m[-1], first.snake_history_m[-1])  # two bodies, two snakes
+    assert np.array_equal(scene["snake"].history[-1], fields.snake_history_m[-1])
+    assert scene["edge map"].edge_map is fields.edge_map and scene["GVF"].gvf is fields.gvf

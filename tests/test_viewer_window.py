@@ -117,6 +117,24 @@ def test_manual_alignment_save_reload_and_undo(window, qtbot, tmp_path):
     np.testing.assert_allclose(window.model.current_translation_m(), want, atol=1e-6)
 
 
+def test_a_translation_being_typed_is_not_set_back_by_a_run_under_way(window, qtbot):
+    """A run lasts seconds (tens on a large pit), and each of its results put the translation shown back in the
+    dx, dy boxes: what the geologist was typing meanwhile was lost, and Apply locked the automatic translation."""
+    auto = window.model.current_translation_m()
+    window.dx_spin.setValue(auto[0] + 7.0)  # typed while the run below goes on
+    window.dy_spin.setValue(auto[1] - 3.0)
+    typed = (window.dx_spin.value(), window.dy_spin.value())
+    window.request("surface", immediate=True)  # a run whose results leave the translation as it was
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert (window.dx_spin.value(), window.dy_spin.value()) == typed
+    window.apply_translation()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), typed, atol=1e-6)
+    window.undo()  # a new translation shown: the boxes show it
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose((window.dx_spin.value(), window.dy_spin.value()), auto, atol=0.006)
+
+
 def test_undo_of_an_override_a_slider_dropped_sets_the_slider_back(window, qtbot):
     """Undo brings back the slider value the override was made under, shown on the slider, and says so."""
     window._select(geozone="g2", bench=0, component=0)
@@ -148,6 +166,28 @@ def test_undo_is_offered_only_when_there_is_something_to_undo(window, qtbot, tmp
     window.open_project(path)
     qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
     assert not window.model.can_undo and not window.undo_action.isEnabled()
+
+
+def test_redo_brings_back_an_undone_nudge_and_is_offered_only_then(window, qtbot):
+    """Edit > Redo (Ctrl+Shift+Z) and the panel's Redo: an Undo pressed once too often lost the nudge for good."""
+    assert not window.redo_action.isEnabled()
+    window.redo()
+    assert window.statusBar().currentMessage() == "nothing to redo"
+    window.nudge(2.0, 1.0)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    nudged = window.model.current_translation_m()
+    window.undo_action.trigger()
+    assert window.redo_action.isEnabled() and not window.undo_action.isEnabled()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.redo_action.trigger()
+    assert not window.redo_action.isEnabled() and window.undo_action.isEnabled()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    np.testing.assert_allclose(window.model.current_translation_m(), nudged, atol=1e-6)
+    assert "locked" in window.translation_label.text()
+    window.undo()
+    window.param_controls["snake_max_iterations"].slider.setValue(10)  # a new change: nothing left to redo
+    assert not window.redo_action.isEnabled()
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
 
 
 def test_shift_drag_moves_the_source_and_leaves_the_camera(window, qtbot):
@@ -372,6 +412,26 @@ def test_the_window_picture_holds_the_rendered_view_and_the_docks(qtbot, tmp_pat
         assert drawn > 20 if g in shown else drawn == 0, f"{g}: {drawn} pixels"
     # the docks are drawn too: the left third is mostly Qt's light panels, not the view
     assert img[:, : WINDOW_SIZE[0] // 6].mean() > 150
+
+
+def test_the_window_gallery_asks_no_one_to_restore_a_tables_autosave(qtbot, monkeypatch, tmp_path):
+    """`xvfb-run python -m bgm_viewer.window_gallery` on a table the viewer had autosaved (a session that ended
+    without saving) put the modal "Restore unsaved work?" over the window: no one answers it there, and the
+    gallery waited for good. It asks nothing now, and the autosave stays for the geologist's next session."""
+    from bgm_viewer.window_gallery import window_picture
+
+    h = small_holes()
+    table = pd.DataFrame({"x": h.xy[:, 0], "y": h.xy[:, 1], "z": h.z, "geozone": h.geozone})
+    table.to_csv(tmp_path / "holes.csv", index=False)
+    earlier = ViewerModel(tmp_path / "holes.csv", cache=False)
+    earlier.set_param("snake_max_iterations", 100)
+    autosave = earlier.autosave(now=earlier.clock() + 60)  # an earlier session's work, never saved
+    assert autosave is not None and autosave.is_file()
+    asked = []
+    monkeypatch.setattr(QtWidgets.QMessageBox, "question", lambda *a, **k: asked.append(a[1:3]))
+    window_picture(tmp_path / "holes.csv", ("blastholes", "contours"), tmp_path / "window.png")
+    assert asked == [] and (tmp_path / "window.png").is_file()
+    assert autosave.is_file()
 
 
 def test_the_window_opens_on_what_the_command_line_asked_for(qtbot):
@@ -693,6 +753,35 @@ def test_opening_another_input_shows_its_own_surface_settings(window, qtbot, tmp
     assert window.surface_scope.currentText() == "all but the host rock (zg0)"
 
 
+def test_another_input_opened_is_labelled_in_its_own_coordinates_and_units(window, qtbot, tmp_path):
+    """After File > Open of a table in feet on another mine grid, the axes and the scale bar were still those of
+    the first input: its eastings, northings and elevations, in metres."""
+    from core.io.blastholes import FEET_TO_METRES
+
+    h = small_holes()
+    feet = pd.DataFrame(
+        {
+            "x": h.xy[:, 0] / FEET_TO_METRES + 10_000,
+            "y": h.xy[:, 1] / FEET_TO_METRES + 20_000,
+            "z": h.z / FEET_TO_METRES,
+            "geozone": h.geozone,
+        }
+    )
+    feet.to_csv(tmp_path / "feet.csv", index=False)
+    window.open_input(tmp_path / "feet.csv")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    axes = window.plotter.renderer.cube_axes_actor
+    assert "(ft)" in axes.GetXTitle() and "(ft)" in axes.GetZTitle()
+    lo, hi = axes.GetXAxisRange()
+    assert lo <= feet.x.min() + 1 and hi >= feet.x.max() - 1 and hi - lo < 1.2 * (feet.x.max() - feet.x.min()) + 50
+    lo, hi = axes.GetYAxisRange()
+    assert lo <= feet.y.min() + 1 and hi >= feet.y.max() - 1
+    benches_ft = window.model.holes.frame.z_to_input(window.model.holes.bench_levels_m)
+    z_lo, z_hi = axes.GetZAxisRange()
+    assert z_lo <= benches_ft.min() + 1 and z_hi >= benches_ft.max() - 1
+    assert window.renderer._ruler.GetTitle().endswith(" ft")
+
+
 def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeypatch, tmp_path):
     """File > Open project: check_project's warnings (an override of a geozone or bench the
     input lacks is not used) went to stderr only, and the geologist thought it applied."""
@@ -859,6 +948,53 @@ def test_a_table_opened_in_feet_with_its_geozone_column_named_reopens_so_from_it
     qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
     assert window.model.holes.frame.length_unit == "ft" and "(ft)" in window.windowTitle()
     assert window.model.holes.bench_height_m == pytest.approx(10 * 0.3048)
+
+
+@pytest.mark.parametrize("opened", ["cancelled", "a bad table", "another table"])
+def test_unsaved_work_discarded_to_open_a_file_keeps_its_autosave_until_the_file_is_open(
+    qtbot, monkeypatch, tmp_path, opened
+):
+    """File > Open blastholes, Discard, then the file dialog cancelled (or a table that fails to open): the
+    autosave was deleted at Discard while the work stayed in the window, unsaved, and a crash then lost it."""
+    from bgm_viewer import read_options
+
+    h = small_holes()
+    table = pd.DataFrame({"x": h.xy[:, 0], "y": h.xy[:, 1], "z": h.z, "geozone": h.geozone})
+    table.to_csv(tmp_path / "holes.csv", index=False)
+    table.drop(columns="geozone").to_csv(tmp_path / "bad.csv", index=False)
+    table.to_csv(tmp_path / "other.csv", index=False)
+    win = MainWindow(ViewerModel(tmp_path / "holes.csv", cache=False), debounce_ms=10)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        win.set_param("snake_max_iterations", 100)
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+        autosave = win.model.autosave_path
+        win.model.autosave(now=win.model.clock() + 60)  # written now, unless the window's timer did already
+        assert autosave is not None and autosave.is_file()
+        worked = win.model
+        chosen = {
+            "cancelled": "",
+            "a bad table": str(tmp_path / "bad.csv"),
+            "another table": str(tmp_path / "other.csv"),
+        }
+        said = []
+        monkeypatch.setattr(
+            QtWidgets.QMessageBox, "question", lambda *a, **k: QtWidgets.QMessageBox.StandardButton.Discard
+        )
+        monkeypatch.setattr(QtWidgets.QMessageBox, "warning", lambda parent, title, text, *a: said.append(text))
+        monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (chosen[opened], ""))
+        monkeypatch.setattr(read_options.ReadOptionsDialog, "exec", lambda d: QtWidgets.QDialog.DialogCode.Accepted)
+        win.open_input_dialog()
+        if opened == "another table":  # discarded on purpose: not offered again
+            assert win.model is not worked and not autosave.exists()
+        else:
+            assert win.model is worked and win.model.dirty and autosave.is_file()
+            assert said == ([] if opened == "cancelled" else [said[0]]) and (not said or "geozone" in said[0])
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+    finally:
+        win.model.dirty = False
+        win.close()
 
 
 def test_the_next_bench_is_computed_off_the_windows_thread_and_a_stale_one_is_not_drawn(window, qtbot, monkeypatch):

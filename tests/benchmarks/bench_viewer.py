@@ -139,7 +139,7 @@ def bench_window(name: str, source, geozone: str, bench: int, sliders: bool) -> 
     model = ViewerModel(source)
     model.select(geozone, bench, 0)
     t0 = time.perf_counter()
-    win = MainWindow(model, debounce_ms=0)
+    win = MainWindow(model, debounce_ms=0, restore=False)  # no one answers a restore question here
     win.show()
     shown: list[float] = []
     win.resultShown.connect(lambda: shown.append(time.perf_counter()))
