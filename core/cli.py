@@ -741,6 +741,11 @@ def predict(
     session = _session(holes, project, [geozone], "predict", no_cache)
     with progress_bar(f"morph {geozone[:40]}", "bench pairs") as update:
         model = session.geozone_model(geozone, stages=("correspond", "morph"), progress=update)
+    if not model.pairs:  # predicted nowhere, as bgm build and the viewer have it (ModelSession.predict): say why
+        from core.model.build import no_pair_note
+
+        why = no_pair_note(holes, geozone, session.params.min_component_holes)
+        _say(f"bgm: note: geozone {geozone} is {why}, and so no prediction (bgm build and the viewer make none)")
     features = _prediction_features(session, geozone, levels, model)
     bands, grid = _uncertainty(session, geozone, levels, model, band_probability)
     # Written together once all is computed: an interrupt during the work leaves the three as they were.
@@ -749,7 +754,7 @@ def predict(
     write_geojson(bands, sidecars[0], units=unit)
     write_probability_grid(sidecars[1], grid)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
-    if empty:
+    if empty and model.pairs:
         _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
     typer.echo(
         json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)})
@@ -775,7 +780,7 @@ def _uncertainty(session, geozone: str, levels: list[float], model, probability:
     z_m = [float(session.holes.frame.z_to_local(v)) for v in levels]
     sections = geozone_uncertainty(session, geozone, z_m, model, probability)
     at_benches = [v for v, z in zip(levels, z_m) if sections[z] is None]
-    if at_benches:
+    if at_benches and model.pairs:  # with no pair there is no section anywhere (said by predict)
         _say(f"bgm: note: no uncertainty at bench levels {', '.join(map(str, at_benches))} (the bench's own contours)")
     return band_features(sections, session.holes, geozone), probability_grid(sections, session.holes, geozone)
 
