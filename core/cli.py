@@ -82,6 +82,7 @@ import inspect
 import json
 import math
 import os
+import re
 import sys
 import time
 import warnings
@@ -673,19 +674,43 @@ def _elevations(text: str) -> list[float]:
     return levels
 
 
-def _check_reach(levels: list[float], holes) -> None:
-    """Refuse elevations more than ``MAX_PREDICTION_BENCHES`` bench heights above or below the benches."""
+def decimal_comma_splits(text: str, far: list[float]) -> list[tuple[str, str]]:
+    """``(whole, decimals)`` of the items of ``--elevations`` that read as one number written with a decimal comma.
+
+    An integer, a comma and a short integer (``647,5``: 1 to 3 digits) whose second part is among the ``far``
+    elevations refused: split at the comma, the decimals became an elevation hundreds of metres from any bench
+    and were refused with no word of why. Items joined by ``;`` or by a comma and a space are not one number.
+    """
+    # A lookahead, so that the pairs overlap: in 660,652,25 both 660,652 and 652,25 are looked at.
+    found = re.findall(r"(?<![\d.])(?=([+-]?\d+),(\d{1,3})(?![\d.]))", text)
+    return [(whole, decimals) for whole, decimals in found if any(abs(float(decimals) - v) <= SAME_LEVEL for v in far)]
+
+
+def _check_reach(levels: list[float], holes, text: str = "") -> None:
+    """Refuse elevations more than ``MAX_PREDICTION_BENCHES`` bench heights above or below the benches.
+
+    ``text`` is the option as given: a refused elevation that is the decimals of a number written with a
+    decimal comma (:func:`decimal_comma_splits`) is said to be so, not to need ``--force``.
+    """
     top, bottom = holes.bench_z_input(0), holes.bench_z_input(holes.n_benches - 1)
     height = float(np.min(-np.diff(holes.frame.z_to_input(holes.bench_levels_m))))
     reach = MAX_PREDICTION_BENCHES * height
     far = [v for v in levels if v > top + reach or v < bottom - reach]
-    if far:
+    if not far:
+        return
+    where = (
+        f"{'is' if len(far) == 1 else 'are'} more than {MAX_PREDICTION_BENCHES:g} bench heights "
+        f"({reach:.4g} {holes.frame.length_unit}) outside the benches ({bottom:g} to {top:g})"
+    )
+    refused = f"--elevations {', '.join(f'{v:g}' for v in far[:5])} {where}"
+    splits = decimal_comma_splits(text, far)
+    if splits:
+        read = "; ".join(f"{w},{d} is read as {w} and {d}" for w, d in splits[:3])
+        w, d = splits[0]
         raise BGMInputError(
-            f"--elevations {', '.join(f'{v:g}' for v in far[:5])} {'is' if len(far) == 1 else 'are'} more than "
-            f"{MAX_PREDICTION_BENCHES:g} bench "
-            f"heights ({reach:.4g} {holes.frame.length_unit}) outside the benches ({bottom:g} to {top:g}); a "
-            "prediction that far is a guess: pass --force to make it anyway"
+            f"{refused}: elevations are separated by commas ({read}); write decimals with a point ({w}.{d})"
         )
+    raise BGMInputError(f"{refused}; a prediction that far is a guess: pass --force to make it anyway")
 
 
 @app.command()
@@ -696,7 +721,9 @@ def predict(
     elevations: Annotated[
         str,
         typer.Option(
-            "--elevations", help="Comma-separated elevations in input units (above, between or below the benches)."
+            "--elevations",
+            help="Comma-separated elevations in input units, decimals with a point: 647.5,637.5 (above, between or "
+            "below the benches).",
         ),
     ],
     out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("prediction.geojson"),
@@ -737,7 +764,7 @@ def predict(
             f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
         )
     if not force:
-        _check_reach(levels, holes)
+        _check_reach(levels, holes, elevations)
     session = _session(holes, project, [geozone], "predict", no_cache)
     with progress_bar(f"morph {geozone[:40]}", "bench pairs") as update:
         model = session.geozone_model(geozone, stages=("correspond", "morph"), progress=update)

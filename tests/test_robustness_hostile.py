@@ -727,6 +727,23 @@ def test_far_elevations_need_force(csv, tmp_path):
     assert out.exists()
 
 
+def test_a_decimal_comma_in_elevations_is_said_to_be_one(csv, tmp_path):
+    """``--elevations 652,5`` is the elevations 652 and 5: 5 was refused as far away, with only --force offered."""
+    before = snapshot(tmp_path)
+    out = tmp_path / "p.geojson"
+    line = error_line(bgm("predict", csv, "--geozone", "g1", "--elevations", "652,5", "--out", out))
+    assert "--elevations 5 is more than 3 bench heights" in line, line
+    assert "separated by commas" in line and "652,5 is read as 652 and 5" in line and "(652.5)" in line, line
+    assert "--force" not in line, line
+    line = error_line(bgm("predict", csv, "--geozone", "g1", "--elevations", "660,652,25", "--out", out))
+    assert "652,25 is read as 652 and 25" in line and "(652.25)" in line, line
+    unchanged(before, snapshot(tmp_path))
+    # Far elevations given as such (a separate item, a list joined by ';') keep the plain refusal.
+    for given in ("660, 5", "660;5", "660,-5000"):
+        line = error_line(bgm("predict", csv, "--geozone", "g1", "--elevations", given, "--out", out), "--force")
+        assert "is read as" not in line, line
+
+
 def test_unused_overrides_are_named(csv, tmp_path):
     rng = rng_for("overrides")
     project = tmp_path / "p.json"
