@@ -747,6 +747,7 @@ def predict(
     boundary with --band-probability) and OUT.p_inside.npz (probability of
     being inside the geozone on a grid).
     """
+    from core.io.atomic import replaced_files
     from core.io.export import write_geojson
     from core.io.uncertainty_export import write_probability_grid
 
@@ -775,11 +776,13 @@ def predict(
         _say(f"bgm: note: geozone {geozone} is {why}, and so no prediction (bgm build and the viewer make none)")
     features = _prediction_features(session, geozone, levels, model)
     bands, grid = _uncertainty(session, geozone, levels, model, band_probability)
-    # Written together once all is computed: an interrupt during the work leaves the three as they were.
+    # Written as one set once all is computed: an interrupt or a failure, during the work or while the three are
+    # written, leaves the previous three as they were, never a new prediction beside old uncertainty files.
     unit = holes.frame.length_unit
-    write_geojson([f for f in features if not f["geometry"].is_empty], out, units=unit)
-    write_geojson(bands, sidecars[0], units=unit)
-    write_probability_grid(sidecars[1], grid)
+    with replaced_files([out, *sidecars]) as (staged_out, staged_bands, staged_grid):
+        write_geojson([f for f in features if not f["geometry"].is_empty], staged_out, units=unit)
+        write_geojson(bands, staged_bands, units=unit)
+        write_probability_grid(staged_grid, grid)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty and model.pairs:
         _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
@@ -841,7 +844,7 @@ def evaluate(
     model's parameters; parameters of the contours stage change the contours
     every method starts from and is scored on.
     """
-    from core.io.atomic import atomic_write_text, check_output, make_folder
+    from core.io.atomic import atomic_write_text, check_output, replaced_files
     from core.model.build import load_truth, predictor_from_model
     from core.model.evaluation import (
         evaluate_geozone,
@@ -882,14 +885,15 @@ def evaluate(
     _refuse_empty_scores(rows, holes, geozone)
     rows.insert(0, "geozone", geozone)  # as a build's rows say it: the folder may hold another geozone's before
     summary = summary_as_written(summary_table(rows), holes)
-    # Made only now: an input refused (unreadable, too few benches, nothing to score) left an empty folder.
-    # A folder that cannot be made was refused before any work (_outputs above tries a file in it).
-    make_folder(out)
-    # The plot first (it takes the time): an interrupt while it is drawn leaves the tables as they were.
+    # The three as one set, the folder made with them: an input refused (unreadable, too few benches, nothing to
+    # score) left an empty folder, and a failure or Ctrl-C after the plot a new plot beside the previous tables
+    # (or a new folder holding only the plot). A folder that cannot be made was refused before any work
+    # (_outputs above tries a file in it).
     unit = holes.frame.length_unit
-    plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references", unit=unit)
-    atomic_write_text(out / names[0], rows_as_written(rows, holes).to_csv(index=False))
-    atomic_write_text(out / names[1], summary.to_csv(index=False))
+    with replaced_files([out / name for name in names]) as (staged_rows, staged_summary, staged_plot):
+        plot_precision_recall(summary, staged_plot, title=f"{geozone}: model vs references", unit=unit)
+        atomic_write_text(staged_rows, rows_as_written(rows, holes).to_csv(index=False))
+        atomic_write_text(staged_summary, summary.to_csv(index=False))
     _say(
         f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s"
     )
