@@ -82,6 +82,7 @@ import inspect
 import json
 import math
 import os
+import re
 import sys
 import time
 import warnings
@@ -673,19 +674,43 @@ def _elevations(text: str) -> list[float]:
     return levels
 
 
-def _check_reach(levels: list[float], holes) -> None:
-    """Refuse elevations more than ``MAX_PREDICTION_BENCHES`` bench heights above or below the benches."""
+def decimal_comma_splits(text: str, far: list[float]) -> list[tuple[str, str]]:
+    """``(whole, decimals)`` of the items of ``--elevations`` that read as one number written with a decimal comma.
+
+    An integer, a comma and a short integer (``647,5``: 1 to 3 digits) whose second part is among the ``far``
+    elevations refused: split at the comma, the decimals became an elevation hundreds of metres from any bench
+    and were refused with no word of why. Items joined by ``;`` or by a comma and a space are not one number.
+    """
+    # A lookahead, so that the pairs overlap: in 660,652,25 both 660,652 and 652,25 are looked at.
+    found = re.findall(r"(?<![\d.])(?=([+-]?\d+),(\d{1,3})(?![\d.]))", text)
+    return [(whole, decimals) for whole, decimals in found if any(abs(float(decimals) - v) <= SAME_LEVEL for v in far)]
+
+
+def _check_reach(levels: list[float], holes, text: str = "") -> None:
+    """Refuse elevations more than ``MAX_PREDICTION_BENCHES`` bench heights above or below the benches.
+
+    ``text`` is the option as given: a refused elevation that is the decimals of a number written with a
+    decimal comma (:func:`decimal_comma_splits`) is said to be so, not to need ``--force``.
+    """
     top, bottom = holes.bench_z_input(0), holes.bench_z_input(holes.n_benches - 1)
     height = float(np.min(-np.diff(holes.frame.z_to_input(holes.bench_levels_m))))
     reach = MAX_PREDICTION_BENCHES * height
     far = [v for v in levels if v > top + reach or v < bottom - reach]
-    if far:
+    if not far:
+        return
+    where = (
+        f"{'is' if len(far) == 1 else 'are'} more than {MAX_PREDICTION_BENCHES:g} bench heights "
+        f"({reach:.4g} {holes.frame.length_unit}) outside the benches ({bottom:g} to {top:g})"
+    )
+    refused = f"--elevations {', '.join(f'{v:g}' for v in far[:5])} {where}"
+    splits = decimal_comma_splits(text, far)
+    if splits:
+        read = "; ".join(f"{w},{d} is read as {w} and {d}" for w, d in splits[:3])
+        w, d = splits[0]
         raise BGMInputError(
-            f"--elevations {', '.join(f'{v:g}' for v in far[:5])} {'is' if len(far) == 1 else 'are'} more than "
-            f"{MAX_PREDICTION_BENCHES:g} bench "
-            f"heights ({reach:.4g} {holes.frame.length_unit}) outside the benches ({bottom:g} to {top:g}); a "
-            "prediction that far is a guess: pass --force to make it anyway"
+            f"{refused}: elevations are separated by commas ({read}); write decimals with a point ({w}.{d})"
         )
+    raise BGMInputError(f"{refused}; a prediction that far is a guess: pass --force to make it anyway")
 
 
 @app.command()
@@ -696,7 +721,9 @@ def predict(
     elevations: Annotated[
         str,
         typer.Option(
-            "--elevations", help="Comma-separated elevations in input units (above, between or below the benches)."
+            "--elevations",
+            help="Comma-separated elevations in input units, decimals with a point: 647.5,637.5 (above, between or "
+            "below the benches).",
         ),
     ],
     out: Annotated[Path, typer.Option("--out", help="GeoJSON file to write.")] = Path("prediction.geojson"),
@@ -720,6 +747,7 @@ def predict(
     boundary with --band-probability) and OUT.p_inside.npz (probability of
     being inside the geozone on a grid).
     """
+    from core.io.atomic import replaced_files
     from core.io.export import write_geojson
     from core.io.uncertainty_export import write_probability_grid
 
@@ -737,19 +765,26 @@ def predict(
             f"{input} has a single bench ({holes.bench_z_input(0)}); correspondence needs two or more benches"
         )
     if not force:
-        _check_reach(levels, holes)
+        _check_reach(levels, holes, elevations)
     session = _session(holes, project, [geozone], "predict", no_cache)
     with progress_bar(f"morph {geozone[:40]}", "bench pairs") as update:
         model = session.geozone_model(geozone, stages=("correspond", "morph"), progress=update)
+    if not model.pairs:  # predicted nowhere, as bgm build and the viewer have it (ModelSession.predict): say why
+        from core.model.build import no_pair_note
+
+        why = no_pair_note(holes, geozone, session.params.min_component_holes)
+        _say(f"bgm: note: geozone {geozone} is {why}, and so no prediction (bgm build and the viewer make none)")
     features = _prediction_features(session, geozone, levels, model)
     bands, grid = _uncertainty(session, geozone, levels, model, band_probability)
-    # Written together once all is computed: an interrupt during the work leaves the three as they were.
+    # Written as one set once all is computed: an interrupt or a failure, during the work or while the three are
+    # written, leaves the previous three as they were, never a new prediction beside old uncertainty files.
     unit = holes.frame.length_unit
-    write_geojson([f for f in features if not f["geometry"].is_empty], out, units=unit)
-    write_geojson(bands, sidecars[0], units=unit)
-    write_probability_grid(sidecars[1], grid)
+    with replaced_files([out, *sidecars]) as (staged_out, staged_bands, staged_grid):
+        write_geojson([f for f in features if not f["geometry"].is_empty], staged_out, units=unit)
+        write_geojson(bands, staged_bands, units=unit)
+        write_probability_grid(staged_grid, grid)
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
-    if empty:
+    if empty and model.pairs:
         _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
     typer.echo(
         json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)})
@@ -775,7 +810,7 @@ def _uncertainty(session, geozone: str, levels: list[float], model, probability:
     z_m = [float(session.holes.frame.z_to_local(v)) for v in levels]
     sections = geozone_uncertainty(session, geozone, z_m, model, probability)
     at_benches = [v for v, z in zip(levels, z_m) if sections[z] is None]
-    if at_benches:
+    if at_benches and model.pairs:  # with no pair there is no section anywhere (said by predict)
         _say(f"bgm: note: no uncertainty at bench levels {', '.join(map(str, at_benches))} (the bench's own contours)")
     return band_features(sections, session.holes, geozone), probability_grid(sections, session.holes, geozone)
 
@@ -809,7 +844,7 @@ def evaluate(
     model's parameters; parameters of the contours stage change the contours
     every method starts from and is scored on.
     """
-    from core.io.atomic import atomic_write_text, check_output, make_folder
+    from core.io.atomic import atomic_write_text, check_output, replaced_files
     from core.model.build import load_truth, predictor_from_model
     from core.model.evaluation import (
         evaluate_geozone,
@@ -850,14 +885,15 @@ def evaluate(
     _refuse_empty_scores(rows, holes, geozone)
     rows.insert(0, "geozone", geozone)  # as a build's rows say it: the folder may hold another geozone's before
     summary = summary_as_written(summary_table(rows), holes)
-    # Made only now: an input refused (unreadable, too few benches, nothing to score) left an empty folder.
-    # A folder that cannot be made was refused before any work (_outputs above tries a file in it).
-    make_folder(out)
-    # The plot first (it takes the time): an interrupt while it is drawn leaves the tables as they were.
+    # The three as one set, the folder made with them: an input refused (unreadable, too few benches, nothing to
+    # score) left an empty folder, and a failure or Ctrl-C after the plot a new plot beside the previous tables
+    # (or a new folder holding only the plot). A folder that cannot be made was refused before any work
+    # (_outputs above tries a file in it).
     unit = holes.frame.length_unit
-    plot_precision_recall(summary, out / names[2], title=f"{geozone}: model vs references", unit=unit)
-    atomic_write_text(out / names[0], rows_as_written(rows, holes).to_csv(index=False))
-    atomic_write_text(out / names[1], summary.to_csv(index=False))
+    with replaced_files([out / name for name in names]) as (staged_rows, staged_summary, staged_plot):
+        plot_precision_recall(summary, staged_plot, title=f"{geozone}: model vs references", unit=unit)
+        atomic_write_text(staged_rows, rows_as_written(rows, holes).to_csv(index=False))
+        atomic_write_text(staged_summary, summary.to_csv(index=False))
     _say(
         f"truth: {'synthetic generator' if truth is not None else 'next bench holes'}; {time.perf_counter() - start:.1f} s"
     )

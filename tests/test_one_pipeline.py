@@ -149,3 +149,41 @@ def test_the_other_geozones_surfaces_come_several_at_once_and_each_is_its_own(de
         again.run()
     assert again.result.errors == {f"model {failing}": f"no model of {failing}"}
     assert failing not in again.result.surfaces and set(others[1:]) <= set(again.result.surfaces)
+
+
+def test_a_geozone_with_no_bench_pair_is_predicted_by_none_of_build_viewer_and_predict(tmp_path):
+    """The demo's west part, its top four benches: g3 is six scattered holes, never three in a component.
+
+    `bgm build` wrote no prediction for it and the viewer drew none ("never in a component of 3 or more
+    holes"), while `bgm predict` a bench below the deepest returned a section of 43 m² (the depth trend of
+    its two holes on the deepest bench).
+    """
+    import pandas as pd
+
+    table = pd.read_csv(DEMO_CSV)
+    path = tmp_path / "west.csv"
+    table[(table.x < 482300) & (table.z > 655)].to_csv(path, index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        holes = read_blastholes(path)
+    assert holes.n_benches == 4
+    below = holes.bench_z_input(3) - 10.0
+
+    proc = bgm(
+        "predict", path, "--geozone", "g3", "--elevations", f"{below:g}", "--out", tmp_path / "p.geojson", "--no-cache"
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["features"] == 0
+    assert json.loads((tmp_path / "p.geojson").read_text())["features"] == []
+    assert json.loads((tmp_path / "p.uncertainty.geojson").read_text())["features"] == []
+    assert "never in a component of 3 or more holes" in proc.stderr and "no prediction" in proc.stderr
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        build(holes, tmp_path / "build", geozones=["g3"], evaluate=False, workers=1)
+    assert not (tmp_path / "build" / "g3" / "prediction.geojson").exists()
+    viewer = _viewer(holes, "g3", 2, until="prediction")
+    assert viewer.result.model is not None and not viewer.result.model.pairs and not viewer.result.predicted
+    session = ModelSession.open(holes, cache=False)
+    regions = session.predict("g3", [float(holes.frame.z_to_local(below)), float(holes.bench_levels_m[3])])
+    assert all(region.is_empty for region in regions.values())

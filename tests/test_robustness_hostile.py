@@ -54,6 +54,7 @@ import ast
 import builtins
 import bz2
 import contextlib
+import errno
 import gzip
 import hashlib
 import io
@@ -405,6 +406,33 @@ def test_folder_swap_without_an_atomic_exchange(tmp_path, monkeypatch):
         assert sorted(p.name for p in tmp_path.iterdir() if ".bgm-" in p.name) == []
 
 
+def test_a_set_of_files_is_replaced_whole_or_not_at_all(tmp_path):
+    """:func:`core.io.atomic.replaced_files`: a file that is a link to another folder is written through it."""
+    import core.io.atomic as atomic
+
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "target.geojson").write_text("old target")
+    (tmp_path / "p.geojson").symlink_to(elsewhere / "target.geojson")
+    (tmp_path / "p.npz").write_text("old npz")
+    paths = [tmp_path / "p.geojson", tmp_path / "p.npz", tmp_path / "new" / "deeper" / "q.csv", tmp_path / "n" / "r"]
+    before = snapshot(tmp_path)
+    with pytest.raises(RuntimeError), atomic.replaced_files(paths) as staged:
+        for f in staged[:2]:
+            f.write_text("new")
+        raise RuntimeError("failed before the last file")
+    unchanged(before, snapshot(tmp_path))
+    with atomic.replaced_files(paths) as staged:
+        assert [f.name for f in staged] == ["target.geojson", "p.npz", "q.csv", "r"]
+        for f in staged:
+            f.write_text("new")
+        during = snapshot(tmp_path)
+        unchanged(before, during, allow_new=[k for k in during if ".bgm-staging-" in k])  # nothing moved in yet
+    assert (tmp_path / "p.geojson").is_symlink() and (elsewhere / "target.geojson").read_text() == "new"
+    assert [p.read_text() for p in paths[1:]] == ["new", "new", "new"]
+    assert not [p for p in tmp_path.rglob("*") if ".bgm-" in p.name]
+
+
 # --------------------------------------------------------------------------- exit codes
 
 
@@ -725,6 +753,23 @@ def test_far_elevations_need_force(csv, tmp_path):
     out = tmp_path / "p.geojson"
     succeeds(bgm("predict", csv, "--geozone", "g1", "--elevations", f"{far[0]},660", "--out", out, "--force"))
     assert out.exists()
+
+
+def test_a_decimal_comma_in_elevations_is_said_to_be_one(csv, tmp_path):
+    """``--elevations 652,5`` is the elevations 652 and 5: 5 was refused as far away, with only --force offered."""
+    before = snapshot(tmp_path)
+    out = tmp_path / "p.geojson"
+    line = error_line(bgm("predict", csv, "--geozone", "g1", "--elevations", "652,5", "--out", out))
+    assert "--elevations 5 is more than 3 bench heights" in line, line
+    assert "separated by commas" in line and "652,5 is read as 652 and 5" in line and "(652.5)" in line, line
+    assert "--force" not in line, line
+    line = error_line(bgm("predict", csv, "--geozone", "g1", "--elevations", "660,652,25", "--out", out))
+    assert "652,25 is read as 652 and 25" in line and "(652.25)" in line, line
+    unchanged(before, snapshot(tmp_path))
+    # Far elevations given as such (a separate item, a list joined by ';') keep the plain refusal.
+    for given in ("660, 5", "660;5", "660,-5000"):
+        line = error_line(bgm("predict", csv, "--geozone", "g1", "--elevations", given, "--out", out), "--force")
+        assert "is read as" not in line, line
 
 
 def test_unused_overrides_are_named(csv, tmp_path):
@@ -1134,6 +1179,70 @@ def test_an_evaluation_refused_leaves_no_output_folder(table, tmp_path, case, ph
     geozone = "late" if case == "nothing to score" else "g1"
     error_line(bgm("evaluate", path, "--geozone", geozone, "--out", out), phrase)
     assert not (tmp_path / "new").exists()
+
+
+def _failing_after_first(monkeypatch, module: str, name: str, exc) -> None:
+    """Make ``module.name`` (a writer the command imports when it runs, not the set's first) raise ``exc(path)``."""
+    import importlib
+
+    def failing(path, *args, **kwargs):
+        raise exc(path)
+
+    monkeypatch.setattr(importlib.import_module(module), name, failing)
+
+
+@pytest.mark.parametrize("folder", ["existing", "new"])
+def test_an_evaluation_that_fails_after_its_plot_leaves_the_previous_set(csv, tmp_path, monkeypatch, folder):
+    """The plot was written first: a full disk or Ctrl-C after it left a new plot beside the previous tables, or a
+    new folder holding only the plot (an empty folder when the plot itself failed)."""
+    out = tmp_path / "out" / "evaluation"
+    if folder == "existing":
+        out.mkdir(parents=True)
+        for name in ("evaluation_rows.csv", "evaluation.csv", "precision_recall.png", "mine.txt"):
+            (out / name).write_text(f"previous {name}")
+    before = snapshot(tmp_path)
+
+    def full(path) -> OSError:  # as the storage says it, naming the file being written
+        return OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    _failing_after_first(monkeypatch, "core.io.atomic", "atomic_write_text", full)
+    run = bgm("evaluate", csv, "--geozone", "g1", "--out", out)
+    unchanged(before, snapshot(tmp_path))  # no new plot, no stray or staging file, no empty folder
+    line = error_line(run, "no space left")
+    assert "evaluation_rows.csv" in line and ".bgm-" not in line, line  # named where it was going, not staged
+    monkeypatch.undo()
+    succeeds(bgm("evaluate", csv, "--geozone", "g1", "--out", out))
+    written = sorted(p.name for p in out.iterdir())
+    assert written == sorted(
+        ["evaluation_rows.csv", "evaluation.csv", "precision_recall.png"] + ["mine.txt"] * (folder == "existing")
+    )
+    assert not [p for p in out.parent.rglob("*") if ".bgm-" in p.name]
+
+
+def test_a_prediction_stopped_after_its_first_file_leaves_the_previous_three(csv, tmp_path, monkeypatch):
+    """`bgm predict` wrote its prediction, then the uncertainty file and P(inside) grid one by one: Ctrl-C or a
+    failure between them left a new prediction beside the previous uncertainty files."""
+    out = tmp_path / "p.geojson"
+    files = [out, tmp_path / "p.uncertainty.geojson", tmp_path / "p.p_inside.npz"]
+    for f in files:
+        f.write_text(f"previous {f.name}")
+    before = snapshot(tmp_path)
+    args = ("predict", csv, "--geozone", "g1", "--elevations", "655", "--out", out)
+    _failing_after_first(
+        monkeypatch, "core.io.uncertainty_export", "write_probability_grid", lambda path: KeyboardInterrupt()
+    )
+    run = bgm(*args)
+    assert run.returncode == 130, run.stderr
+    unchanged(before, snapshot(tmp_path))
+    _failing_after_first(
+        monkeypatch, "core.io.uncertainty_export", "write_probability_grid", lambda path: RuntimeError("a bug")
+    )
+    assert bgm(*args).returncode == 3
+    unchanged(before, snapshot(tmp_path))
+    monkeypatch.undo()
+    succeeds(bgm(*args))
+    assert all(not f.read_bytes().startswith(b"previous") for f in files)
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "in") == sorted(f.name for f in files)
 
 
 FOLDER_COMMANDS = {

@@ -10,6 +10,10 @@ fails when a module writes a user-visible file any other way):
 * :func:`replaced_folder` for a whole folder (``bgm build``): everything is
   written into a staging folder next to it, which is swapped in whole at the
   end, so an interrupted build leaves the previous folder untouched;
+* :func:`replaced_files` for a set of files in one folder that belong together
+  (``bgm predict``'s prediction and its two uncertainty files, ``bgm evaluate``'s
+  tables and plot): all are written into a staging folder first and moved in
+  only once every one is complete, so a failure leaves the previous set as it was;
 * :func:`check_output` before any work starts: an output is never one of the
   inputs, a device or a folder where a file is expected.
 """
@@ -21,10 +25,12 @@ import ctypes
 import errno
 import os
 import shutil
+import signal
 import stat
 import sys
 import tempfile
 from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 from core.errors import BGMInputError
@@ -200,6 +206,127 @@ def replaced_folder(out_dir: str | os.PathLike) -> Iterator[Path]:
         if isinstance(exc, OutputError | OSError):
             _raise_storage_error(exc, staging, out)
         raise
+
+
+@contextlib.contextmanager
+def replaced_files(paths: Iterable[str | os.PathLike]) -> Iterator[list[Path]]:
+    """Yield where to write a set of files; move them all in when the block succeeds.
+
+    Parameters
+    ----------
+    paths : paths
+        The files of the set, usually of one folder (which need not exist yet).
+
+    Yields
+    ------
+    list of Path
+        One path per file, of the same name, in a staging folder beside the
+        files (on their file system). Write each there, through any writer.
+
+    Notes
+    -----
+    Written one by one, the files of a set could end up mixed: ``bgm evaluate``
+    interrupted after its plot left a new plot beside the previous tables, and
+    a new folder holding only the plot (an empty one on a full disk). Here
+    nothing is moved in until the block has written them all; if it raises (a
+    writer's error, a full disk, Ctrl-C), the staging folder is deleted and the
+    previous files are as they were. A folder that does not exist yet is
+    staged whole and renamed into place in one step; into an existing folder
+    the files are renamed one after another, a moment apart, with Ctrl-C held
+    until the last is in (it is raised then). Other files of the folder are
+    left alone (:func:`replaced_folder` replaces a whole folder).
+    """
+    dests = [_writable_file(Path(p)) for p in paths]  # a link's target: written through, as atomic_path does
+    stages: list[_Staging] = []
+    try:
+        for folder in dict.fromkeys(d.absolute().parent for d in dests):
+            stages.append(_Staging.beside(folder, next(d.name for d in dests if d.absolute().parent == folder)))
+    except OSError as exc:
+        for stage in stages:
+            shutil.rmtree(stage.staging, ignore_errors=True)
+        raise BGMInputError(f"cannot write {str(dests[0])!r}: {exc.strerror or exc}") from None
+    inner = {stage.folder: stage.inner for stage in stages}
+    staged = [inner[d.absolute().parent] / d.name for d in dests]
+    try:
+        yield staged
+        missing = [d for d, f in zip(dests, staged) if not f.is_file()]
+        if missing:
+            raise RuntimeError(f"replaced_files: {', '.join(map(str, missing))} not written")
+        for dest, f in zip(dests, staged):
+            os.chmod(f, _mode_for(dest))
+        with _interrupts_held():
+            for stage in stages:
+                stage.move_in([(f, d) for f, d in zip(staged, dests) if d.absolute().parent == stage.folder])
+        for stage in stages:
+            _fsync_dir(stage.existing)
+    except BaseException as exc:
+        for stage in stages:
+            shutil.rmtree(stage.staging, ignore_errors=True)
+        if isinstance(exc, OutputError | OSError):
+            where = getattr(exc, "path", None) or getattr(exc, "filename", None) or ""
+            stage = next((t for t in stages if Path(where).absolute().is_relative_to(t.inner)), stages[0])
+            _raise_storage_error(exc, stage.inner, stage.folder)
+        raise
+
+
+@dataclass
+class _Staging:
+    """Where :func:`replaced_files` stages the files of one ``folder``.
+
+    In the folder itself when it exists; else (``whole``) in its nearest existing ancestor ``existing``, as
+    the first folder of the path to be made (``top``), renamed into place whole with the folders under it.
+    """
+
+    folder: Path
+    existing: Path
+    top: Path
+    staging: Path
+    inner: Path
+
+    @property
+    def whole(self) -> bool:
+        return self.existing != self.folder
+
+    @classmethod
+    def beside(cls, folder: Path, first_name: str) -> _Staging:
+        existing = folder
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        top = folder if existing == folder else existing / folder.relative_to(existing).parts[0]
+        name = first_name if existing == folder else top.name
+        _remove_stale(existing, name)
+        staging = Path(tempfile.mkdtemp(prefix=f".{name[:64]}{STAGING_TAG}{os.getpid()}-", dir=existing))
+        inner = staging if existing == folder else staging / folder.relative_to(top)
+        inner.mkdir(parents=True, exist_ok=True)
+        return cls(folder, existing, top, staging, inner)
+
+    def move_in(self, files: list[tuple[Path, Path]]) -> None:
+        """Rename the staged files over their destinations, or the staged folder into place."""
+        if self.whole:
+            os.chmod(self.staging, 0o777 & ~_umask())
+            os.rename(self.staging, self.top)
+        else:
+            for staged, dest in files:
+                os.replace(staged, dest)
+            self.staging.rmdir()
+
+
+@contextlib.contextmanager
+def _interrupts_held() -> Iterator[None]:
+    """Ctrl-C inside is raised when the block is done, not in the middle of it (the renames of one set)."""
+    received: list[int] = []
+    try:
+        previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+        held = True
+    except ValueError:  # not the main thread: no signal lands here
+        held = False
+    try:
+        yield
+    finally:
+        if held and previous is not None:  # None: a handler not set from Python, left as it was
+            signal.signal(signal.SIGINT, previous)
+    if received:
+        signal.raise_signal(signal.SIGINT)  # to the handler the block held it from
 
 
 def _raise_storage_error(exc: OSError | OutputError, staging: Path, out: Path) -> None:

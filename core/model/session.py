@@ -479,10 +479,18 @@ class ModelSession:
         ``progress`` is told the model's bench pairs when ``model`` is not given, then the
         prediction's steps (each elevation, the depth trend's backtests); a
         :class:`core.threads.Cancelled` it raises stops it there, and nothing of it is stored.
+
+        A geozone with no bench pair (never in a component of ``min_component_holes`` or more holes:
+        label noise to the model, :func:`core.model.build.no_pair_note`) is predicted nowhere, at every
+        elevation: ``bgm build`` writes no prediction for it and the viewer draws none. The depth trend
+        of its holes' own small contours gave ``bgm predict`` a section of 43 m² below the deepest bench
+        that the other two never showed.
         """
         stages = Stages(progress, 2)  # the model, then the prediction: one series that never goes back
         model = model or self.geozone_model(geozone, progress=stages.stage(0))
         z_m = [float(z) for z in z_m]
+        if not model.pairs:
+            return {z: MultiPolygon() for z in z_m}
         key = content_key("prediction", self._model_key(model), z_m, stage_values(self.params, "prediction"))
         spacing_m = self.holes.hole_spacing_m
         return self.store.get(

@@ -783,7 +783,7 @@ def geozone_uncertainty(
     -------
     dict of float -> SectionUncertainty or None
         None at bench levels (the section is the bench's contours) and where
-        the geozone has no fields.
+        the geozone has no fields or no bench pair (it is predicted nowhere).
 
     Notes
     -----
@@ -796,8 +796,8 @@ def geozone_uncertainty(
         raise ValueError(f"the band's probability must lie between 0 and 1, got {probability}")
     model = model or session.geozone_model(geozone, progress=progress)
     z_m = [float(z) for z in z_m]
-    if model.fields is None or not len(model.fields.z_m):
-        return dict.fromkeys(z_m)
+    if model.fields is None or not len(model.fields.z_m) or not model.pairs:
+        return dict.fromkeys(z_m)  # no pair: nothing predicted (ModelSession.predict), so no band around it
     fields = model.fields
     key = session.uncertainty_key(model, z_m, probability)
     return session.store.get("uncertainty", key, lambda: _sections(session, model, fields, z_m, probability, progress))
