@@ -134,6 +134,9 @@ class PipelineResult:
     timings: dict[str, float] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
     complete: bool = False
+    #: The run that was to update this result was stopped (:meth:`ViewerModel.stop`): what is missing or older
+    #: than the sliders stays so until the next run.
+    stopped: bool = False
     #: The run's overrides as they follow renumbered components, and what moved or was dropped.
     relocated: Relocation | None = None
     #: The parameters ``pair`` was computed with: an override made on it is placed under them.
@@ -264,6 +267,28 @@ class _Run:
         """``fn()`` timed as ``name``; an exception is reported under ``error_key`` (re-raised without one)."""
         self.check()
         return _timed(name, fn, error_key, self.res.timings, self.res.errors)
+
+
+def stopped_result(last: PipelineResult, selection: Selection) -> PipelineResult:
+    """What is shown after a run is stopped: the last finished run's ``last``, less what belongs to another selection.
+
+    The pair, morph, model and surface of ``last`` were computed for ``last.selection``: under
+    another selection they would be drawn as its own (as :class:`_Run` drops them when a run starts).
+    """
+    if last.selection == selection:
+        return last
+    return replace(
+        last,
+        pair=None,
+        pair_params=None,
+        morph=None,
+        model=None,
+        session=None,
+        surface=None,
+        predicted=[],
+        selection=selection,
+        complete=False,
+    )
 
 
 def _timed(name: str, fn: Callable[[], object], error_key: str | None, timings: dict, errors: dict):
@@ -731,6 +756,8 @@ class ViewerModel:
         #: What the last runs said of overrides whose components were renumbered (moved or dropped).
         self.override_notes: list[str] = []
         self.result: PipelineResult = PipelineResult()
+        #: The result of the last run that finished (what Stop shows again; see :meth:`stop`).
+        self.last_complete: PipelineResult = self.result
         self._dirty = False
         self.project_path: str | None = None
         #: The clock the autosave delay is measured on (tests set their own).
@@ -797,7 +824,28 @@ class ViewerModel:
     def set_result(self, result: PipelineResult) -> None:
         self._take_relocated(result.relocated)
         self.result = result
+        if result.complete:
+            self.last_complete = result
         self.result_changed.emit(result)
+
+    def stop(self) -> str:
+        """Show what the last finished run computed, marked stopped, in place of a stopped run's part-way result.
+
+        A run stopped part way (:meth:`bgm_viewer.app.MainWindow.stop_run`) left some benches
+        traced with the new sliders and the rest, the model and the surfaces with the old: shown
+        as they were, that mix passed for the model of the sliders. The parameters, overrides
+        and selection stay as the user set them; the next change or a run again brings the
+        picture up to them. Returns what the status bar says.
+        """
+        shown = stopped_result(self.last_complete, self.selection)
+        if self.result.complete and self.result.selection == self.selection:
+            shown = self.result  # only the next bench was under way: the model on screen is whole
+        self.result = replace(shown, stopped=True)
+        self.result_changed.emit(self.result)
+        return (
+            "stopped: the picture is of the last run that finished; the sliders and alignments are kept"
+            " (Run > Run again, F5, or the next change brings it up to date)"
+        )
 
     def _take_relocated(self, relocated: Relocation | None) -> None:
         """Take a run's overrides as they followed renumbered components (unless the user changed them since).

@@ -579,3 +579,28 @@ def test_selecting_another_component_of_the_bench_draws_its_own_edge_map_gvf_and
     assert not np.array_equal(fields.snake_history_m[-1], first.snake_history_m[-1])  # two bodies, two snakes
     assert np.array_equal(scene["snake"].history[-1], fields.snake_history_m[-1])
     assert scene["edge map"].edge_map is fields.edge_map and scene["GVF"].gvf is fields.gvf
+
+
+def test_a_stopped_run_leaves_the_last_finished_result_on_screen_and_the_sliders_as_set():
+    """A run stopped part way (the window's Stop) had shown its first bench traced with the new
+    slider beside the old benches, model and surfaces: a half-updated model passed for the current one."""
+    from bgm_viewer.model import compute
+
+    model = small_model()
+    finished = model.result
+    model.set_param("snake_max_iterations", 10)
+    steps = compute(model.inputs(), model.result, "contours")
+    model.set_result(next(steps)[2])  # the selected bench pair, traced with the new slider
+    steps.close()
+    assert model.result.contours != finished.contours  # what Stop must not leave on screen
+    said = model.stop()
+    assert said.startswith("stopped")
+    assert model.result.stopped and model.result.contours == finished.contours
+    assert model.result.surfaces == finished.surfaces and model.result.model is finished.model
+    assert model.param("snake_max_iterations") == 10
+    # under another selection the last run's pair and model are not drawn as its own
+    model.select("g2", 0, 0)
+    model.stop()
+    assert model.result.stopped and model.result.pair is None and model.result.model is None
+    model.run()
+    assert model.result.complete and not model.result.stopped

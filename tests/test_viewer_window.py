@@ -1161,3 +1161,52 @@ def test_the_component_shown_follows_the_corrected_body_when_a_run_renumbers_it(
     finally:
         win.model.dirty = False
         win.close()
+
+
+def test_stop_ends_a_run_shows_the_last_finished_one_and_keeps_the_sliders(window, qtbot):
+    """A run on a large pit lasts tens of seconds to minutes; another change or closing the window
+    were the only ways out. Stop (Esc, the Run menu, the button beside the progress bar) ends it,
+    shows the last finished run again (not the part-way mix of new and old benches), says
+    "stopped", keeps the slider, and Run again brings the picture up to the slider."""
+    finished = window.model.result
+    before = _selected_polygon(window)
+    assert not window.stop_action.isEnabled()  # nothing to stop
+    assert window.stop_action.shortcut().toString() == "Esc"
+    assert window.stop_button.defaultAction() is window.stop_action
+    enabled_while_running = []
+
+    def stop_at_first_result():
+        if window.busy:
+            enabled_while_running.append(window.stop_action.isEnabled())
+            window.stop_action.trigger()
+
+    window.resultShown.connect(stop_at_first_result)
+    window.param_controls["snake_max_iterations"].slider.setValue(10)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.resultShown.disconnect(stop_at_first_result)
+    assert enabled_while_running == [True]
+    qtbot.wait(500)  # what the stopped run still yields is never drawn
+    result = window.model.result
+    assert result.stopped and not window.stop_action.isEnabled()
+    assert window.statusBar().currentMessage().startswith("stopped")
+    # the last finished run's benches and surfaces, not the stopped run's first bench with the new slider
+    assert result.contours == finished.contours and result.surfaces == finished.surfaces
+    assert _selected_polygon(window).equals(before)
+    assert window.model.param("snake_max_iterations") == 10  # what the user set is kept
+    assert window.param_controls["snake_max_iterations"].value() == 10
+    window.run_again()
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert not window.model.result.stopped and not _selected_polygon(window).equals(before)
+    assert window.statusBar().currentMessage().startswith("done")
+
+
+def test_a_layer_a_stopped_run_did_not_compute_says_the_run_was_stopped(window, qtbot):
+    """After Stop, "not computed yet" promised a result no run was computing."""
+    window.resultShown.connect(window.stop_run)
+    window.geozone_combo.setCurrentText("g2")  # another selection: no model for it yet
+    qtbot.waitUntil(lambda: window.model.result.stopped, timeout=60_000)
+    window.resultShown.disconnect(window.stop_run)
+    empty = window.empty_layers()
+    assert "surfaces" not in empty or "stopped" in empty["surfaces"]
+    assert empty and all("yet" not in why for why in empty.values()), empty
+    assert any("the run was stopped" in why for why in empty.values()), empty
