@@ -245,7 +245,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._stopped_step: str | None = None
         #: Why the last run failed (``None``: it succeeded): the surfaces on screen are from an earlier run.
         self._failure: str | None = None
-        #: What the last Undo did, said when its run is done (the run's progress would hide it before).
+        #: What the last Undo (or change of bench pair) did, said when its run is done (the run's progress hid it).
         self._undo_note = ""
         #: The selection and translation last put in the dx, dy boxes (see _show_translation).
         self._boxes_show: tuple | None = None
@@ -835,8 +835,13 @@ class MainWindow(QtWidgets.QMainWindow):
         except ValueError as exc:
             self.statusBar().showMessage(str(exc), 5000)
             return
+        note = self.model.selection_note  # which component another bench pair selected: said now and when done
+        if note:
+            self._undo_note = note
         if stage:
             self.request(stage, immediate=True)
+        if note:
+            self.statusBar().showMessage(f"{self.statusBar().currentMessage()} - {note}")
 
     @property
     def _mpu(self) -> float:

@@ -291,6 +291,30 @@ def stopped_result(last: PipelineResult, selection: Selection) -> PipelineResult
     )
 
 
+def corresponding_component(pairs: list[BenchPair], component: int, bench: int, new_bench: int) -> int | None:
+    """The component of the bench pair at ``new_bench`` that component ``component`` of ``bench`` is linked to.
+
+    Stepping one bench down, the source's first associated target (the targets of
+    pair ``k`` are the sources of pair ``k + 1``, in order: :func:`modelled_contours`);
+    one bench up, the first source associated with it as a target. ``None``: no
+    correspondence of ``pairs`` (one geozone's) links the two benches, or the
+    component is linked to nothing there (it ends between the benches).
+    """
+    if abs(new_bench - bench) != 1:
+        return None
+    upper = min(bench, new_bench)
+    for pair in pairs:
+        if pair.upper != upper or pair.correspondence is None:
+            continue
+        assoc = np.asarray(pair.correspondence.association, bool)
+        if not assoc.size or component >= (assoc.shape[0] if new_bench > bench else assoc.shape[1]):
+            return None
+        linked = assoc[component] if new_bench > bench else assoc[:, component]
+        hits = np.flatnonzero(linked)
+        return int(hits[0]) if len(hits) else None
+    return None
+
+
 def _timed(name: str, fn: Callable[[], object], error_key: str | None, timings: dict, errors: dict):
     """``fn()``, its seconds in ``timings[name]``; an exception's message in ``errors[error_key]`` (re-raised without one)."""
     t0 = time.perf_counter()
@@ -755,6 +779,8 @@ class ViewerModel:
         self._placed_params = self.params
         #: What the last runs said of overrides whose components were renumbered (moved or dropped).
         self.override_notes: list[str] = []
+        #: Which component the last change of bench pair selected, and why (``None``: it changed no bench pair).
+        self.selection_note: str | None = None
         self.result: PipelineResult = PipelineResult()
         #: The result of the last run that finished (what Stop shows again; see :meth:`stop`).
         self.last_complete: PipelineResult = self.result
@@ -939,7 +965,11 @@ class ViewerModel:
         return bool(changed)
 
     def select(self, geozone: str | None = None, bench: int | None = None, component: int | None = None) -> str | None:
-        """Change the selection; returns the step to re-run from (or ``None``)."""
+        """Change the selection; returns the step to re-run from (or ``None``).
+
+        Another bench pair of the same geozone without a ``component`` selects the component
+        the selected one corresponds to there, else the first; :attr:`selection_note` says which.
+        """
         old = self.selection
         sel = Selection(
             geozone if geozone is not None else old.geozone,
@@ -950,6 +980,10 @@ class ViewerModel:
             raise ValueError(f"geozone {sel.geozone!r} is not in the input")
         if not 0 <= sel.bench < max(self.holes.n_benches - 1, 1):
             raise ValueError(f"bench pair {sel.bench} is out of range")
+        self.selection_note = None
+        if component is None and sel.bench != old.bench:
+            # the number kept named another body on the new bench, or none
+            sel, self.selection_note = self._stepped(old, sel)
         if sel == old:
             return None
         self.selection = sel
@@ -958,6 +992,27 @@ class ViewerModel:
         if sel.bench != old.bench or sel.geozone != old.geozone:
             return "contours"  # the fields of the newly selected contours are needed
         return "morph"
+
+    def _stepped(self, old: Selection, new: Selection) -> tuple[Selection, str]:
+        """``new`` with the component that corresponds to ``old``'s on its bench (else the first), and what to say."""
+        r = self.result
+        # the whole geozone's pairs once its model is computed; until then the selected pair's own
+        pairs = [*(r.model.pairs if r.model is not None else []), *([r.pair] if r.pair is not None else [])]
+        pairs = [p for p in pairs if p.geozone == new.geozone]
+        same_zone = old.geozone == new.geozone
+        found = corresponding_component(pairs, old.component, old.bench, new.bench) if same_zone else None
+        where = f"bench {self.holes.bench_z_input(new.bench):g} {self.holes.frame.length_unit}"
+        n = len(r.sources(new)) if new.bench in r.contours else None
+        if found is not None:
+            old_where = f"{self.holes.bench_z_input(old.bench):g} {self.holes.frame.length_unit}"
+            said = f"source component {found} selected on {where}: component {old.component} of {old_where} continues into it"
+            return replace(new, component=found), said
+        said = f"source component 0 (the first) selected on {where}"
+        if n == 0:
+            said += f": geozone {new.geozone} has no modelled component there"
+        elif same_zone:
+            said += f": no correspondence links component {old.component} to it"
+        return replace(new, component=0), said
 
     # -- manual alignment ------------------------------------------------------------
     def override_here(self, create: bool = False):

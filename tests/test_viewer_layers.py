@@ -604,3 +604,28 @@ def test_a_stopped_run_leaves_the_last_finished_result_on_screen_and_the_sliders
     assert model.result.stopped and model.result.pair is None and model.result.model is None
     model.run()
     assert model.result.complete and not model.result.stopped
+
+
+def test_stepping_benches_selects_the_component_the_selected_one_corresponds_to():
+    """The component number was kept from bench pair to bench pair: there it was another body, or none."""
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.testing import bodies_that_start_and_end_holes
+
+    model = ViewerModel(bodies_that_start_and_end_holes())
+    model.select("g1", 0, 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run()
+    assert model.result.model.pairs[0].correspondence.association[2].tolist() == [False, True]
+    assert model.select(bench=1) == "contours"
+    assert model.selection.component == 1  # body B, not a number 2 the bench below has not
+    assert "source component 1 selected" in model.selection_note and "continues into it" in model.selection_note
+    model.select(component=1)
+    model.select(bench=0)  # one bench up: the component B continues from
+    assert model.selection.component == 2, model.selection_note
+    model.select(component=1)  # body A, which ends between the top two benches
+    model.select(bench=1)
+    assert model.selection.component == 0  # the first, not body B (number 1 there)
+    assert "the first" in model.selection_note and "no correspondence" in model.selection_note
+    model.select(bench=0, component=1)  # a component named with the bench is kept as named
+    assert model.selection.component == 1

@@ -1210,3 +1210,24 @@ def test_a_layer_a_stopped_run_did_not_compute_says_the_run_was_stopped(window, 
     assert "surfaces" not in empty or "stopped" in empty["surfaces"]
     assert empty and all("yet" not in why for why in empty.values()), empty
     assert any("the run was stopped" in why for why in empty.values()), empty
+
+
+def test_stepping_bench_pairs_says_which_component_is_selected(qtbot):
+    """The component number was kept silently when the bench pair changed: there it named another body."""
+    from bgm_viewer.testing import bodies_that_start_and_end_holes
+
+    model = ViewerModel(bodies_that_start_and_end_holes())
+    model.select("g1", 0, 2)
+    win = MainWindow(model, debounce_ms=10, restore=False)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        win.bench_combo.setCurrentIndex(1)
+        assert win.component_spin.value() == win.model.selection.component == 1
+        assert "source component 1 selected" in win.statusBar().currentMessage()
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+        message = win.statusBar().currentMessage()
+        assert message.startswith("done") and "source component 1 selected" in message
+    finally:
+        win.model.dirty = False
+        win.close()
