@@ -1353,12 +1353,15 @@ class ViewerModel:
         """
         from core.io.project import load_project
 
-        self._apply_project(load_project(path))
+        self._apply_project(load_project(path), f"project file {path}")
         self.project_path = str(path)
         self.dirty = False
 
-    def _apply_project(self, proj) -> None:
-        """Take a :class:`~core.io.project.Project`'s parameters, view and overrides (see :meth:`load_project`)."""
+    def _apply_project(self, proj, source: str = "the project") -> None:
+        """Take a :class:`~core.io.project.Project`'s parameters, view and overrides (see :meth:`load_project`).
+
+        ``source`` names the file in the warnings (``"project file p.json"``).
+        """
         from core.io.project import check_project
 
         check_project(proj, self.holes, command="the viewer", uses_parameters=True)
@@ -1374,11 +1377,55 @@ class ViewerModel:
             self._load_surface_view(viewer)
         from .alignment import PlacedOverride
 
-        self.overrides = [PlacedOverride.of(o) for o in proj.overrides]
+        self.overrides = self._existing_components([PlacedOverride.of(o) for o in proj.overrides], source)
         self._override_edits += 1
         self._undo.clear()
         self._redo.clear()
         self.overrides_changed.emit()
+
+    def _existing_components(self, overrides: list, source: str) -> list:
+        """``overrides`` less those naming a component their bench pair lacks, each dropped with a warning.
+
+        A hand-edited project naming source component 5 of a bench with 3 opened without a word,
+        and every run then failed that geozone's model (:func:`core.io.project.check_override_components`).
+        The benches' contours are traced here under the project's parameters (the store keeps them
+        for the first run); overrides of a geozone or bench the input lacks are left to
+        :func:`~core.io.project.check_project`, which says they are unused.
+        """
+        from core.io.project import same_elevation
+
+        holes, unit = self.holes, self.holes.frame.length_unit
+        uppers = {k: holes.bench_z_input(k) for k in range(holes.n_benches - 1)}
+        session, kept = self.session(), []
+        for o in overrides:
+            bench = next((k for k, z in uppers.items() if same_elevation(o.source_z, z)), None)
+            if bench is None or o.geozone not in holes.geozones:
+                kept.append(o)
+                continue
+
+            def count(b: int, geozone: str = o.geozone) -> int:
+                return len(modelled_contours(session.bench_contours(b), geozone, b, self.params.min_component_holes))
+
+            n_sources = count(bench)
+            n_targets = count(bench + 1) if o.associate else 0
+            missing = (
+                [f"source component {o.source} (the upper bench has {n_sources})"] if o.source >= n_sources else []
+            )
+            missing += [
+                f"target component {t} (the lower bench has {n_targets})" for t in sorted(o.associate) if t >= n_targets
+            ]
+            if not missing:
+                kept.append(o)
+                continue
+            pair = f"{uppers[bench]:g} -> {holes.bench_z_input(bench + 1):g} {unit}"
+            warnings.warn(
+                f"{source}: the override of geozone {o.geozone!r}, bench pair {pair}, names {' and '.join(missing)},"
+                " which the bench pair does not have: it is dropped so the model runs (save the project to"
+                " remove it from the file)",
+                BGMWarning,
+                stacklevel=2,
+            )
+        return kept
 
     # -- autosave ----------------------------------------------------------------------
     @property
@@ -1565,7 +1612,7 @@ class ViewerModel:
                 f"it was made reading the table with {want}, not {have}, and the table cannot be read"
                 " again: open it from its file"
             )
-        model._apply_project(offer.project)
+        model._apply_project(offer.project, f"the autosave {offer.path}")
         model.project_path = self.project_path
         model._shared_autosave, model._taken_autosave = self._shared_autosave, self._taken_autosave
         model.dirty = True  # the project file does not hold it: Save writes it, closing asks

@@ -629,3 +629,36 @@ def test_stepping_benches_selects_the_component_the_selected_one_corresponds_to(
     assert "the first" in model.selection_note and "no correspondence" in model.selection_note
     model.select(bench=0, component=1)  # a component named with the bench is kept as named
     assert model.selection.component == 1
+
+
+def test_a_project_naming_a_component_the_bench_lacks_warns_on_open_and_the_model_runs(tmp_path):
+    """A hand-edited project naming source component 5 of a bench with one opened without a word, and
+    every run then failed that geozone's model."""
+    import json
+
+    from bgm_viewer.model import ViewerModel
+    from core.errors import BGMWarning
+
+    model = small_model(until="contours")
+    path = tmp_path / "p.json"
+    model.save_project(path)
+    z = model.holes.bench_z_input(0)
+    data = json.loads(path.read_text())
+    data["overrides"] = [
+        {"geozone": "g1", "source_z": z, "source": 5, "translation": [1.0, 0.0]},
+        {"geozone": "g1", "source_z": z, "source": 0, "associate": {"4": True}},
+        {"geozone": "g1", "source_z": z, "source": 0, "translation": [2.0, 1.0]},
+    ]
+    path.write_text(json.dumps(data))
+    opened = ViewerModel(model.holes)
+    with pytest.warns(BGMWarning) as said:
+        opened.load_project(path)
+    notes = [str(w.message) for w in said if "does not have" in str(w.message)]
+    pair = f"{z:g} -> {model.holes.bench_z_input(1):g} m"
+    assert len(notes) == 2 and all(f"project file {path}" in n and "'g1'" in n and pair in n for n in notes)
+    assert "source component 5" in notes[0] and "target component 4" in notes[1] and "dropped" in notes[0]
+    assert [(o.source, o.translation) for o in opened.overrides] == [(0, (2.0, 1.0))]  # the others kept
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        opened.run()
+    assert opened.result.model is not None and "model" not in opened.result.errors, opened.result.errors

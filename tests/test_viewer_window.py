@@ -800,6 +800,27 @@ def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeyp
     assert len(shown) == 1 and "'nope'" in shown[0] and "is not used" in shown[0]
 
 
+def test_opening_a_project_naming_a_component_the_bench_lacks_says_so_and_the_model_runs(window, monkeypatch, tmp_path):
+    """A hand-edited project naming a component that does not exist opened without a word; the run then
+    failed that geozone's model."""
+    import json
+
+    path = tmp_path / "p.json"
+    window.model.save_project(path)
+    data = json.loads(path.read_text())
+    z = window.model.holes.bench_z_input(0)
+    data["overrides"] = [{"geozone": "g1", "source_z": z, "source": 7, "translation": [1.0, 0.0]}]
+    path.write_text(json.dumps(data))
+    shown = []
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (str(path), ""))
+    monkeypatch.setattr(QtWidgets.QMessageBox, "warning", lambda parent, title, text, *a: shown.append(text))
+    with pytest.warns(UserWarning, match="source component 7"):
+        window.open_project_dialog()
+    assert len(shown) == 1 and str(path) in shown[0] and "'g1'" in shown[0] and "dropped" in shown[0]
+    window.wait_idle()
+    assert window.model.result.complete and "model" not in window.model.result.errors
+
+
 @pytest.mark.parametrize("exaggeration", [50.0, 0.05, 0.004])
 def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration):
     """`bgm view --exaggeration 50` (or a project's) drew 50 while the panel, limited to 0.1-20, said 20."""
