@@ -1418,6 +1418,9 @@ class MainWindow(QtWidgets.QMainWindow):
             raise ValueError("no surface is shown: build or tick some first")
         f = self.model.holes.frame
         names = geozone_folders(sorted(surfaces))
+        problem = export_folder_problem(Path(folder), [names[g] for g in sorted(surfaces)])
+        if problem is not None:
+            raise ValueError(problem)
         layers = dxf_layer_names(self.model.holes.geozones)  # as bgm build names them
         out = {}
         # seconds on Kennecott: said geozone by geozone, else the window looked frozen
@@ -1561,6 +1564,29 @@ class MainWindow(QtWidgets.QMainWindow):
             self._closed = True
             self.plotter.close()
         event.accept()
+
+
+def export_folder_problem(folder: Path, subfolders: list[str]) -> str | None:
+    """Why the surfaces cannot be exported into ``folder/<subfolder>/`` (``None``: nothing in the way).
+
+    A file where a folder must be (``folder`` itself, a folder above it, or a geozone's
+    sub-folder) failed the export with a raw "[Errno 20] Not a directory" naming neither
+    the path nor what was expected.
+    """
+    for above in [*reversed(folder.parents), folder]:
+        if above.exists() and not above.is_dir():
+            if above == folder:
+                return f"{folder} is a file: choose a folder to export the surfaces into (one sub-folder per geozone)"
+            return (
+                f"{above} is a file, so {folder} cannot be a folder in it: choose a folder to export the surfaces into"
+            )
+    for name in subfolders:
+        inner = folder / name
+        if inner.exists() and not inner.is_dir():
+            return (
+                f"{inner} is a file where the surfaces of geozone folder {name!r} go: move it or choose another folder"
+            )
+    return None
 
 
 #: How long closing the window waits for a cancelled run to reach its next step.

@@ -1252,3 +1252,23 @@ def test_stepping_bench_pairs_says_which_component_is_selected(qtbot):
     finally:
         win.model.dirty = False
         win.close()
+
+
+@pytest.mark.parametrize("where", ["the folder", "a folder above it", "a geozone's folder"])
+def test_exporting_surfaces_where_a_file_is_says_which_path_and_that_a_folder_is_expected(window, tmp_path, where):
+    """Exporting surfaces into a path that is a file gave a raw "[Errno 20] Not a directory"."""
+    from core.model.build import geozone_folders
+
+    file = tmp_path / "surfaces.txt"
+    folder = {"the folder": file, "a folder above it": file / "out"}.get(where, tmp_path / "out")
+    if where == "a geozone's folder":
+        shown = sorted(g for g in window.model.result.built if window.scene.view.shows(g))
+        file = folder / geozone_folders(shown)[shown[0]]
+        folder.mkdir()
+    file.write_text("notes")
+    with pytest.raises(ValueError) as err:
+        window.export_surfaces(folder)
+    said = str(err.value)
+    assert "Errno" not in said and "\n" not in said
+    assert f"{file} is a file" in said and "folder" in said
+    assert file.read_text() == "notes"  # nothing written over it
