@@ -241,9 +241,11 @@ class MainWindow(QtWidgets.QMainWindow):
         self._next_bench_drawn = None
         self._pending_step: str | None = None
         self._queued_step: str | None = None
+        #: The step the run the user stopped ran from (``None``: none was stopped since): Run again runs from it.
+        self._stopped_step: str | None = None
         #: Why the last run failed (``None``: it succeeded): the surfaces on screen are from an earlier run.
         self._failure: str | None = None
-        #: What the last Undo did, said when its run is done (the run's progress would hide it before).
+        #: What the last Undo (or change of bench pair) did, said when its run is done (the run's progress hid it).
         self._undo_note = ""
         #: The selection and translation last put in the dx, dy boxes (see _show_translation).
         self._boxes_show: tuple | None = None
@@ -287,6 +289,11 @@ class MainWindow(QtWidgets.QMainWindow):
         self.progress_bar.setRange(0, 100)
         self.progress_bar.setMaximumWidth(200)
         self.statusBar().addPermanentWidget(self.progress_bar)
+        # Beside the progress bar: a run on a large pit lasts tens of seconds to minutes, and the only
+        # ways out of it were another change or closing the window.
+        self.stop_button = QtWidgets.QToolButton()
+        self.stop_button.setDefaultAction(self.stop_action)
+        self.statusBar().addPermanentWidget(self.stop_button)
         self._play = QtCore.QTimer(self)
         self._play.setInterval(80)
         self._play.timeout.connect(self._advance_frame)
@@ -331,6 +338,17 @@ class MainWindow(QtWidgets.QMainWindow):
         self.redo_action.setShortcut(QtGui.QKeySequence.StandardKey.Redo)
         self.redo_action.triggered.connect(self.redo)
         e.addAction(self.redo_action)
+        r = self.menuBar().addMenu("&Run")
+        self.stop_action = QtGui.QAction("&Stop", self)
+        self.stop_action.setShortcut(QtGui.QKeySequence("Esc"))
+        self.stop_action.setToolTip("Stop the run under way (Esc): the picture goes back to the last run that finished")
+        self.stop_action.triggered.connect(self.stop_run)
+        self.stop_action.setEnabled(False)
+        r.addAction(self.stop_action)
+        self.rerun_action = QtGui.QAction("Run &again", self)
+        self.rerun_action.setShortcut(QtGui.QKeySequence("F5"))
+        self.rerun_action.triggered.connect(self.run_again)
+        r.addAction(self.rerun_action)
         v = self.menuBar().addMenu("&View")
         for cam, key in (("iso", "I"), ("top", "T"), ("front", "F"), ("side", "S")):
             v.addAction(f"Camera: {cam}", functools.partial(self.set_camera, cam), QtGui.QKeySequence(f"Ctrl+{key}"))
@@ -817,8 +835,13 @@ class MainWindow(QtWidgets.QMainWindow):
         except ValueError as exc:
             self.statusBar().showMessage(str(exc), 5000)
             return
+        note = self.model.selection_note  # which component another bench pair selected: said now and when done
+        if note:
+            self._undo_note = note
         if stage:
             self.request(stage, immediate=True)
+        if note:
+            self.statusBar().showMessage(f"{self.statusBar().currentMessage()} - {note}")
 
     @property
     def _mpu(self) -> float:
@@ -976,6 +999,51 @@ class MainWindow(QtWidgets.QMainWindow):
             self._start_queued()
         else:
             self._debounce.start()
+        self._show_running()
+
+    @property
+    def running(self) -> bool:
+        """A run, or the next bench's band, is under way or about to start: what Stop stops."""
+        return self.busy or self._next_bench is not None
+
+    def _show_running(self) -> None:
+        """Offer Stop only while something runs (a Stop that does nothing would say "stopped" of nothing)."""
+        self.stop_action.setEnabled(self.running)
+
+    def stop_run(self) -> None:
+        """Stop the run under way (and the next bench's band) at core's next step; say "stopped".
+
+        The picture goes back to the last run that finished (:meth:`ViewerModel.stop`): the
+        part-way result mixed benches of the new sliders with a model of the old. The sliders,
+        alignments and selection stay; :meth:`run_again` or the next change runs from where the
+        stopped run began.
+        """
+        if not self.running:
+            return
+        step = min((s for s in (self._pending_step, self._queued_step) if s), key=STEPS.index, default=None)
+        if step is not None:  # the next bench alone: the model is up to date, nothing to run again
+            self._stopped_step = min((s for s in (step, self._stopped_step) if s), key=STEPS.index)
+        self._debounce.stop()
+        self._cancel()  # results of the stopped run that still come are told apart by their job and dropped
+        self._pending_step = self._queued_step = None
+        self._worker = None
+        self._latest = None
+        previous = self.model.result
+        said = self.model.stop()
+        with self.renderer.batch():
+            refresh_scene(
+                self.scene, self.model.holes, self.model.result, self.model.selection, previous=previous, deferred=True
+            )
+        self._on_layer_row(None)
+        self._show_translation()
+        self.progress_bar.setRange(0, 100)  # out of the next bench's busy indicator
+        self.progress_bar.setValue(0)
+        self.statusBar().showMessage(said)
+        self._show_running()
+
+    def run_again(self) -> None:
+        """Run again from where the stopped run began (from the contours if none was stopped)."""
+        self.request(self._stopped_step or "contours", immediate=True)
 
     def _cancel(self) -> None:
         """Stop the running job and the next bench's at their next step (their results are ignored from now on)."""
@@ -999,6 +1067,8 @@ class MainWindow(QtWidgets.QMainWindow):
         step, self._queued_step = self._queued_step, None
         if step is None:
             return
+        # a change after a Stop runs what the stopped run had still to do as well as its own
+        step, self._stopped_step = min((s for s in (step, self._stopped_step) if s), key=STEPS.index), None
         self._cancel()
         job, self._stop = self._job, threading.Event()
         self._pending_step = step
@@ -1063,6 +1133,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.statusBar().showMessage(f"done in {self.last_run_seconds:.2f} s" + (f" - {said}" if said else ""))
         self.progress_bar.setValue(100)
         self._start_next_bench()
+        self._show_running()
 
     # The next bench's band and suggested holes take core 1-3.5 s on Kennecott: computed on the
     # window's thread, they froze it. They are computed in a worker thread once a run is done and
@@ -1098,12 +1169,14 @@ class MainWindow(QtWidgets.QMainWindow):
         worker.returned.connect(lambda _, nb=nb, stop=stop: self._on_next_bench(nb, stop, started))
         self._next_bench_worker = worker
         worker.start()
+        self._show_running()
 
     def _on_next_bench(self, nb, stop: threading.Event, started: float, exc: Exception | None = None) -> None:
         """Draw the next bench just computed, unless a newer request superseded it (then start the shown one's)."""
         if stop.is_set():  # superseded: stale, whether core stopped or had finished
             return
         self._next_bench = self._next_bench_worker = None
+        self._show_running()
         if not self.busy:
             self.progress_bar.setRange(0, 100)
             self.progress_bar.setValue(100)
@@ -1139,6 +1212,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.statusBar().showMessage(f"failed: {what}")
         # The request cancelled the next bench of what is still on screen: computed again (not drawn until then).
         self._start_next_bench()
+        self._show_running()
 
     def _show_translation(self) -> None:
         """Show the selected source's translation, and put it in the dx, dy boxes when it is a new one.
@@ -1191,7 +1265,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self._discarded.discard_autosave()
         self._discarded = None
         self._cancel()
-        self._pending_step = self._queued_step = None
+        self._pending_step = self._queued_step = self._stopped_step = None
         self._failure = None  # the new input's run says its own
         self._autosave_timer.stop()  # the model replaced has nothing to autosave: saved, discarded or restored
         self.model = model
@@ -1344,6 +1418,9 @@ class MainWindow(QtWidgets.QMainWindow):
             raise ValueError("no surface is shown: build or tick some first")
         f = self.model.holes.frame
         names = geozone_folders(sorted(surfaces))
+        problem = export_folder_problem(Path(folder), [names[g] for g in sorted(surfaces)])
+        if problem is not None:
+            raise ValueError(problem)
         layers = dxf_layer_names(self.model.holes.geozones)  # as bgm build names them
         out = {}
         # seconds on Kennecott: said geozone by geozone, else the window looked frozen
@@ -1489,6 +1566,29 @@ class MainWindow(QtWidgets.QMainWindow):
         event.accept()
 
 
+def export_folder_problem(folder: Path, subfolders: list[str]) -> str | None:
+    """Why the surfaces cannot be exported into ``folder/<subfolder>/`` (``None``: nothing in the way).
+
+    A file where a folder must be (``folder`` itself, a folder above it, or a geozone's
+    sub-folder) failed the export with a raw "[Errno 20] Not a directory" naming neither
+    the path nor what was expected.
+    """
+    for above in [*reversed(folder.parents), folder]:
+        if above.exists() and not above.is_dir():
+            if above == folder:
+                return f"{folder} is a file: choose a folder to export the surfaces into (one sub-folder per geozone)"
+            return (
+                f"{above} is a file, so {folder} cannot be a folder in it: choose a folder to export the surfaces into"
+            )
+    for name in subfolders:
+        inner = folder / name
+        if inner.exists() and not inner.is_dir():
+            return (
+                f"{inner} is a file where the surfaces of geozone folder {name!r} go: move it or choose another folder"
+            )
+    return None
+
+
 #: How long closing the window waits for a cancelled run to reach its next step.
 CLOSE_WAIT_MS = 10_000
 
@@ -1506,6 +1606,7 @@ selects its geozone (and bench pair and component)</td></tr>
 <tr><td><b>Ctrl+I / T / F / S</b></td><td>camera: iso, top, front, side</td></tr>
 <tr><td><b>Ctrl+0</b></td><td>fit the visible data</td></tr>
 <tr><td><b>Ctrl+O / Ctrl+S</b></td><td>open blastholes / save the project</td></tr>
+<tr><td><b>Esc / F5</b></td><td>stop the run under way / run again</td></tr>
 <tr><td><b>F1</b></td><td>this page</td></tr>
 </table>
 <p>The Geozones dock shows or hides each geozone; Benches and section hides benches, limits

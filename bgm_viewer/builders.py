@@ -284,8 +284,15 @@ def empty_layer_reasons(
                 continue
             nb = getattr(layer, "next_bench", None)
             if nb is not None and (nb.pending or nb.error):  # not "empty": computing, or failed
-                out[layer.name] = f"the next bench failed: {nb.error}" if nb.error else NEXT_BENCH_PENDING
+                pending = STOPPED if result.stopped else NEXT_BENCH_PENDING
+                out[layer.name] = f"the next bench failed: {nb.error}" if nb.error else pending
                 continue
             why = EMPTY_REASONS.get(layer.name)
             out[layer.name] = why(holes, result, selection) if why else "nothing to draw for this selection"
+            if result.stopped and out[layer.name].endswith(" yet"):
+                out[layer.name] = STOPPED  # "not computed yet" promised what no run is computing
     return out
+
+
+#: Why a layer draws nothing after the run that was to compute it was stopped.
+STOPPED = "the run was stopped before it was computed: Run > Run again (F5) or change a setting"

@@ -134,6 +134,9 @@ class PipelineResult:
     timings: dict[str, float] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
     complete: bool = False
+    #: The run that was to update this result was stopped (:meth:`ViewerModel.stop`): what is missing or older
+    #: than the sliders stays so until the next run.
+    stopped: bool = False
     #: The run's overrides as they follow renumbered components, and what moved or was dropped.
     relocated: Relocation | None = None
     #: The parameters ``pair`` was computed with: an override made on it is placed under them.
@@ -264,6 +267,52 @@ class _Run:
         """``fn()`` timed as ``name``; an exception is reported under ``error_key`` (re-raised without one)."""
         self.check()
         return _timed(name, fn, error_key, self.res.timings, self.res.errors)
+
+
+def stopped_result(last: PipelineResult, selection: Selection) -> PipelineResult:
+    """What is shown after a run is stopped: the last finished run's ``last``, less what belongs to another selection.
+
+    The pair, morph, model and surface of ``last`` were computed for ``last.selection``: under
+    another selection they would be drawn as its own (as :class:`_Run` drops them when a run starts).
+    """
+    if last.selection == selection:
+        return last
+    return replace(
+        last,
+        pair=None,
+        pair_params=None,
+        morph=None,
+        model=None,
+        session=None,
+        surface=None,
+        predicted=[],
+        selection=selection,
+        complete=False,
+    )
+
+
+def corresponding_component(pairs: list[BenchPair], component: int, bench: int, new_bench: int) -> int | None:
+    """The component of the bench pair at ``new_bench`` that component ``component`` of ``bench`` is linked to.
+
+    Stepping one bench down, the source's first associated target (the targets of
+    pair ``k`` are the sources of pair ``k + 1``, in order: :func:`modelled_contours`);
+    one bench up, the first source associated with it as a target. ``None``: no
+    correspondence of ``pairs`` (one geozone's) links the two benches, or the
+    component is linked to nothing there (it ends between the benches).
+    """
+    if abs(new_bench - bench) != 1:
+        return None
+    upper = min(bench, new_bench)
+    for pair in pairs:
+        if pair.upper != upper or pair.correspondence is None:
+            continue
+        assoc = np.asarray(pair.correspondence.association, bool)
+        if not assoc.size or component >= (assoc.shape[0] if new_bench > bench else assoc.shape[1]):
+            return None
+        linked = assoc[component] if new_bench > bench else assoc[:, component]
+        hits = np.flatnonzero(linked)
+        return int(hits[0]) if len(hits) else None
+    return None
 
 
 def _timed(name: str, fn: Callable[[], object], error_key: str | None, timings: dict, errors: dict):
@@ -730,7 +779,11 @@ class ViewerModel:
         self._placed_params = self.params
         #: What the last runs said of overrides whose components were renumbered (moved or dropped).
         self.override_notes: list[str] = []
+        #: Which component the last change of bench pair selected, and why (``None``: it changed no bench pair).
+        self.selection_note: str | None = None
         self.result: PipelineResult = PipelineResult()
+        #: The result of the last run that finished (what Stop shows again; see :meth:`stop`).
+        self.last_complete: PipelineResult = self.result
         self._dirty = False
         self.project_path: str | None = None
         #: The clock the autosave delay is measured on (tests set their own).
@@ -797,7 +850,28 @@ class ViewerModel:
     def set_result(self, result: PipelineResult) -> None:
         self._take_relocated(result.relocated)
         self.result = result
+        if result.complete:
+            self.last_complete = result
         self.result_changed.emit(result)
+
+    def stop(self) -> str:
+        """Show what the last finished run computed, marked stopped, in place of a stopped run's part-way result.
+
+        A run stopped part way (:meth:`bgm_viewer.app.MainWindow.stop_run`) left some benches
+        traced with the new sliders and the rest, the model and the surfaces with the old: shown
+        as they were, that mix passed for the model of the sliders. The parameters, overrides
+        and selection stay as the user set them; the next change or a run again brings the
+        picture up to them. Returns what the status bar says.
+        """
+        shown = stopped_result(self.last_complete, self.selection)
+        if self.result.complete and self.result.selection == self.selection:
+            shown = self.result  # only the next bench was under way: the model on screen is whole
+        self.result = replace(shown, stopped=True)
+        self.result_changed.emit(self.result)
+        return (
+            "stopped: the picture is of the last run that finished; the sliders and alignments are kept"
+            " (Run > Run again, F5, or the next change brings it up to date)"
+        )
 
     def _take_relocated(self, relocated: Relocation | None) -> None:
         """Take a run's overrides as they followed renumbered components (unless the user changed them since).
@@ -891,7 +965,11 @@ class ViewerModel:
         return bool(changed)
 
     def select(self, geozone: str | None = None, bench: int | None = None, component: int | None = None) -> str | None:
-        """Change the selection; returns the step to re-run from (or ``None``)."""
+        """Change the selection; returns the step to re-run from (or ``None``).
+
+        Another bench pair of the same geozone without a ``component`` selects the component
+        the selected one corresponds to there, else the first; :attr:`selection_note` says which.
+        """
         old = self.selection
         sel = Selection(
             geozone if geozone is not None else old.geozone,
@@ -902,6 +980,10 @@ class ViewerModel:
             raise ValueError(f"geozone {sel.geozone!r} is not in the input")
         if not 0 <= sel.bench < max(self.holes.n_benches - 1, 1):
             raise ValueError(f"bench pair {sel.bench} is out of range")
+        self.selection_note = None
+        if component is None and sel.bench != old.bench:
+            # the number kept named another body on the new bench, or none
+            sel, self.selection_note = self._stepped(old, sel)
         if sel == old:
             return None
         self.selection = sel
@@ -910,6 +992,27 @@ class ViewerModel:
         if sel.bench != old.bench or sel.geozone != old.geozone:
             return "contours"  # the fields of the newly selected contours are needed
         return "morph"
+
+    def _stepped(self, old: Selection, new: Selection) -> tuple[Selection, str]:
+        """``new`` with the component that corresponds to ``old``'s on its bench (else the first), and what to say."""
+        r = self.result
+        # the whole geozone's pairs once its model is computed; until then the selected pair's own
+        pairs = [*(r.model.pairs if r.model is not None else []), *([r.pair] if r.pair is not None else [])]
+        pairs = [p for p in pairs if p.geozone == new.geozone]
+        same_zone = old.geozone == new.geozone
+        found = corresponding_component(pairs, old.component, old.bench, new.bench) if same_zone else None
+        where = f"bench {self.holes.bench_z_input(new.bench):g} {self.holes.frame.length_unit}"
+        n = len(r.sources(new)) if new.bench in r.contours else None
+        if found is not None:
+            old_where = f"{self.holes.bench_z_input(old.bench):g} {self.holes.frame.length_unit}"
+            said = f"source component {found} selected on {where}: component {old.component} of {old_where} continues into it"
+            return replace(new, component=found), said
+        said = f"source component 0 (the first) selected on {where}"
+        if n == 0:
+            said += f": geozone {new.geozone} has no modelled component there"
+        elif same_zone:
+            said += f": no correspondence links component {old.component} to it"
+        return replace(new, component=0), said
 
     # -- manual alignment ------------------------------------------------------------
     def override_here(self, create: bool = False):
@@ -1250,12 +1353,15 @@ class ViewerModel:
         """
         from core.io.project import load_project
 
-        self._apply_project(load_project(path))
+        self._apply_project(load_project(path), f"project file {path}")
         self.project_path = str(path)
         self.dirty = False
 
-    def _apply_project(self, proj) -> None:
-        """Take a :class:`~core.io.project.Project`'s parameters, view and overrides (see :meth:`load_project`)."""
+    def _apply_project(self, proj, source: str = "the project") -> None:
+        """Take a :class:`~core.io.project.Project`'s parameters, view and overrides (see :meth:`load_project`).
+
+        ``source`` names the file in the warnings (``"project file p.json"``).
+        """
         from core.io.project import check_project
 
         check_project(proj, self.holes, command="the viewer", uses_parameters=True)
@@ -1271,11 +1377,55 @@ class ViewerModel:
             self._load_surface_view(viewer)
         from .alignment import PlacedOverride
 
-        self.overrides = [PlacedOverride.of(o) for o in proj.overrides]
+        self.overrides = self._existing_components([PlacedOverride.of(o) for o in proj.overrides], source)
         self._override_edits += 1
         self._undo.clear()
         self._redo.clear()
         self.overrides_changed.emit()
+
+    def _existing_components(self, overrides: list, source: str) -> list:
+        """``overrides`` less those naming a component their bench pair lacks, each dropped with a warning.
+
+        A hand-edited project naming source component 5 of a bench with 3 opened without a word,
+        and every run then failed that geozone's model (:func:`core.io.project.check_override_components`).
+        The benches' contours are traced here under the project's parameters (the store keeps them
+        for the first run); overrides of a geozone or bench the input lacks are left to
+        :func:`~core.io.project.check_project`, which says they are unused.
+        """
+        from core.io.project import same_elevation
+
+        holes, unit = self.holes, self.holes.frame.length_unit
+        uppers = {k: holes.bench_z_input(k) for k in range(holes.n_benches - 1)}
+        session, kept = self.session(), []
+        for o in overrides:
+            bench = next((k for k, z in uppers.items() if same_elevation(o.source_z, z)), None)
+            if bench is None or o.geozone not in holes.geozones:
+                kept.append(o)
+                continue
+
+            def count(b: int, geozone: str = o.geozone) -> int:
+                return len(modelled_contours(session.bench_contours(b), geozone, b, self.params.min_component_holes))
+
+            n_sources = count(bench)
+            n_targets = count(bench + 1) if o.associate else 0
+            missing = (
+                [f"source component {o.source} (the upper bench has {n_sources})"] if o.source >= n_sources else []
+            )
+            missing += [
+                f"target component {t} (the lower bench has {n_targets})" for t in sorted(o.associate) if t >= n_targets
+            ]
+            if not missing:
+                kept.append(o)
+                continue
+            pair = f"{uppers[bench]:g} -> {holes.bench_z_input(bench + 1):g} {unit}"
+            warnings.warn(
+                f"{source}: the override of geozone {o.geozone!r}, bench pair {pair}, names {' and '.join(missing)},"
+                " which the bench pair does not have: it is dropped so the model runs (save the project to"
+                " remove it from the file)",
+                BGMWarning,
+                stacklevel=2,
+            )
+        return kept
 
     # -- autosave ----------------------------------------------------------------------
     @property
@@ -1462,7 +1612,7 @@ class ViewerModel:
                 f"it was made reading the table with {want}, not {have}, and the table cannot be read"
                 " again: open it from its file"
             )
-        model._apply_project(offer.project)
+        model._apply_project(offer.project, f"the autosave {offer.path}")
         model.project_path = self.project_path
         model._shared_autosave, model._taken_autosave = self._shared_autosave, self._taken_autosave
         model.dirty = True  # the project file does not hold it: Save writes it, closing asks

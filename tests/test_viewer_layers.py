@@ -579,3 +579,86 @@ def test_selecting_another_component_of_the_bench_draws_its_own_edge_map_gvf_and
     assert not np.array_equal(fields.snake_history_m[-1], first.snake_history_m[-1])  # two bodies, two snakes
     assert np.array_equal(scene["snake"].history[-1], fields.snake_history_m[-1])
     assert scene["edge map"].edge_map is fields.edge_map and scene["GVF"].gvf is fields.gvf
+
+
+def test_a_stopped_run_leaves_the_last_finished_result_on_screen_and_the_sliders_as_set():
+    """A run stopped part way (the window's Stop) had shown its first bench traced with the new
+    slider beside the old benches, model and surfaces: a half-updated model passed for the current one."""
+    from bgm_viewer.model import compute
+
+    model = small_model()
+    finished = model.result
+    model.set_param("snake_max_iterations", 10)
+    steps = compute(model.inputs(), model.result, "contours")
+    model.set_result(next(steps)[2])  # the selected bench pair, traced with the new slider
+    steps.close()
+    assert model.result.contours != finished.contours  # what Stop must not leave on screen
+    said = model.stop()
+    assert said.startswith("stopped")
+    assert model.result.stopped and model.result.contours == finished.contours
+    assert model.result.surfaces == finished.surfaces and model.result.model is finished.model
+    assert model.param("snake_max_iterations") == 10
+    # under another selection the last run's pair and model are not drawn as its own
+    model.select("g2", 0, 0)
+    model.stop()
+    assert model.result.stopped and model.result.pair is None and model.result.model is None
+    model.run()
+    assert model.result.complete and not model.result.stopped
+
+
+def test_stepping_benches_selects_the_component_the_selected_one_corresponds_to():
+    """The component number was kept from bench pair to bench pair: there it was another body, or none."""
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.testing import bodies_that_start_and_end_holes
+
+    model = ViewerModel(bodies_that_start_and_end_holes())
+    model.select("g1", 0, 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model.run()
+    assert model.result.model.pairs[0].correspondence.association[2].tolist() == [False, True]
+    assert model.select(bench=1) == "contours"
+    assert model.selection.component == 1  # body B, not a number 2 the bench below has not
+    assert "source component 1 selected" in model.selection_note and "continues into it" in model.selection_note
+    model.select(component=1)
+    model.select(bench=0)  # one bench up: the component B continues from
+    assert model.selection.component == 2, model.selection_note
+    model.select(component=1)  # body A, which ends between the top two benches
+    model.select(bench=1)
+    assert model.selection.component == 0  # the first, not body B (number 1 there)
+    assert "the first" in model.selection_note and "no correspondence" in model.selection_note
+    model.select(bench=0, component=1)  # a component named with the bench is kept as named
+    assert model.selection.component == 1
+
+
+def test_a_project_naming_a_component_the_bench_lacks_warns_on_open_and_the_model_runs(tmp_path):
+    """A hand-edited project naming source component 5 of a bench with one opened without a word, and
+    every run then failed that geozone's model."""
+    import json
+
+    from bgm_viewer.model import ViewerModel
+    from core.errors import BGMWarning
+
+    model = small_model(until="contours")
+    path = tmp_path / "p.json"
+    model.save_project(path)
+    z = model.holes.bench_z_input(0)
+    data = json.loads(path.read_text())
+    data["overrides"] = [
+        {"geozone": "g1", "source_z": z, "source": 5, "translation": [1.0, 0.0]},
+        {"geozone": "g1", "source_z": z, "source": 0, "associate": {"4": True}},
+        {"geozone": "g1", "source_z": z, "source": 0, "translation": [2.0, 1.0]},
+    ]
+    path.write_text(json.dumps(data))
+    opened = ViewerModel(model.holes)
+    with pytest.warns(BGMWarning) as said:
+        opened.load_project(path)
+    notes = [str(w.message) for w in said if "does not have" in str(w.message)]
+    pair = f"{z:g} -> {model.holes.bench_z_input(1):g} m"
+    assert len(notes) == 2 and all(f"project file {path}" in n and "'g1'" in n and pair in n for n in notes)
+    assert "source component 5" in notes[0] and "target component 4" in notes[1] and "dropped" in notes[0]
+    assert [(o.source, o.translation) for o in opened.overrides] == [(0, (2.0, 1.0))]  # the others kept
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        opened.run()
+    assert opened.result.model is not None and "model" not in opened.result.errors, opened.result.errors

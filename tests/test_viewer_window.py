@@ -800,6 +800,27 @@ def test_opening_a_project_says_which_overrides_it_leaves_unused(window, monkeyp
     assert len(shown) == 1 and "'nope'" in shown[0] and "is not used" in shown[0]
 
 
+def test_opening_a_project_naming_a_component_the_bench_lacks_says_so_and_the_model_runs(window, monkeypatch, tmp_path):
+    """A hand-edited project naming a component that does not exist opened without a word; the run then
+    failed that geozone's model."""
+    import json
+
+    path = tmp_path / "p.json"
+    window.model.save_project(path)
+    data = json.loads(path.read_text())
+    z = window.model.holes.bench_z_input(0)
+    data["overrides"] = [{"geozone": "g1", "source_z": z, "source": 7, "translation": [1.0, 0.0]}]
+    path.write_text(json.dumps(data))
+    shown = []
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (str(path), ""))
+    monkeypatch.setattr(QtWidgets.QMessageBox, "warning", lambda parent, title, text, *a: shown.append(text))
+    with pytest.warns(UserWarning, match="source component 7"):
+        window.open_project_dialog()
+    assert len(shown) == 1 and str(path) in shown[0] and "'g1'" in shown[0] and "dropped" in shown[0]
+    window.wait_idle()
+    assert window.model.result.complete and "model" not in window.model.result.errors
+
+
 @pytest.mark.parametrize("exaggeration", [50.0, 0.05, 0.004])
 def test_the_exaggeration_panel_shows_the_exaggeration_drawn(qtbot, exaggeration):
     """`bgm view --exaggeration 50` (or a project's) drew 50 while the panel, limited to 0.1-20, said 20."""
@@ -1161,3 +1182,93 @@ def test_the_component_shown_follows_the_corrected_body_when_a_run_renumbers_it(
     finally:
         win.model.dirty = False
         win.close()
+
+
+def test_stop_ends_a_run_shows_the_last_finished_one_and_keeps_the_sliders(window, qtbot):
+    """A run on a large pit lasts tens of seconds to minutes; another change or closing the window
+    were the only ways out. Stop (Esc, the Run menu, the button beside the progress bar) ends it,
+    shows the last finished run again (not the part-way mix of new and old benches), says
+    "stopped", keeps the slider, and Run again brings the picture up to the slider."""
+    finished = window.model.result
+    before = _selected_polygon(window)
+    assert not window.stop_action.isEnabled()  # nothing to stop
+    assert window.stop_action.shortcut().toString() == "Esc"
+    assert window.stop_button.defaultAction() is window.stop_action
+    enabled_while_running = []
+
+    def stop_at_first_result():
+        if window.busy:
+            enabled_while_running.append(window.stop_action.isEnabled())
+            window.stop_action.trigger()
+
+    window.resultShown.connect(stop_at_first_result)
+    window.param_controls["snake_max_iterations"].slider.setValue(10)
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    window.resultShown.disconnect(stop_at_first_result)
+    assert enabled_while_running == [True]
+    qtbot.wait(500)  # what the stopped run still yields is never drawn
+    result = window.model.result
+    assert result.stopped and not window.stop_action.isEnabled()
+    assert window.statusBar().currentMessage().startswith("stopped")
+    # the last finished run's benches and surfaces, not the stopped run's first bench with the new slider
+    assert result.contours == finished.contours and result.surfaces == finished.surfaces
+    assert _selected_polygon(window).equals(before)
+    assert window.model.param("snake_max_iterations") == 10  # what the user set is kept
+    assert window.param_controls["snake_max_iterations"].value() == 10
+    window.run_again()
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    assert not window.model.result.stopped and not _selected_polygon(window).equals(before)
+    assert window.statusBar().currentMessage().startswith("done")
+
+
+def test_a_layer_a_stopped_run_did_not_compute_says_the_run_was_stopped(window, qtbot):
+    """After Stop, "not computed yet" promised a result no run was computing."""
+    window.resultShown.connect(window.stop_run)
+    window.geozone_combo.setCurrentText("g2")  # another selection: no model for it yet
+    qtbot.waitUntil(lambda: window.model.result.stopped, timeout=60_000)
+    window.resultShown.disconnect(window.stop_run)
+    empty = window.empty_layers()
+    assert "surfaces" not in empty or "stopped" in empty["surfaces"]
+    assert empty and all("yet" not in why for why in empty.values()), empty
+    assert any("the run was stopped" in why for why in empty.values()), empty
+
+
+def test_stepping_bench_pairs_says_which_component_is_selected(qtbot):
+    """The component number was kept silently when the bench pair changed: there it named another body."""
+    from bgm_viewer.testing import bodies_that_start_and_end_holes
+
+    model = ViewerModel(bodies_that_start_and_end_holes())
+    model.select("g1", 0, 2)
+    win = MainWindow(model, debounce_ms=10, restore=False)
+    win.show()
+    try:
+        qtbot.waitUntil(lambda: not win.busy and win.model.result.complete, timeout=60_000)
+        win.bench_combo.setCurrentIndex(1)
+        assert win.component_spin.value() == win.model.selection.component == 1
+        assert "source component 1 selected" in win.statusBar().currentMessage()
+        qtbot.waitUntil(lambda: not win.busy, timeout=60_000)
+        message = win.statusBar().currentMessage()
+        assert message.startswith("done") and "source component 1 selected" in message
+    finally:
+        win.model.dirty = False
+        win.close()
+
+
+@pytest.mark.parametrize("where", ["the folder", "a folder above it", "a geozone's folder"])
+def test_exporting_surfaces_where_a_file_is_says_which_path_and_that_a_folder_is_expected(window, tmp_path, where):
+    """Exporting surfaces into a path that is a file gave a raw "[Errno 20] Not a directory"."""
+    from core.model.build import geozone_folders
+
+    file = tmp_path / "surfaces.txt"
+    folder = {"the folder": file, "a folder above it": file / "out"}.get(where, tmp_path / "out")
+    if where == "a geozone's folder":
+        shown = sorted(g for g in window.model.result.built if window.scene.view.shows(g))
+        file = folder / geozone_folders(shown)[shown[0]]
+        folder.mkdir()
+    file.write_text("notes")
+    with pytest.raises(ValueError) as err:
+        window.export_surfaces(folder)
+    said = str(err.value)
+    assert "Errno" not in said and "\n" not in said
+    assert f"{file} is a file" in said and "folder" in said
+    assert file.read_text() == "notes"  # nothing written over it
