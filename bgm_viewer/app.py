@@ -39,12 +39,12 @@ from . import _vtkenv  # noqa: F401
 from .builders import build_scene, empty_layer_reasons, refresh_scene
 from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, SCREENSHOT_FORMATS, parse_layers
 from .model import (
-    STEPS,
     Cancelled,
     ViewerModel,
     bodies,
     compute,
     display_unit,
+    earliest_step,
     project_input,
     project_read_options,
 )
@@ -991,8 +991,7 @@ class MainWindow(QtWidgets.QMainWindow):
         # The run replaces the model the next bench is computed from: its band is stale from now on, and
         # would keep a core busy through the debounce delay and the new run (seconds on Kennecott).
         self._cancel_next_bench()
-        steps = [s for s in (step, self._queued_step, self._pending_step) if s]
-        self._queued_step = min(steps, key=STEPS.index)
+        self._queued_step = earliest_step(step, self._queued_step, self._pending_step)
         self._request_time = time.perf_counter()
         if immediate:
             self._debounce.stop()
@@ -1020,9 +1019,9 @@ class MainWindow(QtWidgets.QMainWindow):
         """
         if not self.running:
             return
-        step = min((s for s in (self._pending_step, self._queued_step) if s), key=STEPS.index, default=None)
+        step = earliest_step(self._pending_step, self._queued_step)
         if step is not None:  # the next bench alone: the model is up to date, nothing to run again
-            self._stopped_step = min((s for s in (step, self._stopped_step) if s), key=STEPS.index)
+            self._stopped_step = earliest_step(step, self._stopped_step)
         self._debounce.stop()
         self._cancel()  # results of the stopped run that still come are told apart by their job and dropped
         self._pending_step = self._queued_step = None
@@ -1068,7 +1067,7 @@ class MainWindow(QtWidgets.QMainWindow):
         if step is None:
             return
         # a change after a Stop runs what the stopped run had still to do as well as its own
-        step, self._stopped_step = min((s for s in (step, self._stopped_step) if s), key=STEPS.index), None
+        step, self._stopped_step = earliest_step(step, self._stopped_step) or step, None
         self._cancel()
         job, self._stop = self._job, threading.Event()
         self._pending_step = step

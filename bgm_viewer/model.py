@@ -65,6 +65,13 @@ from core.morph.levelset import MorphResult
 from core.threads import Cancelled, cancelling, on_threads
 
 STEPS = ("contours", "snake", *CORE_STAGES[1:])
+
+
+def earliest_step(*steps: str | None) -> str | None:
+    """The earliest of ``steps`` in :data:`STEPS` (a run from it re-runs the others too); ``None`` among none."""
+    return min((s for s in steps if s), key=STEPS.index, default=None)
+
+
 #: What :meth:`ViewerModel.set_view` sets: the view settings a project saves besides the selection.
 VIEW_SETTINGS = ("vertical_exaggeration", "surface_scope", "surface_geozones", "min_body_volume_m3", "min_body_holes")
 #: Depths below the deepest bench at which the selected geozone is predicted, in bench heights.
@@ -1219,7 +1226,7 @@ class ViewerModel:
         if undone.params is None:
             self.override_notes = []  # an edit undone: no run's note holds any more, as after an edit
         elif undone.params != self.params:
-            step = min(step, self._restore_params(undone.params), key=STEPS.index)
+            step = earliest_step(step, self._restore_params(undone.params)) or step
         else:
             self.override_notes = ["Undo brought back the alignment overrides a run had moved or dropped"]
         self.dirty = True
@@ -1241,7 +1248,7 @@ class ViewerModel:
         step = "correspondence"
         self.override_notes = []
         if redone.params is not None and redone.params != self.params:
-            step = min(step, self._restore_params(redone.params, "Redo"), key=STEPS.index)
+            step = earliest_step(step, self._restore_params(redone.params, "Redo")) or step
         if redone.placed_params is not None:
             self._placed_params = redone.placed_params  # the overrides are placed as they were before the Undo
         self.dirty = True
@@ -1257,7 +1264,7 @@ class ViewerModel:
         ]
         self.params = self._placed_params = params
         self.params_changed.emit()
-        return min((step_of(n) for n in names), key=STEPS.index, default="contours")  # every field has a spec
+        return earliest_step(*(step_of(n) for n in names)) or "contours"  # every field has a spec
 
     def _shown_value(self, params: ModelParameters, name: str) -> str:
         """Parameter ``name`` of ``params`` as the sliders show it: its label and value in the input's units."""

@@ -573,11 +573,17 @@ def _model(input, geozone, project, stages, table: TableOptions, command: str, n
     start = time.perf_counter()
     with progress_bar(f"{stages[-1]} {geozone[:40]}", "bench pairs") as update:
         model = session.geozone_model(geozone, stages=stages, progress=update)
-    if not model.pairs:  # else "pairs": 0 alone, and the user left to guess why
+    _say_no_pair(session, geozone, model)  # else "pairs": 0 alone, and the user left to guess why
+    return session, geozone, model, time.perf_counter() - start
+
+
+def _say_no_pair(session, geozone: str, model, consequence: str = "") -> None:
+    """Say why ``geozone`` has no bench pair (as ``bgm build``'s report does), when ``model`` has none."""
+    if not model.pairs:
         from core.model.build import no_pair_note
 
-        _say(f"bgm: note: geozone {geozone} is {no_pair_note(holes, geozone, session.params.min_component_holes)}")
-    return session, geozone, model, time.perf_counter() - start
+        why = no_pair_note(session.holes, geozone, session.params.min_component_holes)
+        _say(f"bgm: note: geozone {geozone} is {why}{consequence}")
 
 
 @app.command()
@@ -769,11 +775,8 @@ def predict(
     session = _session(holes, project, [geozone], "predict", no_cache)
     with progress_bar(f"morph {geozone[:40]}", "bench pairs") as update:
         model = session.geozone_model(geozone, stages=("correspond", "morph"), progress=update)
-    if not model.pairs:  # predicted nowhere, as bgm build and the viewer have it (ModelSession.predict): say why
-        from core.model.build import no_pair_note
-
-        why = no_pair_note(holes, geozone, session.params.min_component_holes)
-        _say(f"bgm: note: geozone {geozone} is {why}, and so no prediction (bgm build and the viewer make none)")
+    # predicted nowhere, as bgm build and the viewer have it (ModelSession.predict): said why
+    _say_no_pair(session, geozone, model, ", and so no prediction (bgm build and the viewer make none)")
     features = _prediction_features(session, geozone, levels, model)
     bands, grid = _uncertainty(session, geozone, levels, model, band_probability)
     # Written as one set once all is computed: an interrupt or a failure, during the work or while the three are

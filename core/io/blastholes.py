@@ -111,6 +111,8 @@ MISSING_LABELS = frozenset({"na", "n/a", "#n/a", "nan", "null", "none", "-99", "
 HOLE_ID_NAMES = ("holeid", "hole_id", "hole", "id", "bhid", "holename", "holeno", "holenumber", "blastholeid")
 #: What :func:`is_hole_id_column` leaves out of a name before comparing it.
 _NAME_SEPARATORS = re.compile(r"[\s_.\-]+")
+#: :data:`HOLE_ID_NAMES` as :func:`is_hole_id_column` compares them.
+_HOLE_ID_KEYS = frozenset(_NAME_SEPARATORS.sub("", n) for n in HOLE_ID_NAMES)
 #: A geozone label that spells a number (compared as numbers by :func:`merge_number_spellings`).
 NUMBER_LABEL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d{1,3})?")
 #: A label whose integer part has leading zeros (``010``, ``-007.5``): a code, not a number.
@@ -446,7 +448,7 @@ def is_hole_id_column(name: str) -> bool:
     missed and the holes named by row number instead, with nothing saying so.
     """
     key = _NAME_SEPARATORS.sub("", str(name).strip().lower())
-    return key in {_NAME_SEPARATORS.sub("", n) for n in HOLE_ID_NAMES}
+    return key in _HOLE_ID_KEYS
 
 
 def table_columns(columns: list[str], x=None, y=None, z=None, geozone=None) -> dict[str, str]:

@@ -105,10 +105,11 @@ def hole_ids(holes: Blastholes, index: np.ndarray) -> list:
 
 
 def hole_name(holes: Blastholes, i: int) -> str:
-    """How a geologist finds hole ``i`` in the input: its id, else ``line N`` (its file line, :func:`hole_ids`)."""
-    if holes.hole_id is None and holes.data_line is not None:
-        return f"line {int(holes.data_line[i])}"
-    return str(hole_ids(holes, np.array([i]))[0]) if holes.hole_id is not None else f"#{int(i) + 1}"
+    """How a geologist finds hole ``i`` in the input: its id, else ``line N`` (its file line), else ``#N``."""
+    name = hole_ids(holes, np.array([i]))[0]
+    if holes.hole_id is not None:
+        return str(name)
+    return f"line {name}" if holes.data_line is not None else f"#{name}"
 
 
 def containment(contour: Contour, holes: Blastholes) -> dict:

@@ -102,17 +102,27 @@ def implicit_model(holes: KnownHoles) -> ImplicitRBF:
     return fit_implicit_rbf(holes.xy, holes.z, holes.inside, bench=holes.bench, bench_height_m=holes.bench_height_m)
 
 
+def drilled_down_to(fields: BenchFields, j: int | None = None) -> np.ndarray:
+    """The cells of ``fields.grid`` the benches down to ``j`` (an index of ``fields.z_m``; every one: None) drilled."""
+    return np.any(fields.drilled if j is None else fields.drilled[: j + 1], axis=0)
+
+
+def _past_m(fields: BenchFields, drilled: np.ndarray) -> np.ndarray:
+    """Each cell's distance past the ``drilled`` cells, metres (0 inside them)."""
+    return ndimage.distance_transform_edt(~drilled) * fields.grid.cell_size_m
+
+
 def new_ground(fields: BenchFields) -> np.ndarray:
     """The cells of ``fields.grid`` that no known bench drilled."""
-    return np.logical_not(np.any(fields.drilled, axis=0))
+    return np.logical_not(drilled_down_to(fields))
 
 
 def within_m(fields: BenchFields, reach_m: float) -> np.ndarray:
     """The cells within ``reach_m`` of some known bench's drilling."""
-    drilled = np.any(fields.drilled, axis=0)
+    drilled = drilled_down_to(fields)
     if not drilled.any():
         return np.ones(fields.grid.shape, bool)
-    return ndimage.distance_transform_edt(~drilled) * fields.grid.cell_size_m <= reach_m
+    return _past_m(fields, drilled) <= reach_m
 
 
 def pushback_m(fields: BenchFields, holes: KnownHoles, j: int) -> float:
@@ -123,10 +133,10 @@ def pushback_m(fields: BenchFields, holes: KnownHoles, j: int) -> float:
 
     def compute() -> float:
         on = holes.where(holes.on_level(float(fields.z_m[j + 1])))
-        drilled = np.any(fields.drilled[: j + 1], axis=0)
+        drilled = drilled_down_to(fields, j)
         if not len(on.xy) or not drilled.any():
             return 0.0
-        off_m = ndimage.distance_transform_edt(~drilled) * fields.grid.cell_size_m
+        off_m = _past_m(fields, drilled)
         rc = fields.grid.nearest_cells(on.xy)
         return float(off_m[rc[:, 0], rc[:, 1]].max())
 
@@ -162,7 +172,7 @@ def pair_errors(
         z_next = float(fields.z_m[j + 1])
         on = holes.where(holes.on_level(z_next))
         rc = fields.grid.nearest_cells(on.xy)
-        fresh = np.logical_not(np.any(fields.drilled[: j + 1], axis=0))[rc[:, 0], rc[:, 1]]
+        fresh = np.logical_not(drilled_down_to(fields, j))[rc[:, 0], rc[:, 1]]
         xy, truth = on.xy[fresh], on.inside[fresh]
         if not len(xy):
             return 0, 0, 0
