@@ -12,6 +12,7 @@ from conftest import DEMO_CSV, synthetic
 
 from core.errors import BGMInputError
 from core.io.blastholes import BGMWarning, detect_benches, median_hole_spacing, read_blastholes
+from core.synthetic.scenarios import scenario
 
 
 def small_table(n_per_bench: int = 40, benches=(100.0, 90.0, 80.0), seed: int = 0) -> pd.DataFrame:
@@ -782,3 +783,42 @@ def test_holes_of_a_table_without_ids_are_named_by_the_file_line_they_were_read_
         first = np.flatnonzero(np.isclose(table.x, x) & np.isclose(table.y, y) & np.isclose(table.z, z))[0]
         assert hole_ids(holes, np.array([k])) == [first + 2]  # the header is line 1
         assert hole_name(holes, k) == f"line {first + 2}"
+
+
+def depths_below_a_datum(table: pd.DataFrame, column: str) -> pd.DataFrame:
+    """``table`` with ``column``'s elevations written as depths below a datum above its top bench (positive down)."""
+    z = table[column].astype(float)
+    return table.assign(**{column: np.round(float(np.ceil(z.max())) + 10.0 - z, 2)})
+
+
+def said_upside_down(path, **kw) -> list[str]:
+    """The warnings reading ``path`` gives that the benches widen with depth."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BGMWarning)
+        read_blastholes(path, **kw)
+    return [str(w.message) for w in caught if "widen with depth" in str(w.message)]
+
+
+@pytest.mark.parametrize(
+    ("family", "seed", "name"), [("strips", 0, "z"), ("folds", 1, "RL"), ("pods", 2, "Z"), ("mix", 3, "elevation")]
+)
+def test_depths_in_an_elevation_column_are_said_to_read_upside_down(tmp_path, family, seed, name):
+    """Depths below a datum in a column named ``z``, ``RL`` or ``elevation`` were read as elevations without a word:
+    the benches in reverse order, every prediction below the deepest bench above the top one. An open pit narrows
+    with depth: benches that widen with depth as read are said to, naming the column and what to do."""
+    _, table, _ = scenario(family, seed)
+    table = table.rename(columns={"z": name})
+    assert not said_upside_down(write(tmp_path, table))
+    said = said_upside_down(write(tmp_path, depths_below_a_datum(table, name), name="depths.csv"))
+    assert len(said) == 1 and repr(name) in said[0] and "depths (positive down)" in said[0], said
+    assert re.search(r"span \d\.\d times the area of the top third", said[0]) and "give elevations" in said[0]
+
+
+@pytest.mark.parametrize("source", ["demo", "kennecott"])
+def test_the_demo_and_kennecott_read_right_way_up_without_a_word_and_upside_down_with_one(request, tmp_path, source):
+    """Kennecott's top bench holds 20 holes (a bench partly in the table): it does not decide the pit's shape."""
+    path = DEMO_CSV if source == "demo" else request.getfixturevalue("kennecott_csv")
+    assert not said_upside_down(path)
+    table = pd.read_csv(path, dtype=str, keep_default_na=False)
+    said = said_upside_down(write(tmp_path, depths_below_a_datum(table, "z" if source == "demo" else "RL")))
+    assert len(said) == 1, said

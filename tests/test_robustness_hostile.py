@@ -29,7 +29,8 @@ Class -> tests:
   test_labels_differing_only_by_case_are_kept_with_a_warning
 * degrees: test_degrees_are_refused
 * an identifier column read as geozones: test_an_identifier_read_as_geozones_is_warned_about
-* depths given as z: test_a_depth_column_given_as_z_is_warned_about
+* depths given as z: test_a_depth_column_given_as_z_is_warned_about,
+  test_depths_in_a_column_named_as_elevations_are_warned_about
 * uneven benches, z without benches: test_uneven_benches_are_taken_as_measured, test_z_that_forms_no_benches_is_refused
 * far elevations: test_far_elevations_need_force
 * unused overrides: test_unused_overrides_are_named
@@ -688,6 +689,26 @@ def test_a_depth_column_given_as_z_is_warned_about(table, tmp_path, seed):
     t.assign(RL=table.z).to_csv(path, index=False)
     proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson", "--z", "RL"))
     assert not any("depth" in w for w in warnings_of(proc)), proc.stderr
+
+
+def test_depths_in_a_column_named_as_elevations_are_warned_about(tmp_path):
+    """Depths below a datum (positive down) in a column named ``RL`` or ``z`` read as elevations, upside down, without
+    a word: every prediction below the deepest bench lay above the top one. The pit widening with depth says so."""
+    from core.synthetic.scenarios import scenario
+
+    rng = rng_for("depth in z")
+    name = str(rng.choice(["z", "Z", "RL", "elevation"]))
+    _, pit, _ = scenario("widening", 4, n_benches=5, drilling={"spacing_range_m": (10.0, 12.0)})
+    datum = float(np.ceil(pit.z.max())) + rng.uniform(5.0, 50.0)
+    path = tmp_path / "pit.csv"
+    pit.assign(z=np.round(datum - pit.z, 2)).rename(columns={"z": name}).to_csv(path, index=False)
+    proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson"))
+    said = [w for w in warnings_of(proc) if "widen with depth" in w]
+    assert len(said) == 1 and repr(name) in said[0] and "depths (positive down)" in said[0], proc.stderr
+    assert "give elevations" in said[0] and "upside down" in said[0], said
+    pit.rename(columns={"z": name}).to_csv(path, index=False)  # the elevations: not a word
+    proc = succeeds(bgm("contours", path, "--out", tmp_path / "c.geojson"))
+    assert not any("widen" in w or "upside down" in w for w in warnings_of(proc)), proc.stderr
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -16,6 +16,8 @@ CSV or Parquet table into :class:`Blastholes`:
   (uneven bench heights are fine); z that does not form benches is refused;
   holes far above or below every bench (elevations missing as 0 or -9999, or
   mistyped) are left out, named in a warning, or refused when they are many;
+* z is an elevation (positive up): benches that widen with depth as read, where an open pit
+  narrows, are warned about, as depths read as elevations give them;
 * lengths are converted to metres in a local frame centred on the data, so
   mine-grid coordinates (x ~ 650,000, y ~ 7,400,000) keep full precision and
   feet data works with the same metre-based defaults; everything reported goes
@@ -121,6 +123,16 @@ LEADING_ZEROS = re.compile(r"[+-]?0\d")
 ZERO_FRACTION = re.compile(r"-?\d+\.0+")
 #: A z column named like this (any case) holds depths, positive down: ``depth``, ``Depth_m``, ``from``, ``to (m)``.
 DEPTH_NAME = re.compile(r"(?:.*depth.*|(?:from|to)(?:[_\s(].*)?)", re.IGNORECASE)
+#: Benches with fewer holes than this share of the median bench's are left out of the pit's shape (see
+#: :func:`widening_with_depth`): a bench only partly in the table, or being opened, says nothing of the pit's width
+#: there (Kennecott's top bench: 20 holes, the others 1,900-2,850).
+PIT_SHAPE_MIN_HOLES_SHARE = 0.25
+#: Benches whose deepest third spans this many times the area of their top third widen with depth: an open pit
+#: narrows, so z is very likely read upside down. Right way up, the synthetic families' 7 benches give 0.39-0.66
+#: (0.81 for 3), the demo 0.51, Kennecott 0.74; upside down 1.52-2.58 (1.23 for 3), 1.98 and 1.36.
+UPSIDE_DOWN_AREA_RATIO = 1.25
+#: Fewer benches than this (of :data:`PIT_SHAPE_MIN_HOLES_SHARE`) tell too little of the pit's shape.
+PIT_SHAPE_MIN_BENCHES = 4
 #: Numbers with decimal commas, and with thousands separators.
 DECIMAL_COMMA = r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?"
 THOUSANDS = r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d*)?(?:[eE][+-]?\d+)?"
@@ -646,6 +658,7 @@ def blastholes_from_table(
     holes.lost_geozones = _lost_geozones(labels, labels[keep], holes.geozone)
     _measure_spacing(holes, source)
     _check_spacing(holes, given=bool(length_unit))
+    _warn_upside_down(holes, cols["z"])
     holes.unit_guess = _unit_guess_note(unit, length_unit or named, height_in)
     return holes
 
@@ -953,6 +966,66 @@ def _warn_depth_column(column: str, notes: list[str]) -> None:
             "with --z, or convert first (elevation = collar elevation - depth)"
         )
         _note(notes, msg, stacklevel=4)
+
+
+def widening_with_depth(xy: np.ndarray, bench: np.ndarray, n_benches: int) -> float | None:
+    """How many times the top third of the benches' area their deepest third spans, when the benches widen with depth.
+
+    An open pit is widest at its top and narrows bench by bench. Each bench's area is its holes' convex hull; the
+    median bench of the deepest third is compared with that of the top third, benches with few holes
+    (:data:`PIT_SHAPE_MIN_HOLES_SHARE`) left out, so that a bench partly drilled at either end does not decide.
+
+    Parameters
+    ----------
+    xy : (n, 2) float
+        Hole positions.
+    bench : (n,) int
+        Each hole's bench, 0 the top one (-1 off the benches).
+    n_benches : int
+
+    Returns
+    -------
+    float or None
+        The ratio of the two areas when it is at least :data:`UPSIDE_DOWN_AREA_RATIO` and more benches widen
+        than narrow downwards (their rank correlation with depth is positive); None otherwise, or with fewer
+        than :data:`PIT_SHAPE_MIN_BENCHES` benches to tell by.
+    """
+    import shapely
+
+    counts = np.bincount(bench[bench >= 0], minlength=n_benches)
+    full = np.flatnonzero(counts >= PIT_SHAPE_MIN_HOLES_SHARE * np.median(counts[counts > 0]))
+    if len(full) < PIT_SHAPE_MIN_BENCHES:
+        return None
+    area = np.array([shapely.MultiPoint(xy[bench == k]).convex_hull.area for k in full])
+    third = len(full) // 3
+    top, deep = float(np.median(area[:third])), float(np.median(area[-third:]))
+    if not (top > 0 and deep >= UPSIDE_DOWN_AREA_RATIO * top):
+        return None
+    widening = np.corrcoef(np.arange(len(full)), np.argsort(np.argsort(area)))[0, 1]  # Spearman's, top first
+    return deep / top if widening > 0 else None
+
+
+def _warn_upside_down(holes: Blastholes, column: str) -> None:
+    """Warn when the benches widen with depth as z reads them (:func:`widening_with_depth`): depths read as elevations.
+
+    Depths below a datum (positive down) in a column named ``z`` or ``RL`` turn the benches upside down without a
+    word: every prediction "below the deepest bench" lies above the top one. A column named like a depth is
+    warned of by its name (:func:`_warn_depth_column`). Not refused: a pit drilled out of order, or pushed back,
+    may widen downwards.
+    """
+    if DEPTH_NAME.fullmatch(column.strip()):
+        return
+    ratio = widening_with_depth(holes.xy, holes.bench, holes.n_benches)
+    if ratio is None:
+        return
+    msg = (
+        f"the benches widen with depth as column {quoted(column)} (z) reads them: the deepest third's holes "
+        f"span {ratio:.1f} times the area of the top third's (z {holes.bench_z_input(0):g} down to "
+        f"{holes.bench_z_input(holes.n_benches - 1):g}), where an open pit narrows with depth; if {quoted(column)} "
+        "holds depths (positive down), the benches are upside down and every prediction below the deepest bench "
+        "lies above the top one: give elevations instead (elevation = collar elevation - depth)"
+    )
+    _note(holes.notes, msg, stacklevel=4)
 
 
 def _geozone_labels(raw: pd.Series, column: str, lines: np.ndarray, notes: list[str]) -> np.ndarray:
