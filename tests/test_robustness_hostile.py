@@ -20,7 +20,8 @@ Class -> tests:
 * unsafe geozone folders, report/summary mapping: test_hostile_labels_get_safe_unique_folders
 * outputs that are inputs, devices, outside --out: test_outputs_never_replace_inputs_or_devices,
   test_build_never_replaces_a_folder_it_did_not_write
-* every write atomic: test_no_module_writes_outside_the_atomic_helper, test_a_build_opens_files_only_through_atomic_writes
+* every write atomic: test_no_module_writes_outside_the_atomic_helper, test_a_build_opens_files_only_through_atomic_writes,
+  test_a_signal_while_a_set_of_files_is_moved_in_waits_for_the_whole_set
 * interrupted build keeps the previous model: test_interrupted_build_keeps_the_previous_model (and the kill test)
 * Ctrl-C: exit 130, one line, workers included: test_ctrl_c_on_a_parallel_build_is_one_line (and the kill test)
 * user errors that were exit 3: test_user_errors_exit_2_with_one_line
@@ -432,6 +433,59 @@ def test_a_set_of_files_is_replaced_whole_or_not_at_all(tmp_path):
     assert (tmp_path / "p.geojson").is_symlink() and (elsewhere / "target.geojson").read_text() == "new"
     assert [p.read_text() for p in paths[1:]] == ["new", "new", "new"]
     assert not [p for p in tmp_path.rglob("*") if ".bgm-" in p.name]
+
+
+#: A process that replaces three files with :func:`core.io.atomic.replaced_files` and gets a signal (argv[2]) right
+#: after the first rename, handled by Python's default or by ``bgm``'s handler (argv[3]).
+SIGNALLED_SET = """
+import os, signal, sys
+from pathlib import Path
+import core.io.atomic as atomic
+from core import cli
+
+folder, signum, handler = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+if handler == "bgm":
+    signal.signal(signum, cli._on_ctrl_c)
+replace, done = os.replace, []
+
+def replace_then_signal(src, dst):
+    replace(src, dst)
+    done.append(dst)
+    if len(done) == 1:
+        os.kill(os.getpid(), signum)
+
+atomic.os.replace = replace_then_signal
+paths = [folder / n for n in ("p.geojson", "p.uncertainty.geojson", "p.uncertainty.npz")]
+with atomic.replaced_files(paths) as staged:
+    for f in staged:
+        f.write_text("new")
+print("went on")
+"""
+
+
+@pytest.mark.parametrize(
+    ("sig", "handler"), [(signal.SIGTERM, "default"), (signal.SIGTERM, "bgm"), (signal.SIGINT, "default")]
+)
+def test_a_signal_while_a_set_of_files_is_moved_in_waits_for_the_whole_set(tmp_path, sig, handler):
+    """``kill`` between two renames of ``bgm predict``'s three files (only Ctrl-C was held) left the new prediction
+    beside the previous uncertainty files. Held until the set is in, then the process ends as the signal says."""
+    names = ["p.geojson", "p.uncertainty.geojson", "p.uncertainty.npz"]
+    for name in names:
+        (tmp_path / name).write_text("old")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run(
+        [sys.executable, "-c", SIGNALLED_SET, str(tmp_path), str(int(sig)), handler],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert [(tmp_path / n).read_text() for n in names] == ["new"] * 3, proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(names)  # no staging folder left
+    assert "went on" not in proc.stdout  # the signal still stopped it, once the set was in
+    # SIGTERM's default ends the process by it; a KeyboardInterrupt left uncaught, by SIGINT (as Python exits then).
+    ended = -sig if (sig, handler) == (signal.SIGTERM, "default") else -signal.SIGINT
+    assert proc.returncode == ended, (proc.returncode, proc.stderr)
 
 
 # --------------------------------------------------------------------------- exit codes

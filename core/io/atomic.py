@@ -232,9 +232,9 @@ def replaced_files(paths: Iterable[str | os.PathLike]) -> Iterator[list[Path]]:
     writer's error, a full disk, Ctrl-C), the staging folder is deleted and the
     previous files are as they were. A folder that does not exist yet is
     staged whole and renamed into place in one step; into an existing folder
-    the files are renamed one after another, a moment apart, with Ctrl-C held
-    until the last is in (it is raised then). Other files of the folder are
-    left alone (:func:`replaced_folder` replaces a whole folder).
+    the files are renamed one after another, a moment apart, with Ctrl-C and
+    SIGTERM held until the last is in (they are raised then). Other files of
+    the folder are left alone (:func:`replaced_folder` replaces a whole folder).
     """
     dests = [_writable_file(Path(p)) for p in paths]  # a link's target: written through, as atomic_path does
     stages: list[_Staging] = []
@@ -311,22 +311,31 @@ class _Staging:
             self.staging.rmdir()
 
 
+#: What :func:`_interrupts_held` holds: Ctrl-C, and ``kill`` (``timeout``, a job scheduler), which by default
+#: ends the process on the spot and, under ``bgm``, is raised as Ctrl-C is.
+HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
 @contextlib.contextmanager
 def _interrupts_held() -> Iterator[None]:
-    """Ctrl-C inside is raised when the block is done, not in the middle of it (the renames of one set)."""
+    """Ctrl-C or SIGTERM inside is raised when the block is done, not in the middle of it (the renames of one set).
+
+    Held only SIGINT: a ``kill`` between two renames of ``bgm predict``'s three files left a new prediction
+    beside the previous uncertainty files.
+    """
     received: list[int] = []
-    try:
-        previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
-        held = True
-    except ValueError:  # not the main thread: no signal lands here
-        held = False
+    previous = {}
+    with contextlib.suppress(ValueError):  # not the main thread: no signal lands here
+        for signum in HELD_SIGNALS:
+            previous[signum] = signal.signal(signum, lambda got, frame: received.append(got))
     try:
         yield
     finally:
-        if held and previous is not None:  # None: a handler not set from Python, left as it was
-            signal.signal(signal.SIGINT, previous)
-    if received:
-        signal.raise_signal(signal.SIGINT)  # to the handler the block held it from
+        for signum, handler in previous.items():
+            if handler is not None:  # None: a handler not set from Python, left as it was
+                signal.signal(signum, handler)
+    for signum in dict.fromkeys(received):
+        signal.raise_signal(signum)  # to the handler the block held it from (SIGTERM's default: the process ends)
 
 
 def _raise_storage_error(exc: OSError | OutputError, staging: Path, out: Path) -> None:
