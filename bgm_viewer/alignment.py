@@ -94,6 +94,17 @@ def same_place(outline: BaseGeometry, components: Sequence[BaseGeometry]) -> int
     return hits[0] if set(inside) <= set(hits) else None
 
 
+def missing_components(o: AlignmentOverride, n_sources: int, n_targets: int) -> list[str]:
+    """What ``o`` names that its bench pair, of ``n_sources`` and ``n_targets`` components, lacks (empty: nothing).
+
+    >>> missing_components(AlignmentOverride("ore", 685.0, 5, associate={0: True, 4: False}), 3, 2)
+    ['source component 5 (the upper bench has 3)', 'target component 4 (the lower bench has 2)']
+    """
+    lacks = [f"source component {o.source} (the upper bench has {n_sources})"] if o.source >= n_sources else []
+    lacks += [f"target component {t} (the lower bench has {n_targets})" for t in sorted(o.associate) if t >= n_targets]
+    return lacks
+
+
 def place_unplaced(overrides: Sequence[AlignmentOverride], outlines: PairOutlines) -> list[AlignmentOverride]:
     """The overrides not yet placed (read from a project file) placed on the components their numbers name in
     ``outlines``; the others, and those whose bench pair is not at hand, as they are.

@@ -37,7 +37,7 @@ from core.threads import cancelling
 
 from . import _vtkenv  # noqa: F401
 from .builders import build_scene, empty_layer_reasons, refresh_scene
-from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES, SCREENSHOT_FORMATS, parse_layers
+from .layer_names import LAYER_NAMES, SCREENSHOT_FORMATS, parse_layers
 from .model import (
     Cancelled,
     ViewerModel,
@@ -262,6 +262,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._debounce = self._single_shot(debounce_ms, self._start_queued)
         #: Writes the unsaved work to the autosave a few seconds after a change (ViewerModel.autosave).
         self._autosave_timer = self._single_shot(0, self._autosave)
+        #: What runs said of an opened project's overrides naming components that do not exist, not yet shown.
+        self._missing_notes: list[str] = []
+        self._missing_timer = self._single_shot(0, self._tell_missing)
 
         # no multi-sampling: software rendering is ~4x slower with it (see issue 6)
         self.plotter = _single_render(QtInteractor(self, multi_samples=0, auto_update=False))
@@ -270,7 +273,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self.model.holes,
             self.model.result,
             self.model.selection,
-            visible=DEFAULT_VISIBLE,
+            visible=[name for name, shown in self.model.layer_visibility.items() if shown],
             vertical_exaggeration=self.model.vertical_exaggeration,
             deferred=True,  # the next bench in the worker thread: seconds on Kennecott
         )
@@ -278,6 +281,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True, legend=False)
         self._camera = "iso"
         self._fitted = False
+        #: The camera a project saved, put back in place of fitting the data once its run is drawn (``None``: fit).
+        self._saved_camera: dict | None = self.model.camera
 
         self._build_menus()
         self._build_layer_panel()
@@ -370,7 +375,15 @@ class MainWindow(QtWidgets.QMainWindow):
     def showEvent(self, event) -> None:
         super().showEvent(event)
         # fit once the docks are laid out: fitted before, Kennecott showed as a thin sliver
-        QtCore.QTimer.singleShot(0, lambda: self.set_camera(self._camera))
+        QtCore.QTimer.singleShot(0, self._show_camera)
+
+    def _show_camera(self) -> None:
+        """The project's camera if it saved one, else look from :attr:`_camera` and fit the data."""
+        if self._saved_camera is None:
+            self.set_camera(self._camera)
+            return
+        self.renderer.set_camera_state(self._saved_camera)
+        self.plotter.render()
 
     def _build_view_panels(self) -> None:
         from .panels import GeozoneLegend, SectionPanel
@@ -757,6 +770,8 @@ class MainWindow(QtWidgets.QMainWindow):
         layer = self.scene.get(item.text())
         if layer is not None:
             layer.visible = item.checkState() == Qt.CheckState.Checked
+            # the project saves it: a view set up and saved came back with the default layers
+            self.model.set_view(layer_visibility={**self.model.layer_visibility, layer.name: layer.visible})
             why = self.empty_layers().get(layer.name) if layer.visible and not self.busy else None
             if why:
                 self.statusBar().showMessage(f"{layer.name} is empty: {why}", 10000)
@@ -902,7 +917,21 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model.params_changed.connect(self._show_params)
         self.model.params_changed.connect(self._on_overrides)  # a parameter changed: nothing left to redo
         self.model.selection_changed.connect(self._show_component)
+        self.model.overrides_missing.connect(self._on_overrides_missing)
         self._on_overrides()  # a new model has nothing to undo: Edit > Undo was left enabled, doing nothing
+
+    def _on_overrides_missing(self, notes: list[str]) -> None:
+        """Say what a run dropped of an opened project's overrides (components their bench pair lacks), as opening
+        says what it leaves unused: the run checks them off this thread (it traces the benches), not the opening.
+
+        Shown from the event loop, not from within drawing the result that brought them.
+        """
+        self._missing_notes.extend(notes)
+        self._missing_timer.start()
+
+    def _tell_missing(self) -> None:
+        notes, self._missing_notes = self._missing_notes, []
+        self._tell(notes)
 
     def _show_params(self) -> None:
         """Show the model's parameters on the sliders (Undo can set them back).
@@ -940,7 +969,13 @@ class MainWindow(QtWidgets.QMainWindow):
         if wait_s is not None and not self._autosave_timer.isActive():
             self._autosave_timer.start(int(wait_s * 1000) + 1)
 
+    def _keep_camera(self) -> None:
+        """Give the model the camera, for the project to save (turning the view is no change to prompt for)."""
+        if self.plotter.render_window is not None:
+            self.model.camera = self.renderer.camera_state()
+
     def _autosave(self) -> None:
+        self._keep_camera()
         self.model.autosave()
         if self.model.autosave_note:
             self.statusBar().showMessage(self.model.autosave_note, 10000)
@@ -1107,7 +1142,11 @@ class MainWindow(QtWidgets.QMainWindow):
         self._on_layer_row(None)
         if not self._fitted and result.complete:
             self._fitted = True  # fit once everything is drawn (the surface can reach below the benches)
-            self.renderer.fit()
+            if self._saved_camera is None:
+                self.renderer.fit()
+            else:  # the project's view, not a fit: its clipping range with the data now drawn
+                self.renderer.set_camera_state(self._saved_camera)
+                self._saved_camera = None
         if self._first_update:
             self._first_update = False
             self.last_update_seconds = time.perf_counter() - self._request_time
@@ -1252,6 +1291,7 @@ class MainWindow(QtWidgets.QMainWindow):
         """
         cache = self.model.store.cache is not None
         model, notes = _noted(lambda: ViewerModel(path, cache=cache, read_options=read_options))
+        model.layer_visibility = dict(self.model.layer_visibility)  # another table: the layers stay as ticked
         self._replace_model(model)
         if model.holes.unit_guess:  # a unit it had to guess is said, not taken silently
             guess = model.holes.unit_guess.split(": give --units")[0]
@@ -1288,10 +1328,29 @@ class MainWindow(QtWidgets.QMainWindow):
         self.legend.set_holes(model.holes)
         self.sections.set_holes(model.holes)
         self._fill_surface_panel()
+        self._show_layer_visibility()
         self._fitted = False
         self.renderer.set_camera("iso")
+        self._saved_camera = model.camera
+        if model.camera is not None:
+            self.renderer.set_camera_state(model.camera)
         self._update_title()
         self.request("contours", immediate=True)
+
+    def _show_layer_visibility(self) -> None:
+        """Tick and show the layers the model shows (a project's), in one redraw."""
+        self.layer_list.blockSignals(True)
+        try:
+            with self.renderer.batch():
+                for row in range(self.layer_list.count()):
+                    item = self.layer_list.item(row)
+                    shown = bool(self.model.layer_visibility.get(item.text(), False))
+                    item.setCheckState(Qt.CheckState.Checked if shown else Qt.CheckState.Unchecked)
+                    layer = self.scene.get(item.text())
+                    if layer is not None:
+                        layer.visible = shown
+        finally:
+            self.layer_list.blockSignals(False)
 
     def open_input_dialog(self) -> None:
         if not self._confirm_discard(opening=True):
@@ -1349,6 +1408,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self._discarded = None  # cancelled, or the project failed to open: the work stays, and its autosave
 
     def save_project(self, ask: bool = False) -> bool:
+        self._keep_camera()
         path = self.model.project_path
         if ask or not path:
             path, _ = QtWidgets.QFileDialog.getSaveFileName(
@@ -1688,12 +1748,12 @@ def viewer_window(
         model.select(geozone, bench)
     if vertical_exaggeration:
         model.vertical_exaggeration = float(vertical_exaggeration)
+    if layers is not None:  # in place of the project's
+        shown = parse_layers(layers)
+        model.layer_visibility = {name: name in shown for name in LAYER_NAMES}
     model.dirty = False  # the command line's view is no change to save
     window = MainWindow(model)
-    if layers is not None:
-        shown = parse_layers(layers)
-        for name in LAYER_NAMES:
-            window.set_layer_visible(name, name in shown)
     if camera:
-        window._camera = camera  # applied once the window is laid out (showEvent)
+        window._camera = camera  # applied once the window is laid out (showEvent), in place of the project's
+        window._saved_camera = None
     return window

@@ -64,6 +64,8 @@ from core.morph.levelset import MorphResult
 # Cancelled: a newer request superseded a run; core's, so core's steps raise the same (long imported from here)
 from core.threads import Cancelled, cancelling, on_threads
 
+from .layer_names import DEFAULT_VISIBLE, LAYER_NAMES
+
 STEPS = ("contours", "snake", *CORE_STAGES[1:])
 
 
@@ -72,8 +74,22 @@ def earliest_step(*steps: str | None) -> str | None:
     return min((s for s in steps if s), key=STEPS.index, default=None)
 
 
-#: What :meth:`ViewerModel.set_view` sets: the view settings a project saves besides the selection.
-VIEW_SETTINGS = ("vertical_exaggeration", "surface_scope", "surface_geozones", "min_body_volume_m3", "min_body_holes")
+#: What :meth:`ViewerModel.set_view` sets: the view settings a project saves besides the selection and the camera.
+VIEW_SETTINGS = (
+    "vertical_exaggeration",
+    "surface_scope",
+    "surface_geozones",
+    "min_body_volume_m3",
+    "min_body_holes",
+    "layer_visibility",
+)
+
+
+def default_layer_visibility() -> dict[str, bool]:
+    """Every layer of the standard scene, shown or not when nothing else is asked for (:data:`DEFAULT_VISIBLE`)."""
+    return {name: name in DEFAULT_VISIBLE for name in LAYER_NAMES}
+
+
 #: Depths below the deepest bench at which the selected geozone is predicted, in bench heights.
 PREDICTED_FRACTIONS = (0.5, 1.0)
 #: Seconds from the first unsaved change to its autosave: a slider dragged for a while is written
@@ -200,6 +216,10 @@ class Relocation:
     #: ``(before, after)``: the run's selection, and the one it moved to because the selected source's
     #: override followed its component to another number (``None``: the selection did not move).
     followed: tuple[Selection, Selection] | None = None
+    #: Overrides not yet placed (a project's) that name a component their bench pair lacks, dropped by the run
+    #: so the model runs, and a sentence on each (see :func:`_without_missing_components`).
+    missing: list = field(default_factory=list)
+    missing_notes: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -219,6 +239,20 @@ class UndoStep:
     edits: int = -1
     #: Of a step Redo brings back: the parameters its overrides were placed under (``None``: those of the moment).
     placed_params: ModelParameters | None = None
+
+
+@dataclass
+class _Numbering:
+    """The overrides as a run found them, before it moved them to renumbered components (see :meth:`ViewerModel.stop`)."""
+
+    overrides: list
+    placed_params: ModelParameters
+    undo: list[UndoStep]
+    redo: list[UndoStep]
+    notes: list[str]
+    selection: Selection
+    #: The selection the run moved to, following the corrected component (``None``: it did not move it).
+    moved_to: Selection | None = None
 
 
 Progress = tuple[str, float, PipelineResult]
@@ -408,23 +442,75 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
         return outlines
 
     overrides = session.project.overrides
+    now = pair_outlines(lambda b: res.contours.get(b, []), res.min_component_holes)
+    numbered = now  # the components the overrides not yet placed name by number
     placed = run.inputs.placed_params
     if placed is not None and placed != session.params:
         # Overrides opened from a project are numbered under its parameters: placed on those components first
         # (stored, or traced once), they follow their bodies to this run's numbers below, never its numbers.
         under = session.updated(params=placed)
-        overrides = place_unplaced(
-            overrides, pair_outlines(lambda b: under.bench_contours(b, run.progress), placed.min_component_holes)
-        )
-    now = pair_outlines(lambda b: res.contours.get(b, []), res.min_component_holes)
+        numbered = pair_outlines(lambda b: under.bench_contours(b, run.progress), placed.min_component_holes)
+    overrides, missing, missing_notes = _without_missing_components(overrides, numbered, holes)
+    if numbered is not now:
+        overrides = place_unplaced(overrides, numbered)
     overrides, notes = relocate_overrides(overrides, now, unit=holes.frame.length_unit)
     run.session = session.updated(project=replace(session.project, overrides=overrides))
-    before = res.relocated.notes if res.relocated is not None else []
-    followed = res.relocated.followed if res.relocated is not None else _follow_selection(run, overrides)
+    earlier = res.relocated
+    before = earlier.notes if earlier is not None else []
+    followed = earlier.followed if earlier is not None else _follow_selection(run, overrides)
     placed = session.params if fresh >= set(range(holes.n_benches)) else None
     res.relocated = Relocation(run.inputs.override_edits, overrides, before + notes, placed, followed)
+    if earlier is not None:
+        missing, missing_notes = earlier.missing + missing, earlier.missing_notes + missing_notes
+    res.relocated.missing, res.relocated.missing_notes = missing, missing_notes
     if res.relocated.notes:
         res.errors["alignment overrides"] = "; ".join(res.relocated.notes)
+
+
+def _without_missing_components(overrides: list, outlines, holes: Blastholes) -> tuple[list, list, list[str]]:
+    """``overrides`` less those not yet placed that name a component their bench pair lacks; those, and why.
+
+    A project's overrides name components by number (a hand-edited one may name source component 5 of a
+    bench with 3): applied, they failed every run of their geozone
+    (:func:`core.io.project.check_override_components`). Checked here, in the run, where the bench pair's
+    contours are traced anyway: on the window's thread, opening a Kennecott project traced 2-4 s per bench.
+    Overrides already placed (made in this session, or checked by an earlier run) and those whose bench pair
+    is not at hand are kept.
+
+    Parameters
+    ----------
+    overrides : list of AlignmentOverride
+    outlines : callable
+        The outlines of the components the numbers name (see :data:`bgm_viewer.alignment.PairOutlines`).
+    holes : Blastholes
+        Names the bench pairs in the notes.
+
+    Returns
+    -------
+    kept, missing : list
+    notes : list of str
+        One per override in ``missing``, naming its geozone, bench pair and the components it lacks.
+    """
+    from core.io.project import same_elevation
+
+    from .alignment import missing_components
+
+    kept, missing, notes = [], [], []
+    unit = holes.frame.length_unit
+    for o in overrides:
+        pair = None if getattr(o, "source_outline", None) is not None else outlines(o.geozone, o.source_z)
+        lacks = [] if pair is None else missing_components(o, len(pair[0]), len(pair[1]))
+        if not lacks:
+            kept.append(o)
+            continue
+        k = next(k for k in range(holes.n_benches - 1) if same_elevation(holes.bench_z_input(k), o.source_z))
+        missing.append(o)
+        notes.append(
+            f"the override of geozone {o.geozone!r}, bench pair {holes.bench_z_input(k):g} ->"
+            f" {holes.bench_z_input(k + 1):g} {unit}, names {' and '.join(lacks)}, which the bench pair does not"
+            " have: it is dropped so the model runs (save the project to remove it from the file)"
+        )
+    return kept, missing, notes
 
 
 def _follow_selection(run: _Run, overrides: list) -> tuple[Selection, Selection] | None:
@@ -752,6 +838,8 @@ class ViewerModel:
     selection_changed = Signal(object)  #: a new :class:`Selection`
     overrides_changed = Signal()
     params_changed = Signal()  #: :attr:`params` changed (the sliders show them)
+    #: Sentences on a project's overrides a run dropped: they name components their bench pair lacks.
+    overrides_missing = Signal(object)
     dirty_changed = Signal(bool)
 
     def __init__(
@@ -777,6 +865,11 @@ class ViewerModel:
         self.surface_scope = "bodies" if self.surface_geozones is not None else "all"
         self.min_body_volume_m3 = 0.0
         self.min_body_holes = 0
+        #: Which layers are shown, by name (:data:`bgm_viewer.layer_names.LAYER_NAMES`).
+        self.layer_visibility = default_layer_visibility()
+        #: The 3D view's camera as a project saves it (:func:`core.io.project.check_camera`: the input's
+        #: coordinates, plain numbers); ``None``: the window's default view. The window sets it on saving.
+        self.camera: dict | None = None
         self.overrides: list = []  # bgm_viewer.alignment.PlacedOverride
         self._undo: list[UndoStep] = []
         #: What Undo took back, for Redo (latest last); a new change empties it.
@@ -786,6 +879,12 @@ class ViewerModel:
         self._placed_params = self.params
         #: What the last runs said of overrides whose components were renumbered (moved or dropped).
         self.override_notes: list[str] = []
+        #: What the overrides were before the run under way moved them (``None``: it did not; see :meth:`stop`).
+        self._before_relocation: _Numbering | None = None
+        #: Names the file the overrides were opened from in what is said of them (see :meth:`_drop_missing`).
+        self._overrides_source = "the project"
+        #: What was said of overrides dropped for naming components their bench pair lacks (each is said once).
+        self._missing_said: list[str] = []
         #: Which component the last change of bench pair selected, and why (``None``: it changed no bench pair).
         self.selection_note: str | None = None
         self.result: PipelineResult = PipelineResult()
@@ -859,6 +958,7 @@ class ViewerModel:
         self.result = result
         if result.complete:
             self.last_complete = result
+            self._before_relocation = None  # the overrides as this run left them are those of the picture
         self.result_changed.emit(result)
 
     def stop(self) -> str:
@@ -870,6 +970,7 @@ class ViewerModel:
         and selection stay as the user set them; the next change or a run again brings the
         picture up to them. Returns what the status bar says.
         """
+        self._restore_numbering()
         shown = stopped_result(self.last_complete, self.selection)
         if self.result.complete and self.result.selection == self.selection:
             shown = self.result  # only the next bench was under way: the model on screen is whole
@@ -880,21 +981,55 @@ class ViewerModel:
             " (Run > Run again, F5, or the next change brings it up to date)"
         )
 
+    def _restore_numbering(self) -> None:
+        """Give the overrides back the numbers of the last finished run, which a stopped run had moved.
+
+        A run that renumbers components moves the overrides to their new numbers (and the selection
+        with the corrected one) as soon as it has traced the selected bench pair. Stopped after that,
+        the picture went back to the last finished run while the overrides kept the stopped run's
+        numbers: the panel showed another component's override, and the next edit mixed the two
+        numberings. An edit made since the run moved them is kept, as it is (it was made on them).
+        """
+        before, self._before_relocation = self._before_relocation, None
+        if before is None:
+            return
+        self.overrides = before.overrides
+        self._placed_params = before.placed_params
+        self._undo, self._redo = before.undo, before.redo
+        self.override_notes = before.notes
+        if before.moved_to is not None and self.selection == before.moved_to:
+            self.selection = before.selection
+            self.selection_changed.emit(self.selection)
+        self.overrides_changed.emit()
+
     def _take_relocated(self, relocated: Relocation | None) -> None:
         """Take a run's overrides as they followed renumbered components (unless the user changed them since).
 
         Moved or dropped overrides are a change Undo reverts, with the parameters before it,
         said in :attr:`override_notes` (and in the result's errors, which the window's status bar shows).
+        Overrides of a project naming components their bench pair lacks are dropped for good (they
+        never applied), each said once in a warning and on :attr:`overrides_missing`. What the overrides
+        were before the run took them is kept until it finishes, for :meth:`stop`.
         """
         if relocated is None or relocated.edits != self._override_edits:
             return
+        self._drop_missing(relocated)  # for good: Stop does not bring them back either
+        if self._before_relocation is None:
+            self._before_relocation = _Numbering(
+                copy.deepcopy(self.overrides),
+                self._placed_params,
+                list(self._undo),
+                list(self._redo),
+                list(self.override_notes),
+                self.selection,
+            )
         changed = relocated.overrides != self.overrides  # numbers changed or overrides dropped
         if changed:
             self._push_run_undo(relocated.edits)
         self.overrides = copy.deepcopy(relocated.overrides)  # with the outlines the run placed them at
         if relocated.followed is not None and self.selection == relocated.followed[0]:
             # the selection follows the corrected component to its new number, as the run did
-            self.selection = relocated.followed[1]
+            self.selection = self._before_relocation.moved_to = relocated.followed[1]
             self.selection_changed.emit(self.selection)
         if relocated.params is not None:
             self._placed_params = relocated.params
@@ -902,6 +1037,22 @@ class ViewerModel:
             self.override_notes = list(relocated.notes)
             self.dirty = True
             self.overrides_changed.emit()
+
+    def _drop_missing(self, relocated: Relocation) -> None:
+        """Drop the overrides the run found naming components their bench pair lacks; say each once.
+
+        No Undo brings them back: they never applied, and the next run would drop them again.
+        """
+        if not relocated.missing:
+            return
+        self.overrides = [o for o in self.overrides if o not in relocated.missing]
+        new = [f"{self._overrides_source}: {n}" for n in relocated.missing_notes]
+        new = [n for n in new if n not in self._missing_said]
+        self._missing_said.extend(new)
+        for note in new:
+            warnings.warn(note, BGMWarning, stacklevel=2)
+        if new:
+            self.overrides_missing.emit(new)
 
     # -- what a picked hole reports ------------------------------------------------
     def hole_info(self, i: int) -> dict[str, object]:
@@ -1190,10 +1341,15 @@ class ViewerModel:
 
     def _changed_overrides(self) -> None:
         self.overrides = [o for o in self.overrides if o.translation is not None or o.associate]
-        self._override_edits += 1
+        self._edited_overrides()
         self.override_notes = []
         self.dirty = True
         self.overrides_changed.emit()
+
+    def _edited_overrides(self) -> None:
+        """Count a change of the overrides by the user: a run begun before it no longer changes them, nor Stop."""
+        self._override_edits += 1
+        self._before_relocation = None
 
     @property
     def can_undo(self) -> bool:
@@ -1221,7 +1377,7 @@ class ViewerModel:
         undone = self._undo.pop()
         self._redo.append(self._now(undone))
         self.overrides = undone.overrides
-        self._override_edits += 1
+        self._edited_overrides()
         step = "correspondence"
         if undone.params is None:
             self.override_notes = []  # an edit undone: no run's note holds any more, as after an edit
@@ -1244,7 +1400,7 @@ class ViewerModel:
         redone = self._redo.pop()
         self._undo.append(self._now(redone))
         self.overrides = copy.deepcopy(redone.overrides)
-        self._override_edits += 1
+        self._edited_overrides()
         step = "correspondence"
         self.override_notes = []
         if redone.params is not None and redone.params != self.params:
@@ -1297,6 +1453,25 @@ class ViewerModel:
         if viewer.get("min_body_holes") is not None:
             self.min_body_holes = int(viewer["min_body_holes"])
 
+    def _load_layers_and_camera(self, viewer: dict, source: str) -> None:
+        """The layers shown and the camera a project saved (checked by :func:`core.io.project.load_project`).
+
+        A project without them (saved before they were) shows the default layers from the default view.
+        A layer this viewer does not have (a newer one's) is said in a warning and left out.
+        """
+        self.layer_visibility = default_layer_visibility()
+        saved = viewer.get("layers") or {}
+        unknown = sorted(set(saved) - set(LAYER_NAMES))
+        if unknown:
+            warnings.warn(
+                f"{source}: viewer setting layers names {', '.join(map(repr, unknown))}, no layer of this viewer"
+                f" (its layers: {', '.join(LAYER_NAMES)}); left out",
+                BGMWarning,
+                stacklevel=3,
+            )
+        self.layer_visibility.update({name: bool(shown) for name, shown in saved.items() if name in LAYER_NAMES})
+        self.camera = copy.deepcopy(viewer.get("camera"))
+
     def to_project(self):
         """Parameters (as ``bgm --project`` reads them), overrides, the view settings and the input's reading options."""
         from core.io.project import Project
@@ -1310,7 +1485,10 @@ class ViewerModel:
             "surfaces": self.surface_scope,
             "min_body_volume_m3": self.min_body_volume_m3,
             "min_body_holes": self.min_body_holes,
+            "layers": dict(self.layer_visibility),
         }
+        if self.camera is not None:
+            params["viewer"]["camera"] = copy.deepcopy(self.camera)
         if self.surface_scope == "ticked":
             params["viewer"]["surface_geozones"] = list(self.surface_geozones or [])
         from core.io.project import reading_of
@@ -1336,6 +1514,11 @@ class ViewerModel:
         from core.io.project import save_project
 
         if self.overrides and self._placed_params != self.params:
+            if self.result.stopped:  # no run is moving them: the one that would was stopped
+                raise ValueError(
+                    "the alignment overrides are not yet moved to the components of the changed parameters (the run"
+                    " was stopped): run again (F5), and save once it is done"
+                )
             raise ValueError(
                 "the alignment overrides are being moved to the components of the changed parameters:"
                 " save once the run is done"
@@ -1353,10 +1536,12 @@ class ViewerModel:
         self.dirty = False
 
     def load_project(self, path: str | Path) -> None:
-        """Apply a project file's parameters, selection and overrides (the input is not reloaded).
+        """Apply a project file's parameters, selection, view and overrides (the input is not reloaded).
 
         Overrides and parameters the model cannot use are named in warnings
-        (:func:`core.io.project.check_project`); parameters out of range are refused.
+        (:func:`core.io.project.check_project`); parameters out of range are refused. An override
+        naming a component its bench pair lacks is dropped, and said, by the first run that traces
+        that pair (:attr:`overrides_missing`): tracing here held the window's thread for seconds a bench.
         """
         from core.io.project import load_project
 
@@ -1382,57 +1567,17 @@ class ViewerModel:
             if isinstance(ve, (int, float)) and ve > 0:
                 self.vertical_exaggeration = float(ve)
             self._load_surface_view(viewer)
+            self._load_layers_and_camera(viewer, source)
         from .alignment import PlacedOverride
 
-        self.overrides = self._existing_components([PlacedOverride.of(o) for o in proj.overrides], source)
-        self._override_edits += 1
+        # Overrides naming a component their bench pair lacks are dropped by the first run (it traces the
+        # benches anyway; here, on the window's thread, a Kennecott project took 2-4 s a bench), said then.
+        self.overrides = [PlacedOverride.of(o) for o in proj.overrides]
+        self._overrides_source, self._missing_said = source, []
+        self._edited_overrides()
         self._undo.clear()
         self._redo.clear()
         self.overrides_changed.emit()
-
-    def _existing_components(self, overrides: list, source: str) -> list:
-        """``overrides`` less those naming a component their bench pair lacks, each dropped with a warning.
-
-        A hand-edited project naming source component 5 of a bench with 3 opened without a word,
-        and every run then failed that geozone's model (:func:`core.io.project.check_override_components`).
-        The benches' contours are traced here under the project's parameters (the store keeps them
-        for the first run); overrides of a geozone or bench the input lacks are left to
-        :func:`~core.io.project.check_project`, which says they are unused.
-        """
-        from core.io.project import same_elevation
-
-        holes, unit = self.holes, self.holes.frame.length_unit
-        uppers = {k: holes.bench_z_input(k) for k in range(holes.n_benches - 1)}
-        session, kept = self.session(), []
-        for o in overrides:
-            bench = next((k for k, z in uppers.items() if same_elevation(o.source_z, z)), None)
-            if bench is None or o.geozone not in holes.geozones:
-                kept.append(o)
-                continue
-
-            def count(b: int, geozone: str = o.geozone) -> int:
-                return len(modelled_contours(session.bench_contours(b), geozone, b, self.params.min_component_holes))
-
-            n_sources = count(bench)
-            n_targets = count(bench + 1) if o.associate else 0
-            missing = (
-                [f"source component {o.source} (the upper bench has {n_sources})"] if o.source >= n_sources else []
-            )
-            missing += [
-                f"target component {t} (the lower bench has {n_targets})" for t in sorted(o.associate) if t >= n_targets
-            ]
-            if not missing:
-                kept.append(o)
-                continue
-            pair = f"{uppers[bench]:g} -> {holes.bench_z_input(bench + 1):g} {unit}"
-            warnings.warn(
-                f"{source}: the override of geozone {o.geozone!r}, bench pair {pair}, names {' and '.join(missing)},"
-                " which the bench pair does not have: it is dropped so the model runs (save the project to"
-                " remove it from the file)",
-                BGMWarning,
-                stacklevel=2,
-            )
-        return kept
 
     # -- autosave ----------------------------------------------------------------------
     @property

@@ -500,6 +500,50 @@ class SceneRenderer:
             p.view_vector(vec, viewup=(0, 0, 1))
         self.fit()
 
+    def camera_state(self) -> dict:
+        """The camera as a project saves it (:func:`core.io.project.check_camera`): plain numbers, the input's coordinates.
+
+        Points in the input's coordinates and units with elevations not exaggerated, not the view's local
+        metres: the local frame and the exaggeration's reference follow the data (a bench drilled since
+        moves them), the mine's coordinates do not.
+        """
+        c = self.plotter.camera
+        frame, view = self.scene.frame, self.scene.view
+
+        def point(xyz) -> list[float]:
+            x, y = frame.to_input(np.asarray(xyz[:2], float))
+            return [float(x), float(y), float(frame.z_to_input(view.z_from_display(xyz[2])))]
+
+        up = np.asarray(c.GetViewUp(), float) * (1.0, 1.0, 1.0 / view.vertical_exaggeration)
+        return {
+            "position": point(c.GetPosition()),
+            "focal_point": point(c.GetFocalPoint()),
+            "view_up": [float(v) for v in up / np.linalg.norm(up)],
+            "parallel_scale": float(frame.length_to_input(c.GetParallelScale())) if c.GetParallelProjection() else None,
+            "window_center": [float(v) for v in c.GetWindowCenter()],
+        }
+
+    def set_camera_state(self, state: dict) -> None:
+        """Put the camera where :meth:`camera_state` says (a project's camera), without fitting the data."""
+        c = self.plotter.camera
+        frame, view = self.scene.frame, self.scene.view
+
+        def point(xyz) -> list[float]:
+            x, y = frame.to_local(np.array([xyz[0]], float), np.array([xyz[1]], float))[0]
+            return [float(x), float(y), float(view.z(frame.z_to_local(xyz[2])))]
+
+        up = np.asarray(state["view_up"], float) * (1.0, 1.0, view.vertical_exaggeration)
+        # the camera's own calls: pyvista's parallel projection switches move the camera to keep the picture
+        c.SetParallelProjection(state.get("parallel_scale") is not None)
+        c.SetPosition(*point(state["position"]))
+        c.SetFocalPoint(*point(state["focal_point"]))
+        c.SetViewUp(*(up / np.linalg.norm(up)))
+        c.OrthogonalizeViewUp()
+        if state.get("parallel_scale") is not None:
+            c.SetParallelScale(float(frame.length_to_local(state["parallel_scale"])))
+        c.SetWindowCenter(*(state.get("window_center") or (0.0, 0.0)))
+        self.plotter.renderer.ResetCameraClippingRange()
+
     def fit(self) -> None:
         """Zoom and centre the camera (keeping its direction) so the visible data fill the data rectangle."""
         p = self.plotter

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -250,3 +251,43 @@ def test_a_project_with_unknown_reading_options_is_refused(tmp_path: Path):
     p.write_text(json.dumps({"format": "bgm-project", "version": 2, "reading_options": {"unit": "ft"}}))
     with pytest.raises(BGMInputError, match="unknown option"):
         load_project(p)
+
+
+def test_the_viewers_camera_and_layers_round_trip_and_a_bad_camera_is_refused_naming_it(tmp_path: Path):
+    """A view set up in the viewer (camera, layers shown) was lost on saving: a project now keeps both as plain
+    numbers and flags under "viewer", checked on reading; one saved before them still opens (without them)."""
+    camera = {
+        "position": [1500.5, -220.0, 1400.0],
+        "focal_point": [1200.0, 80.25, 1190.0],
+        "view_up": [0.3, 0.4, 0.866],
+        "parallel_scale": None,
+        "window_center": [0.05, -0.1],
+    }
+    viewer = {"geozone": "ore", "camera": camera, "layers": {"blastholes": False, "GVF": True}}
+    project = Project(parameters={"viewer": viewer})
+    save_project(project, tmp_path / "p.json")
+    assert json.loads((tmp_path / "p.json").read_text())["version"] == 1  # older BGMs read it, and ignore the view
+    assert load_project(tmp_path / "p.json").parameters["viewer"] == viewer
+
+    old = {"format": "bgm-project", "version": 1, "parameters": {"viewer": {"geozone": "ore", "bench": 1}}}
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    assert "camera" not in load_project(tmp_path / "old.json").parameters["viewer"]
+
+    for bad, said in (
+        ({**camera, "position": [1.0, 2.0]}, "position must be three finite numbers"),
+        ({**camera, "focal_point": [1.0, float("nan"), 3.0]}, "focal_point must be three finite numbers"),
+        ({**camera, "focal_point": camera["position"]}, "looks from its focal point"),
+        ({**camera, "view_up": [0.0, 0.0, 0.0]}, "view_up must be a direction across the line of sight"),
+        ({**camera, "view_up": [-601.0, 600.5, -420.0]}, "view_up must be a direction across the line of sight"),
+        ({**camera, "parallel_scale": -1.0}, "parallel_scale must be a positive number or null"),
+        ({**camera, "zoom": 2}, "has unknown key(s) 'zoom'"),
+        ("iso", "must be an object"),
+    ):
+        data = {"format": "bgm-project", "version": 1, "parameters": {"viewer": {"camera": bad}}}
+        (tmp_path / "bad.json").write_text(json.dumps(data).replace("NaN", '"NaN"'))
+        with pytest.raises(BGMInputError, match=re.escape(f"bad.json: viewer setting camera {said}")):
+            load_project(tmp_path / "bad.json")
+    data = {"format": "bgm-project", "version": 1, "parameters": {"viewer": {"layers": {"GVF": "yes"}}}}
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(BGMInputError, match="viewer setting layers must be an object of layer name -> true/false"):
+        load_project(tmp_path / "bad.json")

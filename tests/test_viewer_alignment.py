@@ -354,3 +354,48 @@ def test_an_override_opened_from_a_project_stays_on_its_body_when_a_slider_renum
     assert [(o.source, o.translation) for o in opened.overrides] == [(2, (3.0, -2.0))], "on another body"
     assert any("source 1 is now 2" in n or "is 2" in n for n in opened.override_notes), opened.override_notes
     np.testing.assert_allclose(opened.result.correspondence.translations[2], (3.0, -2.0), atol=1e-9)
+
+
+def test_stop_gives_the_overrides_back_the_numbers_of_the_last_finished_run():
+    """A slider's run moves the overrides to their renumbered components as soon as it has traced the selected
+    bench pair (and the selection with the corrected one). Stopped then, the picture went back to the last finished
+    run but the overrides kept the stopped run's numbers: the panel showed C's lock on the main body's number,
+    and Undo undid the slider instead of the last edit. Stop now gives them back the picture's numbers."""
+    from bgm_viewer.model import ViewerModel, compute
+
+    model = ViewerModel(_three_bodies_holes(), cache=False)
+    model.select("g1", 0, 1)
+    _run(model, "contours")
+    model.set_translation(3.0, -2.0)  # C, component 1 under the default parameters
+    _run(model, "correspondence")
+    finished = model.result
+    assert finished.complete and finished.pair.sources[1].polygon.centroid.x > 40.0
+
+    step = model.set_param("keep_isolated_holes", True)  # renumbers C 1 -> 2 (see _three_bodies_holes)
+    steps = compute(model.inputs(), model.result, step, until="correspondence")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for _, _, result in steps:
+            model.set_result(result)
+            if model.overrides[0].source == 2:
+                break
+    steps.close()
+    assert (model.overrides[0].source, model.selection.component) == (2, 2)  # the stopped run's numbers
+
+    model.stop()
+    assert [(o.source, o.translation) for o in model.overrides] == [(1, (3.0, -2.0))]
+    assert model.result.stopped and model.result.pair is finished.pair  # the picture: the last finished run
+    assert model.selection.component == 1 and model.override_here() is model.overrides[0]
+    assert model.result.selected_contour(model.selection).polygon.centroid.x > 40.0  # C, as the override says
+    np.testing.assert_allclose(model.translation_m(), (3.0, -2.0), atol=1e-9)
+    assert model.param("keep_isolated_holes") is True  # the slider stays as set
+    with pytest.raises(ValueError, match=r"the run was stopped\): run again"):
+        model.save_project("never-written.bgm.json")
+    model.undo()  # the last edit, the lock, not the stopped run's renumbering
+    assert model.overrides == [] and model.param("keep_isolated_holes") is True
+    model.redo()
+
+    _run(model, "contours")  # Run again: the overrides follow C to its new number, as the stopped run had
+    assert [(o.source, o.translation) for o in model.overrides] == [(2, (3.0, -2.0))]
+    assert model.selection.component == 2
+    np.testing.assert_allclose(model.result.correspondence.translations[2], (3.0, -2.0), atol=1e-9)

@@ -194,3 +194,39 @@ def test_a_moving_camera_draws_light_stand_ins_and_the_exact_scene_at_rest(model
         assert np.array_equal(np.asarray(plotter.screenshot(None, return_img=True))[..., :3], at_rest)
     finally:
         plotter.close()
+
+
+@pytest.mark.parametrize("camera", ["iso", "top"])
+def test_a_saved_camera_is_in_the_inputs_coordinates_and_comes_back_looking_at_the_same_place(camera):
+    """A project's camera is saved in the mine's coordinates and units, elevations not exaggerated (the view's
+    local metres and exaggeration reference follow the data): looking at a hole, it says the hole's easting,
+    northing and elevation in feet, and put back under another exaggeration it looks at that hole again."""
+    from bgm_viewer.testing import small_holes
+
+    holes = small_holes(unit="ft")
+    sel = Selection(holes.geozones[0], 0, 0)
+    scene = build_scene(holes, PipelineResult(), sel, visible=["blastholes"], vertical_exaggeration=3.0)
+    plotter, renderer = plotter_for(scene, window_size=(200, 150), camera=camera, legend=False)
+    try:
+        hole = 17
+        x_m, y_m, z_m = (*holes.xy[hole], holes.z[hole])
+        plotter.camera.SetFocalPoint(x_m, y_m, float(scene.view.z(z_m)))
+        plotter.camera.SetPosition(x_m - 300.0, y_m - 200.0, float(scene.view.z(z_m)) + 400.0)
+        plotter.camera.SetViewUp(0.0, 0.0, 1.0)
+        plotter.camera.OrthogonalizeViewUp()
+        state = renderer.camera_state()
+        in_feet = [*holes.frame.to_input(holes.xy[hole]), float(holes.frame.z_to_input(z_m))]
+        np.testing.assert_allclose(state["focal_point"], in_feet, rtol=1e-9)
+        assert (state["parallel_scale"] is not None) == (camera == "top")
+
+        scene.vertical_exaggeration = 1.0
+        renderer.set_camera_state(state)
+        np.testing.assert_allclose(plotter.camera.GetFocalPoint(), (x_m, y_m, z_m), rtol=1e-9, atol=1e-6)
+        scene.vertical_exaggeration = 3.0  # as saved: the same view
+        renderer.set_camera_state(state)
+        back = renderer.camera_state()
+        for key in ("position", "focal_point", "view_up", "window_center"):
+            np.testing.assert_allclose(back[key], state[key], rtol=1e-9, atol=1e-9)
+        assert back["parallel_scale"] == pytest.approx(state["parallel_scale"])
+    finally:
+        plotter.close()

@@ -22,7 +22,10 @@ pair, paper section 3 "source"): ``translation`` locks its translation
 target components by index. ``parameters`` sets the model's parameters by
 name (``bgm parameters`` lists them; every command with ``--project`` and the
 viewer apply them) and, under ``viewer``, the viewer's selection, vertical
-exaggeration, whose surfaces it builds and its body filter. ``reading_options``
+exaggeration, whose surfaces it builds, its body filter, which layers it shows
+(``layers``: layer name -> true/false) and its camera (``camera``, see
+:func:`check_camera`; projects before these two have neither, and open with the
+viewer's defaults). ``reading_options``
 (optional) are the options the input was read with, by their command-line
 names without dashes (:data:`READING_OPTIONS`): every command with
 ``--project`` and the viewer read the input with them, so a table read in
@@ -401,6 +404,62 @@ def _check_viewer(path: Path, viewer: dict) -> None:
     zones = viewer.get("surface_geozones")
     if zones is not None and not (isinstance(zones, list) and all(isinstance(z, str) for z in zones)):
         raise BGMInputError(f"project file {path}: viewer setting surface_geozones must be a list of geozones.")
+    layers = viewer.get("layers")
+    if layers is not None and not (
+        isinstance(layers, dict) and all(isinstance(k, str) and isinstance(v, bool) for k, v in layers.items())
+    ):
+        raise BGMInputError(
+            f"project file {path}: viewer setting layers must be an object of layer name -> true/false, got {layers!r}."
+        )
+    if viewer.get("camera") is not None:
+        problem = check_camera(viewer["camera"])
+        if problem:
+            raise BGMInputError(f"project file {path}: viewer setting camera {problem}.")
+
+
+#: The viewer's camera (viewer setting ``camera``): points and the up direction as three numbers each.
+CAMERA_VECTORS = ("position", "focal_point", "view_up")
+
+
+def check_camera(camera) -> str | None:
+    """What is wrong with a saved camera (``None``: nothing), as the end of a sentence naming it.
+
+    A camera is an object: ``position`` (where the view is from) and ``focal_point`` (what it looks
+    at), in the input's coordinates and units, elevations not exaggerated; ``view_up``, the direction
+    that is up in the picture, three numbers each; ``parallel_scale``, for a view without perspective,
+    half the height the picture shows (input units), else null or absent; ``window_center``, where the
+    picture's centre is moved to (two numbers, -1 to 1 across it), absent for none.
+
+    >>> check_camera({"position": [0, 0, 10], "focal_point": [0, 0, 10], "view_up": [0, 1, 0]})
+    'looks from its focal point (position and focal_point are the same point)'
+    """
+    if not isinstance(camera, dict):
+        return f"must be an object with {listing(CAMERA_VECTORS)}, got {camera!r}"
+    unknown = sorted(set(camera) - {*CAMERA_VECTORS, "parallel_scale", "window_center"})
+    if unknown:
+        return f"has unknown key(s) {listing(map(quoted, unknown))}"
+    for name in CAMERA_VECTORS:
+        value = camera.get(name)
+        if not (isinstance(value, list) and len(value) == 3 and all(map(_is_number, value))):
+            return f"{name} must be three finite numbers, got {value!r}"
+    if camera["position"] == camera["focal_point"]:
+        return "looks from its focal point (position and focal_point are the same point)"
+    sight = [f - p for f, p in zip(camera["focal_point"], camera["position"])]
+    up = camera["view_up"]
+    across = (
+        sight[1] * up[2] - sight[2] * up[1],
+        sight[2] * up[0] - sight[0] * up[2],
+        sight[0] * up[1] - sight[1] * up[0],
+    )
+    if math.hypot(*across) <= 1e-9 * math.hypot(*sight) * math.hypot(*up):
+        return "view_up must be a direction across the line of sight (not zero, nor along it)"
+    scale = camera.get("parallel_scale")
+    if scale is not None and not (_is_number(scale) and scale > 0):
+        return f"parallel_scale must be a positive number or null, got {scale!r}"
+    centre = camera.get("window_center")
+    if centre is not None and not (isinstance(centre, list) and len(centre) == 2 and all(map(_is_number, centre))):
+        return f"window_center must be two finite numbers, got {centre!r}"
+    return None
 
 
 def check_project(
