@@ -281,6 +281,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True, legend=False)
         self._camera = "iso"
         self._fitted = False
+        #: Whether the window was shown yet: the first show sets the camera (:meth:`showEvent`), no later one.
+        self._shown = False
         #: The camera a project saved, put back in place of fitting the data once its run is drawn (``None``: fit).
         self._saved_camera: dict | None = self.model.camera
 
@@ -374,6 +376,9 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def showEvent(self, event) -> None:
         super().showEvent(event)
+        if self._shown:  # shown again (un-minimised, hidden and shown): the view stays as the geologist left it
+            return
+        self._shown = True
         # fit once the docks are laid out: fitted before, Kennecott showed as a thin sliver
         QtCore.QTimer.singleShot(0, self._show_camera)
 

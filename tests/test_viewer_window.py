@@ -1343,3 +1343,44 @@ def test_exporting_surfaces_where_a_file_is_says_which_path_and_that_a_folder_is
     assert "Errno" not in said and "\n" not in said
     assert f"{file} is a file" in said and "folder" in said
     assert file.read_text() == "notes"  # nothing written over it
+
+
+def test_showing_the_window_again_keeps_the_camera_and_a_projects_saved_one(window, qtbot, tmp_path):
+    """Each show of the window (hidden and shown again, or un-minimised) looked from the default camera and fitted
+    the data again: the view the geologist had turned to, or the one a project opened with, was lost."""
+
+    def camera():
+        c = window.plotter.camera
+        return np.array([c.GetPosition(), c.GetFocalPoint(), c.GetViewUp()])
+
+    def show_again():
+        window.hide()
+        window.show()
+        qtbot.waitExposed(window)
+        qtbot.wait(50)  # a camera set on showing is set once the window is laid out
+
+    window.set_camera("front")
+    c = window.plotter.camera
+    c.Azimuth(35.0)
+    c.Elevation(25.0)
+    c.OrthogonalizeViewUp()
+    c.Zoom(1.7)
+    window.plotter.render()
+    turned = camera()
+    show_again()
+    np.testing.assert_allclose(camera(), turned, rtol=1e-9, atol=1e-9)
+    window.showMinimized()
+    qtbot.wait(50)
+    window.showNormal()
+    qtbot.wait(50)
+    np.testing.assert_allclose(camera(), turned, rtol=1e-9, atol=1e-9)
+
+    window.model.project_path = str(tmp_path / "p.bgm.json")
+    assert window.save_project()
+    window.set_camera("iso")
+    window.open_project(tmp_path / "p.bgm.json")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    np.testing.assert_allclose(camera(), turned, rtol=1e-6, atol=1e-6)  # the project's
+    show_again()
+    np.testing.assert_allclose(camera(), turned, rtol=1e-6, atol=1e-6)
+
