@@ -49,6 +49,7 @@ from .model import (
     project_read_options,
 )
 from .scene import SceneRenderer, drag_on_plane
+from .silence import silenced
 
 Qt = QtCore.Qt
 Signal = QtCore.Signal
@@ -1697,14 +1698,14 @@ def _noted(fn):
 def _quietly(inputs, previous, step, cancelled):
     """:func:`compute` with the engine's warnings silenced (the status bar reports errors).
 
-    A run a newer request cancelled just ends: it is no error. An engine's
-    ``RuntimeError`` is raised as :class:`RunFailed`: superqt takes a
+    Only the run's own (and its threads'): the window's thread warns on stderr meanwhile as
+    ever (see :mod:`bgm_viewer.silence`). A run a newer request cancelled just ends: it is no
+    error. An engine's ``RuntimeError`` is raised as :class:`RunFailed`: superqt takes a
     ``RuntimeError`` for a deleted worker and drops it, and the run would never end.
     """
-    with warnings.catch_warnings(), contextlib.suppress(Cancelled):
-        warnings.simplefilter("ignore")
+    with contextlib.suppress(Cancelled):
         try:
-            yield from compute(inputs, previous, step, cancelled)
+            yield from silenced(compute(inputs, previous, step, cancelled))
         except RuntimeError as exc:
             raise RunFailed(f"{type(exc).__name__}: {exc}") from exc
 
