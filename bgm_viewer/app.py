@@ -49,6 +49,7 @@ from .model import (
     project_read_options,
 )
 from .scene import SceneRenderer, drag_on_plane
+from .silence import silenced
 
 Qt = QtCore.Qt
 Signal = QtCore.Signal
@@ -281,6 +282,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.renderer = SceneRenderer(self.plotter, self.scene, auto_render=True, legend=False)
         self._camera = "iso"
         self._fitted = False
+        #: Whether the window was shown yet: the first show sets the camera (:meth:`showEvent`), no later one.
+        self._shown = False
         #: The camera a project saved, put back in place of fitting the data once its run is drawn (``None``: fit).
         self._saved_camera: dict | None = self.model.camera
 
@@ -374,6 +377,9 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def showEvent(self, event) -> None:
         super().showEvent(event)
+        if self._shown:  # shown again (un-minimised, hidden and shown): the view stays as the geologist left it
+            return
+        self._shown = True
         # fit once the docks are laid out: fitted before, Kennecott showed as a thin sliver
         QtCore.QTimer.singleShot(0, self._show_camera)
 
@@ -1692,14 +1698,14 @@ def _noted(fn):
 def _quietly(inputs, previous, step, cancelled):
     """:func:`compute` with the engine's warnings silenced (the status bar reports errors).
 
-    A run a newer request cancelled just ends: it is no error. An engine's
-    ``RuntimeError`` is raised as :class:`RunFailed`: superqt takes a
+    Only the run's own (and its threads'): the window's thread warns on stderr meanwhile as
+    ever (see :mod:`bgm_viewer.silence`). A run a newer request cancelled just ends: it is no
+    error. An engine's ``RuntimeError`` is raised as :class:`RunFailed`: superqt takes a
     ``RuntimeError`` for a deleted worker and drops it, and the run would never end.
     """
-    with warnings.catch_warnings(), contextlib.suppress(Cancelled):
-        warnings.simplefilter("ignore")
+    with contextlib.suppress(Cancelled):
         try:
-            yield from compute(inputs, previous, step, cancelled)
+            yield from silenced(compute(inputs, previous, step, cancelled))
         except RuntimeError as exc:
             raise RunFailed(f"{type(exc).__name__}: {exc}") from exc
 

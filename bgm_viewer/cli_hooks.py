@@ -81,10 +81,15 @@ def view(
         str | None,
         typer.Option(
             help=f"Layers to show, comma-separated (any case, - or _ for a space): {', '.join(LAYER_NAMES)} "
-            f"(default: {', '.join(DEFAULT_VISIBLE)})."
+            f"(default: those the project saved, else {', '.join(DEFAULT_VISIBLE)})."
         ),
     ] = None,
-    camera: Annotated[str | None, typer.Option(help="iso, top, front, side, or a view direction x,y,z.")] = None,
+    camera: Annotated[
+        str | None,
+        typer.Option(
+            help="iso, top, front, side, or a view direction x,y,z (default: the camera the project saved, else iso)."
+        ),
+    ] = None,
     geozone: Annotated[list[str] | None, typer.Option("--geozone", help="Geozone to select.")] = None,
     bench: Annotated[int | None, typer.Option(help=BENCH_HELP)] = None,
     exaggeration: Annotated[float | None, typer.Option(help="Vertical exaggeration.")] = None,
@@ -200,7 +205,7 @@ def view_command(
             holes,
             screenshot,
             layers=layers,
-            camera=camera or "iso",
+            camera=camera,  # None: the project's saved camera, else iso
             project=project,
             geozone=geozone if geozone is None else holes.check_one_geozone(geozone, "bgm view"),
             bench=bench,

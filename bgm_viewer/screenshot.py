@@ -72,12 +72,20 @@ def scene_image(
         plotter.close()
 
 
+def shown_layers(model: ViewerModel, layers=None) -> list[str]:
+    """The layers ``layers`` names, else those ``model`` shows (a project's saved layers, else the default ones)."""
+    if layers is not None:
+        return parse_layers(layers)
+    return [name for name, shown in model.layer_visibility.items() if shown]
+
+
 def model_scene(model: ViewerModel, layers=None, *, run: bool = True, progress=None) -> Scene:
     """Run what the requested layers need and build their scene.
 
-    ``progress(message, fraction)`` is told each step of the run (:func:`bgm_viewer.model.compute`'s).
+    ``layers``: see :func:`shown_layers`. ``progress(message, fraction)`` is told each step of the run
+    (:func:`bgm_viewer.model.compute`'s).
     """
-    names = parse_layers(layers)
+    names = shown_layers(model, layers)
     if run and names:
         until = STEPS[max(STEPS.index(_NEEDS[n]) for n in names)]
         model.run(until=until, progress=progress)
@@ -90,7 +98,7 @@ def render_screenshot(
     holes_or_path=None,
     out_png: str | Path = "bgm.png",
     layers=None,
-    camera: str | None = "iso",
+    camera: str | None = None,
     *,
     project=None,
     geozone: str | None = None,
@@ -111,11 +119,13 @@ def render_screenshot(
         The input (``None``: the bundled demo). Ignored when ``model`` is given.
     out_png : path
     layers : list of str or "a,b,c", optional
-        Layers to show (see :data:`bgm_viewer.builders.LAYER_NAMES`); default
-        blastholes, contours, snake, trajectories, surfaces.
-    camera : "iso", "top", "front", "side" or "x,y,z"
+        Layers to show (see :data:`bgm_viewer.builders.LAYER_NAMES`); default: those the project
+        saved, else blastholes, contours, snake, trajectories, surfaces and the selected components.
+    camera : "iso", "top", "front", "side" or "x,y,z", optional
+        Default: the camera the project saved (:attr:`ViewerModel.camera`), else ``iso``.
     project : path, optional
-        Project file whose parameters, selection and overrides are applied.
+        Project file whose parameters, selection, overrides and view (layers, camera, exaggeration)
+        are applied; ``layers``, ``camera`` and the other options given win over its view.
     geozone, bench, component : selection of the stage layers (bench = upper bench of the pair).
     vertical_exaggeration : float, optional
     cache : bool
@@ -138,9 +148,11 @@ def render_screenshot(
             model.holes,
             model.result,
             model.selection,
-            visible=parse_layers(layers),
+            visible=shown_layers(model, layers),
             vertical_exaggeration=vertical_exaggeration or model.vertical_exaggeration,
         )
+    if not any(layer.visible for layer in scene.layers):
+        raise BGMInputError("the picture would be blank: the project shows no layer; name the layers with --layers")
     reasons = empty_layer_reasons(scene, model.holes, model.result, model.selection)
     if all(not layer.visible or layer.name in reasons for layer in scene.layers):
         why = "; ".join(f"{name}: {text}" for name, text in reasons.items())
@@ -148,8 +160,10 @@ def render_screenshot(
     for name, text in reasons.items():
         print(f"bgm: note: layer {name!r} is empty: {text}", file=sys.stderr)
     out_png = Path(out_png)
-    plotter, _ = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)
+    plotter, renderer = plotter_for(scene, window_size=window_size, camera=camera, legend=legend)
     try:
+        if camera is None and model.camera is not None:
+            renderer.set_camera_state(model.camera)  # the view the geologist saved, not the default one
         # PyVista picks the format by a lower-case extension only: picture.PNG is written through picture.png's.
         with atomic_path(out_png, suffix=out_png.suffix.lower()) as tmp:
             image = np.asarray(plotter.screenshot(str(tmp), return_img=True))

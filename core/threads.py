@@ -10,6 +10,7 @@ processes instead (:func:`core.model.build.build`), which share nothing.
 
 from __future__ import annotations
 
+import contextvars
 import os
 import threading
 from collections.abc import Callable, Iterable, Iterator
@@ -60,7 +61,8 @@ def on_threads(
     the others: items that take seconds should stop at their next step too,
     by the caller's ``progress`` raising :class:`Cancelled` in them. Once an
     item has raised (:class:`Cancelled` or an error), no other item begins:
-    the caller gets that item's exception.
+    the caller gets that item's exception. Each item runs in a copy of the
+    caller's :mod:`contextvars` context, as it would on the caller's thread.
     """
     todo = list(items)
     threads = min(len(todo), threads or available_cores())
@@ -70,7 +72,10 @@ def on_threads(
         return
     stopped = threading.Event()
     with ThreadPoolExecutor(threads, thread_name_prefix="bgm") as pool:
-        jobs = {pool.submit(_unless_stopped, func, item, stopped): item for item in todo}
+        # each item in a copy of the caller's context, as on the caller's thread (the viewer's silenced warnings)
+        jobs = {
+            pool.submit(contextvars.copy_context().run, _unless_stopped, func, item, stopped): item for item in todo
+        }
         try:
             for job in as_completed(jobs):
                 result = job.result()

@@ -61,3 +61,23 @@ def test_an_error_reaches_the_caller_and_no_item_begins_after_it():
 def test_every_item_once_when_nothing_stops():
     done = dict(on_threads(lambda k: k * k, range(20), threads=2))
     assert done == {k: k * k for k in range(20)}
+
+
+def test_each_item_runs_in_the_callers_context_on_whatever_thread():
+    """The viewer silences a run's warnings in the run's context (bgm_viewer.silence): the items its steps put on
+    threads ran in each thread's own, empty context, and their warnings went on stderr."""
+    import contextvars
+
+    marked = contextvars.ContextVar("marked", default="not set")
+
+    def seen(item):
+        time.sleep(0.01)  # several at once, on several threads
+        return marked.get(), threading.current_thread().name
+
+    marked.set("the caller's")
+    try:
+        done = dict(on_threads(seen, range(6), threads=3))
+    finally:
+        marked.set("not set")
+    assert {value for value, _ in done.values()} == {"the caller's"}
+    assert any(thread != threading.current_thread().name for _, thread in done.values())

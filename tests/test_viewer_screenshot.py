@@ -230,3 +230,78 @@ def test_a_saved_camera_is_in_the_inputs_coordinates_and_comes_back_looking_at_t
         assert back["parallel_scale"] == pytest.approx(state["parallel_scale"])
     finally:
         plotter.close()
+
+
+def test_a_screenshot_of_a_project_shows_its_saved_camera_and_layers_unless_the_command_line_says_otherwise(tmp_path):
+    """``bgm view --screenshot --project`` drew the default layers from the default iso camera, not the view the
+    geologist saved in the project. It draws the saved one now; ``--camera`` and ``--layers`` win over it."""
+    from PIL import Image
+
+    from bgm_viewer.cli_hooks import view_command
+    from bgm_viewer.layer_names import LAYER_NAMES
+    from bgm_viewer.model import ViewerModel
+    from bgm_viewer.screenshot import DEFAULT_SIZE
+    from bgm_viewer.testing import small_holes
+
+    holes = small_holes(unit="ft")
+    hole = 17
+    x_ft, y_ft = holes.frame.to_input(holes.xy[hole])
+    z_ft = float(holes.frame.z_to_input(holes.z[hole]))
+    # looking straight down at one hole, 20 ft of the mine across half the picture's height
+    saved = {
+        "position": [float(x_ft), float(y_ft), z_ft + 800.0],
+        "focal_point": [float(x_ft), float(y_ft), z_ft],
+        "view_up": [0.0, 1.0, 0.0],
+        "parallel_scale": 20.0,
+        "window_center": [0.0, 0.0],
+    }
+    model = ViewerModel(holes)
+    model.select("g1", 0, 0)
+    model.layer_visibility = {name: name == "blastholes" for name in LAYER_NAMES}
+    model.camera = saved
+    project = tmp_path / "p.bgm.json"
+    model.save_project(project)
+
+    def shot(name: str, **options) -> np.ndarray:
+        out = tmp_path / name
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert view_command(holes, project, out, options.get("layers"), options.get("camera")) == 0
+        return np.asarray(Image.open(out))[..., :3]
+
+    def expected(layers, camera) -> np.ndarray:
+        """The picture of the project's model with ``layers`` from ``camera`` (a name, or a saved camera)."""
+        opened = ViewerModel(holes)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            opened.load_project(project)
+            opened.run(until="contours")
+        scene = build_scene(opened.holes, opened.result, opened.selection, visible=layers, vertical_exaggeration=2.0)
+        plotter, renderer = plotter_for(scene, camera=camera if isinstance(camera, str) else "iso")
+        try:
+            if isinstance(camera, dict):
+                renderer.set_camera_state(camera)
+            centre = world_to_pixels(plotter, np.array([[*holes.xy[hole], scene.view.z(holes.z[hole])]]))[0]
+            return np.asarray(plotter.screenshot(None, return_img=True))[..., :3].copy(), centre
+        finally:
+            plotter.close()
+
+    as_saved, centre = expected(["blastholes"], saved)
+    np.testing.assert_allclose(centre, np.array(DEFAULT_SIZE) / 2, atol=1.0)  # the saved camera looks at the hole
+    picture = shot("saved.png")
+    assert np.array_equal(picture, as_saved), "the project's saved camera and layers were not drawn"
+    colour = geozone_colours(holes.geozones)[str(holes.geozone[hole])]
+    row, col = DEFAULT_SIZE[1] // 2, DEFAULT_SIZE[0] // 2
+    assert _exact(picture[row - 1 : row + 2, col - 1 : col + 2], colour).any(), "the hole is not in the middle"
+
+    # the command line's camera and layers win over the project's
+    assert np.array_equal(shot("top.png", camera="top"), expected(["blastholes"], "top")[0])
+    assert np.array_equal(shot("contours.png", layers="contours"), expected(["contours"], saved)[0])
+
+    model.layer_visibility = dict.fromkeys(LAYER_NAMES, False)  # a project showing no layer: said, not a blank file
+    model.save_project(project)
+    from core.errors import BGMInputError
+
+    with pytest.raises(BGMInputError, match="the project shows no layer; name the layers with --layers"):
+        shot("none.png")
+    assert not (tmp_path / "none.png").exists()

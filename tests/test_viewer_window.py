@@ -1343,3 +1343,93 @@ def test_exporting_surfaces_where_a_file_is_says_which_path_and_that_a_folder_is
     assert "Errno" not in said and "\n" not in said
     assert f"{file} is a file" in said and "folder" in said
     assert file.read_text() == "notes"  # nothing written over it
+
+
+def test_showing_the_window_again_keeps_the_camera_and_a_projects_saved_one(window, qtbot, tmp_path):
+    """Each show of the window (hidden and shown again, or un-minimised) looked from the default camera and fitted
+    the data again: the view the geologist had turned to, or the one a project opened with, was lost."""
+
+    def camera():
+        c = window.plotter.camera
+        return np.array([c.GetPosition(), c.GetFocalPoint(), c.GetViewUp()])
+
+    def show_again():
+        window.hide()
+        window.show()
+        qtbot.waitExposed(window)
+        qtbot.wait(50)  # a camera set on showing is set once the window is laid out
+
+    window.set_camera("front")
+    c = window.plotter.camera
+    c.Azimuth(35.0)
+    c.Elevation(25.0)
+    c.OrthogonalizeViewUp()
+    c.Zoom(1.7)
+    window.plotter.render()
+    turned = camera()
+    show_again()
+    np.testing.assert_allclose(camera(), turned, rtol=1e-9, atol=1e-9)
+    window.showMinimized()
+    qtbot.wait(50)
+    window.showNormal()
+    qtbot.wait(50)
+    np.testing.assert_allclose(camera(), turned, rtol=1e-9, atol=1e-9)
+
+    window.model.project_path = str(tmp_path / "p.bgm.json")
+    assert window.save_project()
+    window.set_camera("iso")
+    window.open_project(tmp_path / "p.bgm.json")
+    qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=60_000)
+    np.testing.assert_allclose(camera(), turned, rtol=1e-6, atol=1e-6)  # the project's
+    show_again()
+    np.testing.assert_allclose(camera(), turned, rtol=1e-6, atol=1e-6)
+
+
+def test_a_warning_on_the_windows_thread_while_a_run_is_under_way_is_not_lost(recwarn):
+    """A run silenced its warnings with ``warnings.catch_warnings``, which changes the filters of the whole process:
+    a warning the window's thread gave while the run was under way (a project's override dropped) never reached
+    stderr, and two runs overlapping could leave every warning silenced for good. Only the run's own are now,
+    with those of the threads it starts."""
+    import threading
+
+    from bgm_viewer.app import _quietly
+    from core.errors import BGMWarning
+
+    model = ViewerModel(small_holes())
+    model.select("g1", 0, 0)
+    paused, go_on = threading.Event(), threading.Event()
+    run_threads: set[str] = set()
+
+    def cancelled() -> bool:  # called by the run between its steps, on its own thread and on those it starts
+        run_threads.add(threading.current_thread().name)
+        warnings.warn("the run's own warning", UserWarning, stacklevel=1)
+        if not paused.is_set():
+            paused.set()
+            go_on.wait(60)
+        return False
+
+    yielded: list = []
+    worker = threading.Thread(
+        target=lambda: yielded.extend(_quietly(model.inputs(), model.result, "contours", cancelled)), name="run"
+    )
+    worker.start()
+    try:
+        assert paused.wait(60)
+        warnings.warn("the window's warning", BGMWarning, stacklevel=1)  # the run is under way
+    finally:
+        go_on.set()
+        worker.join(120)
+    assert yielded and yielded[-1][2].complete
+    assert len(run_threads) > 1  # on_threads' threads too
+    said = [str(w.message) for w in recwarn]
+    assert said == ["the window's warning"]
+
+    # a run cancelled while the next one starts: the first's end put back no filters over the second's
+    recwarn.clear()
+    first = _quietly(model.inputs(), model.result, "contours", lambda: False)
+    second = _quietly(model.inputs(), model.result, "contours", lambda: False)
+    next(first), next(second)
+    first.close()
+    second.close()
+    warnings.warn("after both", BGMWarning, stacklevel=1)
+    assert [str(w.message) for w in recwarn] == ["after both"]
