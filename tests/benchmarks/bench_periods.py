@@ -7,8 +7,8 @@ A mine drills several benches at once, each over weeks, so the table a
 geologist hands BGM has its deepest benches partly drilled.
 :mod:`bench_partial_bench` cuts one bench along random directions; here the
 table is cut in time. Kennecott's ``HOLEID`` is, for most holes, a 6-digit
-number that grows with drilling time; the others (10-16 character codes such
-as ``0209290929-xxxx``) are of unknown time, left out of the known tables and
+number that grows with drilling time; the others (7-16 character codes such
+as ``0202231031-17929``) are of unknown time, left out of the known tables and
 of the scoring (their number is printed). For each cut at a quantile of the
 numeric ids:
 
@@ -69,8 +69,9 @@ from core.model.new_ground import implicit_model, known_holes  # noqa: E402
 from core.model.session import ModelSession  # noqa: E402
 
 METHODS = ("model", "nil", "implicit")
-#: Quantiles of the numeric hole ids the table is cut at: from 0.3 every cut leaves benches 514.7 and 464.5 ft
-#: (two benches under the top bench's 20 holes) at least 60% drilled.
+#: Quantiles of the numeric hole ids the table is cut at: from 0.3 every cut leaves the two benches under the top
+#: bench's 20 holes well drilled (514.7 ft 85%, 464.5 ft 46%, over 1,100 holes each, at 0.3; at 0.2 the second
+#: held 678).
 DEFAULT_CUTS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 
 
