@@ -1631,3 +1631,28 @@ def test_a_bench_not_yet_drilled_where_the_bench_below_is_keeps_the_body_both_sh
     section = ModelSession(partly).predict("a", [z])[z]
     assert section.intersection(truth).area > 0.9 * truth.area
     assert section.difference(truth).area < 0.1 * truth.area
+
+
+def test_older_ground_is_where_benches_above_drilled_and_the_bench_did_not():
+    """The ground whose next bench the depth trend predicts from evidence two or more benches old: bench 2 drilled
+    in its west only (several benches are drilled at once), bench 3 everywhere. Its east is older ground below
+    bench 2, as its own pair's backtest reads it (bench 3's holes there), and no ground is older below bench 3."""
+    from core.model.new_ground import implicit_chosen, known_holes, older_ground, pair_errors
+
+    body = shapely.box(120.0, 40.0, 180.0, 120.0)
+    full = _bench_table([body] * 5)
+    west = full.xy[:, 0] < full.xy[:, 0].min() + 80.0
+    holes = full.subset((full.bench != 2) | west)
+    fields = model_geozone(holes, "a").fields
+    older = older_ground(fields, 2)
+    assert older.any() and not older_ground(fields, 3).any() and not older_ground(fields, 0).any()
+    assert not (older & fields.drilled[2]).any() and (older <= fields.drilled[1]).all()
+    on = holes.xy[holes.bench == 3]
+    in_older = older[tuple(fields.grid.nearest_cells(on).T)]
+    edge = full.xy[:, 0].min() + 80.0  # bench 2's drilling ends there
+    assert in_older[on[:, 0] > edge + holes.hole_spacing_m].all()
+    assert not in_older[on[:, 0] < edge - holes.hole_spacing_m].any()
+    # The pair's backtest reads bench 3's holes in that ground: a body standing still is carried there by the
+    # trend as well as by the implicit model or better, so the implicit model is not chosen in such ground.
+    errors = pair_errors(fields, known_holes(holes, "a"), 2, 10.0, holes.hole_spacing_m, "older")
+    assert errors[2] > 0 and errors[0] <= errors[1] and not implicit_chosen([errors])

@@ -117,6 +117,18 @@ def new_ground(fields: BenchFields) -> np.ndarray:
     return np.logical_not(drilled_down_to(fields))
 
 
+def older_ground(fields: BenchFields, j: int | None = None) -> np.ndarray:
+    """The cells benches above bench ``j`` (the deepest: None) drilled and bench ``j`` did not.
+
+    Below bench ``j`` the depth trend carries there the evidence of a bench two or more above the level it
+    predicts: a table of one moment holds its deepest benches partly drilled, several at once.
+    """
+    j = len(fields.z_m) - 1 if j is None else j
+    if j < 1:
+        return np.zeros(fields.grid.shape, bool)
+    return drilled_down_to(fields, j - 1) & ~fields.drilled[j]
+
+
 def within_m(fields: BenchFields, reach_m: float) -> np.ndarray:
     """The cells within ``reach_m`` of some known bench's drilling."""
     drilled = drilled_down_to(fields)
@@ -144,9 +156,17 @@ def pushback_m(fields: BenchFields, holes: KnownHoles, j: int) -> float:
 
 
 def pair_errors(
-    fields: BenchFields, holes: KnownHoles, j: int, bench_height_m: float, hole_spacing_m: float
+    fields: BenchFields,
+    holes: KnownHoles,
+    j: int,
+    bench_height_m: float,
+    hole_spacing_m: float,
+    ground: str = "new",
 ) -> tuple[int, int, int]:
     """Bench ``j + 1``'s holes in ground no bench down to ``j`` drilled, predicted from the benches down to ``j``.
+
+    With ``ground="older"``, its holes in the ground benches above ``j`` drilled and ``j`` did not
+    (:func:`older_ground`) instead.
 
     Parameters
     ----------
@@ -172,7 +192,8 @@ def pair_errors(
         z_next = float(fields.z_m[j + 1])
         on = holes.where(holes.on_level(z_next))
         rc = fields.grid.nearest_cells(on.xy)
-        fresh = np.logical_not(drilled_down_to(fields, j))[rc[:, 0], rc[:, 1]]
+        ground_cells = np.logical_not(drilled_down_to(fields, j)) if ground == "new" else older_ground(fields, j)
+        fresh = ground_cells[rc[:, 0], rc[:, 1]]
         xy, truth = on.xy[fresh], on.inside[fresh]
         if not len(xy):
             return 0, 0, 0
@@ -182,7 +203,7 @@ def pair_errors(
         implicit = implicit_model(holes.down_to(z_j)).at(xy, z_next) > 0
         return int(np.sum(model != truth)), int(np.sum(implicit != truth)), int(np.sum(model != implicit))
 
-    return memoised(fields, ("new ground backtest", j, bench_height_m, hole_spacing_m), compute)
+    return memoised(fields, (f"{ground} ground backtest", j, bench_height_m, hole_spacing_m), compute)
 
 
 def implicit_chosen(errors: list[tuple[int, int, int]], deviations: float = NEW_GROUND_DEVIATIONS) -> bool:
@@ -244,4 +265,36 @@ def with_implicit_in_new_ground(
         )
 
     key = ("new ground section", len(fields.z_m), bench_height_m, hole_spacing_m, float(z_m))
+    return memoised(fields, key, compute)
+
+
+def with_implicit_in_older_ground(
+    region, fields: BenchFields, holes: KnownHoles, z_m: float, bench_height_m: float, hole_spacing_m: float
+) -> MultiPolygon:
+    """``region`` (the model's section below the deepest bench) with the implicit model's in older ground.
+
+    In the ground benches above the deepest drilled and the deepest did not (:func:`older_ground`), the depth
+    trend carries evidence two or more benches old; there the implicit model's section, which reads every bench
+    in three dimensions, where the geozone's own bench pairs chose it (:func:`pair_errors` with
+    ``ground="older"``, :func:`implicit_chosen`), as in new ground. A table of one moment holds its deepest
+    benches partly drilled, several at once: Kennecott cut at its hole numbers (``bench_periods.py``), the
+    next bench's holes there were mostly in such ground.
+    """
+    n = len(fields.z_m)
+    if n < 3:
+        return as_multipolygon(region)
+    older = older_ground(fields)
+    if not older.any():
+        return as_multipolygon(region)
+    errors = [pair_errors(fields, holes, j, bench_height_m, hole_spacing_m, ground="older") for j in range(1, n - 1)]
+    if not implicit_chosen(errors):
+        return as_multipolygon(region)
+
+    def compute() -> MultiPolygon:
+        where = fields.grid.polygons_from_mask(older)
+        implicit = implicit_model(holes.down_to(float(fields.z_m[-1]))).region(z_m, fields.grid, where=where)
+        rest = fields.grid.polygons_from_mask(~older)
+        return as_multipolygon(shapely.union(shapely.intersection(region, rest), shapely.intersection(implicit, where)))
+
+    key = ("older ground section", n, bench_height_m, hole_spacing_m, float(z_m))
     return memoised(fields, key, compute)

@@ -27,7 +27,7 @@ from core.geometry.sdf import boundary_distance
 from core.io.blastholes import Blastholes
 from core.model.extrapolation import depth_trend, depth_trend_region
 from core.model.fields import BenchFields, memoised
-from core.model.new_ground import KnownHoles, known_holes, with_implicit_in_new_ground
+from core.model.new_ground import KnownHoles, known_holes, with_implicit_in_new_ground, with_implicit_in_older_ground
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.model.progress import Stages
 from core.morph.trajectories import normalised_arc_length
@@ -356,6 +356,7 @@ def predict_geozone(
             out[z] = depth_trend_region(beyond[down], height, hole_spacing_m, z, trend_progress)
             if down and known is not None:
                 out[z] = with_implicit_in_new_ground(out[z], fields, known, z, height, hole_spacing_m)
+                out[z] = with_implicit_in_older_ground(out[z], fields, known, z, height, hole_spacing_m)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             region = MultiPolygon()

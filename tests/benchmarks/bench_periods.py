@@ -1,7 +1,7 @@
 """Kennecott as it stood at other moments: the table cut at a hole number, scored on the holes drilled after.
 
     python tests/benchmarks/bench_periods.py [--cuts 0.3 0.4 ... 0.9] [--kennecott PATH] [--save rows.csv]
-                                             [--workers 1]
+                                             [--workers 1] [--next-bench]
 
 A mine drills several benches at once, each over weeks, so the table a
 geologist hands BGM has its deepest benches partly drilled.
@@ -48,6 +48,7 @@ import multiprocessing
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +64,7 @@ KENNECOTT = Path(
 
 from bench_partial_bench import read  # noqa: E402
 
+from core.errors import BGMWarning  # noqa: E402
 from core.io.blastholes import Blastholes, drilled_area  # noqa: E402
 from core.model.evaluation import bench_regions, default_grid  # noqa: E402
 from core.model.new_ground import implicit_model, known_holes  # noqa: E402
@@ -215,12 +217,52 @@ def _run(job):
     return run_cut(*job)
 
 
+def next_bench_rows(job: tuple[pd.DataFrame, float]) -> pd.DataFrame:
+    """The paper's protocol on the table of one moment (``--next-bench``): :func:`bench_prediction.evaluate`."""
+    from bench_prediction import evaluate
+
+    table, q = job
+    ids = table["id"].to_numpy(float)
+    known = read(table.loc[ids <= np.nanquantile(ids, q), ["x", "y", "z", "geozone"]], None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        rows = evaluate(known, fractions=(1.0,))
+    rows.insert(0, "cut", q)
+    return rows
+
+
+def print_next_bench(rows: pd.DataFrame) -> None:
+    """Hole-scored F1 per cut and per deepest known bench, as ``bench_prediction.py`` prints Kennecott's."""
+    from bench_prediction import METHODS as ALL_METHODS
+    from bench_prediction import f1, hole_scores
+
+    def line(part: pd.DataFrame) -> str:
+        scores = {m: 100 * f1(*pr) for m, pr in hole_scores(part).items()}
+        return "  ".join(f"{m} {scores[m]:5.1f}" for m in ALL_METHODS) + f"  ({len(part) // len(ALL_METHODS)} cases)"
+
+    print("\nThe paper's protocol on each moment's table (next bench withheld, F1 on its holes):")
+    for q, part in rows.groupby("cut"):
+        print(f"  cut {q:g}: {line(part)}")
+        for k in sorted(part["bench"].unique()):
+            print(f"      deepest known bench {k}: {line(part[part['bench'] == k])}")
+    print(f"  every cut: {line(rows)}")
+    for k in sorted(rows["bench"].unique()):
+        print(f"      deepest known bench {k}: {line(rows[rows['bench'] == k])}")
+
+
 def main(argv=None) -> pd.DataFrame:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cuts", type=float, nargs="+", default=list(DEFAULT_CUTS), help="Quantiles of the ids.")
     ap.add_argument("--kennecott", type=Path, default=KENNECOTT)
     ap.add_argument("--save", type=Path)
     ap.add_argument("--workers", type=int, default=1, help="Cuts run at once (fork).")
+    ap.add_argument(
+        "--next-bench",
+        action="store_true",
+        help="Instead, the paper's protocol on each moment's table: each bench in turn the deepest known, the next "
+        "withheld and scored on its holes (the hidden evaluation's protocol, on tables whose deepest benches are "
+        "partly drilled).",
+    )
     args = ap.parse_args(argv)
     if not args.kennecott.exists():
         print(f"Kennecott skipped: {args.kennecott} not found")
@@ -229,6 +271,14 @@ def main(argv=None) -> pd.DataFrame:
     table, unknown = hole_table(args.kennecott)
     level, levels_in, height_in = full_levels(table)
     print(f"{len(table)} holes, {unknown} of unknown time (id not 6 digits): left out of every table and score")
+    if args.next_bench:
+        with multiprocessing.get_context("fork").Pool(args.workers) as pool:
+            rows = pd.concat(pool.map(next_bench_rows, [(table, q) for q in args.cuts]), ignore_index=True)
+        if args.save:
+            rows.to_csv(args.save, index=False)
+        print_next_bench(rows)
+        print(f"Wall time {time.perf_counter() - t0:.0f} s")
+        return rows
     jobs = [(table, q, level, levels_in, height_in) for q in args.cuts]
     if args.workers > 1:
         with multiprocessing.get_context("fork").Pool(args.workers) as pool:
