@@ -63,6 +63,17 @@ def _selected_polygon(win):
     return c.polygon
 
 
+def _turn_camera(window) -> None:
+    """Turn and zoom the view away from every preset, as a geologist does, and draw it."""
+    window.set_camera("front")
+    c = window.plotter.camera
+    c.Azimuth(35.0)
+    c.Elevation(25.0)
+    c.OrthogonalizeViewUp()
+    c.Zoom(1.7)
+    window.plotter.render()
+
+
 def test_window_shows_layers_and_results(window):
     names = [window.layer_list.item(i).text() for i in range(window.layer_list.count())]
     assert names == window.scene.names()
@@ -653,13 +664,7 @@ def test_a_project_reopens_with_the_camera_and_the_layers_it_was_saved_with(wind
         assert ticked == {layer.name for layer in window.scene.layers if layer.visible}  # the panel says what is drawn
         return ticked
 
-    window.set_camera("front")
-    c = window.plotter.camera
-    c.Azimuth(35.0)
-    c.Elevation(25.0)
-    c.OrthogonalizeViewUp()
-    c.Zoom(1.7)
-    window.plotter.render()
+    _turn_camera(window)
     window.model.dirty = False
     window.set_layer_visible("trajectories", False)
     window.set_layer_visible("GVF", True)
@@ -1359,13 +1364,7 @@ def test_showing_the_window_again_keeps_the_camera_and_a_projects_saved_one(wind
         qtbot.waitExposed(window)
         qtbot.wait(50)  # a camera set on showing is set once the window is laid out
 
-    window.set_camera("front")
-    c = window.plotter.camera
-    c.Azimuth(35.0)
-    c.Elevation(25.0)
-    c.OrthogonalizeViewUp()
-    c.Zoom(1.7)
-    window.plotter.render()
+    _turn_camera(window)
     turned = camera()
     show_again()
     np.testing.assert_allclose(camera(), turned, rtol=1e-9, atol=1e-9)
