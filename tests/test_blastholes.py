@@ -815,10 +815,35 @@ def test_depths_in_an_elevation_column_are_said_to_read_upside_down(tmp_path, fa
 
 
 @pytest.mark.parametrize("source", ["demo", "kennecott"])
-def test_the_demo_and_kennecott_read_right_way_up_without_a_word_and_upside_down_with_one(request, tmp_path, source):
-    """Kennecott's top bench holds 20 holes (a bench partly in the table): it does not decide the pit's shape."""
+def test_the_demo_and_kennecott_read_right_way_up_without_a_word(request, tmp_path, source):
+    """Kennecott's top bench holds 20 holes (a bench partly in the table): it does not decide the pit's shape.
+
+    Upside down, the demo's pit widens with depth and is said to. Kennecott's benches of this period hardly
+    narrow once a few stray holes are left out of their extent (the top two spanning 0.94 times the area of the
+    deepest two; with its stray holes, bench 2's extent was half as large again): upside down they are 1.07,
+    under the ratio, so nothing is said either way, rather than a warning resting on a few holes."""
     path = DEMO_CSV if source == "demo" else request.getfixturevalue("kennecott_csv")
     assert not said_upside_down(path)
-    table = pd.read_csv(path, dtype=str, keep_default_na=False)
-    said = said_upside_down(write(tmp_path, depths_below_a_datum(table, "z" if source == "demo" else "RL")))
-    assert len(said) == 1, said
+    if source == "demo":
+        table = pd.read_csv(path, dtype=str, keep_default_na=False)
+        assert len(said_upside_down(write(tmp_path, depths_below_a_datum(table, "z")))) == 1
+
+
+def test_a_few_holes_far_off_on_the_deepest_bench_do_not_make_the_pit_widen(tmp_path):
+    """A bench's extent is its blast patterns' (holes with a dozen others within three spacings), not the convex
+    hull of every hole: four holes 300 m off on one bench made its hull the largest. Upside down, that bench
+    on top hid the pit widening with depth (nothing said); on a table whose benches span the same ground it
+    made them read upside down (the pinched-out body of test_prediction: 2.3 times the top bench's area)."""
+    rng = np.random.default_rng(3)
+    frames = []
+    for k, half in enumerate((100.0, 90.0, 80.0, 70.0, 60.0)):
+        x, y = np.meshgrid(np.arange(-half, half, 6.0), np.arange(-half, half, 5.2))
+        xy = np.c_[x.ravel() + (np.round(y.ravel() / 5.2) % 2) * 3.0, y.ravel()]
+        if k == 4:
+            xy = np.vstack([xy, [[400.0, 400.0], [406.0, 400.0], [403.0, 405.0], [409.0, 405.0]]])
+        label = np.where(rng.random(len(xy)) < 0.3, "ore", "waste")
+        frames.append(pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": 500.0 - 10.0 * k, "geozone": label}))
+    table = pd.concat(frames, ignore_index=True)
+    assert not said_upside_down(write(tmp_path, table))
+    flipped = table.assign(z=1000.0 - table["z"])
+    assert len(said_upside_down(write(tmp_path, flipped, name="flipped.csv"))) == 1
