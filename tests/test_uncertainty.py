@@ -507,7 +507,7 @@ def test_the_geozones_of_one_suggestion_are_modelled_several_at_once_as_one_by_o
     from core.model.uncertainty import geozone_uncertainty
 
     _, _, holes = synthetic(4)
-    geozones = list(holes.geozones)
+    geozones = list(holes.geozones)[1:3]  # two at once show it as well as four (and take half the time)
     z = float(holes.bench_levels_m[-1]) - float(holes.bench_height_m)
 
     def fresh() -> ModelSession:
