@@ -230,10 +230,9 @@ def between_drillings(model: GeozoneModel, z_m: float, hole_spacing_m: float) ->
         t = (fields.z_m[upper] - z_m) / (fields.z_m[upper] - fields.z_m[lower])
         h = fields.grid.cell_size_m
 
-        def inside_m(mask) -> np.ndarray:
-            return (ndimage.distance_transform_edt(mask) - ndimage.distance_transform_edt(~mask)) * h
-
-        bound = np.minimum.reduce([0.5 * hole_spacing_m - inside_m(drilled[k]), inside_m(above), inside_m(below)])
+        bound = np.minimum.reduce(
+            [0.5 * hole_spacing_m - _inside_m(drilled[k], h), _inside_m(above, h), _inside_m(below, h)]
+        )
         field = np.minimum(f_upper + t * (f_lower - f_upper), bound)
         return as_multipolygon(fields.grid.polygons_from_distance(field)) if (field > 0).any() else MultiPolygon()
 
@@ -293,11 +292,15 @@ def _undrilled_bound(
     if not (above & ~below).any():
         return None
     h = fields.grid.cell_size_m
-    outside_below = (ndimage.distance_transform_edt(~below) - ndimage.distance_transform_edt(below)) * h
+    outside_below = _inside_m(~below, h)
     if beyond_drilling:
         return outside_below + 0.5 * hole_spacing_m
-    inside_above = (ndimage.distance_transform_edt(above) - ndimage.distance_transform_edt(~above)) * h
-    return np.minimum(outside_below + 0.5 * hole_spacing_m, inside_above)
+    return np.minimum(outside_below + 0.5 * hole_spacing_m, _inside_m(above, h))
+
+
+def _inside_m(mask, cell_size_m: float) -> np.ndarray:
+    """Signed distance into ``mask`` (metres): positive inside, negative outside."""
+    return (ndimage.distance_transform_edt(mask) - ndimage.distance_transform_edt(~mask)) * cell_size_m
 
 
 def predict_geozone(
