@@ -14,9 +14,12 @@ is written atomically.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 
 _INTERRUPTS: list[int] = []  # Ctrl-Cs this process received while the command line ran
+#: The process whose command the handlers below serve (a process forked from it inherits them).
+_COMMAND_PID = os.getpid()
 
 
 def _remember_ctrl_c(signum, frame):
@@ -24,6 +27,10 @@ def _remember_ctrl_c(signum, frame):
 
 
 def _on_ctrl_c(signum, frame):
+    if os.getpid() != _COMMAND_PID:
+        # A build's worker stopped (by its parent's SIGTERM) before it set its own handlers:
+        # it ends at once and quietly, as it would have with them, not with a traceback.
+        os._exit(128 + signum)
     # Remembered as well as raised: some libraries catch BaseException (trimesh's
     # import guards), and an interrupt they swallow must still end the command.
     _INTERRUPTS.append(signum)
@@ -81,7 +88,6 @@ import functools
 import inspect
 import json
 import math
-import os
 import re
 import sys
 import time
@@ -1345,6 +1351,8 @@ def _stopped_status(code: int) -> tuple[int, str | None]:
 
 def main() -> None:
     """Entry point of the ``bgm`` console script: run the command, print at most one line, exit."""
+    global _COMMAND_PID
+    _COMMAND_PID = os.getpid()
     on_sigterm = signal.getsignal(signal.SIGTERM)
     with contextlib.suppress(ValueError):  # not the main thread: Python's default handling
         signal.signal(signal.SIGINT, _on_ctrl_c)

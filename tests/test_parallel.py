@@ -47,9 +47,12 @@ def test_a_dask_cluster_matches_a_serial_run(holes, tmp_path):
     assert _results(tmp_path / "serial") == _results(tmp_path / "dask")
 
 
-def test_unreachable_scheduler_is_a_clear_error(holes, tmp_path):
+def test_unreachable_scheduler_is_a_clear_error(holes, tmp_path, monkeypatch):
     pytest.importorskip("distributed")
+    import core.model.build
     from core.errors import BGMInputError
+
+    monkeypatch.setattr(core.model.build, "SCHEDULER_TIMEOUT_S", 1.0)  # nothing listens there: no need to wait 10 s
 
     with pytest.raises(BGMInputError, match="cannot reach the dask scheduler"):
         build(holes, tmp_path / "x", scheduler="tcp://127.0.0.1:9", evaluate=False, formats=("ply",))

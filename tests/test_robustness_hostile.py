@@ -446,6 +446,8 @@ from core import cli
 folder, signum, handler = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
 if handler == "bgm":
     signal.signal(signum, cli._on_ctrl_c)
+elif signum == signal.SIGINT:  # Python's own, as under a terminal (a run in a script's background has it ignored)
+    signal.signal(signum, signal.default_int_handler)
 replace, done = os.replace, []
 
 def replace_then_signal(src, dst):

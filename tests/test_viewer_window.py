@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -46,8 +47,16 @@ def no_modal_dialogs(monkeypatch):
     monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", warning)
 
 
+@pytest.fixture(scope="module")
+def warm_stage_cache(tmp_path_factory) -> Path:
+    """One stage cache for the module's windows: each opens on the same table, whose first run the next window
+    reads from disk instead of computing again (a run of its own cost each test 2-4 s of the suite)."""
+    return tmp_path_factory.mktemp("bgm-window-cache")
+
+
 @pytest.fixture
-def window(qtbot):
+def window(qtbot, warm_stage_cache, monkeypatch):
+    monkeypatch.setenv("BGM_CACHE_DIR", str(warm_stage_cache))
     model = ViewerModel(small_holes())
     model.select("g1", 0, 0)
     win = MainWindow(model, debounce_ms=10)

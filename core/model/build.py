@@ -767,13 +767,17 @@ def _stop_workers(pool) -> None:
             process.terminate()
 
 
+#: How long a build waits for a dask scheduler to answer before saying it cannot reach it (seconds).
+SCHEDULER_TIMEOUT_S = 10.0
+
+
 def _dask_map(func, ctx, items: list, scheduler: str):
     try:
         from distributed import Client, as_completed
     except ImportError:
         raise BGMInputError("--scheduler needs dask.distributed: pip install -e '.[dask]'") from None
     try:
-        client = Client(scheduler, timeout="10s")
+        client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S:g}s")
     except Exception as exc:  # a bad address raises ValueError, TypeError, OSError... all the user's to fix
         raise BGMInputError(
             f"cannot reach the dask scheduler at {quoted(scheduler)}: {' '.join(str(exc).split())[:200]}"
