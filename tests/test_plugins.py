@@ -83,11 +83,15 @@ def test_a_screenshot_in_batch_says_how_far_it_is_as_it_goes(tmp_path):
             running = proc.poll() is None
     assert proc.wait(timeout=600) == 0, lines
     assert running, lines  # the first line came while it ran, not with its end
-    steps = [re.fullmatch(r"bgm: progress: (\d+)/100 percent \((.+), \d+\.\d s\)", line) for line in lines[:-1]]
-    assert all(steps) and len(steps) >= 5, lines
+    # BGM's own lines; the C libraries under the renderer (EGL, Mesa) may write a line of their own to the stream
+    # now and then (a run of the suite on a loaded machine had one), but a Python traceback never comes.
+    said = [line for line in lines if line.startswith(("bgm:", "wrote "))]
+    assert not any("Traceback" in line for line in lines), "\n".join(lines)
+    steps = [re.fullmatch(r"bgm: progress: (\d+)/100 percent \((.+), \d+\.\d s\)", line) for line in said[:-1]]
+    assert all(steps) and len(steps) >= 5, "\n".join(lines)
     done = [int(m[1]) for m in steps]
     assert done == sorted(done) and done[-1] == 100 and done.count(100) == 1, lines
-    assert any("surface" in m[2] for m in steps) and lines[-1] == f"wrote {png}", lines
+    assert any("surface" in m[2] for m in steps) and said[-1] == f"wrote {png}", lines
 
 
 def test_bgm_view_without_qt_and_pyvista_says_what_to_install(tmp_path):
