@@ -124,7 +124,7 @@ def test_the_translation_shown_and_locked_is_bgm_corresponds(demo_holes, tmp_pat
 
 def test_the_other_geozones_surfaces_come_several_at_once_and_each_is_its_own(demo_holes, monkeypatch):
     """The viewer makes the other geozones' surfaces on threads: each is the one made alone; a failing one is named."""
-    viewer = _viewer(demo_holes, GEOZONE, 0)
+    viewer = _viewer(demo_holes, GEOZONE, 0, cache=True)  # the test's own cache, empty: computed, then stored
     others = [g for g in viewer.inputs().surface_geozones if g != GEOZONE]
     assert len(others) >= 2 and set(others) <= set(viewer.result.surfaces)
     alone = ModelSession(demo_holes, ModelParameters(), None, StageStore(None))
@@ -142,7 +142,7 @@ def test_the_other_geozones_surfaces_come_several_at_once_and_each_is_its_own(de
         return model_of(self, g, *args, **kwargs)
 
     monkeypatch.setattr(ModelSession, "geozone_model", broken)
-    again = ViewerModel(demo_holes, cache=False)
+    again = ViewerModel(demo_holes)  # the same disk cache: the other geozones are read, the failing one is asked for
     again.select(GEOZONE, 0, 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
