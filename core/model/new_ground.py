@@ -298,3 +298,49 @@ def with_implicit_in_older_ground(
 
     key = ("older ground section", n, bench_height_m, hole_spacing_m, float(z_m))
     return memoised(fields, key, compute)
+
+
+def with_implicit_above_deepest(
+    region, fields: BenchFields, holes: KnownHoles, z_m: float, hole_spacing_m: float
+) -> MultiPolygon:
+    """``region`` (the model's section at ``z_m``) with the implicit model's in the ground no bench at or above drilled.
+
+    From the top bench's level down to the deepest's, that level excluded: in the ground no bench at or above
+    ``z_m`` drilled, as far past their drilling as a bench's evidence reaches (``fields.reach_spacings``), the
+    implicit model's section of the known benches' holes; elsewhere ``region``. ``region`` unchanged at and
+    below the deepest bench's level (:func:`with_implicit_in_new_ground` decides there) and above the top bench's.
+
+    There a bench's contours end at its drilling edge, which is no boundary, and the depth trend
+    (:func:`core.model.prediction.undrilled_extension`) reaches only the ground a bench above drilled: a pit
+    pushed back (ground no bench drilled) or drilled first on a lower bench (ground only benches below drilled)
+    had every geozone nearly absent: Kennecott cut at its hole numbers' median (``bench_periods.py``), on the
+    1,339 later holes in such ground at the levels above the deepest, 6.6 F1 (the implicit model 85.8). There
+    the implicit model has the holes of the bench beside that ground and of the benches below, and the model
+    nothing to set against it, so it is taken without the backtests' choice. At the deepest bench's level the
+    choice stays (:func:`with_implicit_in_new_ground`): taken there too, a deepest bench's undrilled rest in
+    Kennecott's partial-bench cuts of bench 3 came out worse in 3 of 5 cuts by 6-8 points.
+
+    The reach is from the drilling at or above ``z_m``, not the benches' below: over all the ground only a
+    bench below drilled, or as far as the geozone's pushbacks reached (the table's top bench of 20 holes
+    reached 470 m), Kennecott's surfaces took the implicit model's section over the whole pit above its second
+    bench (2210's volume 49 times its own), for 0.1 F1 more on the later holes.
+    """
+    n = len(fields.z_m)
+    at_or_above = fields.z_m >= z_m - 1e-6 - 1e-5 * abs(z_m)  # a bench level matched as bench_at matches it
+    if n < 2 or at_or_above.all() or not at_or_above.any():
+        return as_multipolygon(region)
+    upper = int(at_or_above.sum()) - 1  # the deepest bench at or above z_m
+
+    def compute() -> tuple[MultiPolygon, MultiPolygon]:
+        drilled = drilled_down_to(fields, upper)
+        unseen = ~drilled & (_past_m(fields, drilled) <= (fields.reach_spacings or 0.0) * hole_spacing_m)
+        if not unseen.any():
+            return MultiPolygon(), MultiPolygon()
+        where = fields.grid.polygons_from_mask(unseen)
+        model = memoised(fields, ("implicit model", n), lambda: implicit_model(holes.down_to(float(fields.z_m[-1]))))
+        return model.region(z_m, fields.grid, where=where), fields.grid.polygons_from_mask(~unseen)
+
+    implicit, rest = memoised(fields, ("unseen from above", n, hole_spacing_m, float(z_m)), compute)
+    if rest.is_empty:
+        return as_multipolygon(region)
+    return as_multipolygon(shapely.union(shapely.intersection(region, rest), shapely.difference(implicit, rest)))

@@ -27,7 +27,13 @@ from core.geometry.sdf import boundary_distance
 from core.io.blastholes import Blastholes
 from core.model.extrapolation import depth_trend, depth_trend_region
 from core.model.fields import BenchFields, memoised
-from core.model.new_ground import KnownHoles, known_holes, with_implicit_in_new_ground, with_implicit_in_older_ground
+from core.model.new_ground import (
+    KnownHoles,
+    known_holes,
+    with_implicit_above_deepest,
+    with_implicit_in_new_ground,
+    with_implicit_in_older_ground,
+)
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.model.progress import Stages
 from core.morph.trajectories import normalised_arc_length
@@ -268,16 +274,20 @@ def with_undrilled_ground(
 ) -> MultiPolygon:
     """``region`` (a section at ``z_m``) completed where the benches at or below ``z_m`` did not drill.
 
-    :func:`with_undrilled_extension` there; at the deepest bench's level, with the known benches' ``known``
-    holes, the ground no bench drilled then takes the implicit model's section where the geozone's pushbacks
-    chose it, as below the deepest bench (:func:`core.model.new_ground.with_implicit_in_new_ground`). A bench
-    drilled over part of the pit (its first blast patterns) is the deepest: without this its undrilled rest was
-    the depth trend's alone, and lost what the implicit model gave one bench below the bench above.
+    :func:`with_undrilled_extension` there; with the known benches' ``known`` holes, above the deepest bench's
+    level the ground no bench at or above ``z_m`` drilled (a pushback, or ground only benches below drilled)
+    takes the implicit model's section (:func:`core.model.new_ground.with_implicit_above_deepest`), and at the
+    deepest bench's level the ground no bench drilled takes it where the geozone's pushbacks chose it, as below
+    the deepest bench (:func:`core.model.new_ground.with_implicit_in_new_ground`). A bench drilled over part of
+    the pit (its first blast patterns) is the deepest: without this its undrilled rest was the depth trend's
+    alone, and lost what the implicit model gave one bench below the bench above.
     """
     region = with_undrilled_extension(region, model, z_m, hole_spacing_m)
     fields = model.fields
-    if known is None or fields is None or bench_at(fields.z_m, z_m) != len(fields.z_m) - 1:
+    if known is None or fields is None:
         return region
+    if bench_at(fields.z_m, z_m) != len(fields.z_m) - 1:
+        return with_implicit_above_deepest(region, fields, known, z_m, hole_spacing_m)
     return with_implicit_in_new_ground(region, fields, known, z_m, fields.bench_height_m, hole_spacing_m)
 
 
@@ -324,7 +334,8 @@ def predict_geozone(
     neighbourhoods (the transport's smoothing, the distance cap); ``params``
     is unused (kept for callers). With the table's ``holes`` (the known benches'), at and below the deepest bench
     the ground no known bench drilled takes the implicit model's section where the geozone's own benches chose it
-    (:func:`core.model.new_ground.with_implicit_in_new_ground`); without them, the depth trend's throughout.
+    (:func:`core.model.new_ground.with_implicit_in_new_ground`), and above it the ground no bench at or above
+    the elevation drilled takes it (:func:`with_undrilled_ground`); without them, the depth trend's throughout.
 
     ``progress(done, total)`` is told, as one series that never goes back
     (:class:`core.model.progress.Stages`), each step of the depth trend's
@@ -365,7 +376,7 @@ def predict_geozone(
             region = MultiPolygon()
             if pair is not None:
                 region = region_between(pair, (pair.source_z_m - z) / (pair.source_z_m - pair.target_z_m))
-            out[z] = with_undrilled_extension(region, model, z, hole_spacing_m)
+            out[z] = with_undrilled_ground(region, model, z, hole_spacing_m, known)
         if progress:
             progress(len(out), len(z_m))
     return out

@@ -561,9 +561,9 @@ def surface_sections(
     bench where the predictions below the deepest bench carried it on. Where
     the geozone's pairs end above the deepest bench, the sections run on below
     the deepest as every other geozone's do, empty but for that trend: a body
-    absent from benches that drilled its ground closes above them. At the deepest
-    bench's level the ground no bench drilled is as :func:`predict_geozone` has it
-    there (:func:`core.model.prediction.with_undrilled_ground`).
+    absent from benches that drilled its ground closes above them. Down to the
+    deepest bench's level the ground no bench at or above a section drilled is as
+    :func:`predict_geozone` has it there (:func:`core.model.prediction.with_undrilled_ground`).
 
     ``progress(done, total)`` is told as each bench pair's sections are made, then the
     steps of the sections below the deepest bench (:func:`predict_geozone`: each
