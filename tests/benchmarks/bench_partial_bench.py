@@ -1,6 +1,8 @@
 """A deepest bench drilled over part of the pit: does its rest come out better, or no worse, for its first holes?
 
     python tests/benchmarks/bench_partial_bench.py [--kennecott-benches 3 4 5] [--families pods folds ...]
+
+``--families`` alone names none: Kennecott only, as the figures quoted with it are.
                                                    [--seeds 1] [--save rows.csv]
 
 A bench is drilled over weeks, so a geologist often runs BGM when the deepest
@@ -127,7 +129,9 @@ def cases(full: Blastholes, k: int, geozones: list[str], label: str, unit: str, 
 def main(argv=None) -> pd.DataFrame:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kennecott-benches", type=int, nargs="*", default=[3, 4, 5])
-    ap.add_argument("--families", nargs="*", default=list(FAMILIES), choices=FAMILIES)
+    ap.add_argument(
+        "--families", nargs="*", default=list(FAMILIES), choices=FAMILIES, help="Families (the flag alone: none)."
+    )
     ap.add_argument("--seeds", type=int, default=1, help="Tuning seeds per family.")
     ap.add_argument("--save", type=Path)
     args = ap.parse_args(argv)
