@@ -58,6 +58,27 @@ def test_unreachable_scheduler_is_a_clear_error(holes, tmp_path, monkeypatch):
         build(holes, tmp_path / "x", scheduler="tcp://127.0.0.1:9", evaluate=False, formats=("ply",))
 
 
+def test_a_client_that_could_not_connect_is_closed_before_the_error(monkeypatch):
+    """A client whose scheduler could not be reached was left to a later garbage collection, whose finaliser takes
+    the lock every client's start holds: run in the thread the next client started, it deadlocked that start (the
+    suite hung in a test trying two bad addresses in one process). No half-made client outlives the error."""
+    distributed = pytest.importorskip("distributed")
+    import gc
+
+    import core.model.build
+    from core.errors import BGMInputError
+
+    monkeypatch.setattr(core.model.build, "SCHEDULER_TIMEOUT_S", 1.0)
+    gc.disable()  # only the build's own collection may clear it
+    try:
+        with pytest.raises(BGMInputError, match="cannot reach the dask scheduler"):
+            list(core.model.build._dask_map(None, None, [0], "tcp://127.0.0.1:9"))
+        clients = [o for o in gc.get_objects() if isinstance(o, distributed.Client)]
+    finally:
+        gc.enable()
+    assert not clients
+
+
 def _interrupt_in(stage: str):
     """A progress callback that interrupts the build as ``stage`` (contours, geozone) reports its first result."""
 

@@ -9,6 +9,7 @@ paper's precision/recall evaluation against three references, and a
 from __future__ import annotations
 
 import contextlib
+import gc
 import hashlib
 import json
 import os
@@ -779,9 +780,15 @@ def _dask_map(func, ctx, items: list, scheduler: str):
     try:
         client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S:g}s")
     except Exception as exc:  # a bad address raises ValueError, TypeError, OSError... all the user's to fix
-        raise BGMInputError(
-            f"cannot reach the dask scheduler at {quoted(scheduler)}: {' '.join(str(exc).split())[:200]}"
-        ) from None
+        reason = " ".join(str(exc).split())[:200]
+    else:
+        reason = None
+    if reason is not None:
+        # The half-made client lingers in a reference cycle, and its finaliser takes the lock every client's start
+        # holds: run by a garbage collection in the thread the next client started, it deadlocked that start (a
+        # test process that tried two bad addresses hung). Collected here, where no client is starting.
+        gc.collect()
+        raise BGMInputError(f"cannot reach the dask scheduler at {quoted(scheduler)}: {reason}")
     try:
         shared = client.scatter(ctx, broadcast=True)
         futures = [client.submit(func, shared, item, pure=False) for item in items]
