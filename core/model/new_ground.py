@@ -329,7 +329,8 @@ def with_implicit_above_deepest(
     depth from theirs, over the same ground (what the bench above left undrilled).
     """
     n = len(fields.z_m)
-    at_or_above = fields.z_m >= z_m - 1e-6 - 1e-5 * abs(z_m)  # a bench level matched as bench_at matches it
+    # A bench level matched as core.model.prediction.bench_at matches it.
+    at_or_above = (fields.z_m > z_m) | np.isclose(fields.z_m, z_m, atol=1e-6)
     if n < 2 or at_or_above.all() or not at_or_above.any():
         return as_multipolygon(region)
     upper = int(at_or_above.sum()) - 1  # the deepest bench at or above z_m
