@@ -562,7 +562,7 @@ def surface_sections(
     the geozone's pairs end above the deepest bench, the sections run on below
     the deepest as every other geozone's do, empty but for that trend: a body
     absent from benches that drilled its ground closes above them. Down to the
-    deepest bench's level the ground no bench at or above a section drilled is as
+    deepest bench's level the ground the bench at or above a section did not drill is as
     :func:`predict_geozone` has it there (:func:`core.model.prediction.with_undrilled_ground`).
 
     ``progress(done, total)`` is told as each bench pair's sections are made, then the
