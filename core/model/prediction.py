@@ -33,6 +33,7 @@ from core.model.new_ground import (
     with_implicit_above_deepest,
     with_implicit_in_new_ground,
     with_implicit_in_older_ground,
+    with_implicit_in_stale_ground,
 )
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.model.progress import Stages
@@ -281,7 +282,8 @@ def with_undrilled_ground(
     ground the benches above drilled and it has not yet) takes the implicit model's section
     (:func:`core.model.new_ground.with_implicit_above_deepest`), and at the deepest bench's level the ground no
     bench drilled takes it where the geozone's pushbacks chose it, as below the deepest bench
-    (:func:`core.model.new_ground.with_implicit_in_new_ground`). A bench drilled over part of
+    (:func:`core.model.new_ground.with_implicit_in_new_ground`), and the ground only benches two or more above
+    it drilled takes it (:func:`core.model.new_ground.with_implicit_in_stale_ground`). A bench drilled over part of
     the pit (its first blast patterns) is the deepest: without this its undrilled rest was the depth trend's
     alone, and lost what the implicit model gave one bench below the bench above.
     """
@@ -291,7 +293,8 @@ def with_undrilled_ground(
         return region
     if bench_at(fields.z_m, z_m) != len(fields.z_m) - 1:
         return with_implicit_above_deepest(region, fields, known, z_m, hole_spacing_m)
-    return with_implicit_in_new_ground(region, fields, known, z_m, fields.bench_height_m, hole_spacing_m)
+    region = with_implicit_in_new_ground(region, fields, known, z_m, fields.bench_height_m, hole_spacing_m)
+    return with_implicit_in_stale_ground(region, fields, known)
 
 
 def _undrilled_bound(
