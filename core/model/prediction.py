@@ -294,7 +294,7 @@ def with_undrilled_ground(
     if bench_at(fields.z_m, z_m) != len(fields.z_m) - 1:
         return with_implicit_above_deepest(region, fields, known, z_m, hole_spacing_m)
     region = with_implicit_in_new_ground(region, fields, known, z_m, fields.bench_height_m, hole_spacing_m)
-    return with_implicit_in_stale_ground(region, fields, known)
+    return with_implicit_in_stale_ground(region, fields, known, z_m)
 
 
 def _undrilled_bound(
@@ -377,6 +377,8 @@ def predict_geozone(
             if down and known is not None:
                 out[z] = with_implicit_in_new_ground(out[z], fields, known, z, height, hole_spacing_m)
                 out[z] = with_implicit_in_older_ground(out[z], fields, known, z, height, hole_spacing_m)
+                ended = depth_trend(fields, height, hole_spacing_m).ended(z)
+                out[z] = with_implicit_in_stale_ground(out[z], fields, known, z, ended)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             region = MultiPolygon()

@@ -159,7 +159,7 @@ class DepthTrend:
         if seam is not None:
             older, filled = seam
             field = np.where(older, self._transported(filled, self._older_section), field)
-        field = np.where(self._ended(z_m), np.minimum(field, self.f_deepest), field)
+        field = np.where(self.ended(z_m), np.minimum(field, self.f_deepest), field)
         return self._evidenced(field)
 
     def _seam_filled(self, movement: np.ndarray, z_m: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -226,7 +226,7 @@ class DepthTrend:
         unevidenced = inside & ~parts_touching(inside, self.drilled_any, np.ones((3, 3)))
         return np.where(unevidenced, np.minimum(field, -self.grid.cell_size_m), field)
 
-    def _ended(self, z_m: float) -> np.ndarray:
+    def ended(self, z_m: float) -> np.ndarray:
         """Cells whose evidence is older than the deepest bench and likely no longer holds at ``z_m``.
 
         At the deepest bench's own level, the rest of a bench drilled over part of the pit is judged as the
