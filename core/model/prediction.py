@@ -219,7 +219,7 @@ def between_drillings(model: GeozoneModel, z_m: float, hole_spacing_m: float) ->
     the bench's own drilling (closing the seam, as the extension does) and no further than both
     drillings. Empty off the benches' levels, at the top and deepest benches, and where no such ground is.
     With the known holes :func:`with_undrilled_ground` takes the implicit model's section there instead (on
-    such Kennecott holes 78.2 against its 83.4): this is the section without them.
+    such Kennecott holes this 78.2 F1, the implicit model 83.4): this is the section without them.
     """
     fields = model.fields
     k = None if fields is None else bench_at(fields.z_m, z_m)
@@ -340,7 +340,9 @@ def predict_geozone(
     neighbourhoods (the transport's smoothing, the distance cap); ``params``
     is unused (kept for callers). With the table's ``holes`` (the known benches'), at and below the deepest bench
     the ground no known bench drilled takes the implicit model's section where the geozone's own benches chose it
-    (:func:`core.model.new_ground.with_implicit_in_new_ground`), and above it the ground the bench at or above
+    (:func:`core.model.new_ground.with_implicit_in_new_ground`), below it the ground only benches two or more
+    above the deepest drilled takes it where the trend let that evidence go
+    (:func:`core.model.new_ground.with_implicit_in_stale_ground`), and above it the ground the bench at or above
     the elevation did not drill takes it (:func:`with_undrilled_ground`); without them, the depth trend's throughout.
 
     ``progress(done, total)`` is told, as one series that never goes back
