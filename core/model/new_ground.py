@@ -372,7 +372,7 @@ def stale_ground(fields: BenchFields) -> np.ndarray:
     n = len(fields.z_m)
     if n < 3:
         return np.zeros(fields.grid.shape, bool)
-    return drilled_down_to(fields, n - 3) & ~fields.drilled[n - 2] & ~fields.drilled[n - 1]
+    return older_ground(fields, n - 2) & ~fields.drilled[n - 1]
 
 
 def with_implicit_in_stale_ground(
