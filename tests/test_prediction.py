@@ -91,6 +91,22 @@ def _bench_table(sections, spacing=6.0, extent=(200.0, 160.0), isolated=None, na
     return blastholes_from_table(pd.concat(frames, ignore_index=True), source="constructed")
 
 
+def _drilled_west_from(sections, bench: int, deepest: int | None = None, west_m: float = 90.0):
+    """:func:`_bench_table` of ``sections`` as a table of one moment: from ``bench`` down to ``deepest`` (all:
+    None) drilled in the west ``west_m`` only, the benches below not yet. Returns the whole table, the table
+    of that moment and ``later(k)``: bench ``k``'s holes in the east, a spacing past that drilling's edge."""
+    full = _bench_table(sections)
+    x = full.xy[:, 0]
+    west = x < x.min() + west_m
+    deepest = full.n_benches - 1 if deepest is None else deepest
+    partly = full.subset((full.bench < bench) | (west & (full.bench <= deepest)))
+
+    def later(k: int) -> np.ndarray:
+        return (full.bench == k) & (x > x.min() + west_m + full.hole_spacing_m)
+
+    return full, partly, later
+
+
 def _design_to_local(holes) -> np.ndarray:
     """The translation from :func:`_bench_table`'s design coordinates (its sections') to the holes' local frame."""
     return np.array([650_000.0, 7_400_000.0]) - np.asarray(holes.frame.to_input(np.zeros((1, 2)))[0])
@@ -1646,14 +1662,12 @@ def test_a_bench_not_yet_drilled_where_benches_above_were_keeps_the_body_its_own
     from core.model.session import ModelSession
 
     def f1_east(sections):
-        full = _bench_table(sections)
-        x = full.xy[:, 0]
-        west = x < x.min() + 90.0
-        session = ModelSession(full.subset((full.bench < 2) | west))
+        full, partly, later = _drilled_west_from(sections, 2)
+        session = ModelSession(partly)
         scores = []
         for k in (2, 3):
             z = float(full.bench_levels_m[k])
-            east = (full.bench == k) & (x > x.min() + 90.0 + full.hole_spacing_m)
+            east = later(k)
             label = full.geozone[east] == "a"
             assert label.sum() > 90 and (~label).sum() > 90
             scores.append(_holes_f1(session.predict("a", [z])[z], full.xy[east], label))
@@ -1676,13 +1690,10 @@ def test_the_deepest_benchs_level_reads_every_benchs_holes_in_ground_last_drille
     from core.model.session import ModelSession, surface_sections
 
     def east(sections):
-        full = _bench_table(sections)
-        x = full.xy[:, 0]
-        west = x < x.min() + 90.0
-        partly = full.subset((full.bench < 3) | (west & (full.bench < 5)))
+        full, partly, later_on = _drilled_west_from(sections, 3, deepest=4)
         session = ModelSession(partly)
         z = float(full.bench_levels_m[4])
-        later = (full.bench == 4) & (x > x.min() + 90.0 + full.hole_spacing_m)
+        later = later_on(4)
         label = full.geozone[later] == "a"
         assert label.sum() > 90 and (~label).sum() > 90
         section = session.predict("a", [z])[z]
@@ -1708,13 +1719,11 @@ def test_below_the_deepest_the_stale_ground_takes_the_implicit_model_only_where_
     from core.model.session import ModelSession
 
     def below(sections):
-        full = _bench_table(sections)
-        x = full.xy[:, 0]
-        partly = full.subset((full.bench < 3) | ((x < x.min() + 90.0) & (full.bench < 5)))
+        full, partly, later_on = _drilled_west_from(sections, 3, deepest=4)
         session = ModelSession(partly)
         model = session.geozone_model("a")
         z = float(full.bench_levels_m[5])
-        later = (full.bench == 5) & (x > x.min() + 90.0 + full.hole_spacing_m)
+        later = later_on(5)
         label = full.geozone[later] == "a"
         return full.xy[later], label, session.predict("a", [z])[z], model, z, partly
 
