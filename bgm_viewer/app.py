@@ -21,7 +21,6 @@ import functools
 import itertools
 import threading
 import time
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +48,7 @@ from .model import (
     project_read_options,
 )
 from .scene import SceneRenderer, drag_on_plane
-from .silence import silenced
+from .silence import noted, silenced
 
 Qt = QtCore.Qt
 Signal = QtCore.Signal
@@ -1013,7 +1012,7 @@ class MainWindow(QtWidgets.QMainWindow):
             return False
 
         def restore() -> None:
-            model, notes = _noted(lambda: self.model.restored(offer))
+            model, notes = noted(lambda: self.model.restored(offer))
             self._replace_model(model)
             self._tell(notes)
 
@@ -1296,7 +1295,7 @@ class MainWindow(QtWidgets.QMainWindow):
         columns, bench height); returns what reading them warned of (repairs, a unit guessed), also shown by the dialog.
         """
         cache = self.model.store.cache is not None
-        model, notes = _noted(lambda: ViewerModel(path, cache=cache, read_options=read_options))
+        model, notes = noted(lambda: ViewerModel(path, cache=cache, read_options=read_options))
         model.layer_visibility = dict(self.model.layer_visibility)  # another table: the layers stay as ticked
         self._replace_model(model)
         if model.holes.unit_guess:  # a unit it had to guess is said, not taken silently
@@ -1391,7 +1390,7 @@ class MainWindow(QtWidgets.QMainWindow):
             model.load_project(path)
             return model
 
-        model, notes = _noted(load)
+        model, notes = noted(load)
         self._replace_model(model)
         self.offer_restore()
         return notes
@@ -1676,23 +1675,6 @@ selects its geozone (and bench pair and component)</td></tr>
 </table>
 <p>The Geozones dock shows or hides each geozone; Benches and section hides benches, limits
 elevations and cuts the view with a plane you drag along its axis.</p>"""
-
-
-def _noted(fn):
-    """``(fn(), messages)``: the messages of the :class:`~core.errors.BGMWarning` ``fn`` gave, which go
-    on stderr too. Other warnings pass on as usual.
-    """
-    from core.errors import BGMWarning
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", BGMWarning)
-        out = fn()
-    notes = []
-    for w in caught:
-        if issubclass(w.category, BGMWarning):
-            notes.append(str(w.message))
-        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-    return out, notes
 
 
 def _quietly(inputs, previous, step, cancelled):

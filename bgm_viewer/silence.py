@@ -11,7 +11,14 @@ Here one filter, kept first in the process's list, ignores every warning given i
 context (:mod:`contextvars`) and matches none elsewhere: the work's warnings, and those of the
 threads it starts through :func:`core.threads.on_threads` (which run in its context), are
 dropped before any other filter sees them (neither counted as shown nor raised by ``-W error``);
-every other thread's go on as before. Plain Python: no Qt.
+every other thread's go on as before.
+
+Opening a file is the converse: the window's thread keeps the engine's warnings it gives
+(:func:`noted`) to show them in a dialog. ``catch_warnings(record=True)`` did that by taking
+every thread's warnings meanwhile: a run's silenced ones, which its filter went before, and a
+plain thread's, as if the file had said them. Here the notes are kept in the context that
+opens the file (and the threads it starts), by a ``showwarning`` that only reads the context.
+Plain Python: no Qt.
 """
 
 from __future__ import annotations
@@ -19,10 +26,13 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import TypeVar, cast
 
+from core.errors import BGMWarning
+
 Item = TypeVar("Item")
+Result = TypeVar("Result")
 
 #: True in the context of work whose warnings are silenced (see :func:`silenced`).
 _SILENCED = contextvars.ContextVar("bgm_viewer_warnings_silenced", default=False)
@@ -80,3 +90,61 @@ def silenced(steps: Iterator[Item]) -> Iterator[Item]:
         close = getattr(steps, "close", None)
         if close is not None:  # its clean-up, stopped early, is silenced too
             context.run(close)
+
+
+#: The messages of the engine's warnings given in a context that keeps them (see :func:`noted`); None elsewhere.
+_NOTES: contextvars.ContextVar[list[str] | None] = contextvars.ContextVar("bgm_viewer_warnings_noted", default=None)
+
+
+class _InNotingContext:
+    """A warnings filter's message pattern matching any message given in a noting context, and none elsewhere."""
+
+    def match(self, message: str) -> bool:
+        return _NOTES.get() is not None
+
+    def __repr__(self) -> str:
+        return "<any message in a context bgm_viewer.silence.noted>"
+
+
+#: Show every engine warning given in a noting context, one given before at the same place too (a file opened again).
+NOTED_FILTER = ("always", _InNotingContext(), BGMWarning, None, 0)
+
+
+class _NotingShow:
+    """A ``warnings.showwarning`` keeping an engine warning's message in its context's notes, then showing it as before."""
+
+    def __init__(self, show: Callable) -> None:
+        self.show = show
+
+    def __call__(self, message, category, filename, lineno, file=None, line=None) -> None:
+        notes = _NOTES.get()
+        if notes is not None and issubclass(category, BGMWarning):
+            notes.append(str(message))
+        self.show(message, category, filename, lineno, file, line)
+
+
+def _noting() -> None:
+    """Install :class:`_NotingShow` and :data:`NOTED_FILTER`, again if a ``catch_warnings`` put back what it found."""
+    if not isinstance(warnings.showwarning, _NotingShow):
+        warnings.showwarning = _NotingShow(warnings.showwarning)
+    filters = cast(list, warnings.filters)
+    with contextlib.suppress(ValueError):
+        filters.remove(NOTED_FILTER)
+    # A filter added the public way makes the process forget where warnings were shown, so that a file opened again
+    # says its notes again; it is then made the noting context's.
+    warnings.filterwarnings("always", category=BGMWarning)
+    filters[filters.index(("always", None, BGMWarning, None, 0))] = NOTED_FILTER
+
+
+def noted(fn: Callable[[], Result]) -> tuple[Result, list[str]]:
+    """``(fn(), messages)``: the messages of the :class:`~core.errors.BGMWarning` ``fn`` gave, which go on stderr too.
+
+    Only ``fn``'s (and those of the threads it starts through :func:`core.threads.on_threads`): another thread's
+    warnings meanwhile, a run's silenced ones among them, are neither kept nor changed. Other warnings pass on as
+    usual.
+    """
+    notes: list[str] = []
+    context = contextvars.copy_context()
+    context.run(_NOTES.set, notes)
+    _noting()
+    return context.run(fn), notes
