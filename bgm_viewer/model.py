@@ -253,6 +253,8 @@ class _Numbering:
     selection: Selection
     #: The selection the run moved to, following the corrected component (``None``: it did not move it).
     moved_to: Selection | None = None
+    #: Whether the user changed the overrides since the run moved them (on the run's numbers).
+    edited: bool = False
 
 
 Progress = tuple[str, float, PipelineResult]
@@ -988,19 +990,60 @@ class ViewerModel:
         with the corrected one) as soon as it has traced the selected bench pair. Stopped after that,
         the picture went back to the last finished run while the overrides kept the stopped run's
         numbers: the panel showed another component's override, and the next edit mixed the two
-        numberings. An edit made since the run moved them is kept, as it is (it was made on them).
+        numberings. Edits made since the run moved them were made on its numbers: they follow their
+        components back to the picture's (:meth:`_edited_on_stopped_numbers`).
         """
         before, self._before_relocation = self._before_relocation, None
-        if before is None:
+        if before is None or (before.edited and not self._edited_on_stopped_numbers(before)):
             return
-        self.overrides = before.overrides
-        self._placed_params = before.placed_params
-        self._undo, self._redo = before.undo, before.redo
-        self.override_notes = before.notes
+        if not before.edited:
+            self.overrides = before.overrides
+            self._placed_params = before.placed_params
+            self._undo, self._redo = before.undo, before.redo
+            self.override_notes = before.notes
         if before.moved_to is not None and self.selection == before.moved_to:
             self.selection = before.selection
             self.selection_changed.emit(self.selection)
         self.overrides_changed.emit()
+
+    def _edited_on_stopped_numbers(self, before: _Numbering) -> bool:
+        """Move overrides edited on a stopped run's numbers to the picture's components, by where they are.
+
+        Each follows its components' outlines (:func:`bgm_viewer.alignment.relocate_overrides`) into the
+        last finished run's contours; Undo then brings back the overrides as they were before the run
+        moved them. When one has no single component there (a body only the new sliders draw), none is
+        moved and the notes say why: False, and they keep the run's numbers, as Run again needs them.
+        """
+        from core.io.project import same_elevation
+
+        from .alignment import relocate_overrides
+
+        shown = self.last_complete
+        if shown is None:
+            return False
+        holes = self.holes
+
+        def outlines(geozone: str, source_z: float):
+            k = next((k for k in range(holes.n_benches - 1) if same_elevation(holes.bench_z_input(k), source_z)), None)
+            if k is None or k not in shown.contours or k + 1 not in shown.contours:
+                return None
+            contours = (modelled_contours(shown.contours[b], geozone, b, shown.min_component_holes) for b in (k, k + 1))
+            return tuple([c.polygon for c in part] for part in contours)
+
+        back, notes = relocate_overrides(self.overrides, outlines, unit=holes.frame.length_unit)
+        if len(back) < len(self.overrides):
+            self.override_notes = [
+                "Stop kept the alignment overrides on the stopped run's component numbers: "
+                + "; ".join(n for n in notes if "dropped" in n or "no longer" in n)
+            ]
+            self.overrides_changed.emit()
+            return False
+        self.overrides = back
+        self._placed_params = before.placed_params
+        self._undo = [*before.undo, UndoStep(copy.deepcopy(before.overrides))]  # the edits: one step
+        self._redo = []
+        self.override_notes = []
+        return True
 
     def _take_relocated(self, relocated: Relocation | None) -> None:
         """Take a run's overrides as they followed renumbered components (unless the user changed them since).
@@ -1347,9 +1390,13 @@ class ViewerModel:
         self.overrides_changed.emit()
 
     def _edited_overrides(self) -> None:
-        """Count a change of the overrides by the user: a run begun before it no longer changes them, nor Stop."""
+        """Count a change of the overrides by the user: a run begun before it no longer changes them.
+
+        Made after a run moved them to its numbers, Stop moves them back by where their components are.
+        """
         self._override_edits += 1
-        self._before_relocation = None
+        if self._before_relocation is not None:
+            self._before_relocation.edited = True
 
     @property
     def can_undo(self) -> bool:

@@ -399,3 +399,88 @@ def test_stop_gives_the_overrides_back_the_numbers_of_the_last_finished_run():
     assert [(o.source, o.translation) for o in model.overrides] == [(2, (3.0, -2.0))]
     assert model.selection.component == 2
     np.testing.assert_allclose(model.result.correspondence.translations[2], (3.0, -2.0), atol=1e-9)
+
+
+def test_an_alignment_edited_during_a_renumbering_run_follows_its_body_back_when_the_run_is_stopped():
+    """An edit made after a slider's run had moved the overrides to its numbers was made on those numbers. Stopped
+    then, the picture went back to the last finished run while the edited override kept the stopped run's number:
+    C's new shift sat on component 2, which the picture does not have. It now follows C back to number 1."""
+    from bgm_viewer.model import ViewerModel, compute
+
+    model = ViewerModel(_three_bodies_holes(), cache=False)
+    model.select("g1", 0, 1)
+    _run(model, "contours")
+    model.set_translation(3.0, -2.0)  # C, component 1 under the default parameters
+    _run(model, "correspondence")
+    assert len(model.result.pair.sources) == 2
+
+    step = model.set_param("keep_isolated_holes", True)  # renumbers C 1 -> 2 (see _three_bodies_holes)
+    steps = compute(model.inputs(), model.result, step, until="correspondence")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for _, _, result in steps:
+            model.set_result(result)
+            if model.overrides[0].source == 2:
+                break
+    steps.close()
+    assert model.selection.component == 2
+    model.set_translation(5.0, 1.0)  # C again, on the stopped run's number
+    assert [(o.source, o.translation) for o in model.overrides] == [(2, (5.0, 1.0))]
+
+    model.stop()
+    assert [(o.source, o.translation) for o in model.overrides] == [(1, (5.0, 1.0))]
+    assert model.selection.component == 1 and model.override_here() is model.overrides[0]
+    assert model.result.selected_contour(model.selection).polygon.centroid.x > 40.0  # C, as the override says
+    np.testing.assert_allclose(model.translation_m(), (5.0, 1.0), atol=1e-9)
+    model.undo()  # the edit made during the run, on the picture's numbers
+    assert [(o.source, o.translation) for o in model.overrides] == [(1, (3.0, -2.0))]
+    assert model.param("keep_isolated_holes") is True
+    model.redo()
+
+    _run(model, "contours")  # Run again: C's override follows it to its new number
+    assert [(o.source, o.translation) for o in model.overrides] == [(2, (5.0, 1.0))]
+    np.testing.assert_allclose(model.result.correspondence.translations[2], (5.0, 1.0), atol=1e-9)
+
+
+def _run_until(model, step: str, done) -> None:
+    """Take a run's results from ``step`` until ``done()``, then stop taking them (the run is then stopped)."""
+    from bgm_viewer.model import compute
+
+    steps = compute(model.inputs(), model.result, step, until="correspondence")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for _, _, result in steps:
+            model.set_result(result)
+            if done():
+                break
+    steps.close()
+
+
+def test_edits_on_bodies_the_picture_does_not_tell_apart_keep_the_stopped_runs_numbers_and_say_so():
+    """B and the main body are one component under the picture's parameters: shifts edited on both during the
+    stopped runs cannot both follow them back. Nothing is lost: they keep the runs' numbers, which Run again
+    needs, and the notes say why."""
+    from bgm_viewer.model import ViewerModel
+
+    model = ViewerModel(_three_bodies_holes(), cache=False)
+    model.select("g1", 0, 1)
+    _run(model, "contours")
+    model.set_translation(3.0, -2.0)
+    _run(model, "correspondence")
+    _run_until(model, model.set_param("keep_isolated_holes", True), lambda: model.overrides[0].source == 2)
+    for component, shift in ((0, (1.0, 0.0)), (1, (0.0, 1.0))):  # B, then the main body: one component before
+        _run_until(
+            model,
+            model.select("g1", 0, component),
+            lambda: model.result.selection == model.selection and model.result.pair is not None,
+        )
+        model.set_translation(*shift)
+    edited = sorted((o.source, o.translation) for o in model.overrides)
+    assert edited == [(0, (1.0, 0.0)), (1, (0.0, 1.0)), (2, (3.0, -2.0))]
+    assert len(model.last_complete.pair.sources) == 2  # the picture: B and the main body are one component
+
+    model.stop()
+    assert sorted((o.source, o.translation) for o in model.overrides) == edited
+    assert any("Stop kept the alignment overrides" in n and "dropped" in n for n in model.override_notes)
+    _run(model, "contours")  # Run again: each applies to its own body
+    assert sorted((o.source, o.translation) for o in model.overrides) == edited
