@@ -1739,6 +1739,34 @@ def test_below_the_deepest_the_stale_ground_takes_the_implicit_model_only_where_
     assert _holes_f1(taken, xy, label) > _holes_f1(section, xy, label) + 0.1
 
 
+def test_below_the_deepest_the_stale_ground_passes_from_the_deepest_levels_section_to_the_trends_over_a_bench():
+    """The stale ground takes the implicit model's section at the deepest level and, where the depth trend holds
+    that evidence, the trend's below: the surface's sections jumped from one to the other within a fiftieth of a
+    bench (Kennecott's 3310 lost 17% of its area there), a ledge. The table of the tests above, a body widening
+    15 m a bench: the passage now takes the whole bench, and at one bench below the trend's section is kept."""
+    from core.model.new_ground import known_holes, stale_ground, with_stale_ground_joined
+    from core.model.session import ModelSession
+
+    secs = [shapely.box(60.0, 40.0, 100.0 + 15.0 * k, 120.0) for k in range(6)]
+    _, partly, _ = _drilled_west_from(secs, 3, deepest=4)
+    session = ModelSession(partly)
+    fields = session.geozone_model("a").fields
+    h, z0 = fields.bench_height_m, float(fields.z_m[-1])
+    stale = fields.grid.polygons_from_mask(stale_ground(fields))
+    zs = [z0, z0 - 0.02 * h, z0 - 0.5 * h, z0 - h]
+    sections = session.predict("a", zs)
+    area = [shapely.intersection(sections[z], stale).area for z in zs]
+    whole = abs(area[0] - area[3])
+    assert whole > 1000.0  # the two sections differ there (1,474 m²)
+    jump = shapely.intersection(sections[zs[0]].symmetric_difference(sections[zs[1]]), stale).area
+    assert jump < 0.1 * whole, (jump, whole)  # 1,528 m² without the passage, 70 with it
+    assert abs(area[2] - 0.5 * (area[0] + area[3])) < 0.25 * whole, area  # half way at half a bench
+    below, known = sections[zs[3]], known_holes(partly, "a")
+    ended = np.zeros(stale_ground(fields).shape, bool)  # the trend holds all that evidence
+    kept = with_stale_ground_joined(below, fields, known, zs[3], ended, partly.hole_spacing_m)
+    assert kept.symmetric_difference(below).area < 1e-6  # one bench below: the trend's section
+
+
 def test_older_ground_is_where_benches_above_drilled_and_the_bench_did_not():
     """The ground whose next bench the depth trend predicts from evidence two or more benches old: bench 2 drilled
     in its west only (several benches are drilled at once), bench 3 everywhere. Its east is older ground below

@@ -323,6 +323,17 @@ def as_multipolygon(geometry) -> MultiPolygon:
     return MultiPolygon(parts)
 
 
+def without_specks(region: MultiPolygon, min_area_m2: float) -> MultiPolygon:
+    """``region`` less its parts and holes smaller than ``min_area_m2`` (what a field of that cell cannot resolve)."""
+    return MultiPolygon(
+        [
+            Polygon(part.exterior, [hole for hole in part.interiors if Polygon(hole).area >= min_area_m2])
+            for part in region.geoms
+            if part.area >= min_area_m2
+        ]
+    )
+
+
 def local_gaussian_filter(values: np.ndarray, sigma_cells: float) -> np.ndarray:
     """:func:`scipy.ndimage.gaussian_filter` (its default reflecting edges and reach) of a mostly-zero 2-D array.
 

@@ -34,6 +34,7 @@ from core.model.new_ground import (
     with_implicit_in_new_ground,
     with_implicit_in_older_ground,
     with_implicit_in_stale_ground,
+    with_stale_ground_joined,
 )
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.model.progress import Stages
@@ -342,7 +343,9 @@ def predict_geozone(
     the ground no known bench drilled takes the implicit model's section where the geozone's own benches chose it
     (:func:`core.model.new_ground.with_implicit_in_new_ground`), below it the ground only benches two or more
     above the deepest drilled takes it where the trend let that evidence go
-    (:func:`core.model.new_ground.with_implicit_in_stale_ground`), and above it the ground the bench at or above
+    (:func:`core.model.new_ground.with_implicit_in_stale_ground`) and elsewhere passes over the first bench
+    from the deepest level's section to the trend's (:func:`core.model.new_ground.with_stale_ground_joined`),
+    and above it the ground the bench at or above
     the elevation did not drill takes it (:func:`with_undrilled_ground`); without them, the depth trend's throughout.
 
     ``progress(done, total)`` is told, as one series that never goes back
@@ -381,6 +384,7 @@ def predict_geozone(
                 out[z] = with_implicit_in_older_ground(out[z], fields, known, z, height, hole_spacing_m)
                 ended = depth_trend(fields, height, hole_spacing_m).ended(z)
                 out[z] = with_implicit_in_stale_ground(out[z], fields, known, z, ended)
+                out[z] = with_stale_ground_joined(out[z], fields, known, z, ended, hole_spacing_m)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             region = MultiPolygon()

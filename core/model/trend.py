@@ -18,11 +18,10 @@ from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
-import shapely
 from scipy import ndimage
 from shapely.geometry import MultiPolygon
 
-from core.geometry.grid import Grid, local_gaussian_filter
+from core.geometry.grid import Grid, local_gaussian_filter, without_specks
 from core.geometry.sdf import smoothed_section
 from core.model.fields import TRANSPORTS_MEMO, BenchFields, parts_touching
 from core.model.movement import unit_normals
@@ -305,15 +304,7 @@ class DepthTrend:
         the drilling): below the demo's deepest bench the host geozone had
         dozens, most of no area at all, and g2 holes of a few hundredths of a m2.
         """
-        region = self.grid.polygons_from_distance(self.field(z_m))
-        cell = self.grid.cell_size_m**2
-        return MultiPolygon(
-            [
-                shapely.Polygon(part.exterior, [hole for hole in part.interiors if shapely.Polygon(hole).area >= cell])
-                for part in region.geoms
-                if part.area >= cell
-            ]
-        )
+        return without_specks(self.grid.polygons_from_distance(self.field(z_m)), self.grid.cell_size_m**2)
 
     def replaced(self, **changes) -> DepthTrend:
         """A copy with ``changes`` (not of the last section) that shares what the transport made of the last section."""
