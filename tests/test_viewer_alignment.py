@@ -356,12 +356,26 @@ def test_an_override_opened_from_a_project_stays_on_its_body_when_a_slider_renum
     np.testing.assert_allclose(opened.result.correspondence.translations[2], (3.0, -2.0), atol=1e-9)
 
 
+def _run_until(model, step: str, done) -> None:
+    """Take a run's results from ``step`` until ``done()``, then stop taking them (the run is then stopped)."""
+    from bgm_viewer.model import compute
+
+    steps = compute(model.inputs(), model.result, step, until="correspondence")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for _, _, result in steps:
+            model.set_result(result)
+            if done():
+                break
+    steps.close()
+
+
 def test_stop_gives_the_overrides_back_the_numbers_of_the_last_finished_run():
     """A slider's run moves the overrides to their renumbered components as soon as it has traced the selected
     bench pair (and the selection with the corrected one). Stopped then, the picture went back to the last finished
     run but the overrides kept the stopped run's numbers: the panel showed C's lock on the main body's number,
     and Undo undid the slider instead of the last edit. Stop now gives them back the picture's numbers."""
-    from bgm_viewer.model import ViewerModel, compute
+    from bgm_viewer.model import ViewerModel
 
     model = ViewerModel(_three_bodies_holes(), cache=False)
     model.select("g1", 0, 1)
@@ -372,14 +386,7 @@ def test_stop_gives_the_overrides_back_the_numbers_of_the_last_finished_run():
     assert finished.complete and finished.pair.sources[1].polygon.centroid.x > 40.0
 
     step = model.set_param("keep_isolated_holes", True)  # renumbers C 1 -> 2 (see _three_bodies_holes)
-    steps = compute(model.inputs(), model.result, step, until="correspondence")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for _, _, result in steps:
-            model.set_result(result)
-            if model.overrides[0].source == 2:
-                break
-    steps.close()
+    _run_until(model, step, lambda: model.overrides[0].source == 2)
     assert (model.overrides[0].source, model.selection.component) == (2, 2)  # the stopped run's numbers
 
     model.stop()
@@ -405,7 +412,7 @@ def test_an_alignment_edited_during_a_renumbering_run_follows_its_body_back_when
     """An edit made after a slider's run had moved the overrides to its numbers was made on those numbers. Stopped
     then, the picture went back to the last finished run while the edited override kept the stopped run's number:
     C's new shift sat on component 2, which the picture does not have. It now follows C back to number 1."""
-    from bgm_viewer.model import ViewerModel, compute
+    from bgm_viewer.model import ViewerModel
 
     model = ViewerModel(_three_bodies_holes(), cache=False)
     model.select("g1", 0, 1)
@@ -415,14 +422,7 @@ def test_an_alignment_edited_during_a_renumbering_run_follows_its_body_back_when
     assert len(model.result.pair.sources) == 2
 
     step = model.set_param("keep_isolated_holes", True)  # renumbers C 1 -> 2 (see _three_bodies_holes)
-    steps = compute(model.inputs(), model.result, step, until="correspondence")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for _, _, result in steps:
-            model.set_result(result)
-            if model.overrides[0].source == 2:
-                break
-    steps.close()
+    _run_until(model, step, lambda: model.overrides[0].source == 2)
     assert model.selection.component == 2
     model.set_translation(5.0, 1.0)  # C again, on the stopped run's number
     assert [(o.source, o.translation) for o in model.overrides] == [(2, (5.0, 1.0))]
@@ -440,20 +440,6 @@ def test_an_alignment_edited_during_a_renumbering_run_follows_its_body_back_when
     _run(model, "contours")  # Run again: C's override follows it to its new number
     assert [(o.source, o.translation) for o in model.overrides] == [(2, (5.0, 1.0))]
     np.testing.assert_allclose(model.result.correspondence.translations[2], (5.0, 1.0), atol=1e-9)
-
-
-def _run_until(model, step: str, done) -> None:
-    """Take a run's results from ``step`` until ``done()``, then stop taking them (the run is then stopped)."""
-    from bgm_viewer.model import compute
-
-    steps = compute(model.inputs(), model.result, step, until="correspondence")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for _, _, result in steps:
-            model.set_result(result)
-            if done():
-                break
-    steps.close()
 
 
 def test_edits_on_bodies_the_picture_does_not_tell_apart_keep_the_stopped_runs_numbers_and_say_so():
