@@ -417,6 +417,28 @@ def compute(
     yield "done", 1.0, run.snapshot()
 
 
+def _pair_outlines(holes: Blastholes, contours: Callable[[int], list | None], min_holes: int):
+    """``outlines(geozone, source_z)`` (:data:`bgm_viewer.alignment.PairOutlines`) of the benches' ``contours(k)``.
+
+    ``None`` for a bench pair one of whose benches' contours are not at hand (``contours(k)`` is ``None``).
+    """
+    from core.io.project import same_elevation
+
+    def outlines(geozone: str, source_z: float):
+        k = next((k for k in range(holes.n_benches - 1) if same_elevation(holes.bench_z_input(k), source_z)), None)
+        if k is None:
+            return None
+        upper, lower = contours(k), contours(k + 1)
+        if upper is None or lower is None:
+            return None
+        return tuple(
+            [c.polygon for c in modelled_contours(part, geozone, b, min_holes)]
+            for b, part in ((k, upper), (k + 1, lower))
+        )
+
+    return outlines
+
+
 def _relocate(run: _Run, fresh: set[int]) -> None:
     """Move the run's overrides to their components in the contours of the ``fresh`` benches (this run's).
 
@@ -424,34 +446,24 @@ def _relocate(run: _Run, fresh: set[int]) -> None:
     it by its new number, and one whose component cannot be found again is dropped, never
     applied to another component. What moved is in ``run.res.relocated`` and its errors.
     """
-    from core.io.project import same_elevation
 
-    from .alignment import PairOutlines, place_unplaced, relocate_overrides
+    from .alignment import place_unplaced, relocate_overrides
 
     session, res = run.session, run.res
     if session.project is None or not session.project.overrides:
         return
     holes = session.holes
-
-    def pair_outlines(contours: Callable[[int], list], min_holes: int) -> PairOutlines:
-        def outlines(geozone: str, source_z: float):
-            z = holes.bench_z_input
-            k = next((k for k in range(holes.n_benches - 1) if same_elevation(z(k), source_z)), None)
-            if k is None or k not in fresh or k + 1 not in fresh:
-                return None
-            return tuple([c.polygon for c in modelled_contours(contours(b), geozone, b, min_holes)] for b in (k, k + 1))
-
-        return outlines
-
     overrides = session.project.overrides
-    now = pair_outlines(lambda b: res.contours.get(b, []), res.min_component_holes)
+    now = _pair_outlines(holes, lambda b: res.contours.get(b, []) if b in fresh else None, res.min_component_holes)
     numbered = now  # the components the overrides not yet placed name by number
     placed = run.inputs.placed_params
     if placed is not None and placed != session.params:
         # Overrides opened from a project are numbered under its parameters: placed on those components first
         # (stored, or traced once), they follow their bodies to this run's numbers below, never its numbers.
         under = session.updated(params=placed)
-        numbered = pair_outlines(lambda b: under.bench_contours(b, run.progress), placed.min_component_holes)
+        numbered = _pair_outlines(
+            holes, lambda b: under.bench_contours(b, run.progress) if b in fresh else None, placed.min_component_holes
+        )
     overrides, missing, missing_notes = _without_missing_components(overrides, numbered, holes)
     if numbered is not now:
         overrides = place_unplaced(overrides, numbered)
@@ -1014,23 +1026,13 @@ class ViewerModel:
         moved them. When one has no single component there (a body only the new sliders draw), none is
         moved and the notes say why: False, and they keep the run's numbers, as Run again needs them.
         """
-        from core.io.project import same_elevation
-
         from .alignment import relocate_overrides
 
         shown = self.last_complete
         if shown is None:
             return False
-        holes = self.holes
-
-        def outlines(geozone: str, source_z: float):
-            k = next((k for k in range(holes.n_benches - 1) if same_elevation(holes.bench_z_input(k), source_z)), None)
-            if k is None or k not in shown.contours or k + 1 not in shown.contours:
-                return None
-            contours = (modelled_contours(shown.contours[b], geozone, b, shown.min_component_holes) for b in (k, k + 1))
-            return tuple([c.polygon for c in part] for part in contours)
-
-        back, notes = relocate_overrides(self.overrides, outlines, unit=holes.frame.length_unit)
+        outlines = _pair_outlines(self.holes, shown.contours.get, shown.min_component_holes)
+        back, notes = relocate_overrides(self.overrides, outlines, unit=self.holes.frame.length_unit)
         if len(back) < len(self.overrides):
             self.override_notes = [
                 "Stop kept the alignment overrides on the stopped run's component numbers: "

@@ -430,11 +430,11 @@ def with_stale_ground_joined(
     """
     n = len(fields.z_m)
     w = (float(fields.z_m[-1]) - z_m) / fields.bench_height_m  # the share of the way to one bench below
-    joined = stale_ground(fields) & ~ended
+    stale = stale_ground(fields)
+    joined = stale & ~ended
     if not 0 < w < 1 or not joined.any():
         return as_multipolygon(region)
     deepest = float(fields.z_m[-1])
-    stale = stale_ground(fields)
     where, _ = memoised(  # as the deepest level has it (with_implicit_in_stale_ground)
         fields,
         ("stale ground", n, None),
