@@ -268,6 +268,17 @@ def with_implicit_in_new_ground(
     return memoised(fields, key, compute)
 
 
+def implicit_in_older_ground(
+    fields: BenchFields, holes: KnownHoles, bench_height_m: float, hole_spacing_m: float
+) -> bool:
+    """Whether the geozone's bench pairs chose the implicit model in older ground (:func:`pair_errors` with
+    ``ground="older"``, :func:`implicit_chosen`), from the second bench down."""
+    n = len(fields.z_m)
+    return n >= 3 and implicit_chosen(
+        [pair_errors(fields, holes, j, bench_height_m, hole_spacing_m, ground="older") for j in range(1, n - 1)]
+    )
+
+
 def with_implicit_in_older_ground(
     region, fields: BenchFields, holes: KnownHoles, z_m: float, bench_height_m: float, hole_spacing_m: float
 ) -> MultiPolygon:
@@ -281,13 +292,8 @@ def with_implicit_in_older_ground(
     next bench's holes there were mostly in such ground.
     """
     n = len(fields.z_m)
-    if n < 3:
-        return as_multipolygon(region)
     older = older_ground(fields)
-    if not older.any():
-        return as_multipolygon(region)
-    errors = [pair_errors(fields, holes, j, bench_height_m, hole_spacing_m, ground="older") for j in range(1, n - 1)]
-    if not implicit_chosen(errors):
+    if not older.any() or not implicit_in_older_ground(fields, holes, bench_height_m, hole_spacing_m):
         return as_multipolygon(region)
 
     def compute() -> MultiPolygon:
@@ -414,40 +420,49 @@ def with_implicit_in_stale_ground(
     return _with_implicit_field(region, fields, f, rest)
 
 
-def with_stale_ground_joined(
-    region, fields: BenchFields, holes: KnownHoles, z_m: float, ended: np.ndarray, hole_spacing_m: float
-) -> MultiPolygon:
-    """``region`` (a section less than a bench below the deepest) passing in :func:`stale_ground` from the deepest
-    level's section there to its own.
+def switched_ground(
+    fields: BenchFields, holes: KnownHoles, ended: np.ndarray, bench_height_m: float, hole_spacing_m: float
+) -> np.ndarray:
+    """The cells whose section takes another model below the deepest bench than at its level.
 
-    At the deepest bench's level the stale ground takes the implicit model's section; below it, where the depth
-    trend holds that evidence (not ``ended``), the trend's. Without a passage from one to the other, a surface's
-    sections changed there within a few metres: Kennecott's 3310 lost 17% of its section's area (11,700 m²)
-    between the deepest level and a twentieth of a bench below it, a ledge in its surface. Here the signed
-    distances pass linearly in depth from the implicit model's at the deepest level to ``region``'s, each capped
-    at 1.5 hole spacings (the implicit model's own cap), over one bench height: at one bench and below ``region``
-    is unchanged. Elsewhere ``region``.
+    At the level the stale ground takes the implicit model's section (:func:`with_implicit_in_stale_ground`) and
+    the rest of the older ground the depth trend's; below it the older ground takes the implicit model where its
+    backtests chose it (:func:`with_implicit_in_older_ground`), otherwise the stale ground takes the trend's where
+    the trend holds that evidence (not ``ended``). Switched: the rest of the older ground in the first case, that
+    stale ground in the second.
     """
-    n = len(fields.z_m)
-    w = (float(fields.z_m[-1]) - z_m) / fields.bench_height_m  # the share of the way to one bench below
     stale = stale_ground(fields)
-    joined = stale & ~ended
-    if not 0 < w < 1 or not joined.any():
+    if implicit_in_older_ground(fields, holes, bench_height_m, hole_spacing_m):
+        return older_ground(fields) & ~stale
+    return stale & ~ended
+
+
+def with_deepest_level_joined(
+    region, deepest_section, fields: BenchFields, switched: np.ndarray, z_m: float, hole_spacing_m: float
+) -> MultiPolygon:
+    """``region`` (a section less than a bench below the deepest) passing in the ``switched`` cells from
+    ``deepest_section`` (the section at the deepest bench's level) to its own over the first bench below.
+
+    There the section takes another model below the deepest bench than at its level (:func:`switched_ground`), and
+    a surface's sections changed at once: Kennecott's 3310 lost 17% of its section's area (11,700 m²) between the
+    deepest level and a twentieth of a bench below it, in its stale ground, and 3210 1,160 m² in its older ground,
+    ledges in their surfaces. Here the two sections' signed distances, each capped at 1.5 hole spacings (the
+    implicit model's own cap), are mixed in proportion to depth: at one bench and below ``region`` is unchanged.
+    Elsewhere ``region``.
+    """
+    w = (float(fields.z_m[-1]) - z_m) / fields.bench_height_m  # the share of the way to one bench below
+    if not 0 < w < 1 or not switched.any():
         return as_multipolygon(region)
-    deepest = float(fields.z_m[-1])
-    where, _ = memoised(  # as the deepest level has it (with_implicit_in_stale_ground)
-        fields,
-        ("stale ground", n, None),
-        lambda: (fields.grid.polygons_from_mask(stale), fields.grid.polygons_from_mask(~stale)),
-    )
     cap_m = 1.5 * hole_spacing_m
-    implicit = np.clip(
-        _implicit_at(fields, holes, deepest, where, ("implicit in stale ground", n, deepest)), -cap_m, cap_m
-    )
-    inside = fields.grid.rasterize(region) if not region.is_empty else np.zeros(fields.grid.shape, bool)
-    own = np.clip(_past_m(fields, ~inside) - _past_m(fields, inside), -cap_m, cap_m)
-    field = np.where(joined, (1.0 - w) * implicit + w * own, -cap_m)
-    rest = fields.grid.polygons_from_mask(~joined)
+
+    def signed_m(section) -> np.ndarray:
+        inside = fields.grid.rasterize(section) if not section.is_empty else np.zeros(fields.grid.shape, bool)
+        return np.clip(_past_m(fields, ~inside) - _past_m(fields, inside), -cap_m, cap_m)
+
+    key = ("deepest level's signed distance", len(fields.z_m), hole_spacing_m)
+    deepest = memoised(fields, key, lambda: signed_m(deepest_section))
+    field = np.where(switched, (1.0 - w) * deepest + w * signed_m(region), -cap_m)
+    rest = fields.grid.polygons_from_mask(~switched)
     # Where the two sections meet, the region's edges and the field's cross within a cell: no body there.
     return without_specks(_with_implicit_field(region, fields, field, rest), fields.grid.cell_size_m**2)
 

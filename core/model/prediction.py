@@ -30,11 +30,12 @@ from core.model.fields import BenchFields, memoised
 from core.model.new_ground import (
     KnownHoles,
     known_holes,
+    switched_ground,
+    with_deepest_level_joined,
     with_implicit_above_deepest,
     with_implicit_in_new_ground,
     with_implicit_in_older_ground,
     with_implicit_in_stale_ground,
-    with_stale_ground_joined,
 )
 from core.model.pipeline import BenchPair, GeozoneModel, MorphStep
 from core.model.progress import Stages
@@ -343,9 +344,9 @@ def predict_geozone(
     the ground no known bench drilled takes the implicit model's section where the geozone's own benches chose it
     (:func:`core.model.new_ground.with_implicit_in_new_ground`), below it the ground only benches two or more
     above the deepest drilled takes it where the trend let that evidence go
-    (:func:`core.model.new_ground.with_implicit_in_stale_ground`) and elsewhere passes over the first bench
-    from the deepest level's section to the trend's (:func:`core.model.new_ground.with_stale_ground_joined`),
-    and above it the ground the bench at or above
+    (:func:`core.model.new_ground.with_implicit_in_stale_ground`), and within a bench below it the ground that
+    takes another model than at its level passes from the one to the other
+    (:func:`core.model.new_ground.with_deepest_level_joined`); above it the ground the bench at or above
     the elevation did not drill takes it (:func:`with_undrilled_ground`); without them, the depth trend's throughout.
 
     ``progress(done, total)`` is told, as one series that never goes back
@@ -364,6 +365,7 @@ def predict_geozone(
     levels = fields.z_m
     height = fields.bench_height_m
     beyond: dict[bool, BenchFields] = {}  # the fields extrapolated down (True) or up, one view each
+    deepest_section = None  # the section at the deepest bench's level, made once when needed below it
     # The holes of the benches the fields know: the implicit model's, in new ground below the deepest bench.
     known = None if holes is None else known_holes(holes, model.geozone).down_to(float(levels[-1]))
     # The depth trend's backtests (made at the first elevation off the benches), then the elevations: told as one
@@ -384,7 +386,13 @@ def predict_geozone(
                 out[z] = with_implicit_in_older_ground(out[z], fields, known, z, height, hole_spacing_m)
                 ended = depth_trend(fields, height, hole_spacing_m).ended(z)
                 out[z] = with_implicit_in_stale_ground(out[z], fields, known, z, ended)
-                out[z] = with_stale_ground_joined(out[z], fields, known, z, ended, hole_spacing_m)
+                # Within a bench below, where the ground takes another model than at the deepest level: a passage.
+                if deepest_section is None:
+                    deepest_section = with_undrilled_ground(
+                        model.region_at_bench(len(levels) - 1), model, float(levels[-1]), hole_spacing_m, known
+                    )
+                switched = switched_ground(fields, known, ended, height, hole_spacing_m)
+                out[z] = with_deepest_level_joined(out[z], deepest_section, fields, switched, z, hole_spacing_m)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             region = MultiPolygon()
