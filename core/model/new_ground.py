@@ -29,6 +29,7 @@ from scipy import ndimage
 from shapely.geometry import MultiPolygon
 
 from core.geometry.grid import as_multipolygon, without_specks
+from core.geometry.sdf import region_signed_distance
 from core.io.blastholes import Blastholes, typical_bench_height
 from core.model.extrapolation import depth_trend_region
 from core.model.fields import BenchFields, memoised
@@ -454,14 +455,8 @@ def with_deepest_level_joined(
     if not 0 < w < 1 or not switched.any():
         return as_multipolygon(region)
     cap_m = 1.5 * hole_spacing_m
-
-    def signed_m(section) -> np.ndarray:
-        inside = fields.grid.rasterize(section) if not section.is_empty else np.zeros(fields.grid.shape, bool)
-        return np.clip(_past_m(fields, ~inside) - _past_m(fields, inside), -cap_m, cap_m)
-
-    key = ("deepest level's signed distance", len(fields.z_m), hole_spacing_m)
-    deepest = memoised(fields, key, lambda: signed_m(deepest_section))
-    field = np.where(switched, (1.0 - w) * deepest + w * signed_m(region), -cap_m)
+    deepest, own = (np.clip(region_signed_distance(fields.grid, s), -cap_m, cap_m) for s in (deepest_section, region))
+    field = np.where(switched, (1.0 - w) * deepest + w * own, -cap_m)
     rest = fields.grid.polygons_from_mask(~switched)
     # Where the two sections meet, the region's edges and the field's cross within a cell: no body there.
     return without_specks(_with_implicit_field(region, fields, field, rest), fields.grid.cell_size_m**2)
@@ -479,6 +474,6 @@ def _implicit_at(fields: BenchFields, holes: KnownHoles, z_m: float, where, key:
 
 
 def _with_implicit_field(region, fields: BenchFields, field: np.ndarray, rest) -> MultiPolygon:
-    """``region`` in ``rest`` (polygons), the implicit model's section (``field`` > 0) elsewhere."""
+    """``region`` in ``rest`` (polygons), ``field``'s section (``field`` > 0: the implicit model's) elsewhere."""
     implicit = fields.grid.polygons_from_field(field, 0.0) if (field > 0).any() else MultiPolygon()
     return as_multipolygon(shapely.union(shapely.intersection(region, rest), shapely.difference(implicit, rest)))

@@ -386,13 +386,13 @@ def predict_geozone(
                 out[z] = with_implicit_in_older_ground(out[z], fields, known, z, height, hole_spacing_m)
                 ended = depth_trend(fields, height, hole_spacing_m).ended(z)
                 out[z] = with_implicit_in_stale_ground(out[z], fields, known, z, ended)
-                # Within a bench below, where the ground takes another model than at the deepest level: a passage.
-                if deepest_section is None:
-                    deepest_section = with_undrilled_ground(
-                        model.region_at_bench(len(levels) - 1), model, float(levels[-1]), hole_spacing_m, known
-                    )
-                switched = switched_ground(fields, known, ended, height, hole_spacing_m)
-                out[z] = with_deepest_level_joined(out[z], deepest_section, fields, switched, z, hole_spacing_m)
+                if z > levels[-1] - height:  # within a bench below: a passage where the ground takes another model
+                    if deepest_section is None:
+                        deepest_section = with_undrilled_ground(
+                            model.region_at_bench(len(levels) - 1), model, float(levels[-1]), hole_spacing_m, known
+                        )
+                    switched = switched_ground(fields, known, ended, height, hole_spacing_m)
+                    out[z] = with_deepest_level_joined(out[z], deepest_section, fields, switched, z, hole_spacing_m)
         else:
             pair = next((p for p in pairs if p.target_z_m <= z <= p.source_z_m), None)
             region = MultiPolygon()
