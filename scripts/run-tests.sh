@@ -40,8 +40,9 @@ if [ ${#failed[@]} -gt 0 ]; then
 fi
 
 export QT_API=pyside6
-# One test process per core (CI has two); `-n 0` as an argument runs them in one process.
-set -- -n "${BGM_TEST_WORKERS:-2}" "$@"
+# One test process per core (CI has two); `-n 0` as an argument runs them in one process. Tests that share
+# a costly module fixture are marked with one xdist_group, so one worker computes it, not each.
+set -- -n "${BGM_TEST_WORKERS:-2}" --dist loadgroup "$@"
 if command -v xvfb-run >/dev/null 2>&1; then
   exec xvfb-run -a -s "-screen 0 1280x1024x24" .venv/bin/python -m pytest -q "$@"
 else

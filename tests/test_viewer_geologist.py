@@ -141,6 +141,7 @@ def test_predicted_contours_are_drawn_on_the_demo(demo_predicted):
     assert _predicted_pixels(demo_predicted) > 200
 
 
+@pytest.mark.xdist_group("kennecott_predicted")  # one worker computes the fixture once
 def test_predicted_contours_are_drawn_on_kennecott(kennecott_predicted):
     assert kennecott_predicted.holes.frame.length_unit == "ft"
     assert _predicted_pixels(kennecott_predicted) > 200
@@ -361,6 +362,7 @@ def test_a_clip_plane_removes_the_half_it_should(model):
     assert cut[:, :left].sum() > 0.95 * full[:, :left].sum(), "the left half was cut too"
 
 
+@pytest.mark.xdist_group("kennecott_predicted")  # one worker computes the fixture once
 def test_legend_does_not_cover_the_data(kennecott_predicted):
     from bgm_viewer.scene import LEGEND_WIDTH, world_to_pixels
 

@@ -960,17 +960,27 @@ def test_an_elevation_section_stays_at_its_elevation_when_the_exaggeration_chang
     assert cut_elevation() == pytest.approx(before, abs=0.05)  # the glyphs of the holes do not scale
 
 
-def test_a_section_is_placed_in_another_input_once_opened(window, qtbot):
-    """File > Open with a section on: the cut and its plane handle stayed where they cut the old input."""
-    from pathlib import Path
+def _another_input(tmp_path: Path) -> Path:
+    """A small table of another mine, twice as wide as :func:`small_holes`'s, written as CSV."""
+    from core.synthetic.blobs import make_mine, sample_blastholes
 
+    mine = make_mine(seed=7, n_benches=3, extent_m=(280.0, 90.0), n_pods=1)
+    path = tmp_path / "another.csv"
+    sample_blastholes(mine, seed=8).to_csv(path, index=False)
+    return path
+
+
+def test_a_section_is_placed_in_another_input_once_opened(window, qtbot, tmp_path):
+    """File > Open with a section on: the cut and its plane handle stayed where they cut the old input."""
     window.sections.axis.setCurrentIndex(1)  # easting (x)
     window.sections.position.setValue(900)
-    window.open_input(Path(__file__).parents[1] / "assets" / "demo_blastholes.csv")
+    old_cut = window.renderer.clip[1]
+    window.open_input(_another_input(tmp_path))
     qtbot.waitUntil(lambda: not window.busy and window.model.result.complete, timeout=120_000)
     lo, hi = window.renderer.data_bounds()[:2]
     axis, value, _ = window.renderer.clip
     assert axis == "x" and (value - lo) / (hi - lo) == pytest.approx(0.9, abs=0.02)
+    assert abs((old_cut - lo) / (hi - lo) - 0.9) > 0.1  # a cut left where it was would not be at 90%
 
 
 def test_a_click_reports_what_is_shown_not_what_a_section_hides(window):
@@ -1022,7 +1032,6 @@ def test_a_table_opened_in_feet_with_its_geozone_column_named_reopens_so_from_it
     """A project saved after `bgm view holes.csv --units ft --geozone-column DOMAIN_CODE` reopened without
     either (File > Open project: "no geozone column", or feet read as metres); and File > Open blastholes
     offered no units or columns. The project reads it so again, and the dialog sets both."""
-    from pathlib import Path
 
     from core.io.blastholes import read_blastholes
     from core.synthetic.blobs import make_mine, sample_blastholes
@@ -1046,7 +1055,7 @@ def test_a_table_opened_in_feet_with_its_geozone_column_named_reopens_so_from_it
         dialog.columns["geozone"].setCurrentText("DOMAIN_CODE")
         return QtWidgets.QDialog.DialogCode.Accepted
 
-    window.open_input(Path(__file__).parents[1] / "assets" / "demo_blastholes.csv")  # another input in between
+    window.open_input(_another_input(tmp_path))  # another input in between
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
     monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", lambda *a, **k: (str(csv), ""))
     monkeypatch.setattr(read_options.ReadOptionsDialog, "exec", choose)
