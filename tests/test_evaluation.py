@@ -201,6 +201,41 @@ def test_the_implicit_model_evaluated_only_where_it_is_scored_is_the_same_there(
     assert there.difference(scored.buffer(3.5 * cell_m)).is_empty
 
 
+def test_the_implicit_model_solves_each_cell_of_a_level_once_and_gives_each_ground_what_a_fresh_model_gives(
+    small_mine,
+):
+    """A model's sections at one level are asked for over several grounds (the surfaces' ground above the deepest
+    bench asks for each bench level twice), and each cell is a local solve: the cells evaluated are kept."""
+    import shapely
+
+    from core.model.implicit import fit_implicit_rbf
+
+    _, holes, _, _ = small_mine
+    known = holes.bench <= 2
+
+    def fitted():
+        return fit_implicit_rbf(
+            holes.xy[known], holes.z[known], (holes.geozone == "g1")[known], bench=holes.bench[known]
+        )
+
+    grid = ev.default_grid([holes.xy])
+    z = float(holes.bench_levels_m[3])
+    (x0, y0), (x1, y1) = holes.xy.min(axis=0), holes.xy.max(axis=0)
+    west, middle = shapely.box(x0, y0, (x0 + x1) / 2, y1), shapely.box((3 * x0 + x1) / 4, y0, (x0 + 3 * x1) / 4, y1)
+    model = fitted()
+    solved = []
+    interpolator = model.interpolator
+    model.interpolator = lambda points: solved.append(len(points)) or interpolator(points)
+    for where in (west, middle, west):
+        np.testing.assert_array_equal(model.field(z, grid, where), fitted().field(z, grid, where))
+    np.testing.assert_array_equal(model.field(z - 1.0, grid, west), fitted().field(z - 1.0, grid, west))
+    fresh = fitted()
+    fresh.interpolator = lambda points: solved.append(-len(points)) or interpolator(points)
+    fresh.field(z, grid, west.union(middle))
+    fresh.field(z - 1.0, grid, west)
+    assert len(solved) == 5 and sum(solved[:3]) == -sum(solved[3:])  # the third ground was all solved before
+
+
 def test_evaluate_geozone_with_truth(small_mine, tmp_path):
     _, holes, truth, contours = small_mine
     seen = []

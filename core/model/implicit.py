@@ -12,6 +12,7 @@ contours, and on every bench at once.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 
 import numpy as np
 import shapely
@@ -69,6 +70,10 @@ class ImplicitRBF:
     constant: float = 0.0  #: value everywhere when there is nothing to interpolate
     n_points: int = 0
     resolution_spacings: float = 1.0  #: evaluation cell size, in hole spacings
+    #: The coarse cells already evaluated, by elevation and coarse grid (NaN where not yet): a model's sections
+    #: at one level are asked for over several grounds (each bench level twice by the surfaces' ground above
+    #: the deepest bench), and each cell is a local solve.
+    _evaluated: dict[tuple[float, Grid], np.ndarray] = dataclass_field(default_factory=dict, repr=False, compare=False)
 
     def field(self, z_m: float, grid: Grid, where: Polygon | MultiPolygon | None = None) -> np.ndarray:
         """The implicit function on ``grid`` at elevation ``z_m`` (positive inside).
@@ -93,10 +98,15 @@ class ImplicitRBF:
             if where is None
             else shapely.contains_xy(where.buffer(2 * coarse.cell_size_m), X, Y)
         )
-        values = np.full(coarse.shape, -self.spacing_m)
-        if needed.any():
-            points = np.column_stack([X[needed], Y[needed], np.full(needed.sum(), z_m * self.z_scale)])
-            values[needed] = self._at(points).reshape(-1)
+        evaluated = self._evaluated.setdefault((float(z_m), coarse), np.full(coarse.shape, np.nan))
+        todo = needed & np.isnan(evaluated)
+        if todo.any():
+            interpolator = self.interpolator
+            points = np.column_stack([X[todo], Y[todo], np.full(todo.sum(), z_m * self.z_scale)])
+            evaluated[todo] = self._at(points).reshape(-1)
+            if self.interpolator is not interpolator:  # it gave up its depth trend: every cell of it again
+                return self.field(z_m, grid, where)
+        values = np.where(needed, evaluated, -self.spacing_m)
         if step == 1:
             return values[:rows, :cols]
         rr, cc = np.mgrid[0:rows, 0:cols] / step
@@ -129,6 +139,7 @@ class ImplicitRBF:
             return self.interpolator(points)
         except np.linalg.LinAlgError:
             self.interpolator = _without_depth_trend(self.interpolator)
+            self._evaluated.clear()  # cells evaluated with the depth trend are not this model's
             return self.interpolator(points)
 
     def region(self, z_m: float, grid: Grid, where: Polygon | MultiPolygon | None = None) -> MultiPolygon:

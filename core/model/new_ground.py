@@ -259,7 +259,7 @@ def with_implicit_in_new_ground(
         # Evaluated in the new ground only (its coarse cells there, :meth:`ImplicitRBF.field`): over a whole
         # Kennecott grid the sections took 8.6 s of a 83 s build.
         fresh = fields.grid.polygons_from_mask(new)
-        implicit = implicit_model(holes.down_to(float(fields.z_m[-1]))).region(z_m, fields.grid, where=fresh)
+        implicit = known_benches_implicit_model(fields, holes).region(z_m, fields.grid, where=fresh)
         drilled = fields.grid.polygons_from_mask(~new)
         return as_multipolygon(
             shapely.union(shapely.intersection(region, drilled), shapely.difference(implicit, drilled))
@@ -299,7 +299,7 @@ def with_implicit_in_older_ground(
 
     def compute() -> MultiPolygon:
         where = fields.grid.polygons_from_mask(older)
-        implicit = implicit_model(holes.down_to(float(fields.z_m[-1]))).region(z_m, fields.grid, where=where)
+        implicit = known_benches_implicit_model(fields, holes).region(z_m, fields.grid, where=where)
         rest = fields.grid.polygons_from_mask(~older)
         return as_multipolygon(shapely.union(shapely.intersection(region, rest), shapely.intersection(implicit, where)))
 
@@ -464,13 +464,16 @@ def with_deepest_level_joined(
 
 def _implicit_at(fields: BenchFields, holes: KnownHoles, z_m: float, where, key: tuple) -> np.ndarray:
     """The implicit function of the known benches' holes at ``z_m`` over ``where``, kept under ``key``."""
+    return memoised(
+        fields, key, lambda: known_benches_implicit_model(fields, holes).field(z_m, fields.grid, where=where)
+    )
+
+
+def known_benches_implicit_model(fields: BenchFields, holes: KnownHoles) -> ImplicitRBF:
+    """The implicit model of the holes of ``fields``' benches, fitted once: it keeps the cells it has evaluated
+    (:class:`~core.model.implicit.ImplicitRBF`), which the grounds' sections at one level share."""
     n = len(fields.z_m)
-
-    def compute() -> np.ndarray:
-        model = memoised(fields, ("implicit model", n), lambda: implicit_model(holes.down_to(float(fields.z_m[-1]))))
-        return model.field(z_m, fields.grid, where=where)
-
-    return memoised(fields, key, compute)
+    return memoised(fields, ("implicit model", n), lambda: implicit_model(holes.down_to(float(fields.z_m[-1]))))
 
 
 def _with_implicit_field(region, fields: BenchFields, field: np.ndarray, rest) -> MultiPolygon:
