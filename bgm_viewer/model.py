@@ -1033,10 +1033,11 @@ class ViewerModel:
             return False
         outlines = _pair_outlines(self.holes, shown.contours.get, shown.min_component_holes)
         back, notes = relocate_overrides(self.overrides, outlines, unit=self.holes.frame.length_unit)
-        if len(back) < len(self.overrides):
+        # An override dropped, or one that lost a target it named (kept, but no longer whole).
+        lost = [n for n in notes if "dropped" in n or "no longer" in n]
+        if lost:
             self.override_notes = [
-                "Stop kept the alignment overrides on the stopped run's component numbers: "
-                + "; ".join(n for n in notes if "dropped" in n or "no longer" in n)
+                "Stop kept the alignment overrides on the stopped run's component numbers: " + "; ".join(lost)
             ]
             self.overrides_changed.emit()
             return False
