@@ -208,7 +208,7 @@ def test_the_implicit_model_solves_each_cell_of_a_level_once_and_gives_each_grou
     bench asks for each bench level twice), and each cell is a local solve: the cells evaluated are kept."""
     import shapely
 
-    from core.model.implicit import fit_implicit_rbf
+    from core.model.implicit import ImplicitRBF, fit_implicit_rbf
 
     _, holes, _, _ = small_mine
     known = holes.bench <= 2
@@ -224,16 +224,49 @@ def test_the_implicit_model_solves_each_cell_of_a_level_once_and_gives_each_grou
     west, middle = shapely.box(x0, y0, (x0 + x1) / 2, y1), shapely.box((3 * x0 + x1) / 4, y0, (x0 + 3 * x1) / 4, y1)
     model = fitted()
     solved = []
-    interpolator = model.interpolator
-    model.interpolator = lambda points: solved.append(len(points)) or interpolator(points)
+    model._at = lambda points: solved.append(len(points)) or ImplicitRBF._at(model, points)
     for where in (west, middle, west):
         np.testing.assert_array_equal(model.field(z, grid, where), fitted().field(z, grid, where))
     np.testing.assert_array_equal(model.field(z - 1.0, grid, west), fitted().field(z - 1.0, grid, west))
     fresh = fitted()
-    fresh.interpolator = lambda points: solved.append(-len(points)) or interpolator(points)
+    fresh._at = lambda points: solved.append(-len(points)) or ImplicitRBF._at(fresh, points)
     fresh.field(z, grid, west.union(middle))
     fresh.field(z - 1.0, grid, west)
     assert len(solved) == 5 and sum(solved[:3]) == -sum(solved[3:])  # the third ground was all solved before
+
+
+def test_the_implicit_model_solves_only_neighbourhoods_whose_holes_differ_and_gives_what_solving_every_one_gives(
+    small_mine,
+):
+    """Deep inside or outside a body every hole of a neighbourhood carries the capped distance: its solution is
+    that constant, so it is not solved, and the field is SciPy's own solve of every cell."""
+    from scipy.spatial import cKDTree
+
+    from core.model.implicit import fit_implicit_rbf
+
+    _, holes, _, _ = small_mine
+    model = fit_implicit_rbf(holes.xy, holes.z, holes.geozone == "g1", bench=holes.bench)
+    interpolator = model.interpolator
+    asked = []
+
+    class Counted:  # the interpolator, counting the points it is asked to solve
+        def __getattr__(self, name):
+            return getattr(interpolator, name)
+
+        def __call__(self, points):
+            asked.append(len(points))
+            return interpolator(points)
+
+    model.interpolator = Counted()
+    grid = ev.default_grid([holes.xy])
+    z = float(holes.bench_levels_m[-1]) - 5.0
+    X, Y = grid.cell_centres()
+    points = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, z * model.z_scale)])[::7]
+    values = interpolator.d[cKDTree(interpolator.y).query(points, interpolator.neighbors)[1], 0]
+    uniform = (values == values[:, :1]).all(axis=1)
+    assert 0.2 < uniform.mean() < 0.9  # both kinds of neighbourhood are here
+    np.testing.assert_allclose(model.at(points[:, :2], z), interpolator(points).reshape(-1), rtol=0, atol=1e-9)
+    assert asked == [int((~uniform).sum())]
 
 
 def test_evaluate_geozone_with_truth(small_mine, tmp_path):

@@ -74,6 +74,8 @@ class ImplicitRBF:
     #: at one level are asked for over several grounds (each bench level twice by the surfaces' ground above
     #: the deepest bench), and each cell is a local solve.
     _evaluated: dict[tuple[float, Grid], np.ndarray] = dataclass_field(default_factory=dict, repr=False, compare=False)
+    #: The fitted points' kD-tree, to find a neighbourhood's values before solving it (:meth:`_at`).
+    _points_tree: cKDTree | None = dataclass_field(default=None, repr=False, compare=False)
 
     def field(self, z_m: float, grid: Grid, where: Polygon | MultiPolygon | None = None) -> np.ndarray:
         """The implicit function on ``grid`` at elevation ``z_m`` (positive inside).
@@ -133,14 +135,27 @@ class ImplicitRBF:
         neighbourhood in one call and says only that one failed, so the model
         changes to degree 0 for good, once, rather than failing again at every
         elevation.
+
+        A neighbourhood whose holes all carry one value (the capped distance, deep inside or outside a body:
+        73% of a Kennecott build's cells) is not solved: a constant lies in the polynomial's span, so the
+        solution is that constant with no kernel weights (SciPy's solve gave it within 2e-13 m).
         """
         assert self.interpolator is not None
+        if self._points_tree is None:
+            self._points_tree = cKDTree(self.interpolator.y)
+        k = self.interpolator.neighbors or len(self.interpolator.y)
+        values = self.interpolator.d[self._points_tree.query(points, k)[1].reshape(len(points), -1), 0]
+        uniform = (values == values[:, :1]).all(axis=1)
+        out = values[:, 0].copy()
+        if uniform.all():
+            return out
         try:
-            return self.interpolator(points)
+            out[~uniform] = self.interpolator(points[~uniform]).reshape(-1)
         except np.linalg.LinAlgError:
             self.interpolator = _without_depth_trend(self.interpolator)
             self._evaluated.clear()  # cells evaluated with the depth trend are not this model's
-            return self.interpolator(points)
+            out[~uniform] = self.interpolator(points[~uniform]).reshape(-1)
+        return out
 
     def region(self, z_m: float, grid: Grid, where: Polygon | MultiPolygon | None = None) -> MultiPolygon:
         """The region ``field > 0`` (:meth:`field`; with ``where``, exact only within it)."""
