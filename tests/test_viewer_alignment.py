@@ -442,6 +442,35 @@ def test_an_alignment_edited_during_a_renumbering_run_follows_its_body_back_when
     np.testing.assert_allclose(model.result.correspondence.translations[2], (5.0, 1.0), atol=1e-9)
 
 
+def test_an_edit_naming_a_target_the_picture_lacks_keeps_the_stopped_runs_numbers_and_says_so():
+    """With isolated holes kept, single g1 holes on the target bench are targets of their own; the picture, traced
+    without them, has none there. C's override edited during the stopped run to associate one of them cannot follow
+    C back whole: moved, it would keep its shift and silently lose the association. It keeps the run's numbers."""
+    from bgm_viewer.model import ViewerModel
+
+    model = ViewerModel(_three_bodies_holes(), cache=False)
+    model.select("g1", 0, 1)
+    _run(model, model.set_param("min_component_holes", 1))  # a one-hole component is a target
+    assert len(model.result.pair.targets) == 1
+    model.set_translation(3.0, -2.0)  # C
+    _run(model, "correspondence")
+    _run_until(model, model.set_param("keep_isolated_holes", True), lambda: model.overrides[0].source == 2)
+    lone = [i for i, c in enumerate(model.result.pair.targets) if len(c.holes) == 1]
+    assert lone, "no single hole is a target of its own"
+    model.set_association(lone[-1], True)
+    edited = [(2, (3.0, -2.0), {lone[-1]: True})]
+    assert [(o.source, o.translation, o.associate) for o in model.overrides] == edited
+
+    model.stop()
+    assert [(o.source, o.translation, o.associate) for o in model.overrides] == edited
+    assert any(
+        "Stop kept the alignment overrides" in n and f"no longer names target {lone[-1]}" in n
+        for n in model.override_notes
+    ), model.override_notes
+    _run(model, "contours")  # Run again: the association applies to the target it named
+    assert [(o.source, o.translation, o.associate) for o in model.overrides] == edited
+
+
 def test_edits_on_bodies_the_picture_does_not_tell_apart_keep_the_stopped_runs_numbers_and_say_so():
     """B and the main body are one component under the picture's parameters: shifts edited on both during the
     stopped runs cannot both follow them back. Nothing is lost: they keep the runs' numbers, which Run again
