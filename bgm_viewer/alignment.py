@@ -142,6 +142,15 @@ def place_unplaced(overrides: Sequence[AlignmentOverride], outlines: PairOutline
     return out
 
 
+def not_whole(notes: Sequence[str]) -> list[str]:
+    """The notes of :func:`relocate_overrides` on overrides that did not follow their components whole.
+
+    Those dropped, and those kept without a target they named; the notes of moved ones are left out. The
+    wording it reads is :func:`relocate_overrides`' own, in this module.
+    """
+    return [n for n in notes if " dropped: " in n or " no longer names target " in n]
+
+
 def relocate_overrides(
     overrides: Sequence[AlignmentOverride], outlines: PairOutlines, *, unit: str
 ) -> tuple[list, list[str]]:

@@ -1026,15 +1026,14 @@ class ViewerModel:
         moved them. When one has no single component there (a body only the new sliders draw), none is
         moved and the notes say why: False, and they keep the run's numbers, as Run again needs them.
         """
-        from .alignment import relocate_overrides
+        from .alignment import not_whole, relocate_overrides
 
         shown = self.last_complete
         if shown is None:
             return False
         outlines = _pair_outlines(self.holes, shown.contours.get, shown.min_component_holes)
         back, notes = relocate_overrides(self.overrides, outlines, unit=self.holes.frame.length_unit)
-        # An override dropped, or one that lost a target it named (kept, but no longer whole).
-        lost = [n for n in notes if "dropped" in n or "no longer" in n]
+        lost = not_whole(notes)
         if lost:
             self.override_notes = [
                 "Stop kept the alignment overrides on the stopped run's component numbers: " + "; ".join(lost)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, box
 
-from bgm_viewer.alignment import PlacedOverride, relocate_overrides, same_place
+from bgm_viewer.alignment import PlacedOverride, not_whole, relocate_overrides, same_place
 from bgm_viewer.model import STEPS
 from core.io.project import AlignmentOverride
 
@@ -43,6 +43,7 @@ def test_an_override_follows_its_renumbered_source_and_targets():
     out, notes = relocate_overrides([o], _pair([_blob(50, 0, 9.0), west], [low_east, low_west]), unit="m")
     assert [(p.source, p.associate, p.translation) for p in out] == [(0, {0: True, 1: False}, (1.0, 2.0))]
     assert len(notes) == 1 and "geozone ore source 1 on bench 685 m" in notes[0] and "source 1 is 0" in notes[0]
+    assert not_whole(notes) == []  # moved whole
     assert o.source == 1  # the input is not modified
 
 
@@ -53,6 +54,7 @@ def test_an_override_whose_component_went_is_dropped_with_a_note():
     out, notes = relocate_overrides([o], _pair([west, _blob(0, 40)], [west]), unit="ft")
     assert out == []
     assert len(notes) == 1 and "source 1 on bench 685 ft was dropped" in notes[0]
+    assert not_whole(notes) == notes
 
 
 def test_an_override_of_a_split_or_merged_component_is_dropped():
@@ -64,6 +66,7 @@ def test_an_override_of_a_split_or_merged_component_is_dropped():
     a, b = _placed(0, halves, [whole]), _placed(1, halves, [whole], translation=(3.0, 4.0))
     out, notes = relocate_overrides([a, b], _pair([whole], [whole]), unit="m")
     assert out == [] and "2 alignment overrides of geozone ore on bench 685 m were dropped" in notes[-1]
+    assert not_whole(notes) == notes[-1:]  # not the note that one of them first moved onto the other's number
 
 
 def test_a_lost_target_is_forgotten_and_the_rest_kept():
@@ -72,6 +75,7 @@ def test_a_lost_target_is_forgotten_and_the_rest_kept():
     out, notes = relocate_overrides([o], _pair([src], [t0]), unit="m")
     assert [(p.source, p.associate) for p in out] == [(0, {0: True})]
     assert len(notes) == 1 and "no longer names target 1" in notes[0]
+    assert not_whole(notes) == notes  # kept, but not whole
 
 
 def test_unchanged_unplaced_and_elsewhere_overrides_are_kept_silently():
