@@ -1164,10 +1164,11 @@ def test_a_band_superseded_by_a_slider_or_the_window_closing_stops_and_is_never_
     import bgm_viewer.app as app
     from core.model import uncertainty
 
-    gate, ends = threading.Event(), []
+    gate, ends, begun = threading.Event(), [], []
     real = uncertainty.geozone_uncertainty
 
     def held(*args, **kw):  # core's band, held until the test lets it go; how it ended is recorded
+        begun.append(True)
         gate.wait(10)
         try:
             out = real(*args, **kw)
@@ -1204,12 +1205,16 @@ def test_a_band_superseded_by_a_slider_or_the_window_closing_stops_and_is_never_
     assert ends == ["Cancelled", "finished"] and shown[-1].model is window.model.result.model is not old.model
 
     gate.clear()
+    bands = len(begun)
     window._select(geozone="g2", bench=0, component=0)  # another geozone, its band computing when the window closes
     qtbot.waitUntil(lambda: window._next_bench is not None and not window.busy, timeout=60_000)
-    threading.Timer(0.2, gate.set).start()
+    qtbot.waitUntil(lambda: len(begun) > bands, timeout=60_000)  # begun (on a loaded machine it starts later)
+    cancel = window._cancel
+    # Let go once closing has asked it to stop (a timer of 0.2 s let it run to its end on a loaded machine).
+    monkeypatch.setattr(window, "_cancel", lambda: (cancel(), gate.set()))
     window.model.dirty = False  # no prompt for the slider's change
     window.close()  # waits for the workers: the band stops at its next step, not at its end
-    assert ends[-1] == "Cancelled" and shown[-1].model.geozone != "g2"
+    assert ends[-1] == "Cancelled" and shown[-1].model.geozone != "g2", (ends, len(begun), bands)
 
 
 def test_work_autosaved_before_a_crash_is_offered_restored_and_discarded_on_quitting(qtbot, monkeypatch, tmp_path):
