@@ -34,6 +34,7 @@ from core.io.blastholes import Blastholes, typical_bench_height
 from core.model.extrapolation import depth_trend_region
 from core.model.fields import BenchFields, memoised
 from core.model.implicit import ImplicitRBF, fit_implicit_rbf
+from core.model.movement import reaching_bench
 
 #: The implicit model is taken in new ground where, over the geozone's bench pairs, the model put more of the new
 #: ground's holes wrong than the implicit model did by more than this many standard deviations of chance: of ``d``
@@ -371,15 +372,20 @@ def with_implicit_above_deepest(
 
 
 def stale_ground(fields: BenchFields) -> np.ndarray:
-    """The cells benches above the deepest drilled and neither the deepest nor the bench above it did.
+    """The cells whose evidence the depth trend counts stale at the deepest bench's level and below.
 
-    The ground whose evidence the depth trend counts stale at the deepest bench's level and below
-    (:data:`core.model.trend.STALE_AT_DEEPEST_BENCHES`: last seen two benches up or more).
+    Last seen two benches up or more (:data:`core.model.trend.STALE_AT_DEEPEST_BENCHES`): drilled by benches
+    above the deepest and neither by the deepest nor the bench above it, or drilled by no bench and nearest the
+    drilling of such a bench (:func:`core.model.movement.reaching_bench`, whose evidence the trend carries there).
+    The latter at Kennecott's median hole number: its deepest level's later holes in ground no bench drilled,
+    summed over the geozones, 465 put on the wrong side without it, 305 with it (the implicit model 250;
+    ``bench_periods.py``).
     """
     n = len(fields.z_m)
     if n < 3:
         return np.zeros(fields.grid.shape, bool)
-    return older_ground(fields, n - 2) & ~fields.drilled[n - 1]
+    older = older_ground(fields, n - 2) & ~fields.drilled[n - 1]
+    return older | (new_ground(fields) & (reaching_bench(fields) <= n - 3))
 
 
 def with_implicit_in_stale_ground(
@@ -394,8 +400,9 @@ def with_implicit_in_stale_ground(
     hole numbers' median (``bench_periods.py``): on the deepest level's 1,075 later holes in ground benches
     above drilled and the deepest did not, 69.2 F1 -> 84.4 (the implicit model 85.5). Ungated, as above the
     deepest. Taken as well in the ground the bench above the deepest drilled, Kennecott's partial-bench cuts of
-    bench 3 (``bench_partial_bench.py``) each came out 4-8 points lower; in the ground no bench drilled, 4 of
-    the 5 lower by up to 4 (the choice stays there, :func:`with_implicit_in_new_ground`).
+    bench 3 (``bench_partial_bench.py``) each came out 4-8 points lower; in all the ground no bench drilled, 4 of
+    the 5 lower by up to 4 (the choice stays there, :func:`with_implicit_in_new_ground`, but where the nearest
+    drilling is a stale bench's).
 
     Below the deepest bench, after the older ground's choice (:func:`with_implicit_in_older_ground`, whose
     backtests rarely have holes there), only in the cells ``ended`` (where the depth trend let that evidence go,
