@@ -1259,7 +1259,7 @@ def test_a_deepest_benchs_first_holes_near_the_pits_edge_leave_the_body_past_the
 
     With the new bench's first holes 15-35 m from the body (all host), that ground took their evidence, the deepest
     reaching it, and lost 35-50% of the body past the edge (Kennecott at its median hole number: 3310 at its
-    deepest level missed 293 of its 338 held-back holes in ground no bench drilled, 199 with the nearest drilling's).
+    deepest level found 48 of its 338 later holes in ground no bench drilled, 196 with the nearest drilling's).
     """
     from core.model.session import ModelSession
 
@@ -1746,7 +1746,7 @@ def test_the_stale_ground_is_all_the_ground_whose_evidence_is_two_benches_old_at
     grid = Grid(0.0, 0.0, 1.0, (1, 6))
     # Hole spacings past each bench's drilling (top bench first; 0: drilled). The cells: drilled by the top bench
     # only; past every drilling, nearest the top bench, the bench above the deepest, the deepest; out of reach;
-    # drilled by the deepest.
+    # drilled by every bench.
     off_spacings = np.array(
         [
             [[0.0, 1.0, 3.0, 3.0, 30.0, 0.0]],
