@@ -85,6 +85,24 @@ def test_kennecott_builds_end_to_end_for_every_geozone(kennecott_csv, tmp_path):
     assert f1["model"] > f1["nil"] and f1["model"] > f1["implicit"], f1
 
 
+def _kennecott_at_its_median_hole(kennecott_csv):
+    """Kennecott's table (its HOLEIDs grow with drilling time), whether each row was drilled after its median hole
+    number (not for ids of unknown time), and the holes drilled by then read as an input table."""
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    table = pd.read_csv(kennecott_csv, dtype={"HOLEID": str})
+    ids = pd.to_numeric(table["HOLEID"], errors="coerce")
+    moment = table[ids <= ids.quantile(0.5)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = blastholes_from_table(
+            pd.DataFrame({"x": moment.EAST, "y": moment.NORTH, "z": moment.RL, "geozone": moment.lookup_domain})
+        )
+    return table, ids > ids.quantile(0.5), holes
+
+
 def test_a_table_of_one_moment_keeps_a_geozone_past_the_drilling_at_its_deepest_level(kennecott_csv):
     """Kennecott as it stood when half its holes were drilled: its deepest level holds a small early patch (179
     holes, 4 of them 3310's), and most of 3310's later holes at that level lie past every bench's drilling, beside
@@ -92,28 +110,14 @@ def test_a_table_of_one_moment_keeps_a_geozone_past_the_drilling_at_its_deepest_
     reaching that ground, and 48 of those 338 holes were found; with the nearest drilling's evidence 196, and since
     that evidence is two benches old or more, with the implicit model's section there (as in the ground those
     benches drilled) 309, 26 other holes inside (``bench_periods.py``)."""
-    import pandas as pd
-
-    from core.io.blastholes import blastholes_from_table
     from core.model.session import ModelSession
 
-    table = pd.read_csv(kennecott_csv, dtype={"HOLEID": str})
-    ids = pd.to_numeric(table["HOLEID"], errors="coerce")
-    known = ids <= ids.quantile(0.5)
-    moment = table[known]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", BGMWarning)
-        holes = blastholes_from_table(
-            pd.DataFrame({"x": moment.EAST, "y": moment.NORTH, "z": moment.RL, "geozone": moment.lookup_domain})
-        )
+    table, drilled_later, holes = _kennecott_at_its_median_hole(kennecott_csv)
     session = ModelSession(holes)
     z = float(holes.bench_levels_m[-1])
     section = session.predict("3310", [z])[z]
-    z_ft, height_ft = (
-        float(holes.frame.z_to_input(z)),
-        float(holes.frame.z_to_input(z + holes.bench_height_m)) - float(holes.frame.z_to_input(z)),
-    )
-    later = table[(ids > ids.quantile(0.5)) & ((table.RL - z_ft).abs() < 0.3 * height_ft)]
+    z_ft, height_ft = float(holes.frame.z_to_input(z)), float(holes.frame.length_to_input(holes.bench_height_m))
+    later = table[drilled_later & ((table.RL - z_ft).abs() < 0.3 * height_ft)]
     xy = holes.frame.to_local(later.EAST.to_numpy(float), later.NORTH.to_numpy(float))
     drilled = shapely.union_all([session.drilled_area(j) for j in range(holes.n_benches)])
     fresh = ~shapely.contains_xy(drilled, xy[:, 0], xy[:, 1])
@@ -130,19 +134,10 @@ def test_a_table_of_one_moment_predicts_the_next_bench_where_only_older_benches_
     dropped it as likely ended (11 of the bench's 68 holes of 3521 found). The geozone's own bench pairs chose
     the implicit model in such ground, as in new ground (``bench_periods.py``)."""
     import numpy as np
-    import pandas as pd
 
-    from core.io.blastholes import blastholes_from_table
     from core.model.session import ModelSession
 
-    table = pd.read_csv(kennecott_csv, dtype={"HOLEID": str})
-    ids = pd.to_numeric(table["HOLEID"], errors="coerce")
-    moment = table[ids <= ids.quantile(0.5)]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", BGMWarning)
-        holes = blastholes_from_table(
-            pd.DataFrame({"x": moment.EAST, "y": moment.NORTH, "z": moment.RL, "geozone": moment.lookup_domain})
-        )
+    _, _, holes = _kennecott_at_its_median_hole(kennecott_csv)
     assert holes.n_benches == 7
     z = float(holes.bench_levels_m[6])
     section = ModelSession(holes.subset(holes.bench <= 5)).predict("3521", [z])[z]
