@@ -38,6 +38,7 @@ def built(small_mine_csv, tmp_path_factory):
     return out
 
 
+@pytest.mark.xdist_group("built")  # one worker builds it once
 def test_build_writes_every_output(built):
     summary = json.loads((built / "summary.json").read_text())
     assert [g["geozone"] for g in summary["geozones"]] == ["g0", "g1", "g2", "g3"]
@@ -74,6 +75,7 @@ def test_the_next_bench_the_report_samples_has_its_band_in_the_uncertainty_file(
     assert one_bench and all(np.isclose(z, sampling["z"]) for z in one_bench), (one_bench, sampling["z"])
 
 
+@pytest.mark.xdist_group("built")  # one worker builds it once
 def test_contours_and_predictions_open_as_3d_polylines_in_mine_software(built):
     """The DXF strings hold the GeoJSON's rings vertex for vertex, closed, at their bench elevation."""
     features = json.loads((built / "contours.geojson").read_text())["features"]
@@ -95,6 +97,7 @@ def test_contours_and_predictions_open_as_3d_polylines_in_mine_software(built):
     assert {round(p[2], 3) for line in below for p in line.points()} == {f["properties"]["z"] for f in predicted}
 
 
+@pytest.mark.xdist_group("built")  # one worker builds it once
 @pytest.mark.parametrize("geozone", ["g1", "g2"])
 def test_surfaces_are_watertight_and_reopen_with_the_same_faces(built, geozone):
     from core.model.surfaces import volume_above
@@ -221,6 +224,7 @@ def test_two_labels_made_alike_for_dxf_keep_one_layer_each_in_every_dxf_of_a_bui
         assert layers(folder / "prediction.dxf") == by_geozone[g["geozone"]], g["geozone"]
 
 
+@pytest.mark.xdist_group("built")  # one worker builds it once
 def test_a_build_writes_omf_surfaces_in_input_coordinates_where_omf_is_installed(built):
     """The README promises `surface.omf` "too with pip install omf"; the build wrote none."""
     from core.io.export import omf_available
@@ -369,6 +373,7 @@ def built_in_feet(small_mine_csv, tmp_path_factory):
     return folder
 
 
+@pytest.mark.xdist_group("built_in_feet")  # one worker builds it once
 def test_every_file_of_a_build_or_prediction_in_feet_says_feet(built_in_feet):
     """band_width (feet) in uncertainty.geojson, the GeoJSONs' coordinates and areas, p_inside.npz's x, y, z and
     sigma, and surface.stl.json's offset were in feet with nothing in the file saying so: read as metres."""
@@ -435,6 +440,7 @@ def test_a_carried_file_goes_to_its_geozones_folder_of_this_build():
     assert carried_places([Path("x", "n")], {}, folders) == {Path("x", "n"): Path("x", "n")}  # no label: as it was
 
 
+@pytest.mark.xdist_group("built_in_feet")  # one worker builds it once
 def test_a_builds_predicted_sections_carry_what_bgm_predict_gives_for_the_same_section(built_in_feet):
     """`bgm predict` gave each section's area (area_ft2); the build's prediction.geojson, the same section, had none."""
     built = json.loads((built_in_feet / "model" / "g1" / "prediction.geojson").read_text())["features"][0]
@@ -444,6 +450,7 @@ def test_a_builds_predicted_sections_carry_what_bgm_predict_gives_for_the_same_s
     assert built["properties"]["area_ft2"] == pytest.approx(shape(built["geometry"]).area, rel=1e-6)
 
 
+@pytest.mark.xdist_group("built_in_feet")  # one worker builds it once
 def test_a_builds_surfaces_in_feet_say_feet_where_their_format_has_room(built_in_feet):
     """PLY, OBJ, VTP and STL surfaces of a table in feet held feet with nothing saying so (OMF alone had a field);
     mine software that assumes metres scaled the surface by 3.28 without a word. DXF R12 has no field for it."""
