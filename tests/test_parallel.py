@@ -33,18 +33,26 @@ def _results(out):
     return geozones, predictions, contours
 
 
-def test_local_processes_match_a_serial_run(holes, tmp_path):
-    build(holes, tmp_path / "serial", workers=1, evaluate=False, formats=("ply",))
+@pytest.fixture(scope="module")
+def serial(holes, tmp_path_factory):
+    """What a serial build writes, for each way of running in parallel to match."""
+    out = tmp_path_factory.mktemp("serial")
+    build(holes, out, workers=1, evaluate=False, formats=("ply",))
+    return _results(out)
+
+
+@pytest.mark.xdist_group("serial_build")  # one worker builds it once
+def test_local_processes_match_a_serial_run(holes, serial, tmp_path):
     build(holes, tmp_path / "parallel", workers=2, evaluate=False, formats=("ply",))
-    assert _results(tmp_path / "serial") == _results(tmp_path / "parallel")
+    assert _results(tmp_path / "parallel") == serial
 
 
-def test_a_dask_cluster_matches_a_serial_run(holes, tmp_path):
+@pytest.mark.xdist_group("serial_build")
+def test_a_dask_cluster_matches_a_serial_run(holes, serial, tmp_path):
     distributed = pytest.importorskip("distributed")
-    build(holes, tmp_path / "serial", workers=1, evaluate=False, formats=("ply",))
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         build(holes, tmp_path / "dask", scheduler=cluster.scheduler_address, evaluate=False, formats=("ply",))
-    assert _results(tmp_path / "serial") == _results(tmp_path / "dask")
+    assert _results(tmp_path / "dask") == serial
 
 
 def test_unreachable_scheduler_is_a_clear_error(holes, tmp_path, monkeypatch):
