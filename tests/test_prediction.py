@@ -1231,23 +1231,30 @@ def test_a_partly_drilled_deepest_bench_keeps_the_body_past_the_bench_aboves_dri
     assert with_first > 0.8 * from_above
 
 
+def _fields_past_drilling(off_spacings: np.ndarray, reach_spacings: float | None = None):
+    """Bench fields on one row of 1 m cells from each bench's distance past its drilling in hole spacings (top bench
+    first, benches 10 m apart; 0: drilled), every signed distance 0."""
+    from core.geometry.grid import Grid
+    from core.model.fields import BenchFields
+
+    n, rows, cols = off_spacings.shape
+    return BenchFields(
+        Grid(0.0, 0.0, 1.0, (rows, cols)),
+        10.0 * np.arange(n, 0, -1.0),
+        np.zeros(off_spacings.shape),
+        np.exp(-off_spacings),
+        off_spacings == 0.0,
+        reach_spacings=reach_spacings,
+    )
+
+
 def test_ground_no_bench_drilled_takes_the_nearest_drilling_whose_evidence_reaches_it():
     """Past every drilling, each cell takes the bench drilled nearest within reach (the deepest of equally near
     ones); where none reaches, the deepest."""
-    from core.geometry.grid import Grid
-    from core.model.fields import BenchFields
     from core.model.movement import reaching_bench
 
-    grid = Grid(0.0, 0.0, 1.0, (1, 4))
     off_spacings = np.array([[[1.0, 2.0, 3.0, 30.0]], [[2.0, 2.0, 12.0, 40.0]], [[5.0, 9.0, 2.5, 60.0]]])
-    fields = BenchFields(
-        grid,
-        np.array([30.0, 20.0, 10.0]),  # top bench first
-        np.zeros((3, 1, 4)),
-        np.exp(-off_spacings),
-        np.zeros((3, 1, 4), bool),
-        reach_spacings=10.0,
-    )
+    fields = _fields_past_drilling(off_spacings, reach_spacings=10.0)
     assert reaching_bench(fields).tolist() == [[0, 1, 2, 2]]
     assert reaching_bench(replace(fields, reach_spacings=None)).tolist() == [[2, 2, 2, 2]]
 
@@ -1280,15 +1287,9 @@ def test_a_deepest_benchs_first_holes_near_the_pits_edge_leave_the_body_past_the
 
 def test_a_benchs_fringe_past_its_drilling_is_no_observation_of_ground_a_bench_above_drilled():
     """A cell a bench above drilled is last observed by the deepest bench that drilled it, not by a fringe."""
-    from core.geometry.grid import Grid
-    from core.model.fields import BenchFields
     from core.model.movement import last_observations
 
-    grid = Grid(0.0, 0.0, 1.0, (1, 4))
-    off_spacings = np.array([[[0.0, 0.0, 0.0, 0.3]], [[0.0, 0.3, 3.0, 0.3]]])  # top bench first
-    drilled = off_spacings == 0.0
-    fields = BenchFields(grid, np.array([20.0, 10.0]), np.zeros((2, 1, 4)), np.exp(-off_spacings), drilled)
-    last, before = last_observations(fields)
+    last, before = last_observations(_fields_past_drilling(np.array([[[0.0, 0.0, 0.0, 0.3]], [[0.0, 0.3, 3.0, 0.3]]])))
     # drilled by both; in the lower bench's fringe but drilled above; drilled above only; in both fringes
     assert last.tolist() == [[1, 0, 0, 1]]
     assert before.tolist() == [[0, -1, -1, 0]]
@@ -1739,11 +1740,8 @@ def test_the_stale_ground_is_all_the_ground_whose_evidence_is_two_benches_old_at
     There the depth trend carries that bench's evidence (:func:`core.model.movement.reaching_bench`) and counts it
     stale at the deepest level, as in the ground those benches drilled and the two deepest did not.
     """
-    from core.geometry.grid import Grid
-    from core.model.fields import BenchFields
     from core.model.new_ground import stale_ground
 
-    grid = Grid(0.0, 0.0, 1.0, (1, 6))
     # Hole spacings past each bench's drilling (top bench first; 0: drilled). The cells: drilled by the top bench
     # only; past every drilling, nearest the top bench, the bench above the deepest, the deepest; out of reach;
     # drilled by every bench.
@@ -1755,15 +1753,9 @@ def test_the_stale_ground_is_all_the_ground_whose_evidence_is_two_benches_old_at
             [[4.0, 5.0, 2.0, 1.0, 30.0, 0.0]],
         ]
     )
-    fields = BenchFields(
-        grid,
-        np.array([40.0, 30.0, 20.0, 10.0]),
-        np.zeros((4, 1, 6)),
-        np.exp(-off_spacings),
-        off_spacings == 0.0,
-        reach_spacings=10.0,
-    )
-    assert stale_ground(fields).tolist() == [[True, True, False, False, False, False]]
+    assert stale_ground(_fields_past_drilling(off_spacings, reach_spacings=10.0)).tolist() == [
+        [True, True, False, False, False, False]
+    ]
 
 
 def test_below_the_deepest_the_stale_ground_takes_the_implicit_model_only_where_the_trend_let_its_evidence_go():
