@@ -1295,6 +1295,20 @@ def test_a_benchs_fringe_past_its_drilling_is_no_observation_of_ground_a_bench_a
     assert before.tolist() == [[0, -1, -1, 0]]
 
 
+def test_a_benchs_fringe_observes_the_edge_of_a_pit_narrowing_under_a_spacing_a_bench():
+    """Where the bench above drilled only a band under a hole spacing wide past a bench's drilling (a pit
+    narrowing downwards), the bench's fringe is the last observation of that band; where the bench above drilled
+    on further (first patterns of the bench), it is not."""
+    from core.model.movement import last_observations
+
+    lower = np.array([0.0, 0.0, 0.0, 0.4, 0.8, 1.2, 1.6, 2.0])  # spacings past the lower bench's drilling
+    for upper_drilled, fringe_seen_by in ((4, 1), (6, 0)):  # the upper bench drilled 1 / 3 cells past the lower's
+        upper = np.where(np.arange(8) < upper_drilled, 0.0, 0.4 * (np.arange(8) - upper_drilled + 1))
+        last, before = last_observations(_fields_past_drilling(np.array([[upper], [lower]])))
+        assert last[0, 3] == fringe_seen_by, upper_drilled
+        assert last[0, :3].tolist() == [1, 1, 1] and before[0, :3].tolist() == [0, 0, 0]
+
+
 def test_a_partly_drilled_deepest_bench_does_not_stop_the_rest_of_a_moving_strip():
     """The first holes of a bench say how its drilled part moved; the rest goes on as the benches above carried it.
 

@@ -20,7 +20,7 @@ import numpy as np
 from scipy import ndimage
 
 from core.correspondence.alignment import fft_translation, shift_mask
-from core.model.fields import MIN_DIP_DEG, BenchFields, body_size_m, memoised
+from core.model.fields import MIN_DIP_DEG, BenchFields, body_size_m, memoised, parts_touching
 
 #: Cells within this many cells of the deepest boundary measure the persistence of its movement
 #: (:func:`geozone_persistence`); every cell takes the movement of its nearest boundary point,
@@ -176,7 +176,8 @@ def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
     """Per cell, the index of the deepest bench that observed it and of the one before (-1 if none).
 
     A bench observes its drilled area and, within :data:`OBSERVED_WEIGHT`, the ground just past it, where its
-    evidence is its outermost holes' carried on; that fringe is no observation of ground a bench above drilled.
+    evidence is its outermost holes' carried on; that fringe is no observation of ground a bench above drilled,
+    but at a narrowing pit's edge (:func:`narrowing_edges`).
     """
     seen = fields.weight >= OBSERVED_WEIGHT
     # A bench's fringe replaced there the bench above's holes with its own edge's guess: with a deepest bench
@@ -184,13 +185,32 @@ def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
     # spacing away instead of the bench above's, carried on (widening, tuning seed 2, 40% of the bench drilled
     # in a strip: 86.0 F1 on the held-back holes from the benches above alone, 76.0 with the first holes).
     drilled_above = np.logical_or.accumulate(fields.drilled, axis=0)[:-1]
-    seen[1:] &= fields.drilled[1:] | ~drilled_above
+    seen[1:] &= fields.drilled[1:] | ~drilled_above | narrowing_edges(fields)
     last = np.full(fields.grid.shape, -1)
     before = np.full(fields.grid.shape, -1)
     for j in range(len(fields.z_m)):  # top down: later benches replace earlier ones
         before = np.where(seen[j], last, before)
         last = np.where(seen[j], j, last)
     return last, before
+
+
+def narrowing_edges(fields: BenchFields) -> np.ndarray:
+    """Per bench below the first, the ground the bench directly above drilled in a band no more than a hole
+    spacing wide past the bench's own drilling: a pit's edge narrowing downwards, which the bench's fringe observes.
+
+    Elsewhere a bench's fringe gives way to the holes of the benches above (its first patterns,
+    :func:`last_observations`). In a band the bench above drilled a few metres further, as a pit narrowing a
+    few metres a side a bench does, the deeper bench's own edge is the newer evidence (the travelling waves of
+    ``bench_foreign.py --speed 2``, the pit narrowing 4 m a side a bench: F1 at one bench 76.1 with the older
+    bench's evidence there, 76.3 with the deeper bench's; on seeds 300-323, 75.9 and 76.1). A band that reaches
+    further than a spacing anywhere is first patterns' ground, left whole to the bench above.
+    """
+    band = fields.drilled[:-1] & ~fields.drilled[1:]
+    past_spacing = fields.weight[1:] < np.exp(-1.0)  # weight is exp(-spacings past the drilling)
+    narrow = np.zeros_like(band)
+    for j, (b, far) in enumerate(zip(band, past_spacing)):
+        narrow[j] = b & ~parts_touching(b, far, structure=np.ones((3, 3), bool))
+    return narrow
 
 
 def unit_normals(distance: np.ndarray, cell_size_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
