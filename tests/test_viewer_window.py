@@ -560,12 +560,19 @@ def test_exported_surfaces_keep_the_bodies_the_body_filter_hides(window, qtbot, 
     whole = window.model.result.surfaces[g]
     volumes = sorted(abs(b.volume) for b in whole.split(only_watertight=False))
     assert len(volumes) > 1
-    window.min_volume.setValue(volumes[-1] / window._mpu**3)  # only the biggest body is shown
+    # only the biggest body is shown: the box counts whole units, and the biggest body's volume itself, rounded up
+    # past it, hid every body
+    window.min_volume.setValue((volumes[-2] + volumes[-1]) / 2 / window._mpu**3)
     qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
     assert len(window.model.result.surfaces[g].faces) < len(whole.faces)
     assert "keep" in window.min_volume.toolTip()
     written = window.export_surfaces(tmp_path)
     exported = trimesh.load(written[g]["ply"], force="mesh")
+    assert len(exported.faces) == len(whole.faces)
+    window.min_volume.setValue(2 * volumes[-1] / window._mpu**3)  # every body hidden
+    qtbot.waitUntil(lambda: not window.busy, timeout=60_000)
+    assert g not in window.model.result.surfaces
+    exported = trimesh.load(window.export_surfaces(tmp_path / "all hidden")[g]["ply"], force="mesh")
     assert len(exported.faces) == len(whole.faces)
 
 
