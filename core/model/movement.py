@@ -177,7 +177,7 @@ def last_observations(fields: BenchFields) -> tuple[np.ndarray, np.ndarray]:
 
     A bench observes its drilled area and, within :data:`OBSERVED_WEIGHT`, the ground just past it, where its
     evidence is its outermost holes' carried on; that fringe is no observation of ground a bench above drilled,
-    but at a narrowing pit's edge (:func:`narrowing_edges`).
+    except at the edge of a pit narrowing downwards (:func:`narrowing_edges`).
     """
     seen = fields.weight >= OBSERVED_WEIGHT
     # A bench's fringe replaced there the bench above's holes with its own edge's guess: with a deepest bench
