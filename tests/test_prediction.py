@@ -1772,6 +1772,27 @@ def test_the_stale_ground_is_all_the_ground_whose_evidence_is_two_benches_old_at
     ]
 
 
+def test_the_stale_ground_counts_benches_in_elevation_where_a_level_is_missing_from_the_table():
+    """A bench above the deepest that is two bench heights up (the level between them missing) is stale, as the depth
+    trend counts it (:meth:`core.model.trend.DepthTrend.ended`), though it is the table's bench above the deepest."""
+    from core.model.new_ground import stale_ground
+
+    # The cells: drilled by the top bench only; by the bench above the deepest only; by the deepest; past every
+    # drilling, nearest the bench above the deepest.
+    off_spacings = np.array(
+        [
+            [[0.0, 2.0, 0.0, 3.0]],
+            [[0.0, 0.0, 0.0, 1.0]],
+            [[3.0, 0.0, 0.0, 1.0]],
+            [[3.0, 3.0, 0.0, 3.0]],
+        ]
+    )
+    fields = _fields_past_drilling(off_spacings, reach_spacings=10.0)
+    assert stale_ground(fields).tolist() == [[True, False, False, False]]
+    gap = replace(fields, z_m=np.array([50.0, 40.0, 30.0, 10.0]), height_m=10.0)
+    assert stale_ground(gap).tolist() == [[True, True, False, True]]
+
+
 def test_below_the_deepest_the_stale_ground_takes_the_implicit_model_only_where_the_trend_let_its_evidence_go():
     """One bench below the deepest, ground only benches two or more above drilled: the implicit model where the
     depth trend ended that evidence, the trend elsewhere.

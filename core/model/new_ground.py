@@ -35,6 +35,7 @@ from core.model.extrapolation import depth_trend_region
 from core.model.fields import BenchFields, memoised
 from core.model.implicit import ImplicitRBF, fit_implicit_rbf
 from core.model.movement import reaching_bench
+from core.model.trend import STALE_AT_DEEPEST_BENCHES
 
 #: The implicit model is taken in new ground where, over the geozone's bench pairs, the model put more of the new
 #: ground's holes wrong than the implicit model did by more than this many standard deviations of chance: of ``d``
@@ -374,18 +375,21 @@ def with_implicit_above_deepest(
 def stale_ground(fields: BenchFields) -> np.ndarray:
     """The cells whose evidence the depth trend counts stale at the deepest bench's level and below.
 
-    Last seen two benches up or more (:data:`core.model.trend.STALE_AT_DEEPEST_BENCHES`): drilled by benches
-    above the deepest and neither by the deepest nor the bench above it, or drilled by no bench and nearest the
-    drilling of such a bench (:func:`core.model.movement.reaching_bench`, whose evidence the trend carries there).
-    The latter at Kennecott's median hole number: its deepest level's later holes in ground no bench drilled,
-    summed over the geozones, 465 put on the wrong side without it, 305 with it (the implicit model 250;
-    ``bench_periods.py``).
+    Last seen more than :data:`core.model.trend.STALE_AT_DEEPEST_BENCHES` bench heights above the deepest bench,
+    as the trend counts it (:meth:`core.model.trend.DepthTrend.ended`): drilled last by such a bench, or drilled by
+    no bench and nearest the drilling of such a bench (:func:`core.model.movement.reaching_bench`, whose evidence
+    the trend carries there). Counted in elevation, not in benches of the table: where a level is missing from it,
+    the bench above the deepest is two bench heights up and the trend lets its evidence go (counted by index, the
+    implicit model was not taken there). The ground no bench drilled at Kennecott's median hole number: its deepest
+    level's later holes there, summed over the geozones, 465 put on the wrong side without it, 305 with it (the
+    implicit model 250; ``bench_periods.py``).
     """
     n = len(fields.z_m)
-    if n < 3:
+    if n < 2:
         return np.zeros(fields.grid.shape, bool)
-    older = older_ground(fields, n - 2) & ~fields.drilled[n - 1]
-    return older | (new_ground(fields) & (reaching_bench(fields) <= n - 3))
+    last_drilled = n - 1 - np.argmax(fields.drilled[::-1], axis=0)
+    seen_last = np.where(fields.drilled.any(axis=0), last_drilled, reaching_bench(fields))
+    return np.abs(fields.z_m[seen_last] - fields.z_m[-1]) > STALE_AT_DEEPEST_BENCHES * fields.bench_height_m
 
 
 def with_implicit_in_stale_ground(
