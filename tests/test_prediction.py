@@ -1781,9 +1781,9 @@ def test_the_stale_ground_counts_benches_in_elevation_where_a_level_is_missing_f
     # drilling, nearest the bench above the deepest.
     off_spacings = np.array(
         [
-            [[0.0, 2.0, 0.0, 3.0]],
-            [[0.0, 0.0, 0.0, 1.0]],
-            [[3.0, 0.0, 0.0, 1.0]],
+            [[0.0, 3.0, 3.0, 3.0]],
+            [[3.0, 3.0, 3.0, 3.0]],
+            [[3.0, 0.0, 3.0, 1.0]],
             [[3.0, 3.0, 0.0, 3.0]],
         ]
     )
