@@ -1748,6 +1748,34 @@ def test_the_deepest_benchs_level_reads_every_benchs_holes_in_ground_last_drille
     assert east([shapely.box(60.0, 40.0, 160.0, 120.0)] * 6) > 0.93
 
 
+def test_ground_last_drilled_two_bench_heights_up_reads_every_benchs_holes_where_a_level_is_missing():
+    """The table of the test above with bench 3 missing altogether: benches 0-2 drilled over the pit, bench 4 (the
+    deepest) in its west only. In the east, bench 2 is the table's bench above the deepest, but two bench heights up,
+    and its evidence is as stale there as when bench 3 was drilled in the west: the implicit model reads the holes
+    round it. Counted by the table's benches, the depth trend's section was kept: a body widening 15 m a bench 0.84
+    F1 there, one standing still 0.92. A body narrowing 15 m a bench comes out lower than with bench 3's holes
+    (0.74, 0.76 counted by the table's benches): nothing drilled the level where it drew in."""
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+    from core.model.session import ModelSession
+
+    def east(sections):
+        full = _bench_table(sections)
+        x = full.xy[:, 0]
+        keep = (full.bench < 3) | ((x < x.min() + 90.0) & (full.bench == 4))
+        xy = full.frame.to_input(full.xy[keep])
+        table = pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": full.z[keep], "geozone": full.geozone[keep]})
+        session = ModelSession(blastholes_from_table(table, source="a level missing"))
+        z = float(full.bench_levels_m[4])
+        later = (full.bench == 4) & (x > x.min() + 90.0 + full.hole_spacing_m)
+        return _holes_f1(session.predict("a", [z])[z], full.xy[later], full.geozone[later] == "a")
+
+    assert east([shapely.box(60.0, 40.0, 100.0 + 15.0 * k, 120.0) for k in range(6)]) > 0.9
+    assert east([shapely.box(60.0, 40.0, 160.0, 120.0)] * 6) > 0.93
+    assert east([shapely.box(60.0, 40.0, 190.0 - 15.0 * k, 120.0) for k in range(6)]) > 0.7
+
+
 def test_the_stale_ground_is_all_the_ground_whose_evidence_is_two_benches_old_at_the_deepest_level():
     """Past every drilling too, a cell whose nearest drilling is two benches or more above the deepest is stale ground.
 
