@@ -1761,14 +1761,13 @@ def test_ground_last_drilled_two_bench_heights_up_reads_every_benchs_holes_where
     from core.model.session import ModelSession
 
     def east(sections):
-        full = _bench_table(sections)
-        x = full.xy[:, 0]
-        keep = (full.bench < 3) | ((x < x.min() + 90.0) & (full.bench == 4))
-        xy = full.frame.to_input(full.xy[keep])
-        table = pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": full.z[keep], "geozone": full.geozone[keep]})
+        full, partly, later_on = _drilled_west_from(sections, 3, deepest=4)
+        # Read again without bench 3: a subset keeps the table's levels, the empty one among them.
+        keep = partly.bench != 3
+        xy = partly.frame.to_input(partly.xy[keep])
+        table = pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": partly.z[keep], "geozone": partly.geozone[keep]})
         session = ModelSession(blastholes_from_table(table, source="a level missing"))
-        z = float(full.bench_levels_m[4])
-        later = (full.bench == 4) & (x > x.min() + 90.0 + full.hole_spacing_m)
+        z, later = float(full.bench_levels_m[4]), later_on(4)
         return _holes_f1(session.predict("a", [z])[z], full.xy[later], full.geozone[later] == "a")
 
     assert east([shapely.box(60.0, 40.0, 100.0 + 15.0 * k, 120.0) for k in range(6)]) > 0.9
