@@ -212,6 +212,39 @@ def test_the_benches_above_place_a_bench_boundary_nearer_the_truth_with_no_hole_
     assert wrong["drawn"] < 0.9 * wrong["observed"], wrong
 
 
+def test_the_assimilation_weight_is_the_gain_of_the_spreads_measured_on_the_benches_own_boundary():
+    """The weight is ``s_b^2 / Var(disagreement)``, ``s_b`` a bench's own spread (a spacing's gap, 1 / sqrt(12)),
+    at most ``ASSIMILATION_WEIGHT``; a disagreement counts at most 3 spacings; too few cells keep the ceiling."""
+    from core.model.extrapolation import ASSIMILATION_WEIGHT, MIN_BOUNDARY_CELLS, assimilation_weight
+
+    spacing = 7.0
+    rng = np.random.default_rng(3)
+    poor = rng.normal(0.0, 1.2 * spacing, 20_000)  # the benches above miss by 1.2 spacings (Kennecott-like)
+    assert assimilation_weight(poor, spacing) == pytest.approx(1 / 12 / 1.2**2, rel=0.05)
+    good = rng.normal(0.0, 0.3 * spacing, 20_000)  # a fraction of a spacing: the ceiling
+    assert assimilation_weight(good, spacing) == ASSIMILATION_WEIGHT
+    lens = np.r_[np.full(100, 1.5 * spacing), np.full(100, 50.0 * spacing)]  # half of it a lens 50 spacings off
+    assert assimilation_weight(lens, spacing) == pytest.approx(1 / 12 / ((1.5**2 + 3.0**2) / 2))
+    assert assimilation_weight(poor[: MIN_BOUNDARY_CELLS - 1], spacing) == ASSIMILATION_WEIGHT
+
+
+def test_a_bench_the_benches_above_predict_badly_keeps_the_boundary_its_holes_show():
+    """A contact swinging 8 m either way about a steady 7 m a bench (6 m holes): the benches above predict each
+    bench 1.6-2.2 spacings off (RMS on its boundary), so drawn 0.2 of the way (up to 0.2 spacings) its boundary
+    moved as far as its holes' own uncertainty towards a wrong place. Each bench is drawn by the gain its own
+    disagreement measures (:func:`core.model.extrapolation.assimilation_weight`): 0.02-0.03, no cell moved a
+    tenth of a spacing. The steady strip, which they predict to a fraction of a spacing, is drawn as before."""
+    moves = {"swinging": 7.0 * np.arange(6) + 8.0 * (-1.0) ** np.arange(6), "steady": 7.0 * np.arange(6)}
+    moved = {}
+    for name, offsets in moves.items():
+        holes = _bench_table([_strip(o) for o in offsets])
+        fields = model_geozone(holes, "a").fields
+        assert fields.observed is not None
+        change = np.abs(fields.distance - fields.observed)[2:][fields.drilled[2:]]
+        moved[name] = float(change.max()) / holes.hole_spacing_m
+    assert moved["swinging"] < 0.1 and moved["steady"] > 0.15, moved
+
+
 @pytest.mark.parametrize("known_benches", [2, 4])
 def test_a_layer_dipping_shallower_than_30_degrees_is_carried_on(known_benches):
     """A layer dipping 24 degrees moves 22 m per 10 m bench: its sections barely overlap.
@@ -648,7 +681,7 @@ def _travelling_waves(seed, benches=7):
     ]
 
 
-@pytest.mark.parametrize("seed", [4, 5])
+@pytest.mark.parametrize("seed", [2, 5])
 def test_a_movement_the_benches_kept_showing_is_carried_on_though_its_last_two_moves_agree_little(seed):
     """How far to carry the movement is chosen by predicting the geozone's own benches (issue 12: backtesting).
 

@@ -336,8 +336,9 @@ def with_backtested_dip(
     return replace(fields, min_dip_deg=chosen)
 
 
-#: How far a bench's signed distance is drawn towards its prediction from the benches above
-#: (:func:`assimilated`), and the largest disagreement, in hole spacings, that is drawn at all.
+#: The most a bench's signed distance is drawn towards its prediction from the benches above
+#: (:func:`assimilated`), and the largest disagreement, in hole spacings, that is drawn at all: with both,
+#: a bench's boundary moves at most 0.2 spacings, less than the half-gap between its holes.
 #: Chosen on development seeds 3-5 of every family (pooled F1 at 5 / 10 m 96.63 / 95.55 without
 #: it): gates of 0.5, 0.7, 1 and 1.5 spacings at weight 0.3 96.80 / 95.73, 96.91 / 95.87,
 #: 97.01 / 96.01, 97.02 / 96.03 (no gate: pods -5.9 / -4.5, lenses the benches above did not see
@@ -345,8 +346,17 @@ def with_backtested_dip(
 #: :meth:`BenchFields.measured`) 96.88 / 95.85 and 96.94 / 95.91, seeds 0-2 95.04 / 93.33 ->
 #: 95.41 / 93.76 with 0.2; Kennecott 74.3 -> 74.2 on the holes (85.2 from bench 4 both). 0.3 drew
 #: a growing body of a test's fresh mine under holding's precision at 5 m (93.71 against 93.74).
+#: Under it, each bench's weight is measured (:func:`assimilation_weight`).
 ASSIMILATION_WEIGHT = 0.2
 ASSIMILATION_GATE_SPACINGS = 1.0
+#: How far a bench's own boundary lies from the true one, in hole spacings (a standard deviation): its holes place
+#: it anywhere in the gap between an inside and an outside hole, a spacing wide (uniform: 1 / sqrt(12)).
+BENCH_BOUNDARY_SPREAD_SPACINGS = 1.0 / np.sqrt(12.0)
+#: A disagreement counts at most this many hole spacings in :func:`assimilation_weight`: a lens appearing is
+#: not a prediction's error of its size.
+DISAGREEMENT_CLIP_SPACINGS = 3.0
+#: Fewest boundary cells a bench needs for its own weight; with fewer it takes :data:`ASSIMILATION_WEIGHT`.
+MIN_BOUNDARY_CELLS = 20
 
 
 def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> BenchFields:
@@ -359,10 +369,11 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     update of the kind a Kalman filter makes; not in the paper). From the
     third bench down, where the prediction is within
     :data:`ASSIMILATION_GATE_SPACINGS` of the bench's own ``F`` in a cell both
-    the bench and the one above drilled, ``F`` moves
-    :data:`ASSIMILATION_WEIGHT` of the way to it: its boundary moves at most
-    0.2 spacings (the weight times the gate), less than the half-gap between
-    its holes, so no hole changes side. Where they disagree by more, the bench
+    the bench and the one above drilled, ``F`` moves part of the way to it,
+    as far as the benches above predicted that bench's boundary well
+    (:func:`assimilation_weight`), and at most :data:`ASSIMILATION_WEIGHT`:
+    its boundary moves at most 0.2 spacings (the weight times the gate), less
+    than the half-gap between its holes, so no hole changes side. Where they disagree by more, the bench
     shows what the benches above could not (a split, a lens appearing) and
     stands. Benches are taken top down, each predicted from the benches above
     as already drawn; their backtests stay in the result's memo.
@@ -393,10 +404,48 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
         )
         predicted = trend.field(float(out.z_m[j]))
         disagreement = predicted - out.distance[j]
-        drawn = out.drilled[j] & out.drilled[j - 1] & (np.abs(disagreement) <= gate)
-        out.distance[j] += np.where(drawn, ASSIMILATION_WEIGHT * disagreement, 0.0)
+        both = out.drilled[j] & out.drilled[j - 1]
+        on_boundary = both & (np.abs(out.distance[j]) <= 0.5 * out.grid.cell_size_m)
+        weight = assimilation_weight(disagreement[on_boundary], hole_spacing_m)
+        drawn = both & (np.abs(disagreement) <= gate)
+        out.distance[j] += np.where(drawn, weight * disagreement, 0.0)
         out.memo[("backtest", j - 1, bench_height_m, hole_spacing_m)] = _backtest_rows(out, j - 1, trends)
     return out
+
+
+def assimilation_weight(disagreement_m: np.ndarray, hole_spacing_m: float) -> float:
+    """How far a bench's signed distance moves towards its prediction: the gain of a Kalman filter's update.
+
+    The bench's own boundary is off the true one by
+    :data:`BENCH_BOUNDARY_SPREAD_SPACINGS` (``s_b``), its prediction from the
+    benches above by ``s_p``; the two together are placed best at the share
+    ``s_b^2 / (s_b^2 + s_p^2)`` of the way to the prediction. Their
+    disagreement on the bench's boundary has the variance ``s_b^2 + s_p^2``,
+    so the gain is measured on the geozone's own benches: a geozone whose
+    benches predict each other to a fraction of a spacing (the families'
+    layers, 0.2 and more) is drawn as before, one whose contacts change from
+    bench to bench by more than their movement says (Kennecott: 1-2 spacings,
+    0.02-0.16) keeps its holes' boundary. Not in the paper.
+
+    Parameters
+    ----------
+    disagreement_m : (n,) float
+        Prediction minus the bench's own signed distance on the bench's boundary (metres), where both the bench
+        and the one above drilled; each counts at most :data:`DISAGREEMENT_CLIP_SPACINGS`.
+    hole_spacing_m : float
+
+    Returns
+    -------
+    float
+        In [0, :data:`ASSIMILATION_WEIGHT`]; :data:`ASSIMILATION_WEIGHT` with fewer than
+        :data:`MIN_BOUNDARY_CELLS` cells to measure on.
+    """
+    if len(disagreement_m) < MIN_BOUNDARY_CELLS:
+        return ASSIMILATION_WEIGHT
+    clipped = np.minimum(np.abs(disagreement_m), DISAGREEMENT_CLIP_SPACINGS * hole_spacing_m)
+    variance = float(np.mean(clipped**2))
+    own = (BENCH_BOUNDARY_SPREAD_SPACINGS * hole_spacing_m) ** 2
+    return min(own / variance, ASSIMILATION_WEIGHT) if variance > 0 else ASSIMILATION_WEIGHT
 
 
 def carried_precision(
