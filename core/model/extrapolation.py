@@ -373,9 +373,9 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     as far as the benches above predicted that bench's boundary well
     (:func:`assimilation_weight`), and at most :data:`ASSIMILATION_WEIGHT`:
     its boundary moves at most 0.2 spacings (the weight times the gate), less
-    than the half-gap between its holes, so no hole changes side. Where they disagree by more, the bench
-    shows what the benches above could not (a split, a lens appearing) and
-    stands. Benches are taken top down, each predicted from the benches above
+    than the half-gap between its holes, so no hole changes side. Where they
+    disagree by more, the bench shows what the benches above could not (a
+    split, a lens appearing) and stands. Benches are taken top down, each predicted from the benches above
     as already drawn; their backtests stay in the result's memo.
     How far the movement carries on is still judged on the benches as their
     holes showed them (:meth:`BenchFields.measured`).
@@ -422,10 +422,10 @@ def assimilation_weight(disagreement_m: np.ndarray, hole_spacing_m: float) -> fl
     ``s_b^2 / (s_b^2 + s_p^2)`` of the way to the prediction. Their
     disagreement on the bench's boundary has the variance ``s_b^2 + s_p^2``,
     so the gain is measured on the geozone's own benches: a geozone whose
-    benches predict each other to a fraction of a spacing (the families'
-    layers, 0.2 and more) is drawn as before, one whose contacts change from
-    bench to bench by more than their movement says (Kennecott: 1-2 spacings,
-    0.02-0.16) keeps its holes' boundary. Not in the paper.
+    benches predict each other to within about 0.65 spacings (most of the
+    families' benches) is drawn by the ceiling, as before, one whose contacts
+    change from bench to bench by more than their movement says (Kennecott:
+    1-2 spacings, weights 0.02-0.16) keeps its holes' boundary. Not in the paper.
 
     Parameters
     ----------
@@ -443,9 +443,9 @@ def assimilation_weight(disagreement_m: np.ndarray, hole_spacing_m: float) -> fl
     if len(disagreement_m) < MIN_BOUNDARY_CELLS:
         return ASSIMILATION_WEIGHT
     clipped = np.minimum(np.abs(disagreement_m), DISAGREEMENT_CLIP_SPACINGS * hole_spacing_m)
-    variance = float(np.mean(clipped**2))
     own = (BENCH_BOUNDARY_SPREAD_SPACINGS * hole_spacing_m) ** 2
-    return min(own / variance, ASSIMILATION_WEIGHT) if variance > 0 else ASSIMILATION_WEIGHT
+    # min(own / variance, ceiling), with no division by a variance of 0 (a prediction exact on every cell)
+    return own / max(float(np.mean(clipped**2)), own / ASSIMILATION_WEIGHT)
 
 
 def carried_precision(
