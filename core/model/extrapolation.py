@@ -425,7 +425,7 @@ def assimilation_weight(disagreement_m: np.ndarray, hole_spacing_m: float) -> fl
     benches predict each other to within about 0.65 spacings (most of the
     families' benches) is drawn by the ceiling, as before, one whose contacts
     change from bench to bench by more than their movement says (Kennecott:
-    1-2 spacings, weights 0.02-0.16) keeps its holes' boundary. Not in the paper.
+    0.7-3 spacings RMS, weights 0.01-0.16) keeps its holes' boundary. Not in the paper.
 
     Parameters
     ----------
