@@ -1788,17 +1788,13 @@ def test_ground_last_drilled_two_bench_heights_up_reads_every_benchs_holes_where
     round it. Counted by the table's benches, the depth trend's section was kept: a body widening 15 m a bench 0.84
     F1 there, one standing still 0.92. A body narrowing 15 m a bench comes out lower than with bench 3's holes
     (0.74, 0.76 counted by the table's benches): nothing drilled the level where it drew in."""
-    import pandas as pd
-
     from core.io.blastholes import blastholes_from_table
     from core.model.session import ModelSession
 
     def east(sections):
         full, partly, later_on = _drilled_west_from(sections, 3, deepest=4)
         # Read again without bench 3: a subset keeps the table's levels, the empty one among them.
-        keep = partly.bench != 3
-        xy = partly.frame.to_input(partly.xy[keep])
-        table = pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": partly.z[keep], "geozone": partly.geozone[keep]})
+        table = partly.as_table()[partly.bench != 3]
         session = ModelSession(blastholes_from_table(table, source="a level missing"))
         z, later = float(full.bench_levels_m[4]), later_on(4)
         return _holes_f1(session.predict("a", [z])[z], full.xy[later], full.geozone[later] == "a")

@@ -369,6 +369,15 @@ class Blastholes:
             self._drilled[k] = drilled_area(self.xy[self.bench == k], self.hole_spacing_m)
         return self._drilled[k]
 
+    def as_table(self) -> pd.DataFrame:
+        """The holes as an input table: x, y, z and geozone in the input's coordinates and units.
+
+        Read again (:func:`blastholes_from_table`), a part of it finds its benches from its own holes, where
+        :meth:`subset` keeps the whole table's levels (an empty one among them).
+        """
+        xy = self.frame.to_input(self.xy)
+        return pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": self.frame.z_to_input(self.z), "geozone": self.geozone})
+
     def subset(self, keep: np.ndarray) -> Blastholes:
         """The same table restricted to the holes ``keep`` (bool mask or indices).
 

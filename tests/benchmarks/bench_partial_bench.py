@@ -47,12 +47,6 @@ KENNECOTT = ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blasthol
 FAMILIES = ("strips", "widening", "folds", "splits", "pods", "mix")
 
 
-def as_table(holes: Blastholes) -> pd.DataFrame:
-    """The holes as an input table (input coordinates), to be read again in parts."""
-    xy = holes.frame.to_input(holes.xy)
-    return pd.DataFrame({"x": xy[:, 0], "y": xy[:, 1], "z": holes.frame.z_to_input(holes.z), "geozone": holes.geozone})
-
-
 def first_holes(xy: np.ndarray, rng: np.random.Generator) -> list[tuple[str, np.ndarray]]:
     """``(name, kept)`` cuts of a bench's holes: a random direction's lowest 5/15/40%, a strip from one end."""
     angle = rng.uniform(0.0, 2.0 * np.pi)
@@ -96,7 +90,7 @@ def read(table: pd.DataFrame, unit: str) -> Blastholes:
 
 def cases(full: Blastholes, k: int, geozones: list[str], label: str, unit: str, rng) -> list[dict]:
     """Rows of (a) and (b) for bench ``k`` of ``full`` cut every way :func:`first_holes` cuts it."""
-    table = as_table(full)
+    table = full.as_table()
     above = read(table[full.bench < k], unit)
     z_k = float(full.bench_levels_m[k])
     on_k = np.flatnonzero(full.bench == k)
