@@ -502,6 +502,24 @@ def test_feet_are_recognised_and_reported_back_in_feet(tmp_path):
     assert np.allclose(np.sort(back[:, 0]), np.sort(t.EAST.to_numpy()), atol=1e-9)
 
 
+def test_a_part_of_a_table_in_feet_read_again_from_as_table_finds_its_own_benches(tmp_path):
+    """``as_table`` gives the input's coordinates and units back: read again, the holes are where they were, and a
+    part without the middle bench has two benches, not an empty level between them (as :meth:`subset` keeps)."""
+    from core.io.blastholes import blastholes_from_table
+
+    t = small_table(benches=(500.0, 450.0, 400.0))
+    t[["EAST", "NORTH"]] *= 3.28084
+    holes = read_blastholes(write(tmp_path, t))
+    again = blastholes_from_table(holes.as_table())
+    assert again.frame.length_unit == "ft" and again.n_benches == 3
+    np.testing.assert_allclose(again.frame.to_input(again.xy), holes.frame.to_input(holes.xy), atol=1e-6)
+    np.testing.assert_allclose(again.z, holes.z, atol=1e-6)
+    assert list(again.geozone) == list(holes.geozone)
+    part = blastholes_from_table(holes.as_table()[holes.bench != 1])
+    assert part.n_benches == 2 and holes.subset(holes.bench != 1).n_benches == 3
+    assert [part.bench_z_input(k) for k in range(2)] == pytest.approx([500.0, 400.0], abs=0.5)
+
+
 def test_mine_grid_coordinates_keep_full_precision():
     _, table, holes = synthetic(3, n_benches=3)
     assert table.y.min() > 7_399_000
