@@ -375,8 +375,9 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
     its boundary moves at most 0.2 spacings (the weight times the gate), less
     than the half-gap between its holes, so no hole changes side. Where they
     disagree by more, the bench shows what the benches above could not (a
-    split, a lens appearing) and stands. Benches are taken top down, each predicted from the benches above
-    as already drawn; their backtests stay in the result's memo.
+    split, a lens appearing) and stands. Benches are taken top down, each
+    predicted from the benches above as already drawn; their backtests stay
+    in the result's memo.
     How far the movement carries on is still judged on the benches as their
     holes showed them (:meth:`BenchFields.measured`).
 
