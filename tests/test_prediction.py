@@ -467,6 +467,40 @@ def test_movement_that_reverses_every_bench_is_predicted_no_worse_than_holding()
     assert model_f1 >= nil_f1 - 0.01, (model_f1, nil_f1)
 
 
+def test_the_movement_said_to_carry_on_is_the_benches_and_what_the_prediction_does():
+    """What ``bgm build``'s report and ``bgm predict`` say the depth trend carries on below the deepest bench.
+
+    A strip moving a known 8 m a bench: its movement goes on, 8 m a bench, chosen by a backtest that found holding
+    it wrong, and the predicted boundary lies that far from the deepest section's. One whose movement reverses
+    every bench is held: its backtest found carrying it on wrong. With three and two benches, what chose it says so.
+    """
+    from core.model.extrapolation import carried_movement
+
+    def carried(sections, known):
+        holes = _bench_table(sections)
+        model = model_geozone(holes.subset(holes.bench < known), "a")
+        said = carried_movement(model.fields, model.fields.bench_height_m, holes.hole_spacing_m)
+        return holes, model, said
+
+    steady = [_strip(8.0 * k) for k in range(5)]
+    holes, model, said = carried(steady, 4)
+    assert said.chosen_by == "backtest" and said.persistence[0] == 1.0
+    assert abs(said.movement_m[0] - 8.0) < 1.0, said
+    assert said.backtest_wrong_m2["none"] > 3 * said.backtest_wrong_m2[said.way], said
+    predicted, deepest, _ = _predict_next(holes, steady, 4, model)
+    inner = holes.drilled_area(3).buffer(-12.0)
+    edge = shapely.points(shapely.get_coordinates(predicted.boundary.intersection(inner)))
+    assert abs(np.median(shapely.distance(deepest.boundary, edge)) - said.movement_m[0]) < 1.0
+
+    _, _, held = carried([_strip(8.0 * (k % 2)) for k in range(5)], 4)  # 0, 8, 0, 8 m
+    assert held.persistence == (0.0, 0.0) and held.movement_m[0] < 0.1, held
+    assert held.backtest_wrong_m2["all"] > 1.5 * held.backtest_wrong_m2[held.way], held
+
+    three, two = carried(steady, 3)[2], carried(steady, 2)[2]
+    assert three.chosen_by == "three benches" and three.backtest_wrong_m2 is None and three.persistence[0] == 1.0
+    assert two.chosen_by == "two benches" and two.persistence == (1.0, 0.0) and two.backtest_wrong_m2 is None
+
+
 def _noisy_disc_scores(step_m, amplitude, known_benches):
     """Mean F1 of the model and of holding one bench below a :func:`_wobbly_disc` moving ``step_m`` a bench (3 seeds)."""
     scores = []

@@ -30,7 +30,7 @@ by the benches. The stages, one module each:
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import ndimage
@@ -187,6 +187,67 @@ def depth_trend(
         return _confirmed(fields, trend, bench_height_m, hole_spacing_m, stages.stage(1))
 
     return memoised(fields, ("trend", len(fields.z_m), bench_height_m, hole_spacing_m), compute)
+
+
+#: The ways of carrying a movement on that :func:`chosen_persistence` chooses between, in
+#: :func:`_ways_to_carry`'s order: as far as the last two moves agree, all of it, none of it.
+WAYS = ("agreement", "all", "none")
+
+
+@dataclass(frozen=True)
+class CarriedMovement:
+    """How a geozone's depth trend carries on the movement its benches show, and why (:func:`carried_movement`).
+
+    Attributes
+    ----------
+    way : str
+        One of :data:`WAYS`.
+    chosen_by : str
+        ``"backtest"`` (from the fourth bench: the way that put the fewest cells of the geozone's own benches on
+        the wrong side), ``"three benches"`` (their two moves' agreement, read against section noise's), ``"two
+        benches"`` (the outlines' movement alone) or ``"one bench"`` (no movement to carry).
+    persistence : (float, float)
+        The shares of the outlines' movement and of the finer changes carried on (paper section 4's trajectories
+        give the movement; issue 12 how far it goes on).
+    backtest_wrong_m2 : dict or None
+        Per way, the area its predictions of the backtested benches put on the wrong side (m²); None before the
+        fourth bench.
+    movement_m : (float, float) or None
+        How far the deepest section's boundary moves a bench height below it (metres, median and 90th percentile
+        over its cells the deepest bench drilled); None where that bench found none of the geozone.
+    """
+
+    way: str
+    chosen_by: str
+    persistence: tuple[float, float]
+    backtest_wrong_m2: dict[str, float] | None
+    movement_m: tuple[float, float] | None
+
+
+def carried_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m: float) -> CarriedMovement:
+    """What :func:`depth_trend` carries on below the deepest bench, and which of its backtests chose it.
+
+    A geologist reads from it whether the predicted slope is the benches' movement carried on or the deepest
+    bench held, and how clearly the geozone's own benches chose that. It reads the trend and the backtests kept
+    in ``fields.memo``; the two moves' agreement is measured again (its movements are dropped once a trend is made).
+    """
+    trend = depth_trend(fields, bench_height_m, hole_spacing_m)
+    known = with_backtested_dip(fields, bench_height_m, hole_spacing_m)
+    n = len(known.z_m)
+    try:
+        persistence = chosen_persistence(known, bench_height_m, hole_spacing_m)
+        wrong_m2 = None
+        if n >= 4:
+            cells = np.sum([_ways_backtest(known, j, bench_height_m, hole_spacing_m)[:, 0] for j in range(2, n - 1)], 0)
+            wrong_m2 = {w: float(c) * fields.grid.cell_size_m**2 for w, c in zip(WAYS, cells)}
+        way = WAYS[_chosen_way(known, bench_height_m, hole_spacing_m)]
+    finally:
+        dropped_movements(fields)
+    chosen_by = "backtest" if n >= 4 else {3: "three benches", 2: "two benches"}.get(n, "one bench")
+    edge = (np.abs(trend.f_last) <= fields.grid.cell_size_m) & fields.drilled[-1]
+    moved = np.abs(trend.carried[edge])
+    movement = (float(np.median(moved)), float(np.percentile(moved, 90))) if moved.size else None
+    return CarriedMovement(way, chosen_by, (float(persistence[0]), float(persistence[1])), wrong_m2, movement)
 
 
 def _older_evidence_carried_as_then(
