@@ -795,9 +795,13 @@ def predict(
     empty = [f["properties"]["z"] for f in features if f["geometry"].is_empty]
     if empty and model.pairs:
         _say(f"bgm: note: {geozone} is predicted absent at {', '.join(map(str, empty))}")
-    typer.echo(
-        json.dumps({"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)})
-    )
+    said = {"geozone": geozone, "elevations": levels, "features": len(features) - len(empty), "out": str(out)}
+    # Below the deepest bench the sections are the depth trend's: how much of the benches' movement it carries on.
+    if any(float(holes.frame.z_to_local(v)) < holes.bench_levels_m[-1] for v in levels) and model.pairs:
+        from core.io.reporting import carried_json
+
+        said["carried"] = carried_json(session.carried_movement(geozone, model), holes)
+    typer.echo(json.dumps(said))
 
 
 def uncertainty_sidecars(out: Path) -> tuple[Path, Path]:

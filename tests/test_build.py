@@ -50,6 +50,14 @@ def test_build_writes_every_output(built):
     for g in ("g1", "g2"):
         for name in ("correspondence.json", "morph.json", "prediction.geojson"):
             assert (built / g / name).exists(), (g, name)
+    # How each geozone's prediction carries its benches' movement on below the deepest bench, and what chose it.
+    section = report.split("## Below the deepest bench")[1].split("## ")[0]
+    for g in summary["geozones"]:
+        carried = g["carried"]
+        assert carried["way"] in ("agreement", "all", "none") and carried["chosen_by"] == "backtest", g["geozone"]
+        wrong = carried["backtest_wrong_area_m2"]
+        assert set(wrong) == {"agreement", "all", "none"} and wrong[carried["way"]] == min(wrong.values())
+        assert f"| {g['geozone']} | " in section
 
 
 def test_the_next_bench_the_report_samples_has_its_band_in_the_uncertainty_file(small_mine_csv, tmp_path):
@@ -369,7 +377,8 @@ def built_in_feet(small_mine_csv, tmp_path_factory):
     feet.to_csv(path, index=False)
     bgm("build", path, "--out", folder / "model", "--geozone", "g1")
     below = json.loads((folder / "model" / "g1" / "prediction.geojson").read_text())["features"][0]["properties"]["z"]
-    bgm("predict", path, "--geozone", "g1", "--elevations", str(below), "--out", folder / "p.geojson")
+    said = bgm("predict", path, "--geozone", "g1", "--elevations", str(below), "--out", folder / "p.geojson").stdout
+    (folder / "predict.json").write_text(said)
     return folder
 
 
@@ -385,6 +394,42 @@ def test_every_file_of_a_build_or_prediction_in_feet_says_feet(built_in_feet):
     for grid in (model / "g1" / "p_inside.npz", built_in_feet / "p.p_inside.npz"):
         assert str(np.load(grid)["units"]) == "ft", grid
     assert json.loads((model / "g1" / "surface.stl.json").read_text())["units"] == "ft"
+    # how far the movement carries on below the deepest bench: feet, bgm predict's the build's
+    carried = json.loads((model / "summary.json").read_text())["geozones"][0]["carried"]
+    assert carried["movement_per_bench_ft"] and carried["backtest_wrong_area_ft2"]
+    assert json.loads((built_in_feet / "predict.json").read_text())["carried"] == carried
+
+
+def test_how_far_the_movement_carries_on_is_said_in_the_inputs_units():
+    """The summary's and ``bgm predict``'s movement a bench and backtest areas: a 3.048 m move is 10 ft, 9.290 m² of
+    wrong area 100 ft², each key naming its unit; a geozone with no bench pair says nothing; one line for the viewer."""
+    from types import SimpleNamespace
+
+    from core.io.blastholes import LocalFrame
+    from core.io.reporting import carried_json, carried_line
+    from core.model.extrapolation import CarriedMovement
+
+    feet = SimpleNamespace(frame=LocalFrame(0.0, 0.0, 0.3048, "ft"))
+    said = CarriedMovement(
+        "all", "backtest", (1.0, 0.5), {"agreement": 18.58, "all": 9.290304, "none": 0.0}, (3.048, 6.096)
+    )
+    assert carried_json(said, feet) == {
+        "way": "all",
+        "chosen_by": "backtest",
+        "persistence": [1.0, 0.5],
+        "movement_per_bench_ft": [10.0, 20.0],
+        "backtest_wrong_area_ft2": {"agreement": 200.0, "all": 100.0, "none": 0.0},
+    }
+    assert carried_json(None, feet) is None and carried_line(None, "ft") == "-"
+    assert (
+        carried_line(carried_json(said, feet), "ft")
+        == "all of it, 10.0 ft a bench (chosen by its own benches' backtest)"
+    )
+    held = CarriedMovement("none", "three benches", (0.0, 0.0), None, None)
+    assert carried_json(held, feet)["backtest_wrong_area_ft2"] is None
+    assert carried_line(carried_json(held, feet), "ft").startswith(
+        "none of it: the deepest bench held (chosen by three"
+    )
 
 
 def test_a_geologists_file_follows_its_geozone_when_the_folder_is_named_differently(small_mine_csv, tmp_path):

@@ -21,7 +21,7 @@ pytest.importorskip("psygnal")
 
 from bgm_viewer.model import ViewerModel
 from core.io.blastholes import read_blastholes
-from core.io.reporting import to_input_geometry
+from core.io.reporting import carried_json, carried_line, to_input_geometry
 from core.model.build import build
 from core.model.parameters import ModelParameters
 from core.model.session import ModelSession, StageStore
@@ -86,6 +86,14 @@ def test_the_viewer_shows_the_contours_translations_and_surface_bgm_build_export
     assert len(on_screen.faces) == len(mesh.faces)
     np.testing.assert_allclose(on_screen.vertices, mesh.vertices, atol=1e-6)
     assert on_screen.volume == pytest.approx(info["volume"], rel=1e-3)
+
+    # how the prediction below the deepest bench carries the movement on: the report's, and bgm predict's
+    assert info["carried"] and carried_json(res.carried, holes) == info["carried"]
+    assert viewer.carried_text() == carried_line(info["carried"], "m")
+    below = holes.bench_z_input(holes.n_benches - 1) - 10.0
+    proc = bgm("predict", DEMO_CSV, "--geozone", GEOZONE, "--elevations", f"{below:g}", "--out", tmp_path / "p.geojson")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["carried"] == info["carried"]
 
 
 def test_the_translation_shown_and_locked_is_bgm_corresponds(demo_holes, tmp_path):
@@ -180,10 +188,12 @@ def test_a_geozone_with_no_bench_pair_is_predicted_by_none_of_build_viewer_and_p
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        build(holes, tmp_path / "build", geozones=["g3"], evaluate=False, workers=1)
+        summary = build(holes, tmp_path / "build", geozones=["g3"], evaluate=False, workers=1)
     assert not (tmp_path / "build" / "g3" / "prediction.geojson").exists()
+    assert summary["geozones"][0]["carried"] is None
     viewer = _viewer(holes, "g3", 2, until="prediction")
     assert viewer.result.model is not None and not viewer.result.model.pairs and not viewer.result.predicted
+    assert viewer.carried_text() == "-" and "carried" not in json.loads(proc.stdout)
     session = ModelSession.open(holes, cache=False)
     regions = session.predict("g3", [float(holes.frame.z_to_local(below)), float(holes.bench_levels_m[3])])
     assert all(region.is_empty for region in regions.values())

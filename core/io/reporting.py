@@ -90,6 +90,53 @@ def prediction_feature(region, holes: Blastholes, geozone: str, z: float) -> dic
     return {"geometry": geometry, "properties": {"geozone": geozone, "z": z, **area}}
 
 
+#: How each way of carrying the benches' movement on below the deepest bench is said (:func:`carried_line`).
+CARRIED_WORDS = {
+    "agreement": "as far as its last two moves agree",
+    "all": "all of it",
+    "none": "none of it: the deepest bench held",
+}
+#: What chose the way, as said.
+CHOSEN_WORDS = {
+    "backtest": "its own benches' backtest",
+    "three benches": "three benches: their two moves' agreement",
+    "two benches": "two benches: the outlines' movement only",
+    "one bench": "one bench: nothing to carry",
+}
+
+
+def carried_line(carried: dict | None, unit: str) -> str:
+    """:func:`carried_json` in one line, as the viewer shows it: ``all of it, 4.1 m a bench (median; its own ...)``."""
+    if carried is None:
+        return "-"
+    moved = carried[f"movement_per_bench_{unit}"]
+    how_far = "" if moved is None else f", {moved[0]:.1f} {unit} a bench"
+    return f"{CARRIED_WORDS[carried['way']]}{how_far} (chosen by {CHOSEN_WORDS[carried['chosen_by']]})"
+
+
+def carried_json(carried, holes: Blastholes) -> dict | None:
+    """A :class:`core.model.extrapolation.CarriedMovement` as ``bgm build``'s summary and ``bgm predict`` give it.
+
+    Lengths and areas in the input's units (``movement_per_bench_<unit>``: median and 90th percentile;
+    ``backtest_wrong_area_<unit>2``: per way, None before the fourth bench). None stays None (no bench pair).
+    """
+    if carried is None:
+        return None
+    unit = holes.frame.length_unit
+    to_input = holes.frame.length_to_input
+    moved = None if carried.movement_m is None else [round(float(to_input(m)), 2) for m in carried.movement_m]
+    wrong = carried.backtest_wrong_m2
+    return {
+        "way": carried.way,
+        "chosen_by": carried.chosen_by,
+        "persistence": [round(p, 3) for p in carried.persistence],
+        f"movement_per_bench_{unit}": moved,
+        f"backtest_wrong_area_{unit}2": None
+        if wrong is None
+        else {w: round(float(to_input(to_input(a))), 1) for w, a in wrong.items()},
+    }
+
+
 def hole_ids(holes: Blastholes, index: np.ndarray) -> list:
     """Hole ids of the given holes as written in the input; where it has none, the file line each was read from.
 

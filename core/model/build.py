@@ -36,7 +36,14 @@ from core.geometry.grid import as_multipolygon
 from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
 from core.io.export import SURFACE_FORMATS
-from core.io.reporting import containment_summary, contour_feature, prediction_feature
+from core.io.reporting import (
+    CARRIED_WORDS,
+    CHOSEN_WORDS,
+    carried_json,
+    containment_summary,
+    contour_feature,
+    prediction_feature,
+)
 from core.model.pipeline import (
     GeozoneModel,
     ModelParameters,
@@ -221,6 +228,8 @@ class GeozoneSummary:
     formats: dict = field(default_factory=dict)
     #: Where to sample next (see :func:`write_sampling`): calibration, band width, suggested holes, map.
     sampling: dict = field(default_factory=dict)
+    #: How the depth trend carries the benches' movement on below the deepest bench (:func:`carried_json`).
+    carried: dict | None = None
 
 
 def build(
@@ -891,6 +900,7 @@ def build_geozone(ctx: BuildContext, g: str, progress=None) -> tuple[GeozoneSumm
     features = [f for f in features if not f["geometry"].is_empty]
     write_geojson(features, gdir / "prediction.geojson", units=holes.frame.length_unit)
     write_section_dxf(features, "z", gdir / "prediction.dxf", ctx.layers)
+    summary.carried = carried_json(session.carried_movement(g, model), holes)
     steps.step("predictions")
     summary.sampling = write_sampling(ctx.session, model, predictions, gdir, ctx.out_dir)
     steps.step("uncertainty")
@@ -1070,7 +1080,9 @@ def report_markdown(summary: dict, table: pd.DataFrame | None) -> str:
             f"({c['contours_with_at_most_5pct_other']:.0%} of contours at most 5%).",
             "",
         ]
-    lines += _geozone_table(summary) + _surfaces_section(summary) + _sampling_section(summary)
+    lines += (
+        _geozone_table(summary) + _surfaces_section(summary) + _carried_section(summary) + _sampling_section(summary)
+    )
     if table is not None:
         lines += [
             "## Predictive value",
@@ -1137,6 +1149,37 @@ def _surfaces_section(summary: dict) -> list[str]:
     }
     for offset in sorted(offsets):
         lines.append(f"  STL offset: add ({', '.join(f'{v:.0f}' for v in offset)}) {summary['units']} to x, y, z.")
+    return [*lines, ""]
+
+
+def _carried_section(summary: dict) -> list[str]:
+    """Below the deepest bench: how much of each geozone's movement its depth trend carries on, and what chose it."""
+    unit = summary["units"]
+    rows = [g for g in summary["geozones"] if g.get("carried")]
+    if not rows:
+        return []
+    lines = [
+        "## Below the deepest bench",
+        "",
+        "Each geozone's boundary moves on below the deepest bench as its benches moved, as far as they show it "
+        "(trajectories give the movement, the geozone's own benches how much of it goes on: each bench predicted "
+        "from the benches above it each way, the way with the least area on the wrong side taken). Movement: how "
+        "far the deepest section's boundary moves a bench down (median / 90th percentile).",
+        "",
+        f"| geozone | movement carried | chosen by | persistence (outlines / finer) | movement a bench ({unit}) "
+        f"| backtest: area wrong, agreement / all / none ({unit}²) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for g in rows:
+        c = g["carried"]
+        moved = c[f"movement_per_bench_{unit}"]
+        wrong = c[f"backtest_wrong_area_{unit}2"]
+        lines.append(
+            f"| {_cell(g['geozone'])} | {CARRIED_WORDS[c['way']]} | {CHOSEN_WORDS[c['chosen_by']]} | "
+            f"{c['persistence'][0]:.2f} / {c['persistence'][1]:.2f} | "
+            f"{'' if moved is None else f'{moved[0]:.1f} / {moved[1]:.1f}'} | "
+            f"{'' if wrong is None else ' / '.join(f'{wrong[w]:.0f}' for w in ('agreement', 'all', 'none'))} |"
+        )
     return [*lines, ""]
 
 

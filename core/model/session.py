@@ -39,6 +39,7 @@ from core.geometry.grid import as_multipolygon
 from core.io.blastholes import Blastholes
 from core.io.cache import MISSING, StageCache, content_key, engine_fingerprint
 from core.io.project import Project, check_override_components, overrides_for
+from core.model.extrapolation import CarriedMovement, carried_movement
 from core.model.fields import BenchFields
 from core.model.new_ground import known_holes
 from core.model.parameters import ModelParameters, stage_values
@@ -497,6 +498,22 @@ class ModelSession:
             "prediction",
             key,
             lambda: predict_geozone(model, z_m, spacing_m, self.params, progress=stages.stage(1), holes=self.holes),
+        )
+
+    def carried_movement(self, geozone: str, model: GeozoneModel | None = None) -> CarriedMovement | None:
+        """How the geozone's depth trend carries its benches' movement on below the deepest bench, and why
+        (:func:`core.model.extrapolation.carried_movement`); None for a geozone with no bench pair (predicted nowhere).
+
+        Kept with the stage cache as its prediction is: a prediction served from the cache made no trend, and this
+        reads one.
+        """
+        model = model or self.geozone_model(geozone)
+        if not model.pairs or model.fields is None:
+            return None
+        fields, spacing_m = model.fields, self.holes.hole_spacing_m
+        key = content_key("carried movement", self._model_key(model), stage_values(self.params, "prediction"))
+        return self.store.get(
+            "carried movement", key, lambda: carried_movement(fields, fields.bench_height_m, spacing_m)
         )
 
     def surface(self, geozone: str, model: GeozoneModel | None = None, progress: Progress | None = None):
