@@ -557,6 +557,16 @@ class MainWindow(QtWidgets.QMainWindow):
         for wid in (self.geozone_combo, self.bench_combo, self.component_spin):
             wid.blockSignals(False)
 
+    def _carried_label(self) -> QtWidgets.QLabel:
+        self.carried_label = QtWidgets.QLabel("-")
+        self.carried_label.setWordWrap(True)
+        self.carried_label.setToolTip(
+            "How much of the selected geozone's movement between benches its prediction carries on below the"
+            " deepest bench, how far its boundary moves a bench there (median), and what chose it (bgm build's"
+            " report, 'Below the deepest bench')"
+        )
+        return self.carried_label
+
     def _build_parameter_panel(self) -> None:
         w = QtWidgets.QWidget()
         lay = QtWidgets.QVBoxLayout(w)
@@ -571,6 +581,8 @@ class MainWindow(QtWidgets.QMainWindow):
                 label.setToolTip(ctl.toolTip())
                 form.addRow(label, ctl)
                 self.param_controls[spec.name] = ctl
+            if section == "prediction":  # what the selected geozone's prediction carries on, and what chose it
+                form.addRow("movement carried", self._carried_label())
             lay.addWidget(box)
         lay.addStretch(1)
         self._param_dock = self._dock("Parameters", w, Qt.DockWidgetArea.RightDockWidgetArea)
@@ -1264,6 +1276,7 @@ class MainWindow(QtWidgets.QMainWindow):
         geologist was typing meanwhile was set back to the translation shown, then applied by Apply.
         The boxes now change only when the translation shown (or the component) does.
         """
+        self.carried_label.setText(self.model.carried_text())
         t = self.model.current_translation_m()
         if t is None:
             self.translation_label.setText("-")

@@ -47,7 +47,8 @@ from core.errors import BGMInputError, BGMWarning
 from core.extraction.contours import Contour
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes
 from core.io.cache import StageCache
-from core.io.reporting import hole_name
+from core.io.reporting import carried_json, carried_line, hole_name
+from core.model.extrapolation import CarriedMovement
 from core.model.parameters import (
     PARAMETER,
     PARAMETERS,
@@ -152,6 +153,8 @@ class PipelineResult:
     #: The same geozones' surfaces as ``bgm build`` exports them, every body kept (what the viewer exports).
     built: dict[str, trimesh.Trimesh] = field(default_factory=dict)
     predicted: list = field(default_factory=list)  #: (geozone, z_m, polygon) below the deepest bench
+    #: How the selected geozone's depth trend carries its benches' movement on there, as ``bgm build`` reports it.
+    carried: CarriedMovement | None = None
     selection: Selection | None = None  #: what the pair, morph, model and surface were computed for
     min_component_holes: int = ModelParameters().min_component_holes
     timings: dict[str, float] = field(default_factory=dict)
@@ -634,7 +637,7 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
     model = res.model
     paired = model is not None and bool(model.pairs)
     if not paired:
-        res.predicted, res.surface = [], None
+        res.predicted, res.surface, res.carried = [], None, None
     else:
         # Below the input's deepest bench, as bgm build predicts (core.model.build.build_geozone), not below
         # the geozone's deepest pair: a geozone whose pairs end higher up was drawn between known benches,
@@ -643,6 +646,7 @@ def _geozone_steps(run: _Run, last: int) -> Iterator[Progress]:
         # Seconds on a large geozone (its depth trend's backtests): a newer request stops it at its next step.
         regions = run.step("prediction", lambda: session.predict(g, zs, model, run.progress), "prediction") or {}
         res.predicted = [(g, z, poly) for z, region in regions.items() for poly in region.geoms]
+        res.carried = run.step("carried movement", lambda: session.carried_movement(g, model), "prediction")
     if last >= STEPS.index("surface"):
         # A selected geozone with no bench pair (a geozone of one bench, or one a parameter left without)
         # has no surface, and the other geozones' are still redone: returning here left its surface from
@@ -1253,6 +1257,14 @@ class ViewerModel:
         top = self._undo[-1] if self._undo else None
         if top is None or top.params is None or top.edits != edits:
             self._push_undo(self._placed_params, edits)
+
+    def carried_text(self) -> str:
+        """How the selected geozone's prediction below the deepest bench carries its benches' movement on, in one
+        line (what ``bgm build``'s report says of it); ``-`` until its model is run."""
+        shown = self.result.selection
+        if self.result.carried is None or shown is None or shown.geozone != self.selection.geozone:
+            return "-"
+        return carried_line(carried_json(self.result.carried, self.holes), self.holes.frame.length_unit)
 
     def current_translation_m(self) -> tuple[float, float] | None:
         """The selected source's translation (metres), ``None`` until its bench pair is corresponded."""

@@ -94,6 +94,8 @@ def test_window_shows_layers_and_results(window):
     assert window.scene["contours"].visible
     img = window.plotter.screenshot(None, return_img=True)
     assert img.std() > 5  # something is drawn
+    # how the selected geozone's prediction carries its movement on below the deepest bench, as the report says it
+    assert window.carried_label.text() == window.model.carried_text() != "-"
 
 
 def test_slider_change_reruns_its_stage_and_changes_the_contour(window, qtbot):
