@@ -497,8 +497,14 @@ def test_the_movement_said_to_carry_on_is_the_benches_and_what_the_prediction_do
     assert held.backtest_wrong_m2["all"] > 1.5 * held.backtest_wrong_m2[held.way], held
 
     three, two = carried(steady, 3)[2], carried(steady, 2)[2]
-    assert three.chosen_by == "three benches" and three.backtest_wrong_m2 is None and three.persistence[0] == 1.0
-    assert two.chosen_by == "two benches" and two.persistence == (1.0, 0.0) and two.backtest_wrong_m2 is None
+    assert (three.chosen_by, three.way, three.backtest_wrong_m2) == ("three benches", "agreement", None)
+    assert three.persistence[0] == 1.0
+    assert (two.chosen_by, two.way, two.persistence, two.backtest_wrong_m2) == (
+        "two benches",
+        "outlines",
+        (1.0, 0.0),
+        None,
+    )
 
 
 def _noisy_disc_scores(step_m, amplitude, known_benches):

@@ -95,13 +95,14 @@ CARRIED_WORDS = {
     "agreement": "as far as its last two moves agree",
     "all": "all of it",
     "none": "none of it: the deepest bench held",
+    "outlines": "its outlines' movement, not their finer changes",
 }
 #: What chose the way, as said.
 CHOSEN_WORDS = {
     "backtest": "its own benches' backtest",
     "three benches": "three benches: their two moves' agreement",
-    "two benches": "two benches: the outlines' movement only",
-    "one bench": "one bench: nothing to carry",
+    "two benches": "two benches: one move, no agreement to read",
+    "one bench": "one bench: no movement",
 }
 
 

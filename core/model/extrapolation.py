@@ -192,6 +192,8 @@ def depth_trend(
 #: The ways of carrying a movement on that :func:`chosen_persistence` chooses between, in
 #: :func:`_ways_to_carry`'s order: as far as the last two moves agree, all of it, none of it.
 WAYS = ("agreement", "all", "none")
+#: What chooses how far the movement goes on, and the way, where too few benches are known for a backtest.
+FEW_BENCHES = {3: ("three benches", "agreement"), 2: ("two benches", "outlines")}
 
 
 @dataclass(frozen=True)
@@ -201,11 +203,11 @@ class CarriedMovement:
     Attributes
     ----------
     way : str
-        One of :data:`WAYS`.
+        One of :data:`WAYS`, or with two benches ``"outlines"`` (their one move's outlines, not its finer changes).
     chosen_by : str
         ``"backtest"`` (from the fourth bench: the way that put the fewest cells of the geozone's own benches on
-        the wrong side), ``"three benches"`` (their two moves' agreement, read against section noise's), ``"two
-        benches"`` (the outlines' movement alone) or ``"one bench"`` (no movement to carry).
+        the wrong side), ``"three benches"`` (the agreement of their two moves, read against section noise's),
+        ``"two benches"`` (one move: no agreement to read) or ``"one bench"`` (no movement; way ``"none"``).
     persistence : (float, float)
         The shares of the outlines' movement and of the finer changes carried on (paper section 4's trajectories
         give the movement; issue 12 how far it goes on).
@@ -243,7 +245,7 @@ def carried_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m:
         way = WAYS[_chosen_way(known, bench_height_m, hole_spacing_m)]
     finally:
         dropped_movements(fields)
-    chosen_by = "backtest" if n >= 4 else {3: "three benches", 2: "two benches"}.get(n, "one bench")
+    chosen_by, way = ("backtest", way) if n >= 4 else FEW_BENCHES.get(n, ("one bench", "none"))
     edge = (np.abs(trend.f_last) <= fields.grid.cell_size_m) & fields.drilled[-1]
     moved = np.abs(trend.carried[edge])
     movement = (float(np.median(moved)), float(np.percentile(moved, 90))) if moved.size else None
