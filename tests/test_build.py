@@ -425,6 +425,12 @@ def test_how_far_the_movement_carries_on_is_said_in_the_inputs_units():
         carried_line(carried_json(said, feet), "ft")
         == "all of it, 10.0 ft a bench (chosen by its own benches' backtest)"
     )
+    agreeing_on_none = CarriedMovement("agreement", "backtest", (0.0, 0.0), None, (0.0, 0.0))
+    assert carried_line(carried_json(agreeing_on_none, feet), "ft").startswith(
+        "as far as its last two moves agree: none of it, 0.0 ft a bench"
+    )
+    partly = CarriedMovement("agreement", "backtest", (1.0, 0.2), None, (3.048, 3.048))
+    assert carried_line(carried_json(partly, feet), "ft").startswith("as far as its last two moves agree, 10.0 ft")
     held = CarriedMovement("none", "three benches", (0.0, 0.0), None, None)
     assert carried_json(held, feet)["backtest_wrong_area_ft2"] is None
     assert carried_line(carried_json(held, feet), "ft").startswith(

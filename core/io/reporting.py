@@ -106,13 +106,22 @@ CHOSEN_WORDS = {
 }
 
 
+def carried_words(carried: dict) -> str:
+    """The way :func:`carried_json` says the movement is carried on, and where the agreement's share is all or
+    none, which (a geozone "carried as far as its moves agree" that carries none of it is held)."""
+    words = CARRIED_WORDS[carried["way"]]
+    if carried["way"] == "agreement" and len(set(carried["persistence"])) == 1 and carried["persistence"][0] in (0, 1):
+        words += ": none of it" if carried["persistence"][0] == 0 else ": all of it"
+    return words
+
+
 def carried_line(carried: dict | None, unit: str) -> str:
     """:func:`carried_json` in one line, as the viewer shows it: ``all of it, 4.1 m a bench (median; its own ...)``."""
     if carried is None:
         return "-"
     moved = carried[f"movement_per_bench_{unit}"]
     how_far = "" if moved is None else f", {moved[0]:.1f} {unit} a bench"
-    return f"{CARRIED_WORDS[carried['way']]}{how_far} (chosen by {CHOSEN_WORDS[carried['chosen_by']]})"
+    return f"{carried_words(carried)}{how_far} (chosen by {CHOSEN_WORDS[carried['chosen_by']]})"
 
 
 def carried_json(carried, holes: Blastholes) -> dict | None:

@@ -37,9 +37,9 @@ from core.io.atomic import atomic_write_text, check_output, replaced_folder
 from core.io.blastholes import Blastholes
 from core.io.export import SURFACE_FORMATS
 from core.io.reporting import (
-    CARRIED_WORDS,
     CHOSEN_WORDS,
     carried_json,
+    carried_words,
     containment_summary,
     contour_feature,
     prediction_feature,
@@ -1175,7 +1175,7 @@ def _carried_section(summary: dict) -> list[str]:
         moved = c[f"movement_per_bench_{unit}"]
         wrong = c[f"backtest_wrong_area_{unit}2"]
         lines.append(
-            f"| {_cell(g['geozone'])} | {CARRIED_WORDS[c['way']]} | {CHOSEN_WORDS[c['chosen_by']]} | "
+            f"| {_cell(g['geozone'])} | {carried_words(c)} | {CHOSEN_WORDS[c['chosen_by']]} | "
             f"{c['persistence'][0]:.2f} / {c['persistence'][1]:.2f} | "
             f"{'' if moved is None else f'{moved[0]:.1f} / {moved[1]:.1f}'} | "
             f"{'' if wrong is None else ' / '.join(f'{wrong[w]:.0f}' for w in ('agreement', 'all', 'none'))} |"
