@@ -238,14 +238,14 @@ def carried_movement(fields: BenchFields, bench_height_m: float, hole_spacing_m:
     n = len(known.z_m)
     try:
         persistence = chosen_persistence(known, bench_height_m, hole_spacing_m)
-        wrong_m2 = None
-        if n >= 4:
-            cells = np.sum([_ways_backtest(known, j, bench_height_m, hole_spacing_m)[:, 0] for j in range(2, n - 1)], 0)
-            wrong_m2 = {w: float(c) * fields.grid.cell_size_m**2 for w, c in zip(WAYS, cells)}
-        way = WAYS[_chosen_way(known, bench_height_m, hole_spacing_m)]
     finally:
         dropped_movements(fields)
-    chosen_by, way = ("backtest", way) if n >= 4 else FEW_BENCHES.get(n, ("one bench", "none"))
+    chosen_by, way = FEW_BENCHES.get(n, ("one bench", "none"))
+    wrong_m2 = None
+    if n >= 4:  # the backtest chose: the way with the fewest cells wrong (chosen_persistence's, from the memo)
+        cells = _ways_wrong_cells(known, bench_height_m, hole_spacing_m)
+        chosen_by, way = "backtest", WAYS[int(np.argmin(cells))]
+        wrong_m2 = {w: float(c) * fields.grid.cell_size_m**2 for w, c in zip(WAYS, cells)}
     edge = (np.abs(trend.f_last) <= fields.grid.cell_size_m) & fields.drilled[-1]
     moved = np.abs(trend.carried[edge])
     movement = (float(np.median(moved)), float(np.percentile(moved, 90))) if moved.size else None
@@ -632,15 +632,27 @@ def _chosen_way(
     :func:`chosen_persistence` takes it from the fourth bench; with three it reads the agreement otherwise.
     ``progress(done, total)`` is told as each pair is backtested.
     """
+    return (
+        int(np.argmin(_ways_wrong_cells(fields, bench_height_m, hole_spacing_m, progress)))
+        if len(fields.z_m) >= 4
+        else 0
+    )
+
+
+def _ways_wrong_cells(
+    fields: BenchFields, bench_height_m: float, hole_spacing_m: float, progress: Progress | None = None
+) -> np.ndarray:
+    """Per way of :func:`_ways_to_carry`, the cells its backtests from the fourth bench on put on the wrong side.
+
+    ``progress(done, total)`` is told as each pair is backtested.
+    """
     n = len(fields.z_m)
-    if n < 4:
-        return 0
     rows = []
     for j in range(2, n - 1):
         rows.append(_ways_backtest(fields, j, bench_height_m, hole_spacing_m)[:, 0])
         if progress:
             progress(len(rows), n - 3)
-    return int(np.argmin(sum(rows)))
+    return np.sum(rows, axis=0)
 
 
 def _ways_to_carry(fields: BenchFields, hole_spacing_m: float) -> tuple[tuple[float, float], ...]:
