@@ -98,6 +98,10 @@ MAX_BENCH_THICKNESS_SPACINGS = 5.0
 SPARSE_BENCH_SPACING_RATIO = 1.5
 #: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
 BENCH_HEIGHT_TOLERANCE = 0.03
+#: Elevations where holes are this many times sparser than at the median hole are between benches, when a few holes
+#: there bridge every gap (:func:`_dense_levels`): benches 10 m apart whose holes scatter by 1.2-2 m (a standard
+#: deviation) leave a few holes half-way between them, and were refused as elevations "spread continuously".
+SPARSE_ELEVATION_FACTOR = 10.0
 #: More benches than this from an explicit bench height is a unit mistake.
 MAX_BENCHES = 10_000
 #: x and y both spanning less than this many units (and within +-180, +-90) are degrees.
@@ -1378,7 +1382,7 @@ def detect_benches(
         if len(big) < 2:
             small = [c for c in clusters if 3 <= len(c) < min_count]
             sparse = _sparse_benches_beside_one(z, big, small, xy)
-            return _single_bench(z, xy, small if big else []) if sparse is None else _on_levels(z, sparse, None, xy)
+            return _on_levels(z, sparse, None, xy) if sparse is not None else _single_or_dense(z, zs, xy, big, small)
     levels = _levels_of(z, zs, big, [c for c in clusters if 3 <= len(c) < min_count], bench_height)
     return _on_levels(z, levels, bench_height, xy)
 
@@ -1516,6 +1520,44 @@ def _benches_without(
     bench, off_all = np.full(len(z), -1), apart.copy()
     bench[~apart], off_all[~apart] = found, off
     return levels, bench, height, off_all
+
+
+def _single_or_dense(
+    z: np.ndarray, zs: np.ndarray, xy: np.ndarray | None, big: list[np.ndarray], small: list[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """One bench (:func:`_single_bench`); where that is refused as too thick, the benches of its dense bands
+    (:func:`_dense_levels`), if it has two or more. A bench of two sub-levels (685 and 687 m) stays one bench."""
+    try:
+        return _single_bench(z, xy, small if big else [])
+    except BGMInputError:
+        levels = _dense_levels(zs, min_bench_holes(len(z)), z, xy)
+        if levels is None:
+            raise
+        return _on_levels(z, levels, None, xy)
+
+
+def _dense_levels(zs: np.ndarray, min_count: int, z: np.ndarray, xy: np.ndarray | None) -> np.ndarray | None:
+    """The bench levels (ascending) of elevations that scatter so far that a few holes bridge every gap, or None.
+
+    Benches are the dense bands of the elevations: a hole where holes are :data:`SPARSE_ELEVATION_FACTOR` times
+    sparser than at the median hole (the span of its ``k`` nearest elevations that many times the median span)
+    lies between benches; the rest are clustered as :func:`detect_benches` clusters any elevations. Two or more
+    benches of ``min_count`` holes are the levels (each hole is then put on its nearest, those far from every
+    level left out and said). Elevations spread evenly have no sparse band, and stay refused.
+    """
+    k = max(5, len(zs) // 1000)
+    if len(zs) <= 2 * k:
+        return None
+    span = zs[2 * k :] - zs[: -2 * k]  # the span of the 2k + 1 elevations centred on each hole from the k-th
+    dense = np.ones(len(zs), bool)
+    dense[k:-k] = span <= SPARSE_ELEVATION_FACTOR * max(float(np.median(span)), 1e-12)
+    if dense.all():
+        return None
+    clusters = _split_hidden_benches(_bench_clusters(zs[dense], min_count), min_count, z, xy)
+    big = [c for c in clusters if len(c) >= min_count]
+    if len(big) < 2:
+        return None
+    return _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
 
 
 def _refuse_tiny_levels(zs: np.ndarray, clusters: list[np.ndarray]) -> None:
