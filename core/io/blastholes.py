@@ -1545,19 +1545,29 @@ def _dense_levels(zs: np.ndarray, min_count: int, z: np.ndarray, xy: np.ndarray 
     benches of ``min_count`` holes are the levels (each hole is then put on its nearest, those far from every
     level left out and said). Elevations spread evenly have no sparse band, and stay refused.
     """
-    k = max(5, len(zs) // 1000)
-    if len(zs) <= 2 * k:
+    n, k = len(zs), max(5, len(zs) // 1000)
+    if n <= 2 * k:
         return None
-    span = zs[2 * k :] - zs[: -2 * k]  # the span of the 2k + 1 elevations centred on each hole from the k-th
-    dense = np.ones(len(zs), bool)
-    dense[k:-k] = span <= SPARSE_ELEVATION_FACTOR * max(float(np.median(span)), 1e-12)
+    # The span of the 2k elevations around each hole (fewer at either end, scaled up to 2k: an end's tail is sparse too).
+    lo, hi = np.maximum(np.arange(n) - k, 0), np.minimum(np.arange(n) + k, n - 1)
+    span = (zs[hi] - zs[lo]) * (2 * k) / (hi - lo)
+    dense = span <= SPARSE_ELEVATION_FACTOR * max(float(np.median(span)), 1e-12)
     if dense.all():
         return None
     clusters = _split_hidden_benches(_bench_clusters(zs[dense], min_count), min_count, z, xy)
     big = [c for c in clusters if len(c) >= min_count]
     if len(big) < 2:
         return None
-    return _bench_levels(big, [c for c in clusters if 3 <= len(c) < min_count])
+    # A bench drilled sparsely (opened at the pit's floor: a few dozen holes) is as sparse as the ground between two
+    # benches; the holes far from every dense bench's level are clustered again, and a cluster far enough from every
+    # bench is one too (:func:`_bench_levels`).
+    levels = _bench_levels(big, [])
+    height = typical_bench_height(levels)
+    far = np.abs(zs[:, None] - levels[None, :]).min(axis=1) > OFF_BENCH_FRACTION * height
+    small = [c for c in _elevation_clusters(zs[far]) if len(c) >= 3] if far.sum() >= 3 else []
+    # Each about its densest slice: the tails of the dense bench beside it are in its cluster too.
+    small = [c[np.abs(c - _densest_elevation(c, height)) <= OFF_BENCH_FRACTION * height] for c in small]
+    return _bench_levels(big, [c for c in small if len(c) >= 3])
 
 
 def _refuse_tiny_levels(zs: np.ndarray, clusters: list[np.ndarray]) -> None:
