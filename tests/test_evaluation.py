@@ -481,3 +481,37 @@ def test_real_data_is_also_scored_on_the_withheld_benchs_holes():
     hit, inside_n, labelled = df["holes_in_geozone"].sum(), df["holes_in"].sum(), df["holes_geozone"].sum()
     assert labelled == 2 * inside.sum()  # benches 2 and 3 withheld in turn
     assert hit / labelled > 0.97 and hit / inside_n > 0.97
+
+
+def test_the_references_on_a_table_of_two_pits_km_apart_score_as_on_one(small_mine):
+    """A reference is worth beating only at its best: its grid was 240 cells across the table, 11 m cells on the
+    same pit twice, 2.5 km apart, and linear extrapolation of the signed distance scored 0.83 F1 there against 0.95
+    on the pit alone (the demo twice, 3 km apart: 7.9 points lost a bench below). Its cells are now at most a
+    quarter of a hole spacing (half of one here, at 1,200 cells across), and the two pits score as one."""
+    import pandas as pd
+    import shapely
+    from shapely import affinity
+
+    mine, holes, truth, contours = small_mine
+    assert ev.reference_grid(holes).cell_size_m == ev.default_grid([holes.xy]).cell_size_m  # a small pit's: kept
+    table = sample_blastholes(mine, seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        two = blastholes_from_table(pd.concat([table, table.assign(x=table["x"] + 2500.0)], ignore_index=True))
+        contours_two = extract_contours(two, ["g1"])
+    assert ev.reference_grid(two).cell_size_m <= 0.5 * two.hole_spacing_m  # 1,200 cells across at most
+    west = ev.truth_from_mine(mine, two.frame)
+
+    def truth_two(geozone, z):
+        return shapely.union(west(geozone, z), affinity.translate(west(geozone, z), 2500.0, 0.0))
+
+    def linear_f1(h, cs, t, grid=None):
+        nothing = lambda known, geozone, zs: {z: MultiPolygon() for z in zs}  # noqa: E731  (not compared here)
+        rows = ev.evaluate_geozone(h, "g1", nothing, truth=t, contours=cs, references=("linear",), grid=grid)
+        linear = rows[rows["method"] == "linear"]
+        right = (linear["precision"] * linear["p_area"]).sum()
+        return 2 * right / (linear["p_area"].sum() + linear["g_area"].sum())
+
+    one = linear_f1(holes, contours, truth)
+    assert linear_f1(two, contours_two, truth_two) == pytest.approx(one, abs=0.01)
+    assert linear_f1(two, contours_two, truth_two, ev.default_grid([two.xy])) < one - 0.05  # as it was scored
