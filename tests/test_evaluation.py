@@ -493,13 +493,17 @@ def test_the_references_on_a_table_of_two_pits_km_apart_score_as_on_one(small_mi
     from shapely import affinity
 
     mine, holes, truth, contours = small_mine
-    assert ev.reference_grid(holes).cell_size_m == ev.default_grid([holes.xy]).cell_size_m  # a small pit's: kept
+    assert (
+        ev.reference_grid(holes.xy, holes.hole_spacing_m).cell_size_m == ev.default_grid([holes.xy]).cell_size_m
+    )  # a small pit's: kept
     table = sample_blastholes(mine, seed=2)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         two = blastholes_from_table(pd.concat([table, table.assign(x=table["x"] + 2500.0)], ignore_index=True))
         contours_two = extract_contours(two, ["g1"])
-    assert ev.reference_grid(two).cell_size_m <= 0.5 * two.hole_spacing_m  # 1,200 cells across at most
+    assert (
+        ev.reference_grid(two.xy, two.hole_spacing_m).cell_size_m <= 0.5 * two.hole_spacing_m
+    )  # 1,200 cells across at most
     west = ev.truth_from_mine(mine, two.frame)
 
     def truth_two(geozone, z):

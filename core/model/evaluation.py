@@ -162,8 +162,9 @@ REFERENCE_CELL_SPACINGS = 0.25
 REFERENCE_MAX_CELLS = 1200
 
 
-def reference_grid(holes: Blastholes) -> Grid:
-    """The grid the references are predicted on: 240 cells across the holes, finer where that is over half a spacing.
+def reference_grid(xy: np.ndarray, hole_spacing_m: float) -> Grid:
+    """The grid the references are predicted on over the points ``xy``: 240 cells across, finer where that is coarser
+    than :data:`REFERENCE_CELL_SPACINGS` hole spacings.
 
     A reference is worth beating only at its best. Its cells were a fixed share of the table's width: on Kennecott
     (1.4 km) 0.9 of a hole spacing, where the model's fields have half of one; on a table of two pits 3 km apart
@@ -171,12 +172,12 @@ def reference_grid(holes: Blastholes) -> Grid:
     half-spacing cells). Now at most :data:`REFERENCE_CELL_SPACINGS` hole spacings (but no more than
     :data:`REFERENCE_MAX_CELLS` across); on the synthetic families the 240 cells are as fine and stay.
     """
-    grid = default_grid([holes.xy])
-    span_m = float(np.max(np.ptp(holes.xy, axis=0))) if len(holes.xy) else 0.0
-    finest_m = max(REFERENCE_CELL_SPACINGS * holes.hole_spacing_m, span_m / REFERENCE_MAX_CELLS)
+    grid = default_grid([xy])
+    span_m = float(np.max(np.ptp(xy, axis=0))) if len(xy) else 0.0
+    finest_m = max(REFERENCE_CELL_SPACINGS * hole_spacing_m, span_m / REFERENCE_MAX_CELLS)
     if not np.isfinite(finest_m) or grid.cell_size_m <= finest_m:
         return grid
-    return default_grid([holes.xy], cell_size_m=finest_m)
+    return default_grid([xy], cell_size_m=finest_m)
 
 
 def default_grid(regions: Iterable, cell_size_m: float | None = None, cells_across: int = 240) -> Grid:
@@ -388,7 +389,7 @@ def evaluate_geozone(
     levels = np.asarray(holes.bench_levels_m, float)
     n = len(levels)
     if grid is None:
-        grid = reference_grid(holes)
+        grid = reference_grid(holes.xy, holes.hole_spacing_m)
     regions_by_bench = bench_regions(holes, geozone, contours)
     height = holes.bench_height_m
     if not np.isfinite(height):

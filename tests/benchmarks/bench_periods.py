@@ -66,7 +66,7 @@ from bench_partial_bench import read  # noqa: E402
 
 from core.errors import BGMWarning  # noqa: E402
 from core.io.blastholes import Blastholes, drilled_area  # noqa: E402
-from core.model.evaluation import bench_regions, default_grid  # noqa: E402
+from core.model.evaluation import bench_regions, reference_grid  # noqa: E402
 from core.model.new_ground import implicit_model, known_holes  # noqa: E402
 from core.model.session import ModelSession  # noqa: E402
 
@@ -158,7 +158,9 @@ def run_cut(table: pd.DataFrame, q: float, level, levels_in, height_in) -> tuple
     }
     todo, info["unscored"] = targets(known, level, levels_in, height_in, held)
     session = ModelSession(known)
-    grid = default_grid([known.xy, known.frame.to_local(table["x"][held], table["y"][held])])
+    grid = reference_grid(
+        np.vstack([known.xy, known.frame.to_local(table["x"][held], table["y"][held])]), known.hole_spacing_m
+    )
     geozones = sorted(set(table["geozone"][held]) | set(known.geozones))
     drilled = {j: session.drilled_area(j) for j in range(known.n_benches)}
     rows = []
