@@ -32,12 +32,12 @@ import numpy as np
 from scipy import ndimage
 from skimage.morphology import disk
 
-from core.geometry.grid import Grid, cells_covering
+from core.geometry.grid import Grid, cell_size_within, cells_covering
 
 #: Cell size of the bench grid, in hole spacings: fine enough to place a
 #: boundary to a quarter of the spacing the holes resolve.
 CELL_SPACINGS = 0.25
-#: Most cells along a side of a bench grid (coarser cells beyond; keeps huge benches cheap).
+#: A bench grid holds at most this many cells squared (coarser cells beyond; keeps huge benches cheap).
 MAX_CELLS = 1200
 
 
@@ -92,10 +92,10 @@ class TransitionField:
 
 
 def bench_grid(xy: np.ndarray, hole_spacing_m: float, margin_spacings: float = 3.0) -> Grid:
-    """Grid over a bench's holes with cells of :data:`CELL_SPACINGS` spacings (at most :data:`MAX_CELLS` across)."""
+    """Grid over a bench's holes with cells of :data:`CELL_SPACINGS` spacings (at most :data:`MAX_CELLS` squared)."""
     lo, hi = xy.min(axis=0), xy.max(axis=0)
-    span = float(np.max(hi - lo))
-    cell = max(CELL_SPACINGS * hole_spacing_m, span / MAX_CELLS)
+    width, height = hi - lo
+    cell = cell_size_within(width, height, CELL_SPACINGS * hole_spacing_m, MAX_CELLS)
     margin = cells_covering(margin_spacings * hole_spacing_m, cell)
     return Grid.covering((lo[0], lo[1], hi[0], hi[1]), cell, margin_cells=margin)
 

@@ -34,7 +34,7 @@ import pandas as pd
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 
-from core.geometry.grid import Grid, as_multipolygon
+from core.geometry.grid import Grid, as_multipolygon, cell_size_within
 from core.geometry.sdf import signed_distance
 from core.io.atomic import atomic_path
 from core.io.blastholes import Blastholes, typical_bench_height
@@ -158,7 +158,7 @@ def predict_nil(regions: Mapping[float, MultiPolygon], z_m: float) -> MultiPolyg
 #: The references' cells are at most this many hole spacings (:func:`reference_grid`), about what 240 cells across a
 #: synthetic family's pit give (a quarter to a fifth; on Kennecott half a spacing scored the same) ...
 REFERENCE_CELL_SPACINGS = 0.25
-#: ... and at most this many across the table.
+#: ... and at most this many squared over the table.
 REFERENCE_MAX_CELLS = 1200
 
 
@@ -170,11 +170,13 @@ def reference_grid(xy: np.ndarray, hole_spacing_m: float) -> Grid:
     (1.4 km) 0.9 of a hole spacing, where the model's fields have half of one; on a table of two pits 3 km apart
     13 m, and linear extrapolation of the signed distance lost 7.9 F1 points at a bench below to them (92.0 on
     half-spacing cells). Now at most :data:`REFERENCE_CELL_SPACINGS` hole spacings (but no more than
-    :data:`REFERENCE_MAX_CELLS` across); on the synthetic families the 240 cells are as fine and stay.
+    :data:`REFERENCE_MAX_CELLS` squared); on the synthetic families the 240 cells are as fine and stay.
     """
     grid = default_grid([xy])
-    span_m = float(np.max(np.ptp(xy, axis=0))) if len(xy) else 0.0
-    finest_m = max(REFERENCE_CELL_SPACINGS * hole_spacing_m, span_m / REFERENCE_MAX_CELLS)
+    if not len(xy):
+        return grid
+    width, height = np.ptp(xy, axis=0)
+    finest_m = cell_size_within(width, height, REFERENCE_CELL_SPACINGS * hole_spacing_m, REFERENCE_MAX_CELLS)
     if not np.isfinite(finest_m) or grid.cell_size_m <= finest_m:
         return grid
     return default_grid([xy], cell_size_m=finest_m)

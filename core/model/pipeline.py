@@ -246,7 +246,7 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
     """The geozone's :class:`BenchFields` on every bench of the table, from its contours and the holes.
 
     The grid covers the holes with cells of half a hole spacing (at most
-    :data:`FIELD_MAX_CELLS` along a side); a bench's drilled area is the raster
+    :data:`FIELD_MAX_CELLS` squared); a bench's drilled area is the raster
     form of :meth:`Blastholes.drilled_area`. Drilled cells nearer one of the
     geozone's own holes than any other hole are no evidence past the drilled
     area where its contours leave them out (``unclaimed``, :func:`bench_distance`).
@@ -254,11 +254,12 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
     benches above (:func:`assimilated`).
     """
     from core.extraction.transition import drilled_mask, hole_distances
-    from core.geometry.grid import Grid
+    from core.geometry.grid import Grid, cell_size_within
 
     spacing = holes.hole_spacing_m
     lo, hi = holes.xy.min(axis=0), holes.xy.max(axis=0)
-    cell = max(FIELD_CELL_SPACINGS * spacing, float(np.max(hi - lo)) / FIELD_MAX_CELLS)
+    width, height = hi - lo
+    cell = cell_size_within(width, height, FIELD_CELL_SPACINGS * spacing, FIELD_MAX_CELLS)
     grid = Grid.covering((lo[0], lo[1], hi[0], hi[1]), cell, margin_cells=8)
     geozone = contours[0].geozone if contours else None
     regions, drilled, z, unclaimed = {}, {}, {}, {}
@@ -280,7 +281,7 @@ def geozone_fields(holes: Blastholes, contours: list[Contour], reach_spacings: f
 #: Cell size of a geozone's field grid, in hole spacings (a quarter gained 0.3 F1 on the
 #: synthetic tuning seeds but lost 1.2 on the real Kennecott benches).
 FIELD_CELL_SPACINGS = 0.5
-#: Most cells along a side of a geozone's field grid.
+#: A geozone's field grid holds at most this many cells squared.
 FIELD_MAX_CELLS = 600
 
 
