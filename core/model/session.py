@@ -35,7 +35,7 @@ from shapely.geometry import MultiPolygon
 
 from core.errors import quoted
 from core.extraction.contours import Contour, extract_bench, traced_benches
-from core.geometry.grid import as_multipolygon
+from core.geometry.grid import as_multipolygon, cell_size_within
 from core.io.blastholes import Blastholes
 from core.io.cache import MISSING, StageCache, content_key, engine_fingerprint
 from core.io.project import Project, check_override_components, overrides_for
@@ -628,7 +628,7 @@ def surface_sections(
 
 
 def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 300) -> float:
-    """Half a hole spacing, coarsened so the surface grid stays under ``max_cells`` across; less for a thin geozone.
+    """Half a hole spacing, coarsened so the surface grid holds under ``max_cells`` squared; less for a thin geozone.
 
     Half a hole spacing resolves all the data can tell; finer only adds faces.
     The grid covers the geozone's own sections only. Where it is coarsened
@@ -637,7 +637,7 @@ def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 3
     a dyke one hole wide) has the grid's nodes inside it here and not there,
     and was drawn as a string of beads (a constructed dyke 5 m wide and 2 km
     long on 6.7 m cells: 102 bodies, 41% of its volume). Its cell is then half
-    that width, no finer than half a spacing nor than ``2 max_cells`` across
+    that width, no finer than half a spacing nor than ``2 max_cells`` squared
     (the same dyke on 3.3 m cells: one body, 99.6%).
     """
     polys = [c.polygon for c in model.contours if not c.polygon.is_empty]
@@ -645,10 +645,9 @@ def surface_cell_size(model: GeozoneModel, holes: Blastholes, max_cells: int = 3
     if not polys:
         return half_spacing_m
     xmin, ymin, xmax, ymax = shapely.union_all(polys).bounds
-    span_m = max(xmax - xmin, ymax - ymin)
-    cell_m = max(half_spacing_m, span_m / max_cells)
+    cell_m = cell_size_within(xmax - xmin, ymax - ymin, half_spacing_m, max_cells)
     perimeter_m = sum(p.length for p in polys)
     width_m = 2.0 * sum(p.area for p in polys) / perimeter_m if perimeter_m > 0 else math.inf
     if width_m < 2.0 * cell_m:
-        cell_m = max(half_spacing_m, 0.5 * width_m, span_m / (2 * max_cells))
+        cell_m = cell_size_within(xmax - xmin, ymax - ymin, max(half_spacing_m, 0.5 * width_m), 2 * max_cells)
     return cell_m
