@@ -99,7 +99,7 @@ SPARSE_BENCH_SPACING_RATIO = 1.5
 #: A given bench height may differ from the collars' own (median level gap) by this fraction of it.
 BENCH_HEIGHT_TOLERANCE = 0.03
 #: Elevations where holes are this many times sparser than at the median hole are between benches, when a few holes
-#: there bridge every gap (:func:`_dense_levels`): benches 10 m apart whose holes scatter by 1.2-2 m (a standard
+#: there bridge every gap (:func:`_dense_levels`): benches 10 m apart whose holes scatter by 1.2-1.5 m (a standard
 #: deviation) leave a few holes half-way between them, and were refused as elevations "spread continuously".
 SPARSE_ELEVATION_FACTOR = 10.0
 #: More benches than this from an explicit bench height is a unit mistake.

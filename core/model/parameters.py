@@ -47,7 +47,7 @@ class ModelParameters:
     #: spacings (and never further than the drilled patch is wide); see
     #: :mod:`core.model.extrapolation`.
     frontier_reach_spacings: float = 10.0
-    #: The surface grid is half a hole spacing, coarsened to stay under this many cells across.
+    #: The surface grid is half a hole spacing, coarsened to hold under this many cells squared.
     surface_max_cells: int = 300
 
     def validate(self) -> ModelParameters:
@@ -237,7 +237,8 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     # -- surface -----------------------------------------------------------------------------------
     _spec(
         "surface_max_cells", "surface", "surface", "surface grid size", "", "count", 40, 600,
-        "Most cells across the grid the surface is built on (half a hole spacing when the geozone is small).",
+        "The grid the surface is built on holds at most this many cells squared (half a hole spacing when the "
+        "geozone is small or long).",
     ),
 )  # fmt: skip
 PARAMETER: dict[str, ParameterSpec] = {p.name: p for p in PARAMETERS}
