@@ -809,6 +809,28 @@ def test_benches_whose_holes_scatter_until_a_few_bridge_every_gap_are_found_at_t
         blastholes_from_table(spread, source="t.csv")
 
 
+def test_benches_scattered_into_each_other_are_refused_with_the_bench_height_their_holes_repeat_at():
+    """Scattered by 2 m, benches 10 m apart leave no sparse band between them: refused, as they were, but the
+    refusal says the height at which the holes' density repeats, and that height reads them. Elevations spread
+    evenly are refused without a height to give."""
+    from core.io.blastholes import blastholes_from_table
+
+    rng = np.random.default_rng(4)
+    levels = np.arange(100.0, 30.0, -10.0)
+    table = pd.concat([_pattern(40, 40, z) for z in levels], ignore_index=True)
+    table["z"] += rng.normal(0.0, 2.0, len(table))
+    with pytest.raises(BGMInputError, match=r"repeats about every 10 units of z.*--bench-height 10$"):
+        blastholes_from_table(table, source="t.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BGMWarning)
+        holes = blastholes_from_table(table, source="t.csv", bench_height=10.0)  # as the message says
+    assert np.allclose(holes.bench_levels_m, levels, atol=0.5)
+    spread = table.assign(z=rng.uniform(30.0, 100.0, len(table)))
+    with pytest.raises(BGMInputError, match="spread continuously") as refused:
+        blastholes_from_table(spread, source="t.csv")
+    assert "repeats" not in str(refused.value)
+
+
 def test_holes_of_a_table_without_ids_are_named_by_the_file_line_they_were_read_from(tmp_path):
     # Without an id column a hole was named by its place among the kept holes (plus one), which is not its row
     # once a hole is left out or merged above it: the contours' isolated holes and the viewer pointed at the
