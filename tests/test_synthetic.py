@@ -182,9 +182,27 @@ def test_a_shift_scale_moves_layers_contacts_and_hinges_that_many_times_faster()
     assert np.median(rates[2.0]) > 1.3 * np.median(rates[1.0])
 
 
-def test_a_shift_scale_that_is_not_positive_is_refused():
-    with pytest.raises(ValueError, match="shift_scale"):
-        scenario("strips", 1, shift_scale=0.0)
+@pytest.mark.parametrize("scale", ["shift_scale", "length_scale"])
+def test_a_scale_that_is_not_positive_is_refused(scale):
+    with pytest.raises(ValueError, match=scale):
+        scenario("strips", 1, **{scale: 0.0})
+
+
+def test_a_length_scale_stretches_the_mine_along_x_and_draws_the_same_geology():
+    """A pit of Kennecott's shape (4: 1.1-1.4 km by 240-300 m) with each seed's own geology, so layers striking along
+    it cross the pit for most of a kilometre, as no default mine's (280-360 m) can."""
+    longest = 0.0
+    for seed in TUNING_SEEDS[:8]:
+        short, long = make_family("strips", seed), make_family("strips", seed, length_scale=4.0)
+        (x0, y0, x1, y1), (u0, v0, u1, v1) = short.extent_m, long.extent_m
+        assert np.isclose(u1 - u0, 4 * (x1 - x0)) and (v0, v1) == (y0, y1)
+        assert long.kinds == short.kinds
+        top = float(long.bench_levels_m[0])
+        for g, kind in long.kinds.items():
+            if kind == "strip":
+                parts = as_parts(long.section(g, top))
+                longest = max([longest] + [max(p.bounds[2] - p.bounds[0], p.bounds[3] - p.bounds[1]) for p in parts])
+    assert 600.0 < longest <= 1500.0
 
 
 def as_parts(geometry):

@@ -1,6 +1,6 @@
 """Families of synthetic mines a geologist would recognise, each a seeded generator.
 
-Every ``make_<family>(seed, n_benches=7, bench_height_m=10.0, units="m", shift_scale=1.0)``
+Every ``make_<family>(seed, n_benches=7, bench_height_m=10.0, units="m", shift_scale=1.0, length_scale=1.0)``
 returns a :class:`~core.synthetic.blobs.SyntheticMine` whose geozones ``g1``,
 ``g2``, ... (2-4 of them, plus the host ``g0``) are built from
 :mod:`core.synthetic.solids`, so their true section is exact at any
@@ -29,6 +29,8 @@ boundary moves per bench, as it would in a real pit.
 ``shift_scale`` multiplies the rates of dipping layers, contacts and fold
 hinges (:data:`SHIFT_RANGE_PER_M`): geology moving faster than any the
 engine's defaults were chosen on (see ``tests/benchmarks/bench_robustness.py``).
+``length_scale`` stretches the mine along x (4: 1.1-1.4 km by 240-300 m, the
+shape of Kennecott's pit): layers striking along it cross the pit for a kilometre.
 """
 
 from __future__ import annotations
@@ -132,11 +134,14 @@ def family_rng(family: str, seed: int) -> np.random.Generator:
     return np.random.default_rng([int(seed), zlib.crc32(family.encode())])
 
 
-def new_layout(rng: np.random.Generator, n_benches: int, bench_height_m: float, shift_scale: float = 1.0) -> Layout:
-    """A mine of 280-360 x 240-300 m with its top bench at 400-2200 m elevation."""
+def new_layout(
+    rng: np.random.Generator, n_benches: int, bench_height_m: float, shift_scale: float = 1.0, length_scale: float = 1.0
+) -> Layout:
+    """A mine of 280-360 x 240-300 m with its top bench at 400-2200 m elevation; ``length_scale`` times as long in x."""
     if n_benches < 2:
         raise ValueError("a synthetic mine needs at least two benches")
     w, h = rng.uniform(280.0, 360.0), rng.uniform(240.0, 300.0)
+    w *= length_scale  # after the draws: a seed's long mine is its default one stretched, its geology drawn alike
     extent = (-w / 2, -h / 2, w / 2, h / 2)
     levels = float(np.round(rng.uniform(400.0, 2200.0))) - bench_height_m * np.arange(n_benches)
     return Layout(extent, levels, bench_height_m, pit_step_m(extent, n_benches, bench_height_m), shift_scale)
@@ -288,7 +293,12 @@ def contact_builder(style: StripStyle) -> Builder:
 
 
 def make_strips(
-    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+    seed: int,
+    n_benches: int = 7,
+    bench_height_m: float = 10.0,
+    units: str = "m",
+    shift_scale: float = 1.0,
+    length_scale: float = 1.0,
 ) -> SyntheticMine:
     """Dipping layers crossing the whole pit, sometimes with a single contact.
 
@@ -311,7 +321,7 @@ def make_strips(
         builders += [strips_builder(style, (float(rng.uniform(12.0, 32.0)),)) for _ in range(max(n_layers, 0))]
         return builders
 
-    return compose("strips", seed, plan, n_benches, bench_height_m, units, shift_scale)
+    return compose("strips", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -379,7 +389,12 @@ def wedge_builder(sign: float) -> Builder:
 
 
 def make_widening(
-    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+    seed: int,
+    n_benches: int = 7,
+    bench_height_m: float = 10.0,
+    units: str = "m",
+    shift_scale: float = 1.0,
+    length_scale: float = 1.0,
 ) -> SyntheticMine:
     """2-4 bodies that widen or narrow with depth, both signs in every mine; a quarter are thickening or thinning layers."""
 
@@ -388,7 +403,7 @@ def make_widening(
         signs = [first * (-1.0) ** i for i in range(int(rng.integers(2, 5)))]
         return [wedge_builder(s) if rng.random() < 0.25 else growing_body_builder(s) for s in signs]
 
-    return compose("widening", seed, plan, n_benches, bench_height_m, units, shift_scale)
+    return compose("widening", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -444,7 +459,12 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
 
 
 def make_folds(
-    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+    seed: int,
+    n_benches: int = 7,
+    bench_height_m: float = 10.0,
+    units: str = "m",
+    shift_scale: float = 1.0,
+    length_scale: float = 1.0,
 ) -> SyntheticMine:
     """1-3 folded layers whose hinge migrates along the fold axis; half the mines also have the core as a geozone."""
 
@@ -452,7 +472,7 @@ def make_folds(
         n_layers = int(rng.choice([1, 2, 3], p=[0.45, 0.4, 0.15]))
         return [fold_builder(n_layers, with_core=n_layers == 1 or rng.random() < 0.5)]
 
-    return compose("folds", seed, plan, n_benches, bench_height_m, units, shift_scale)
+    return compose("folds", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -528,7 +548,12 @@ def dipping_body_builder() -> Builder:
 
 
 def make_splits(
-    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+    seed: int,
+    n_benches: int = 7,
+    bench_height_m: float = 10.0,
+    units: str = "m",
+    shift_scale: float = 1.0,
+    length_scale: float = 1.0,
 ) -> SyntheticMine:
     """A body that splits into two with depth, a pair that merges into one, and in half the mines a third body."""
 
@@ -539,7 +564,7 @@ def make_splits(
             builders.append(dipping_body_builder() if third == "dipping" else lobes_builder(third == "merge"))
         return builders
 
-    return compose("splits", seed, plan, n_benches, bench_height_m, units, shift_scale)
+    return compose("splits", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -580,14 +605,19 @@ def pods_builder(n_pods: int) -> Builder:
 
 
 def make_pods(
-    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+    seed: int,
+    n_benches: int = 7,
+    bench_height_m: float = 10.0,
+    units: str = "m",
+    shift_scale: float = 1.0,
+    length_scale: float = 1.0,
 ) -> SyntheticMine:
     """2-4 geozones of 3-8 pods each."""
 
     def plan(rng: np.random.Generator) -> list[Builder]:
         return [pods_builder(int(rng.integers(3, 9))) for _ in range(int(rng.integers(2, 5)))]
 
-    return compose("pods", seed, plan, n_benches, bench_height_m, units, shift_scale)
+    return compose("pods", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -613,7 +643,12 @@ def _mix_builder(part: str, rng: np.random.Generator) -> Builder:
 
 
 def make_mix(
-    seed: int, n_benches: int = 7, bench_height_m: float = 10.0, units: str = "m", shift_scale: float = 1.0
+    seed: int,
+    n_benches: int = 7,
+    bench_height_m: float = 10.0,
+    units: str = "m",
+    shift_scale: float = 1.0,
+    length_scale: float = 1.0,
 ) -> SyntheticMine:
     """2-4 geozones, each a different kind drawn from :data:`MIX_PARTS` (at most one contact)."""
 
@@ -621,7 +656,7 @@ def make_mix(
         parts = sorted(rng.choice(len(MIX_PARTS), size=int(rng.integers(2, 5)), replace=False))
         return [_mix_builder(MIX_PARTS[i], rng) for i in parts]
 
-    return compose("mix", seed, plan, n_benches, bench_height_m, units, shift_scale)
+    return compose("mix", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
 
 
 # ---------------------------------------------------------------------------
@@ -636,6 +671,7 @@ def compose(
     bench_height_m: float,
     units: str,
     shift_scale: float = 1.0,
+    length_scale: float = 1.0,
 ) -> SyntheticMine:
     """The mine of ``family`` at ``seed``: a layout, then the builders ``plan`` draws, placed by :func:`assemble`.
 
@@ -643,7 +679,7 @@ def compose(
     moving so fast that only one fits in the pit) is drawn again.
     """
     rng = family_rng(family, seed)
-    layout = new_layout(rng, n_benches, bench_height_m, shift_scale)
+    layout = new_layout(rng, n_benches, bench_height_m, shift_scale, length_scale)
     for _ in range(20):
         geozones = assemble(rng, layout, plan(rng))
         if len(geozones) >= 2:

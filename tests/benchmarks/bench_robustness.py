@@ -21,7 +21,9 @@ on held-out seeds only:
   holes collared off the pattern by 0.3 of a spacing (standard deviation; 0.08 by default),
   a square pattern instead of a staggered one (the same spacing, so 13% fewer holes),
   a pattern of 9-12 m with 6-10% label noise together, and, drilled the default way,
-  layers, contacts and fold hinges moving twice the families' rates (4-30 m a bench).
+  layers, contacts and fold hinges moving twice the families' rates (4-30 m a bench),
+  and a pit four times as long (1.1-1.4 km by 240-300 m, Kennecott's shape), where layers
+  striking along it cross the pit for most of a kilometre.
   Depths are half and one bench height, whatever the bench height.
 
 ``--seeds tuning`` runs the development seeds instead (``--limit`` of them,
@@ -74,6 +76,8 @@ DRILLING: dict[str, tuple[dict, dict]] = {
     # Not drilling but the geology: layers, contacts and fold hinges twice the families' rates
     # (4-30 m a bench, slowed where a layer would leave the pit); splits' and pods' unchanged.
     "layers moving twice as fast": ({"shift_scale": 2.0}, {}),
+    # Not drilling but the pit: four times as long, the same geology stretched (4x the holes a case).
+    "pit four times as long": ({"length_scale": 4.0}, {}),
     # Three times, with a wide noisy pattern as well: the issue's hidden scenarios hold the last bench
     # at 76.7 / 59.7 F1, under every line above; this is the nearest the families come to that.
     "layers three times as fast, pattern 9-12 m, label noise 6-10%": (
