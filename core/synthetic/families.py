@@ -1,28 +1,30 @@
 """Families of synthetic mines a geologist would recognise, each a seeded generator.
 
-Every ``make_<family>(seed, n_benches=7, bench_height_m=10.0, units="m", shift_scale=1.0, length_scale=1.0)``
-returns a :class:`~core.synthetic.blobs.SyntheticMine` whose geozones ``g1``,
+Every ``<family>_plan(rng)`` draws the builders of one mine of its family
+(:data:`PLANS`), and :func:`compose` places them in a layout
+(``core.synthetic.scenarios.make_family`` does both): a
+:class:`~core.synthetic.blobs.SyntheticMine` whose geozones ``g1``,
 ``g2``, ... (2-4 of them, plus the host ``g0``) are built from
 :mod:`core.synthetic.solids`, so their true section is exact at any
 elevation. Geometry varies widely with the seed; bodies of different geozones
 stay at least :data:`GAP_M` apart on every bench unless they are built to
 share a contact.
 
-* :func:`make_strips` -- planar or gently curved dipping layers 12-32 m wide
+* :func:`strips_plan` -- planar or gently curved dipping layers 12-32 m wide
   that cross the whole pit, moving 2-15 m sideways per 10 m of depth (dips of
   about 34-79 degrees), sometimes two in contact, sometimes with a single
   contact (a half-space geozone).
-* :func:`make_widening` -- bodies whose boundary moves outward or inward by
+* :func:`widening_plan` -- bodies whose boundary moves outward or inward by
   0.3-1.5 m per metre of depth (3-15 m per 10 m bench: half a hole spacing to
   nearly three), and layers that thicken or thin; both signs in a mine.
-* :func:`make_folds` -- folded layers 12-30 m wide along a V or U shaped hinge
+* :func:`folds_plan` -- folded layers 12-30 m wide along a V or U shaped hinge
   line whose hinge migrates 2-15 m per 10 m of depth along the fold axis; the
   limbs cross the pit; sometimes the fold's core is a geozone of its own.
-* :func:`make_splits` -- a body that splits into two with depth and a pair
+* :func:`splits_plan` -- a body that splits into two with depth and a pair
   that merges into one, sometimes with a third body.
-* :func:`make_pods` -- small lenses 10-30 m across that appear and pinch out
+* :func:`pods_plan` -- small lenses 10-30 m across that appear and pinch out
   between benches, a few drifting.
-* :func:`make_mix` -- 2-4 of the above in one mine.
+* :func:`mix_plan` -- 2-4 of the above in one mine.
 
 Rates are per metre of depth, so a caller's bench height changes how far a
 boundary moves per bench, as it would in a real pit.
@@ -292,14 +294,7 @@ def contact_builder(style: StripStyle) -> Builder:
     return Builder(build, ("contact",), crossing=True)
 
 
-def make_strips(
-    seed: int,
-    n_benches: int = 7,
-    bench_height_m: float = 10.0,
-    units: str = "m",
-    shift_scale: float = 1.0,
-    length_scale: float = 1.0,
-) -> SyntheticMine:
+def strips_plan(rng: np.random.Generator) -> list[Builder]:
     """Dipping layers crossing the whole pit, sometimes with a single contact.
 
     2-3 geozones of one strike (random): layers 12-32 m wide in plan, moving
@@ -307,21 +302,17 @@ def make_strips(
     30% of mines two layers share a contact, in 35% one geozone is a
     half-space (a single contact of the same strike, on the smaller side).
     """
-
-    def plan(rng: np.random.Generator) -> list[Builder]:
-        style = strip_style(rng)
-        builders: list[Builder] = []
-        n_layers = int(rng.integers(2, 4))
-        if rng.random() < 0.35:
-            builders.append(contact_builder(style))
-            n_layers -= 1
-        if rng.random() < 0.3:
-            builders.append(strips_builder(style, tuple(rng.uniform(12.0, 32.0, 2))))
-            n_layers -= 1
-        builders += [strips_builder(style, (float(rng.uniform(12.0, 32.0)),)) for _ in range(max(n_layers, 0))]
-        return builders
-
-    return compose("strips", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
+    style = strip_style(rng)
+    builders: list[Builder] = []
+    n_layers = int(rng.integers(2, 4))
+    if rng.random() < 0.35:
+        builders.append(contact_builder(style))
+        n_layers -= 1
+    if rng.random() < 0.3:
+        builders.append(strips_builder(style, tuple(rng.uniform(12.0, 32.0, 2))))
+        n_layers -= 1
+    builders += [strips_builder(style, (float(rng.uniform(12.0, 32.0)),)) for _ in range(max(n_layers, 0))]
+    return builders
 
 
 # ---------------------------------------------------------------------------
@@ -388,22 +379,11 @@ def wedge_builder(sign: float) -> Builder:
     return Builder(build, ("thickening layer" if sign > 0 else "thinning layer",), crossing=True)
 
 
-def make_widening(
-    seed: int,
-    n_benches: int = 7,
-    bench_height_m: float = 10.0,
-    units: str = "m",
-    shift_scale: float = 1.0,
-    length_scale: float = 1.0,
-) -> SyntheticMine:
+def widening_plan(rng: np.random.Generator) -> list[Builder]:
     """2-4 bodies that widen or narrow with depth, both signs in every mine; a quarter are thickening or thinning layers."""
-
-    def plan(rng: np.random.Generator) -> list[Builder]:
-        first = rng.choice([-1.0, 1.0])
-        signs = [first * (-1.0) ** i for i in range(int(rng.integers(2, 5)))]
-        return [wedge_builder(s) if rng.random() < 0.25 else growing_body_builder(s) for s in signs]
-
-    return compose("widening", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
+    first = rng.choice([-1.0, 1.0])
+    signs = [first * (-1.0) ** i for i in range(int(rng.integers(2, 5)))]
+    return [wedge_builder(s) if rng.random() < 0.25 else growing_body_builder(s) for s in signs]
 
 
 # ---------------------------------------------------------------------------
@@ -458,21 +438,10 @@ def fold_builder(n_layers: int, with_core: bool) -> Builder:
     return Builder(build, ("fold layer",) * n_layers + (("fold core",) if with_core else ()), crossing=True)
 
 
-def make_folds(
-    seed: int,
-    n_benches: int = 7,
-    bench_height_m: float = 10.0,
-    units: str = "m",
-    shift_scale: float = 1.0,
-    length_scale: float = 1.0,
-) -> SyntheticMine:
+def folds_plan(rng: np.random.Generator) -> list[Builder]:
     """1-3 folded layers whose hinge migrates along the fold axis; half the mines also have the core as a geozone."""
-
-    def plan(rng: np.random.Generator) -> list[Builder]:
-        n_layers = int(rng.choice([1, 2, 3], p=[0.45, 0.4, 0.15]))
-        return [fold_builder(n_layers, with_core=n_layers == 1 or rng.random() < 0.5)]
-
-    return compose("folds", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
+    n_layers = int(rng.choice([1, 2, 3], p=[0.45, 0.4, 0.15]))
+    return [fold_builder(n_layers, with_core=n_layers == 1 or rng.random() < 0.5)]
 
 
 # ---------------------------------------------------------------------------
@@ -547,24 +516,13 @@ def dipping_body_builder() -> Builder:
     return Builder(build, ("dipping body",))
 
 
-def make_splits(
-    seed: int,
-    n_benches: int = 7,
-    bench_height_m: float = 10.0,
-    units: str = "m",
-    shift_scale: float = 1.0,
-    length_scale: float = 1.0,
-) -> SyntheticMine:
+def splits_plan(rng: np.random.Generator) -> list[Builder]:
     """A body that splits into two with depth, a pair that merges into one, and in half the mines a third body."""
-
-    def plan(rng: np.random.Generator) -> list[Builder]:
-        builders = [lobes_builder(merging=False), lobes_builder(merging=True)]
-        if rng.random() < 0.5:
-            third = rng.choice(["split", "merge", "dipping"])
-            builders.append(dipping_body_builder() if third == "dipping" else lobes_builder(third == "merge"))
-        return builders
-
-    return compose("splits", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
+    builders = [lobes_builder(merging=False), lobes_builder(merging=True)]
+    if rng.random() < 0.5:
+        third = rng.choice(["split", "merge", "dipping"])
+        builders.append(dipping_body_builder() if third == "dipping" else lobes_builder(third == "merge"))
+    return builders
 
 
 # ---------------------------------------------------------------------------
@@ -604,26 +562,15 @@ def pods_builder(n_pods: int) -> Builder:
     return Builder(build, ("pods",), pods=n_pods)
 
 
-def make_pods(
-    seed: int,
-    n_benches: int = 7,
-    bench_height_m: float = 10.0,
-    units: str = "m",
-    shift_scale: float = 1.0,
-    length_scale: float = 1.0,
-) -> SyntheticMine:
+def pods_plan(rng: np.random.Generator) -> list[Builder]:
     """2-4 geozones of 3-8 pods each."""
-
-    def plan(rng: np.random.Generator) -> list[Builder]:
-        return [pods_builder(int(rng.integers(3, 9))) for _ in range(int(rng.integers(2, 5)))]
-
-    return compose("pods", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
+    return [pods_builder(int(rng.integers(3, 9))) for _ in range(int(rng.integers(2, 5)))]
 
 
 # ---------------------------------------------------------------------------
 # Mix
 
-#: What :func:`make_mix` draws from, in the order they are placed (crossing bodies first).
+#: What :func:`mix_plan` draws from, in the order they are placed (crossing bodies first).
 MIX_PARTS = ("contact", "strip", "fold", "wedge", "growing", "split", "merge", "dipping", "pods")
 
 
@@ -642,25 +589,25 @@ def _mix_builder(part: str, rng: np.random.Generator) -> Builder:
     }[part]()
 
 
-def make_mix(
-    seed: int,
-    n_benches: int = 7,
-    bench_height_m: float = 10.0,
-    units: str = "m",
-    shift_scale: float = 1.0,
-    length_scale: float = 1.0,
-) -> SyntheticMine:
+def mix_plan(rng: np.random.Generator) -> list[Builder]:
     """2-4 geozones, each a different kind drawn from :data:`MIX_PARTS` (at most one contact)."""
-
-    def plan(rng: np.random.Generator) -> list[Builder]:
-        parts = sorted(rng.choice(len(MIX_PARTS), size=int(rng.integers(2, 5)), replace=False))
-        return [_mix_builder(MIX_PARTS[i], rng) for i in parts]
-
-    return compose("mix", seed, plan, n_benches, bench_height_m, units, shift_scale, length_scale)
+    parts = sorted(rng.choice(len(MIX_PARTS), size=int(rng.integers(2, 5)), replace=False))
+    return [_mix_builder(MIX_PARTS[i], rng) for i in parts]
 
 
 # ---------------------------------------------------------------------------
 # Placement
+
+
+#: Each family's plan, by name.
+PLANS: dict[str, Callable[[np.random.Generator], list[Builder]]] = {
+    "strips": strips_plan,
+    "widening": widening_plan,
+    "folds": folds_plan,
+    "splits": splits_plan,
+    "pods": pods_plan,
+    "mix": mix_plan,
+}
 
 
 def compose(

@@ -24,7 +24,7 @@ import pandas as pd
 
 from core.synthetic.blobs import SyntheticMine
 from core.synthetic.drilling import drill_mine
-from core.synthetic.families import make_folds, make_mix, make_pods, make_splits, make_strips, make_widening
+from core.synthetic.families import PLANS, compose
 
 #: Family names, in the order reports list them.
 FAMILIES: tuple[str, ...] = ("strips", "widening", "folds", "splits", "pods", "mix")
@@ -32,15 +32,6 @@ FAMILIES: tuple[str, ...] = ("strips", "widening", "folds", "splits", "pods", "m
 TUNING_SEEDS: tuple[int, ...] = tuple(range(0, 20))
 #: Seeds to report on, never to tune on (see the module docstring).
 HELD_OUT_SEEDS: tuple[int, ...] = (7001, 7002, 7003, 7004, 7005, 7006, 7007, 7008)
-
-_MAKERS = {
-    "strips": make_strips,
-    "widening": make_widening,
-    "folds": make_folds,
-    "splits": make_splits,
-    "pods": make_pods,
-    "mix": make_mix,
-}
 
 
 def make_family(
@@ -54,21 +45,14 @@ def make_family(
     length_scale: float = 1.0,
 ) -> SyntheticMine:
     """The mine of ``family`` at ``seed`` (not drilled yet); raises ValueError for an unknown family or seed."""
-    if family not in _MAKERS:
+    if family not in PLANS:
         raise ValueError(f"unknown family {family!r}; families: {', '.join(FAMILIES)}")
     if int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be a whole number >= 0, got {seed!r}")
     for name, scale in (("shift_scale", shift_scale), ("length_scale", length_scale)):
         if not scale > 0:
             raise ValueError(f"{name} must be positive, got {scale!r}")
-    return _MAKERS[family](
-        int(seed),
-        n_benches=n_benches,
-        bench_height_m=bench_height_m,
-        units=units,
-        shift_scale=shift_scale,
-        length_scale=length_scale,
-    )
+    return compose(family, int(seed), PLANS[family], n_benches, bench_height_m, units, shift_scale, length_scale)
 
 
 def scenario(
