@@ -173,8 +173,6 @@ def reference_grid(xy: np.ndarray, hole_spacing_m: float) -> Grid:
     :data:`REFERENCE_MAX_CELLS` squared); on the synthetic families the 240 cells are as fine and stay.
     """
     grid = default_grid([xy])
-    if not len(xy):
-        return grid
     width, height = np.ptp(xy, axis=0)
     finest_m = cell_size_within(width, height, REFERENCE_CELL_SPACINGS * hole_spacing_m, REFERENCE_MAX_CELLS)
     if not np.isfinite(finest_m) or grid.cell_size_m <= finest_m:
