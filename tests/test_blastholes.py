@@ -918,3 +918,14 @@ def test_a_few_holes_far_off_on_the_deepest_bench_do_not_make_the_pit_widen(tmp_
     assert not said_upside_down(write(tmp_path, table))
     flipped = table.assign(z=1000.0 - table["z"])
     assert len(said_upside_down(write(tmp_path, flipped, name="flipped.csv"))) == 1
+
+
+def test_a_repeating_height_of_a_hundred_units_or_more_is_said_as_a_number_to_give():
+    """Two figures of 152 were said as "1.5e+02", not a height a geologist would type: now "150"."""
+    from core.io.blastholes import blastholes_from_table
+
+    rng = np.random.default_rng(4)
+    table = pd.concat([_pattern(40, 40, z) for z in np.arange(1500.0, 450.0, -150.0)], ignore_index=True)
+    table["z"] += rng.normal(0.0, 30.0, len(table))
+    with pytest.raises(BGMInputError, match=r"repeats about every 150 units of z.*--bench-height 150$"):
+        blastholes_from_table(table, source="t.csv")

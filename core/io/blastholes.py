@@ -1541,9 +1541,10 @@ def _single_or_dense(
         height = _repeating_height(zs)
         if height is None:
             raise
+        said = f"{float(f'{height:.2g}'):g}"  # two figures, never as an exponent (150, not 1.5e+02)
         raise BGMInputError(
-            f"{refused}; but how densely the holes lie repeats about every {height:.2g} units of z: if the benches "
-            f"are that far apart and their holes scatter into each other, give their height, as --bench-height {height:.2g}"
+            f"{refused}; but how densely the holes lie repeats about every {said} units of z: if the benches "
+            f"are that far apart and their holes scatter into each other, give their height, as --bench-height {said}"
         ) from None
 
 
