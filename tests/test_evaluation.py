@@ -483,6 +483,37 @@ def test_real_data_is_also_scored_on_the_withheld_benchs_holes():
     assert hit / labelled > 0.97 and hit / inside_n > 0.97
 
 
+def test_the_withheld_benchs_holes_are_also_counted_in_the_ground_the_last_bench_drilled():
+    """Each bench is drilled 20 m further east than the one above: holding the last bench holds every hole under
+    its drilling and none beyond it, and the counts in drilled ground say so where the total cannot."""
+    import pandas as pd
+
+    from core.io.blastholes import blastholes_from_table
+
+    def bench(k: int) -> pd.DataFrame:
+        xs, ys = np.meshgrid(np.arange(20.0 * k, 120.0 + 20 * k, 6.0), np.arange(0.0, 60.0, 6.0))
+        inside = ys.ravel() < 30  # a contact along the pit: the geozone reaches the new ground
+        return pd.DataFrame(
+            {"x": xs.ravel(), "y": ys.ravel(), "z": 100.0 - 10 * k, "geozone": np.where(inside, "a", "b")}
+        )
+
+    holes = blastholes_from_table(pd.concat([bench(k) for k in range(4)]))
+    df = ev.evaluate_geozone(holes, "a", None, references=("nil",))
+    assert len(df) == 2  # benches 2 and 3 withheld in turn
+    for _, row in df.iterrows():
+        k = int(row["bench"])
+        on = holes.on_bench(k + 1)
+        mine = holes.geozone[on] == "a"
+        x = holes.frame.to_input(holes.xy[on])[:, 0]
+        beyond = x > 20 * k + 114 + 0.75 * 6.0  # past the discs of the last bench's easternmost holes
+        assert 0 < (mine & beyond).sum() < mine.sum()
+        assert row["holes_geozone"] == mine.sum()
+        assert row["drilled_holes_geozone"] == (mine & ~beyond).sum()
+        assert row["drilled_holes_in_geozone"] == row["drilled_holes_geozone"]  # held where it was drilled
+        assert row["drilled_holes_in"] == row["drilled_holes_in_geozone"]
+        assert row["holes_in_geozone"] == row["drilled_holes_in_geozone"]  # and nothing beyond
+
+
 def test_the_references_on_a_table_of_two_pits_km_apart_score_as_on_one(small_mine):
     """A reference is worth beating only at its best: its grid was 240 cells across the table, 11 m cells on the
     same pit twice, 2.5 km apart, and linear extrapolation of the signed distance scored 0.83 F1 there against 0.95

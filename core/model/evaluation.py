@@ -384,7 +384,9 @@ def evaluate_geozone(
         ``f1``, ``p_area``, ``g_area``, ``i_area`` (intersection area, for
         area-weighted aggregation by :func:`summary_table`); on real data (no
         ``truth``) also ``holes_in``, ``holes_in_geozone``, ``holes_geozone``,
-        the scores on the withheld bench's own holes (see :func:`_add_hole_scores`).
+        the scores on the withheld bench's own holes, and the same counted in
+        ground the last known bench drilled (``drilled_holes_in`` ...; see
+        :func:`_add_hole_scores`).
     """
     levels = np.asarray(holes.bench_levels_m, float)
     n = len(levels)
@@ -410,12 +412,14 @@ def evaluate_geozone(
                 _add_hole_scores(rows[-len(methods) :], methods, targets[0][2], holes, geozone, k + 1)
         if progress:
             progress(done, len(ks))
-    extra = [c for c in _HOLE_COLUMNS if rows and c in rows[0]]
+    extra = [c for c in (*_HOLE_COLUMNS, *_DRILLED_HOLE_COLUMNS) if rows and c in rows[0]]
     return pd.DataFrame(rows, columns=[*_COLUMNS, *extra])
 
 
 #: Columns added on real data (no truth function): scores on the withheld bench's holes.
 _HOLE_COLUMNS = ("holes_in", "holes_in_geozone", "holes_geozone")
+#: The same among those holes in ground the last known bench drilled (:func:`_add_hole_scores`).
+_DRILLED_HOLE_COLUMNS = tuple(f"drilled_{c}" for c in _HOLE_COLUMNS)
 
 
 def _prediction_targets(
@@ -533,15 +537,23 @@ def _add_hole_scores(
     ``geozone``. Precision is ``holes_in_geozone / holes_in``, recall
     ``holes_in_geozone / holes_geozone``, summed over benches by the caller:
     a score on the samples themselves, free of how the bench was contoured.
+    ``drilled_holes_in``, ``drilled_holes_in_geozone`` and ``drilled_holes_geozone``
+    count the same among the holes in ground the last known bench drilled
+    (:meth:`Blastholes.drilled_area`); the rest are in ground it did not.
     """
     on = holes.on_bench(bench)
     xy, mine = holes.xy[on], holes.geozone[on] == geozone
+    # Under the last known bench's holes every method has its section to start from; beyond them only what it
+    # makes of the movement (or its fit) reaches: two different questions, told apart by the bench's own holes.
+    above = holes.drilled_area(bench - 1)
+    drilled = shapely.contains_xy(above, xy[:, 0], xy[:, 1]) if not above.is_empty else np.zeros(len(xy), bool)
     for row, predict in zip(rows, methods.values()):
         region = _region(predict(z))
         inside = shapely.contains_xy(region, xy[:, 0], xy[:, 1]) if not region.is_empty else np.zeros(len(xy), bool)
-        row.update(
-            holes_in=int(inside.sum()), holes_in_geozone=int((inside & mine).sum()), holes_geozone=int(mine.sum())
-        )
+        for prefix, where in (("", slice(None)), ("drilled_", drilled)):
+            row[f"{prefix}holes_in"] = int(inside[where].sum())
+            row[f"{prefix}holes_in_geozone"] = int((inside & mine)[where].sum())
+            row[f"{prefix}holes_geozone"] = int(mine[where].sum())
 
 
 def summary_table(df: pd.DataFrame) -> pd.DataFrame:

@@ -223,11 +223,18 @@ def print_kennecott(df: pd.DataFrame) -> None:
     print_kennecott_by_depth(df)
 
 
-def hole_scores(part: pd.DataFrame) -> dict[str, tuple[float, float]]:
-    """Per method, precision and recall on the withheld benches' holes, counts pooled over ``part``'s rows."""
+def hole_scores(part: pd.DataFrame, ground: str = "all") -> dict[str, tuple[float, float]]:
+    """Per method, precision and recall on the withheld benches' holes, counts pooled over ``part``'s rows.
+
+    ``ground``: ``"all"`` the holes, ``"drilled"`` those in ground the last known bench drilled, ``"new"`` the rest.
+    """
     scores = {}
     for m, rows in part.groupby("method"):
-        hit, inside, labelled = rows["holes_in_geozone"].sum(), rows["holes_in"].sum(), rows["holes_geozone"].sum()
+        counts = rows[["holes_in_geozone", "holes_in", "holes_geozone"]].sum().to_numpy()
+        if ground != "all":
+            drilled = rows[["drilled_holes_in_geozone", "drilled_holes_in", "drilled_holes_geozone"]].sum().to_numpy()
+            counts = drilled if ground == "drilled" else counts - drilled
+        hit, inside, labelled = counts
         scores[m] = (hit / inside if inside else np.nan, hit / labelled if labelled else np.nan)
     return scores
 
@@ -236,18 +243,29 @@ def print_kennecott_by_depth(df: pd.DataFrame) -> None:
     """Hole-scored F1 by how many benches are known: the deepest cases are the nearest to the benches held out below.
 
     With more benches known the pit has narrowed, the next bench is drilled mostly where the last
-    one was, and holding the last bench is a harder reference to beat.
+    one was, and holding the last bench is a harder reference to beat. So each line is also told
+    apart by ground: the holes under the last known bench's drilling, and those beyond it.
     """
-    print("  by the deepest known bench (F1 on the withheld bench's holes; cases):")
-    for first in sorted(df["bench"].unique()):
-        part = df[df["bench"] >= first]
-        scores = {m: 100 * f1(*pr) for m, pr in hole_scores(part).items()}
-        best = max(REFERENCES, key=lambda m: scores[m] if np.isfinite(scores[m]) else -1)
-        cases = len(part) // len(METHODS)
-        line = "  ".join(f"{m} {scores[m]:5.1f}" for m in METHODS)
-        print(
-            f"    bench {first} and deeper ({cases:2d}): {line}  margin {scores['model'] - scores[best]:+.1f} vs {best}"
-        )
+    grounds = ("all", "drilled", "new") if "drilled_holes_in" in df else ("all",)
+    for ground in grounds:
+        where = {"all": "", "drilled": " in ground the last bench drilled", "new": " in ground it did not"}[ground]
+        print(f"  by the deepest known bench (F1 on the withheld bench's holes{where}; cases, holes):")
+        for first in sorted(df["bench"].unique()):
+            part = df[df["bench"] >= first]
+            scores = {m: 100 * f1(*pr) for m, pr in hole_scores(part, ground).items()}
+            best = max(REFERENCES, key=lambda m: scores[m] if np.isfinite(scores[m]) else -1)
+            cases = len(part) // len(METHODS)
+            holes = _holes_counted(part[part["method"] == "model"], ground)
+            line = "  ".join(f"{m} {scores[m]:5.1f}" for m in METHODS)
+            margin = scores["model"] - scores[best]
+            print(f"    bench {first} and deeper ({cases:2d}, {holes:5d}): {line}  margin {margin:+.1f} vs {best}")
+
+
+def _holes_counted(rows: pd.DataFrame, ground: str) -> int:
+    """The withheld benches' holes of their geozones in ``ground`` (see :func:`hole_scores`)."""
+    total = int(rows["holes_geozone"].sum())
+    drilled = int(rows["drilled_holes_geozone"].sum()) if ground != "all" else total
+    return {"all": total, "drilled": drilled, "new": total - drilled}[ground]
 
 
 def main() -> None:
