@@ -272,6 +272,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", choices=("held-out", "tuning"), default="held-out")
     parser.add_argument("--limit", type=int, default=None, help="Seeds per family (default: all held-out seeds).")
+    parser.add_argument(
+        "--first-seed",
+        type=int,
+        default=None,
+        help="Seeds from this one on (--limit of them, 8 by default) instead of --seeds: a batch no figure was read from.",
+    )
     parser.add_argument("--families", nargs="*", default=list(FAMILIES), choices=FAMILIES)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-kennecott", action="store_true")
@@ -280,12 +286,15 @@ def main() -> None:
     args = parser.parse_args()
     seeds = list(HELD_OUT_SEEDS if args.seeds == "held-out" else TUNING_SEEDS)
     seeds = seeds[: args.limit or (len(HELD_OUT_SEEDS) if args.seeds == "tuning" else len(seeds))]
+    if args.first_seed is not None:
+        seeds = list(range(args.first_seed, args.first_seed + (args.limit or len(HELD_OUT_SEEDS))))
     if args.benches < 3:
         parser.error("--benches must be 3 or more (a deepest known bench with one above it and one below)")
     jobs = [(f, s, args.benches) for f in args.families for s in seeds]
     if not args.no_kennecott and KENNECOTT.exists():
         jobs.insert(0, ("kennecott", 0, 0))  # the longest job first, so it is not the tail
-    print(f"{args.seeds} seeds {seeds}; {len(jobs)} jobs on {args.workers} processes")
+    pool = "fresh" if args.first_seed is not None else args.seeds
+    print(f"{pool} seeds {seeds}; {len(jobs)} jobs on {args.workers} processes")
     start = time.perf_counter()
     results = []
     ctx = multiprocessing.get_context("fork")
