@@ -63,15 +63,6 @@ from core.threads import Progress
 #: 95.13, every family up at both depths (pods +0.3 / +0.2, holding 63.4 / 37.3).
 SECTION_SMOOTHING_SPACINGS = 0.5
 
-#: With three benches known, where no backtest chooses how far to carry the movement
-#: (:func:`chosen_persistence`), the agreement of its two moves read as none
-#: (:func:`core.model.movement.geozone_persistence`): a still boundary's two moves share the middle bench's error with
-#: opposite signs, so section noise alone agrees at -1/2 (a reversing movement at -1). Read against 0
-#: (as the backtest's middle way is), the agreement held movements that went on: travelling waves,
-#: whose modes drift apart, agree near 0 and yet go on as they moved (development seeds 100-111 of
-#: ``bench_foreign.py``'s generator at 3-30 m a bench, three benches known: 5.5% less area wrong).
-THREE_BENCH_CHANCE = -0.5
-
 #: A boundary's outward movement (a body growing) carries on by ``continuity ** 4`` of what
 #: its persistence carries, ``continuity`` the share of the geozone's bodies that reach the next bench
 #: (:func:`body_continuity`). A lens's section widens only down to its middle and its radius
@@ -206,7 +197,7 @@ class CarriedMovement:
         One of :data:`WAYS`, or with two benches ``"outlines"`` (their one move's outlines, not its finer changes).
     chosen_by : str
         ``"backtest"`` (from the fourth bench: the way that put the fewest cells of the geozone's own benches on
-        the wrong side), ``"three benches"`` (the agreement of their two moves, read against section noise's),
+        the wrong side), ``"three benches"`` (the agreement of their two moves: no backtest to choose),
         ``"two benches"`` (one move: no agreement to read) or ``"one bench"`` (no movement; way ``"none"``).
     persistence : (float, float)
         The shares of the outlines' movement and of the finer changes carried on (paper section 4's trajectories
@@ -461,7 +452,6 @@ def assimilated(fields: BenchFields, bench_height_m: float, hole_spacing_m: floa
         above = out.through(float(out.z_m[j - 1]))
         # The trends the backtest of bench j makes (its rows kept below, not the trends): a trend kept for
         # every bench took a Kennecott build from 2.0 to 2.8 GB, and making them twice took it 58.6 -> 63 s.
-        # With three benches above, the backtest's agreement (read against 0), not chosen_persistence's.
         trends = _ways_trends(above, bench_height_m, hole_spacing_m)
         trend = _confirmed(
             above, trends[_chosen_way(above, bench_height_m, hole_spacing_m)], bench_height_m, hole_spacing_m
@@ -541,9 +531,7 @@ def carried_precision(
 def _pair_backtest(fields: BenchFields, j: int, bench_height_m: float, hole_spacing_m: float) -> tuple[int, int]:
     """Cells of bench ``j + 1``'s drilled area predicted inside from the benches down to ``j``: (confirmed, predicted).
 
-    Predicted the way :func:`_chosen_way` chose from those benches: with
-    three, the agreement read against 0, as the ways' backtests read it, not
-    against :data:`THREE_BENCH_CHANCE` as :func:`chosen_persistence` does.
+    Predicted the way :func:`_chosen_way` chose from those benches.
     """
     way = _chosen_way(fields.through(float(fields.z_m[j])), bench_height_m, hole_spacing_m)
     _, confirmed, predicted = _ways_backtest(fields, j, bench_height_m, hole_spacing_m)[way]
@@ -613,14 +601,17 @@ def chosen_persistence(
     that two moves agree little while each bench goes on as the one above it
     moved; and a contact drifting at random is held though its last two moves
     agreed by chance. With three benches the agreement alone decides, read
-    against section noise's (:data:`THREE_BENCH_CHANCE`); the backtests of
-    the benches below still try the agreement read against 0 as their middle
-    way (read otherwise there, it tied with carrying all of it and took the
-    place of the agreement of more benches: travelling waves with four benches
-    known had 2.5% more area wrong). ``progress(done, total)`` is told as each pair is backtested.
+    as with more: against 0, what two independent moves agree. Read against
+    section noise's -1/2 (a still boundary's two moves share the middle
+    bench's error with opposite signs), travelling waves with three benches
+    known were carried better (development seeds 100-111 of
+    ``bench_foreign.py`` at 3-30 m a bench: 86.2 / 70.8 F1 against 85.0 /
+    69.4 at half / one bench), but real contacts drifting at random were carried on: on
+    Kennecott's benches from 415 ft down, three benches known, 85.9 against
+    holding's 87.8 on the next bench's holes under the last one's drilling
+    (87.9 read against 0), and the families alike within 0.01.
+    ``progress(done, total)`` is told as each pair is backtested.
     """
-    if len(fields.z_m) == 3:
-        return geozone_persistence(fields, hole_spacing_m, THREE_BENCH_CHANCE)
     return _ways_to_carry(fields, hole_spacing_m)[_chosen_way(fields, bench_height_m, hole_spacing_m, progress)]
 
 

@@ -54,7 +54,7 @@ COHERENT_SHARE = 0.25
 COHERENCE = 0.8
 
 
-def geozone_persistence(fields: BenchFields, hole_spacing_m: float, chance: float = 0.0) -> tuple[float, float]:
+def geozone_persistence(fields: BenchFields, hole_spacing_m: float) -> tuple[float, float]:
     """How much of the last bench-to-bench movement carries on, for the geozone's boundary as a whole, in [0, 1].
 
     Two figures: for the movement of each outline as a whole and for the
@@ -79,11 +79,7 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float, chance: floa
     the outlines' movement (the degrees of freedom of its fit) and one per
     hole spacing of boundary for the finer changes. A geozone's movement is
     carried on as far as its benches show it beyond chance; a steady one
-    (``rho`` near 1) keeps it whatever ``N``. ``chance`` is the agreement read
-    as none, ``clip(2 (rho_low - chance), 0, 1)``: 0, what two independent
-    draws agree, or :data:`core.model.extrapolation.THREE_BENCH_CHANCE`, what a still boundary's
-    section noise agrees, where the agreement alone decides
-    (:func:`core.model.extrapolation.chosen_persistence`).
+    (``rho`` near 1) keeps it whatever ``N``.
     The two parts are judged apart because they repeat apart: a strip's
     outline moves steadily while its edges wobble from bench to bench, and a
     body splitting pinches at its neck bench after bench, which its outline's
@@ -118,25 +114,24 @@ def geozone_persistence(fields: BenchFields, hole_spacing_m: float, chance: floa
     # The band is 2 PERSISTENCE_BAND_CELLS cells wide: its cells over that are the boundary's length in cells.
     length_spacings = w.sum() / (2 * PERSISTENCE_BAND_CELLS) * h / hole_spacing_m
     return (
-        _agreement(outline1[w], outline2[w], OUTLINE_DEGREES * max(outlines, 1), chance),
-        _agreement((d1 - outline1)[w], (d2 - outline2)[w], length_spacings, chance),
+        _agreement(outline1[w], outline2[w], OUTLINE_DEGREES * max(outlines, 1)),
+        _agreement((d1 - outline1)[w], (d2 - outline2)[w], length_spacings),
     )
 
 
-def _agreement(d1: np.ndarray, d2: np.ndarray, samples: float, chance: float = 0.0) -> float:
-    """``clip(2 (rho_low - chance), 0, 1)`` of ``rho = 2 sum(d1 d2) / sum(d1^2 + d2^2)``, 1 without change.
+def _agreement(d1: np.ndarray, d2: np.ndarray, samples: float) -> float:
+    """``clip(2 rho_low, 0, 1)`` of ``rho = 2 sum(d1 d2) / sum(d1^2 + d2^2)``, 1 without change.
 
     ``rho_low`` is ``rho`` less :data:`PERSISTENCE_STANDARD_ERRORS` standard
     errors of a correlation over ``samples`` independent samples,
     ``(1 - rho^2) / sqrt(samples - 1)`` (:func:`geozone_persistence`).
-    ``chance``: the agreement read as none (:func:`geozone_persistence`).
     """
     energy = float(np.sum(d1**2 + d2**2))
     if energy <= 0:
         return 1.0
     rho = float(np.clip(2 * np.sum(d1 * d2) / energy, -1.0, 1.0))
     low = rho - PERSISTENCE_STANDARD_ERRORS * (1 - rho**2) / np.sqrt(max(samples - 1, 1.0))
-    return float(np.clip(2 * (low - chance), 0.0, 1.0))
+    return float(np.clip(2 * low, 0.0, 1.0))
 
 
 def movements_along_trajectories(
