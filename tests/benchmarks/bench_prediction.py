@@ -224,19 +224,25 @@ def print_kennecott(df: pd.DataFrame) -> None:
 
 
 def hole_scores(part: pd.DataFrame, ground: str = "all") -> dict[str, tuple[float, float]]:
-    """Per method, precision and recall on the withheld benches' holes, counts pooled over ``part``'s rows.
+    """Per method, precision and recall on the withheld benches' holes in ``ground`` (:func:`ground_counts`)."""
+    scores = {}
+    for m, rows in part.groupby("method"):
+        hit, inside, labelled = ground_counts(rows, ground)
+        scores[m] = (hit / inside if inside else np.nan, hit / labelled if labelled else np.nan)
+    return scores
+
+
+def ground_counts(rows: pd.DataFrame, ground: str = "all") -> np.ndarray:
+    """The withheld benches' holes inside and of the geozone, inside, and of the geozone, pooled over ``rows``.
 
     ``ground``: ``"all"`` the holes, ``"drilled"`` those in ground the last known bench drilled, ``"new"`` the rest.
     """
-    scores = {}
-    for m, rows in part.groupby("method"):
-        counts = rows[["holes_in_geozone", "holes_in", "holes_geozone"]].sum().to_numpy()
-        if ground != "all":
-            drilled = rows[["drilled_holes_in_geozone", "drilled_holes_in", "drilled_holes_geozone"]].sum().to_numpy()
-            counts = drilled if ground == "drilled" else counts - drilled
-        hit, inside, labelled = counts
-        scores[m] = (hit / inside if inside else np.nan, hit / labelled if labelled else np.nan)
-    return scores
+    columns = ["holes_in_geozone", "holes_in", "holes_geozone"]
+    counts = rows[columns].sum().to_numpy()
+    if ground == "all":
+        return counts
+    drilled = rows[[f"drilled_{c}" for c in columns]].sum().to_numpy()
+    return drilled if ground == "drilled" else counts - drilled
 
 
 def print_kennecott_by_depth(df: pd.DataFrame) -> None:
@@ -255,17 +261,10 @@ def print_kennecott_by_depth(df: pd.DataFrame) -> None:
             scores = {m: 100 * f1(*pr) for m, pr in hole_scores(part, ground).items()}
             best = max(REFERENCES, key=lambda m: scores[m] if np.isfinite(scores[m]) else -1)
             cases = len(part) // len(METHODS)
-            holes = _holes_counted(part[part["method"] == "model"], ground)
+            holes = int(ground_counts(part[part["method"] == "model"], ground)[2])
             line = "  ".join(f"{m} {scores[m]:5.1f}" for m in METHODS)
             margin = scores["model"] - scores[best]
             print(f"    bench {first} and deeper ({cases:2d}, {holes:5d}): {line}  margin {margin:+.1f} vs {best}")
-
-
-def _holes_counted(rows: pd.DataFrame, ground: str) -> int:
-    """The withheld benches' holes of their geozones in ``ground`` (see :func:`hole_scores`)."""
-    total = int(rows["holes_geozone"].sum())
-    drilled = int(rows["drilled_holes_geozone"].sum()) if ground != "all" else total
-    return {"all": total, "drilled": drilled, "new": total - drilled}[ground]
 
 
 def main() -> None:
