@@ -26,8 +26,8 @@ from core.synthetic.blobs import SyntheticMine
 from core.synthetic.drilling import drill_mine
 from core.synthetic.families import PLANS, compose
 
-#: Family names, in the order reports list them.
-FAMILIES: tuple[str, ...] = ("strips", "widening", "folds", "splits", "pods", "mix")
+#: Family names, in the order reports list them (that of :data:`~core.synthetic.families.PLANS`).
+FAMILIES: tuple[str, ...] = tuple(PLANS)
 #: Seeds to develop and tune on.
 TUNING_SEEDS: tuple[int, ...] = tuple(range(0, 20))
 #: Seeds to report on, never to tune on (see the module docstring).
