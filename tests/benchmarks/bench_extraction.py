@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
-import os
 import sys
 import time
 import warnings
@@ -45,11 +44,8 @@ from scipy import ndimage
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-KENNECOTT = Path(
-    os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
-)
-
 from bench_robustness import DRILLING  # noqa: E402
+from kennecott_data import KENNECOTT  # noqa: E402
 
 from core.extraction.contours import extract_contours  # noqa: E402
 from core.extraction.gvf import gvf_explicit, gvf_residual, gvf_steady_state  # noqa: E402

@@ -17,7 +17,7 @@ the held-back holes' labels, pooled over geozones (F1 of holes inside a
 geozone's predicted section that carry its label), as :mod:`bench_prediction`
 scores Kennecott. (b) should be at least (a): the first holes add evidence.
 
-Kennecott benches (``--kennecott-benches``; read from ``../shared/data`` beside
+Kennecott benches (``--kennecott-benches``; read from ``BGM_KENNECOTT`` or ``../shared/data`` beside
 the repository, skipped when absent) and the synthetic families' last bench on
 tuning seeds (``--families``, ``--seeds`` each; the host is not scored).
 """
@@ -37,13 +37,14 @@ import shapely
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+from kennecott_data import KENNECOTT  # noqa: E402
+
 from core.errors import BGMWarning  # noqa: E402
 from core.io.blastholes import Blastholes, blastholes_from_table, read_blastholes  # noqa: E402
 from core.model.session import ModelSession  # noqa: E402
 from core.synthetic.blobs import HOST  # noqa: E402
 from core.synthetic.scenarios import TUNING_SEEDS, scenario  # noqa: E402
 
-KENNECOTT = ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv"
 FAMILIES = ("strips", "widening", "folds", "splits", "pods", "mix")
 
 

@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
-import os
 import sys
 import time
 import warnings
@@ -58,11 +57,8 @@ import shapely
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-KENNECOTT = Path(
-    os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
-)
-
 from bench_partial_bench import read  # noqa: E402
+from kennecott_data import KENNECOTT  # noqa: E402
 
 from core.errors import BGMWarning  # noqa: E402
 from core.io.blastholes import Blastholes, drilled_area  # noqa: E402

@@ -11,7 +11,6 @@ correspondence; < 0.5 s per morph instance.
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 import warnings
@@ -22,13 +21,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+from kennecott_data import KENNECOTT  # noqa: E402
+
 from core.extraction.contours import extract_contours  # noqa: E402
 from core.io.blastholes import read_blastholes  # noqa: E402
 from core.model.pipeline import ModelParameters, bench_pairs, correspond, morph  # noqa: E402
-
-KENNECOTT = Path(
-    os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
-)
 
 
 def run(path: Path) -> None:

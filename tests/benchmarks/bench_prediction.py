@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import multiprocessing
-import os
 import sys
 import time
 import warnings
@@ -43,9 +42,7 @@ import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-KENNECOTT = Path(
-    os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
-)
+from kennecott_data import KENNECOTT  # noqa: E402
 
 import core.model.evaluation as evaluation  # noqa: E402
 from core.extraction.contours import extract_contours  # noqa: E402

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
-import os
 import sys
 import time
 import warnings
@@ -54,9 +53,7 @@ from scipy.spatial import cKDTree
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-KENNECOTT = Path(
-    os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
-)
+from kennecott_data import KENNECOTT  # noqa: E402
 
 from core.io.blastholes import BGMWarning, blastholes_from_table, read_blastholes  # noqa: E402
 from core.model.sampling import revealed_field, suggest_holes  # noqa: E402

@@ -29,14 +29,12 @@ warnings.simplefilter("ignore")
 os.environ.setdefault("BGM_CACHE_DIR", tempfile.mkdtemp(prefix="bgm-bench-cache-"))  # never the user's cache
 
 import numpy as np  # noqa: E402
+from kennecott_data import KENNECOTT  # noqa: E402
 
 from bgm_viewer.builders import build_scene, refresh_scene  # noqa: E402
 from bgm_viewer.model import ViewerModel, compute  # noqa: E402
 from bgm_viewer.screenshot import plotter_for  # noqa: E402
 
-KENNECOTT = Path(
-    os.environ.get("BGM_KENNECOTT", ROOT.parent / "shared" / "data" / "kennecott-blastholes" / "blastholes_tagged.csv")
-)
 #: Input, geozone and bench pair to select (Kennecott: a geozone drilled on the selected benches).
 INPUTS = {"demo": (None, "g1", 0), "kennecott": (KENNECOTT, "3310", 2)}
 #: Parameter changes timed: a snake parameter (its component is previewed first) and a boundary one.
