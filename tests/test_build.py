@@ -419,6 +419,7 @@ def test_how_far_the_movement_carries_on_is_said_in_the_inputs_units():
         "persistence": [1.0, 0.5],
         "movement_per_bench_ft": [10.0, 20.0],
         "backtest_wrong_area_ft2": {"agreement": 200.0, "all": 100.0, "none": 0.0},
+        "gaps_filled_narrower_than_ft": None,
     }
     assert carried_json(None, feet) is None and carried_line(None, "ft") == "-"
     assert (
@@ -431,6 +432,9 @@ def test_how_far_the_movement_carries_on_is_said_in_the_inputs_units():
     )
     partly = CarriedMovement("agreement", "backtest", (1.0, 0.2), None, (3.048, 3.048))
     assert carried_line(carried_json(partly, feet), "ft").startswith("as far as its last two moves agree, 10.0 ft")
+    filling = CarriedMovement("all", "backtest", (1.0, 0.5), None, (3.048, 6.096), 9.144)
+    assert carried_json(filling, feet)["gaps_filled_narrower_than_ft"] == 30.0
+    assert carried_line(carried_json(filling, feet), "ft").endswith("; gaps under 30.0 ft filled a bench below")
     held = CarriedMovement("none", "three benches", (0.0, 0.0), None, None)
     assert carried_json(held, feet)["backtest_wrong_area_ft2"] is None
     assert carried_line(carried_json(held, feet), "ft").startswith(

@@ -1993,3 +1993,67 @@ def test_a_bench_above_the_deepest_keeps_the_body_in_ground_no_bench_above_it_dr
     above = next(s for zz, s in sections if z < zz < z + 5.0 + 1e-6)
     xy, label = holes.xy[later & within], holes.geozone[later & within] == "a"
     assert shapely.contains_xy(above, xy[label, 0], xy[label, 1]).mean() > 0.8
+
+
+def test_closed_gaps_fill_a_gap_narrower_than_the_disc_and_take_nothing_away():
+    from core.geometry.grid import Grid
+    from core.geometry.sdf import closed_gaps, region_signed_distance
+
+    grid = Grid.covering((0.0, 0.0, 120.0, 60.0), 1.0)
+
+    def closed(gap_m: float) -> tuple[np.ndarray, np.ndarray]:
+        two = shapely.union_all([shapely.box(10, 10, 50, 50), shapely.box(50 + gap_m, 10, 90 + gap_m, 50)])
+        distance = region_signed_distance(grid, two)
+        return distance, closed_gaps(distance, 3.0, grid.cell_size_m)
+
+    distance, narrow = closed(4.0)  # a gap 4 m wide, the disc 6 m across: filled
+    middle = grid.nearest_cells(np.array([[52.0, 30.0]]))[0]
+    assert distance[tuple(middle)] < 0 < narrow[tuple(middle)]
+    assert np.all(narrow[distance > 0] > 0)  # nothing taken away
+    distance, wide = closed(10.0)  # 10 m: the two stay apart, and nothing else changes but a cell's rounding
+    assert wide[tuple(grid.nearest_cells(np.array([[55.0, 30.0]]))[0])] < 0
+    assert abs(np.sum(wide > 0) - np.sum(distance > 0)) <= 0.01 * np.sum(distance > 0)
+
+
+def _notched_disc(angle_deg: float, width_m: float = 12.0):
+    """A disc 60 m in radius with a slot ``width_m`` wide cut into it from its rim 30 m towards its centre."""
+    u = np.array([np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))])
+    n = np.array([-u[1], u[0]])
+    c = np.array([100.0, 80.0])
+    slot = shapely.Polygon([c + s * u + t * width_m / 2 * n for s, t in ((30, -1), (70, -1), (70, 1), (30, 1))])
+    return Point(*c).buffer(60.0).difference(slot)
+
+
+def test_a_gap_each_bench_shows_and_the_next_fills_is_filled_below_the_deepest_bench():
+    """Each bench's section has a slot two spacings wide where the bench below has none (it has its own elsewhere):
+    the benches' backtest finds their gaps filling, and the deepest bench's slot is predicted filled a bench below.
+    A split whose gap opens every bench keeps it (its backtest finds a filled gap wrong)."""
+    from core.model.extrapolation import carried_movement
+
+    sections = [_notched_disc(60.0 * k + 15.0) for k in range(6)]
+    holes = _bench_table(sections)
+    predicted, nil, truth = _predict_next(holes, sections, 5)
+    said = carried_movement(*_fields_of(holes, 5))
+    assert said.gaps_filled_m == pytest.approx(3 * holes.hole_spacing_m), said
+    # The deepest bench's slot (the part the next bench has of the geozone) is predicted in the geozone.
+    slot = shapely.affinity.translate(Point(100, 80).buffer(59.0), *_design_to_local(holes)).difference(
+        shapely.affinity.translate(sections[4], *_design_to_local(holes))
+    )
+    filled = slot.intersection(truth)
+    assert filled.area > 300.0  # the slot, less the next bench's own
+    assert predicted.intersection(filled).area > 0.7 * filled.area, predicted.intersection(filled).area / filled.area
+    assert nil.intersection(filled).area < 0.3 * filled.area
+    within = holes.drilled_area(5)
+    assert _f1(predicted, truth, within) > _f1(nil, truth, within)  # and nothing lost elsewhere for it
+
+    split = [
+        shapely.union_all([Point(100 - 8 * k, 80).buffer(22), Point(100 + 8 * k, 80).buffer(22)]) for k in range(5)
+    ]
+    splitting = _bench_table(split)
+    assert carried_movement(*_fields_of(splitting, 4)).gaps_filled_m == 0.0
+
+
+def _fields_of(holes, known_benches):
+    """The bench fields, bench height and spacing of geozone ``a`` on the first ``known_benches`` benches."""
+    model = model_geozone(holes.subset(holes.bench < known_benches), "a")
+    return model.fields, model.fields.bench_height_m, holes.hole_spacing_m

@@ -121,14 +121,18 @@ def carried_line(carried: dict | None, unit: str) -> str:
         return "-"
     moved = carried[f"movement_per_bench_{unit}"]
     how_far = "" if moved is None else f", {moved[0]:.1f} {unit} a bench"
-    return f"{carried_words(carried)}{how_far} (chosen by {CHOSEN_WORDS[carried['chosen_by']]})"
+    gaps = carried.get(f"gaps_filled_narrower_than_{unit}")
+    filled = f"; gaps under {gaps:.1f} {unit} filled a bench below" if gaps else ""
+    return f"{carried_words(carried)}{how_far} (chosen by {CHOSEN_WORDS[carried['chosen_by']]}){filled}"
 
 
 def carried_json(carried, holes: Blastholes) -> dict | None:
     """A :class:`core.model.extrapolation.CarriedMovement` as ``bgm build``'s summary and ``bgm predict`` give it.
 
     Lengths and areas in the input's units (``movement_per_bench_<unit>``: median and 90th percentile;
-    ``backtest_wrong_area_<unit>2``: per way, None before the fourth bench). None stays None (no bench pair).
+    ``backtest_wrong_area_<unit>2``: per way, None before the fourth bench; ``gaps_filled_narrower_than_<unit>``:
+    the deepest section's gaps narrower than that are filled a bench below, None where its backtest did not choose
+    it). None stays None (no bench pair).
     """
     if carried is None:
         return None
@@ -144,6 +148,9 @@ def carried_json(carried, holes: Blastholes) -> dict | None:
         f"backtest_wrong_area_{unit}2": None
         if wrong is None
         else {w: round(float(to_input(to_input(a))), 1) for w, a in wrong.items()},
+        f"gaps_filled_narrower_than_{unit}": round(float(to_input(carried.gaps_filled_m)), 2)
+        if carried.gaps_filled_m > 0
+        else None,
     }
 
 

@@ -22,7 +22,7 @@ from scipy import ndimage
 from shapely.geometry import MultiPolygon
 
 from core.geometry.grid import Grid, local_gaussian_filter, without_specks
-from core.geometry.sdf import smoothed_section
+from core.geometry.sdf import closed_gaps, smoothed_section
 from core.model.fields import TRANSPORTS_MEMO, BenchFields, parts_touching
 from core.model.movement import unit_normals
 
@@ -119,6 +119,8 @@ class DepthTrend:
     #: ground is carried from this section at the first holes' cells (:attr:`_older_section`). None: not kept.
     f_above: np.ndarray | None = None
     section_smoothing_m: float = 0.0
+    #: The disc the carried section is closed by a bench below the deepest (:meth:`gaps_closed`), metres; 0: none.
+    gap_closing_m: float = 0.0
 
     def movement(self, z_m: float) -> np.ndarray:
         """Metres the boundary moves outwards from ``z_last`` to ``z_m``, per cell."""
@@ -159,7 +161,21 @@ class DepthTrend:
             older, filled = seam
             field = np.where(older, self._transported(filled, self._older_section), field)
         field = np.where(self.ended(z_m), np.minimum(field, self.f_deepest), field)
-        return self._evidenced(field)
+        return self._evidenced(self.gaps_closed(field, z_m))
+
+    def gaps_closed(self, field: np.ndarray, z_m: float) -> np.ndarray:
+        """``field`` at ``z_m`` closed by a disc growing from none at the deepest bench to :attr:`gap_closing_m` a bench below.
+
+        A gap or embayment of the deepest section a few spacings wide rests on the one or two holes across it, and
+        where the geozone's own benches showed such gaps filling below (:func:`core.model.extrapolation.gap_closing_m`)
+        they are filled: by half-way down the first bench below those half as wide (:func:`core.geometry.sdf.closed_gaps`),
+        from a bench below all those narrower than the disc's diameter. The disc grows from none at the deepest
+        bench's level, where the section is the one its holes show, so a surface through the two has no ledge.
+        """
+        benches_below = (self.z_ref_m - z_m) / self.bench_height_m
+        if self.gap_closing_m <= 0 or benches_below <= 0:
+            return field
+        return closed_gaps(field, self.gap_closing_m * min(benches_below, 1.0), self.grid.cell_size_m)
 
     def _seam_filled(self, movement: np.ndarray, z_m: float) -> tuple[np.ndarray, np.ndarray] | None:
         """At a partly drilled deepest bench's level, its older ground and ``movement`` with the seam filled.
