@@ -591,12 +591,12 @@ def _ways_trends(known: BenchFields, bench_height_m: float, hole_spacing_m: floa
     return _trends(known, bench_height_m, hole_spacing_m, list(ways if len(known.z_m) >= 3 else ways[:1]))
 
 
-def _backtest_rows(fields: BenchFields, j: int, trends: list[DepthTrend], gap_closing_m: float = 0.0) -> np.ndarray:
+def _backtest_rows(fields: BenchFields, j: int, trends: list[DepthTrend], closing_m: float = 0.0) -> np.ndarray:
     """:func:`_ways_backtest`'s rows of bench ``j + 1`` predicted by ``trends`` (from the benches down to ``j``).
 
     Per trend: the cells put on the wrong side where ``j`` and ``j + 1`` both drilled, the cells of ``j + 1``'s
     drilled area predicted inside that it confirmed, and all of them; then, with its gaps closed by
-    ``gap_closing_m`` (:meth:`DepthTrend.gaps_closed`; none with 0), the cells put on the wrong side and the cells
+    ``closing_m`` (:meth:`DepthTrend.gaps_closed`; none with 0), the cells put on the wrong side and the cells
     where the closing changed the side (both where ``j`` and ``j + 1`` drilled; :func:`gap_closing_m`).
     """
     z_next = float(fields.z_m[j + 1])
@@ -606,7 +606,7 @@ def _backtest_rows(fields: BenchFields, j: int, trends: list[DepthTrend], gap_cl
     for trend in trends:
         field = trend.field(z_next)
         p = field > 0
-        closed = trend.replaced(gap_closing_m=gap_closing_m).gaps_closed(field, z_next) > 0 if gap_closing_m else p
+        closed = trend.replaced(gap_closing_m=closing_m).gaps_closed(field, z_next) > 0 if closing_m else p
         rows.append(
             [
                 np.sum((p != inside) & both),
