@@ -57,7 +57,9 @@ def test_build_writes_every_output(built):
         assert carried["way"] in ("agreement", "all", "none") and carried["chosen_by"] == "backtest", g["geozone"]
         wrong = carried["backtest_wrong_area_m2"]
         assert set(wrong) == {"agreement", "all", "none"} and wrong[carried["way"]] == min(wrong.values())
-        assert f"| {g['geozone']} | " in section
+        row = next(line for line in section.splitlines() if line.startswith(f"| {g['geozone']} | "))
+        gaps = carried["gaps_filled_narrower_than_m"]  # three spacings where chosen, else none said
+        assert row.endswith("|  |" if gaps is None else f"| {gaps:.1f} |"), row
 
 
 def test_the_next_bench_the_report_samples_has_its_band_in_the_uncertainty_file(small_mine_csv, tmp_path):

@@ -1164,21 +1164,25 @@ def _carried_section(summary: dict) -> list[str]:
         "Each geozone's boundary moves on below the deepest bench as its benches moved, as far as they show it "
         "(trajectories give the movement, the geozone's own benches how much of it goes on: each bench predicted "
         "from the benches above it each way, the way with the least area on the wrong side taken). Movement: how "
-        "far the deepest section's boundary moves a bench down (median / 90th percentile).",
+        "far the deepest section's boundary moves a bench down (median / 90th percentile). Gaps filled: the "
+        "deepest section's gaps and embayments narrower than this are filled a bench below, where the benches "
+        "showed such gaps filling (the same backtest, with and without).",
         "",
         f"| geozone | movement carried | chosen by | persistence (outlines / finer) | movement a bench ({unit}) "
-        f"| backtest: area wrong, agreement / all / none ({unit}²) |",
-        "|---|---|---|---|---|---|",
+        f"| backtest: area wrong, agreement / all / none ({unit}²) | gaps filled under ({unit}) |",
+        "|---|---|---|---|---|---|---|",
     ]
     for g in rows:
         c = g["carried"]
         moved = c[f"movement_per_bench_{unit}"]
         wrong = c[f"backtest_wrong_area_{unit}2"]
+        gaps = c[f"gaps_filled_narrower_than_{unit}"]
         lines.append(
             f"| {_cell(g['geozone'])} | {carried_words(c)} | {CHOSEN_WORDS[c['chosen_by']]} | "
             f"{c['persistence'][0]:.2f} / {c['persistence'][1]:.2f} | "
             f"{'' if moved is None else f'{moved[0]:.1f} / {moved[1]:.1f}'} | "
-            f"{'' if wrong is None else ' / '.join(f'{wrong[w]:.0f}' for w in ('agreement', 'all', 'none'))} |"
+            f"{'' if wrong is None else ' / '.join(f'{wrong[w]:.0f}' for w in ('agreement', 'all', 'none'))} | "
+            f"{'' if gaps is None else f'{gaps:.1f}'} |"
         )
     return [*lines, ""]
 
