@@ -39,7 +39,7 @@ from scipy import ndimage
 from shapely.geometry import MultiPolygon
 
 from core.geometry.sdf import smoothed_section
-from core.model.fields import CAP_SPACINGS, MIN_DIP_DEG, OBSERVED_MEMO, BenchFields, memoised
+from core.model.fields import CAP_SPACINGS, MIN_DIP_DEG, OBSERVED_MEMO, BenchFields, better_beyond_chance, memoised
 from core.model.movement import (
     MOVEMENTS_MEMO,
     fastest_movement_m,
@@ -698,10 +698,9 @@ def gap_closing_m(fields: BenchFields, bench_height_m: float, hole_spacing_m: fl
     pair down, each bench ``j + 1`` predicted from the benches down to ``j`` the way the benches chose, as
     it is and with its gaps closed by :data:`GAP_CLOSING_SPACINGS` (:func:`_backtest_rows`). The closing is
     taken where, summed over the pairs, it put fewer cells on the wrong side, by more than
-    :data:`GAP_CLOSING_DEVIATIONS` standard deviations of chance: of the ``d`` holes' worth of cells where the
-    closing changed the side, each is right about half the time by chance, and the difference in holes wrong
-    has a standard deviation of ``sqrt(d)`` (a hole's worth: a spacing squared). 0 with fewer than three
-    benches, or where the closing did not gain by that much.
+    :data:`GAP_CLOSING_DEVIATIONS` standard deviations of chance over the holes' worth of cells where the
+    closing changed the side (:func:`core.model.fields.better_beyond_chance`; a hole's worth: a spacing
+    squared). 0 with fewer than three benches, or where the closing did not gain by that much.
     """
     n = len(fields.z_m)
     if n < 3:
@@ -709,12 +708,13 @@ def gap_closing_m(fields: BenchFields, bench_height_m: float, hole_spacing_m: fl
     known = with_backtested_dip(fields, bench_height_m, hole_spacing_m)
     way = _chosen_way(known, bench_height_m, hole_spacing_m)
     rows = [_ways_backtest(fields, j, bench_height_m, hole_spacing_m) for j in range(1, n - 1)]
-    wrong, wrong_closed, changed = np.sum([r[min(way, len(r) - 1), [0, 3, 4]] for r in rows], axis=0)
-    cells_per_hole = (hole_spacing_m / fields.grid.cell_size_m) ** 2
-    gain = (wrong - wrong_closed) / cells_per_hole
-    if gain > 0 and gain > GAP_CLOSING_DEVIATIONS * np.sqrt(changed / cells_per_hole):
-        return GAP_CLOSING_SPACINGS * hole_spacing_m
-    return 0.0
+    cells = np.sum([r[min(way, len(r) - 1), [0, 3, 4]] for r in rows], axis=0)  # wrong, wrong closed, changed
+    wrong, wrong_closed, changed = cells / (hole_spacing_m / fields.grid.cell_size_m) ** 2
+    return (
+        GAP_CLOSING_SPACINGS * hole_spacing_m
+        if better_beyond_chance(wrong, wrong_closed, changed, GAP_CLOSING_DEVIATIONS)
+        else 0.0
+    )
 
 
 def _ways_to_carry(fields: BenchFields, hole_spacing_m: float) -> tuple[tuple[float, float], ...]:

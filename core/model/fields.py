@@ -373,6 +373,18 @@ def body_size_m(bodies: list[np.ndarray], cell_size_m: float) -> float:
     return 2.0 * float(np.sqrt(np.sum(a**2) / np.sum(a) / np.pi)) * cell_size_m
 
 
+def better_beyond_chance(wrong: float, other_wrong: float, differ: float, deviations: float) -> bool:
+    """Whether a backtest's other prediction put fewer holes wrong than ``wrong``, by more than chance.
+
+    ``differ``: the holes (or holes' worth of cells) where the two predictions disagree. On each of them one of the
+    two is right, by chance either about half the time, so the difference in holes wrong has a standard deviation of
+    ``sqrt(differ)``; the other is better where it had fewer wrong by more than ``deviations`` of them, never
+    without a hole where they disagreed. The implicit model in new ground (:func:`core.model.new_ground.implicit_chosen`)
+    and a section's gaps filled (:func:`core.model.extrapolation.gap_closing_m`) are chosen by it.
+    """
+    return bool(differ > 0 and wrong - other_wrong > deviations * np.sqrt(differ))
+
+
 def memoised(fields: BenchFields, key: tuple, compute):
     """``fields.memo[key]``, computed once (``key`` names what it rests on: the first benches, see :class:`BenchFields`)."""
     if key not in fields.memo:

@@ -32,7 +32,7 @@ from core.geometry.grid import as_multipolygon, without_specks
 from core.geometry.sdf import region_signed_distance
 from core.io.blastholes import Blastholes, typical_bench_height
 from core.model.extrapolation import depth_trend_region
-from core.model.fields import BenchFields, memoised
+from core.model.fields import BenchFields, better_beyond_chance, memoised
 from core.model.implicit import ImplicitRBF, fit_implicit_rbf
 from core.model.movement import reaching_bench
 from core.model.trend import STALE_AT_DEEPEST_BENCHES
@@ -219,7 +219,7 @@ def implicit_chosen(errors: list[tuple[int, int, int]], deviations: float = NEW_
     where they disagreed.
     """
     model_wrong, implicit_wrong, disagree = (sum(e[i] for e in errors) for i in range(3))
-    return bool(disagree > 0 and model_wrong - implicit_wrong > deviations * np.sqrt(disagree))
+    return better_beyond_chance(model_wrong, implicit_wrong, disagree, deviations)
 
 
 def implicit_in_new_ground(
